@@ -1,0 +1,137 @@
+//! Kalman filter and extended Kalman filter.
+//!
+//! ```text
+//! predict:  x⁻ = f(x),             P⁻ = F P Fᵀ + Q                    [BLK01] eq. (5.2.3-5), (5.2.3-9)
+//! update:   ν  = z ⊖ h(x⁻),        S  = H P⁻ Hᵀ + R                   [BLK01] eq. (5.2.3-13), (5.2.3-15)
+//!           K  = P⁻ Hᵀ S⁻¹  (Cholesky solve, never an explicit inverse)   eq. (5.2.3-11)
+//!           x  = x⁻ + K ν
+//!           P  = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ  (Joseph form)      eq. (5.2.3-18)
+//! ```
+//! The Joseph form keeps P symmetric positive semi-definite for any gain; P is symmetrised after
+//! every step. For the EKF, F and H are the Jacobians at x and x⁻ ([BLK01] §10.3.2).
+//!
+//! # References
+//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//!   Navigation*, Wiley 2001.
+#![allow(non_snake_case)]
+
+use nalgebra::{SMatrix, SVector};
+
+use super::{Predictor, Updater};
+use crate::Result;
+use crate::linalg::{cholesky, ensure_finite, symmetrize};
+use crate::measurement::{LinearMeasurement, MeasurementModel};
+use crate::motion::{LinearTransition, TransitionModel};
+use crate::state::{Gaussian, Posterior};
+
+/// Linear Kalman filter: needs linear models.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Kalman;
+
+/// Extended Kalman filter: first-order linearisation about the current estimate.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Extended;
+
+/// `P⁻ = F P Fᵀ + Q`, symmetrised and checked.
+fn propagate<const N: usize>(
+    mean: SVector<f64, N>,
+    F: &SMatrix<f64, N, N>,
+    P: &SMatrix<f64, N, N>,
+    Q: &SMatrix<f64, N, N>,
+) -> Result<Gaussian<N>> {
+    ensure_finite(&mean, "predicted mean")?;
+    let cov = symmetrize(&(F * P * F.transpose() + Q));
+    ensure_finite(&cov, "predicted covariance")?;
+    Ok(Gaussian { mean, cov })
+}
+
+impl<T: LinearTransition<N>, const N: usize> Predictor<T, N> for Kalman {
+    type State = Gaussian<N>;
+    /// `x⁻ = F x`, `P⁻ = F P Fᵀ + Q` ([BLK01] eq. (5.2.3-5), (5.2.3-9)).
+    fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
+        let F = model.matrix(dt);
+        propagate(F * prior.mean, &F, &prior.cov, &model.covar(dt))
+    }
+}
+
+impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for Extended {
+    type State = Gaussian<N>;
+    /// `x⁻ = f(x)`, `P⁻ = F P Fᵀ + Q` with `F = ∂f/∂x(x)` ([BLK01] §10.3.2).
+    fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
+        let F = model.jacobian(&prior.mean, dt);
+        propagate(
+            model.function(&prior.mean, dt),
+            &F,
+            &prior.cov,
+            &model.covar(dt),
+        )
+    }
+}
+
+/// The Joseph-form Kalman update shared by the KF, EKF and the filters built on them.
+///
+/// Given the predicted state, the innovation `ν = z ⊖ ẑ`, the (linearised) measurement matrix `H`
+/// and the noise covariance `R`:
+/// `S = H P⁻ Hᵀ + R`, `K = P⁻ Hᵀ S⁻¹` (Cholesky solve), `x = x⁻ + K ν`,
+/// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ` ([BLK01] eq. (5.2.3-18)), symmetrised.
+pub fn joseph_update<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    innovation: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    R: &SMatrix<f64, M, M>,
+) -> Result<Posterior<Gaussian<N>, M>> {
+    ensure_finite(&innovation, "innovation")?;
+    ensure_finite(H, "measurement Jacobian")?;
+    let P = &predicted.cov;
+    let PHt = P * H.transpose();
+    // S = H P Hᵀ + R
+    let S = symmetrize(&(H * PHt + R));
+    let chol = cholesky(&S, "innovation covariance")?;
+    // K = P Hᵀ S⁻¹  ⇔  Kᵀ = S⁻¹ H P  (P symmetric)
+    let K = chol.solve(&PHt.transpose()).transpose();
+    let mean = predicted.mean + K * innovation;
+    let I_KH = SMatrix::<f64, N, N>::identity() - K * H;
+    // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ
+    let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R * K.transpose()));
+    ensure_finite(&mean, "updated mean")?;
+    ensure_finite(&cov, "updated covariance")?;
+    Ok(Posterior {
+        state: Gaussian { mean, cov },
+        innovation,
+        innovation_cov: S,
+    })
+}
+
+impl<H: LinearMeasurement<N, M>, const N: usize, const M: usize> Updater<H, N, M> for Kalman {
+    type State = Gaussian<N>;
+    /// Joseph-form KF update, see [`joseph_update`].
+    fn update(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+        z: &SVector<f64, M>,
+    ) -> Result<Posterior<Gaussian<N>, M>> {
+        let Hm = model.matrix();
+        let nu = model.residual(z, &(Hm * predicted.mean));
+        joseph_update(predicted, nu, &Hm, &model.covar())
+    }
+}
+
+impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M> for Extended {
+    type State = Gaussian<N>;
+    /// EKF update: `ν = z ⊖ h(x⁻)`, `H = ∂h/∂x(x⁻)`, then [`joseph_update`] ([BLK01] §10.3.2).
+    fn update(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+        z: &SVector<f64, M>,
+    ) -> Result<Posterior<Gaussian<N>, M>> {
+        let nu = model.residual(z, &model.function(&predicted.mean));
+        joseph_update(
+            predicted,
+            nu,
+            &model.jacobian(&predicted.mean),
+            &model.covar(),
+        )
+    }
+}

@@ -1,0 +1,99 @@
+//! Small numerical helpers shared by the filters: symmetrisation, Cholesky solves, angle wrapping.
+//!
+//! All of them work on statically sized nalgebra types and never allocate.
+
+use std::f64::consts::{PI, TAU};
+
+use nalgebra::{Cholesky, Const, SMatrix, SVector};
+
+use crate::{EstimationError, Result};
+
+/// Wraps an angle to `[-π, π)` (FORMAT.md §1).
+#[inline]
+pub fn wrap_angle(a: f64) -> f64 {
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    // rem_euclid can round up to TAU for tiny negative inputs; keep the half-open interval.
+    if w >= PI { w - TAU } else { w }
+}
+
+/// `(A + Aᵀ) / 2`: removes the asymmetry that rounding leaves in a covariance.
+#[inline]
+pub fn symmetrize<const N: usize>(a: &SMatrix<f64, N, N>) -> SMatrix<f64, N, N> {
+    (a + a.transpose()) * 0.5
+}
+
+/// Cholesky factorisation of an SPD matrix, or [`EstimationError::NotPositiveDefinite`] naming `what`.
+#[inline]
+pub fn cholesky<const N: usize>(
+    a: &SMatrix<f64, N, N>,
+    what: &'static str,
+) -> Result<Cholesky<f64, Const<N>>> {
+    if !a.iter().all(|v| v.is_finite()) {
+        return Err(EstimationError::NonFinite(what));
+    }
+    Cholesky::new(*a).ok_or(EstimationError::NotPositiveDefinite(what))
+}
+
+/// Checks that every element is finite.
+#[inline]
+pub fn ensure_finite<const R: usize, const C: usize>(
+    a: &SMatrix<f64, R, C>,
+    what: &'static str,
+) -> Result<()> {
+    if a.iter().all(|v| v.is_finite()) {
+        Ok(())
+    } else {
+        Err(EstimationError::NonFinite(what))
+    }
+}
+
+/// `vᵀ A⁻¹ v` through a Cholesky solve (never an explicit inverse).
+#[inline]
+pub fn mahalanobis_sq<const N: usize>(
+    v: &SVector<f64, N>,
+    a: &SMatrix<f64, N, N>,
+    what: &'static str,
+) -> Result<f64> {
+    let chol = cholesky(a, what)?;
+    Ok(v.dot(&chol.solve(v)))
+}
+
+/// `ln det A` of an SPD matrix from its Cholesky factor.
+#[inline]
+pub fn ln_det<const N: usize>(chol: &Cholesky<f64, Const<N>>) -> f64 {
+    2.0 * chol
+        .l_dirty()
+        .diagonal()
+        .iter()
+        .map(|d| d.ln())
+        .sum::<f64>()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use approx::assert_relative_eq;
+
+    #[test]
+    fn wrap_is_half_open() {
+        assert_relative_eq!(wrap_angle(PI), -PI);
+        assert_relative_eq!(wrap_angle(-PI), -PI);
+        assert_relative_eq!(wrap_angle(3.0 * PI + 0.1), -PI + 0.1, epsilon = 1e-12);
+        assert_relative_eq!(wrap_angle(-0.1), -0.1);
+        assert!(wrap_angle(-1e-18) < PI);
+    }
+
+    #[test]
+    fn cholesky_rejects_indefinite_and_nan() {
+        let m = SMatrix::<f64, 2, 2>::new(1.0, 2.0, 2.0, 1.0);
+        assert_eq!(
+            cholesky(&m, "m").unwrap_err(),
+            EstimationError::NotPositiveDefinite("m")
+        );
+        let n = SMatrix::<f64, 2, 2>::new(f64::NAN, 0.0, 0.0, 1.0);
+        assert_eq!(
+            cholesky(&n, "n").unwrap_err(),
+            EstimationError::NonFinite("n")
+        );
+    }
+}
