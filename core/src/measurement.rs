@@ -120,6 +120,44 @@ impl<const N: usize, const M: usize> LinearMeasurement<N, M> for Position<M> {
     }
 }
 
+/// Direct observation of the first M state components (the position block of a kinematic layout):
+/// `z = [I 0] x + v`, `v ~ N(0, diag(std²))` — [ESE] eqs. (6) and (12) for one or more angle axes.
+/// Components are plain differences (unwrap angles before using it).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DirectPosition<const M: usize> {
+    r: SMatrix<f64, M, M>,
+}
+
+impl<const M: usize> DirectPosition<M> {
+    /// Observation of the first M components with noise standard deviations `std`.
+    pub fn new(std: [f64; M]) -> Self {
+        Self {
+            r: SMatrix::<f64, M, M>::from_diagonal(&SVector::<f64, M>::from_fn(|i, _| {
+                std[i] * std[i]
+            })),
+        }
+    }
+}
+
+impl<const N: usize, const M: usize> MeasurementModel<N, M> for DirectPosition<M> {
+    fn function(&self, x: &SVector<f64, N>) -> SVector<f64, M> {
+        LinearMeasurement::<N, M>::matrix(self) * x
+    }
+    fn jacobian(&self, _x: &SVector<f64, N>) -> SMatrix<f64, M, N> {
+        self.matrix()
+    }
+    fn covar(&self) -> SMatrix<f64, M, M> {
+        self.r
+    }
+}
+
+impl<const N: usize, const M: usize> LinearMeasurement<N, M> for DirectPosition<M> {
+    fn matrix(&self) -> SMatrix<f64, M, N> {
+        const { assert!(N >= M, "the state must contain the observed components") };
+        SMatrix::<f64, M, N>::from_fn(|i, j| if i == j { 1.0 } else { 0.0 })
+    }
+}
+
 /// Azimuth `atan2(dE, dN)` and its gradient with respect to d = (dE, dN, dU).
 #[inline]
 fn azimuth(d: &Vector3<f64>) -> (f64, Matrix1x3<f64>) {

@@ -137,6 +137,10 @@ pub struct NeesSummary {
     pub n: usize,
 }
 
+/// One-step-ahead prediction errors of one measurement kind: `(vs truth, vs measurement)`, one
+/// vector of components per epoch.
+type PredictionErrors = (Vec<Vec<f64>>, Vec<Vec<f64>>);
+
 fn nees_summary(v: &[f64], dof: usize) -> Option<NeesSummary> {
     if v.is_empty() || dof == 0 {
         return None;
@@ -288,7 +292,8 @@ pub fn score(
     let mut mode_err: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let (mut nf, mut np, mut dof_f, mut dof_p) = (Vec::new(), Vec::new(), 0, 0);
     let (mut contain, mut volumes, mut ell_dims) = (Vec::new(), Vec::new(), Vec::new());
-    let mut pred: BTreeMap<MeasKind, (Vec<Vec<f64>>, Vec<Vec<f64>>)> = BTreeMap::new();
+    // Per kind: prediction errors against the noise-free truth and against the measurement.
+    let mut pred: BTreeMap<MeasKind, PredictionErrors> = BTreeMap::new();
 
     for e in est {
         if e.t < t_start - 1e-9 {

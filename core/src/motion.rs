@@ -179,6 +179,61 @@ impl<const N: usize> LinearTransition<N> for ConstantTurn<N> {
     }
 }
 
+/// Nearly-constant acceleration in the discrete Wiener-process acceleration form ([BLK01] §6.3.3),
+/// the CA model of [ESE] §4. State `[p; v; a]` in blocks of D = N/3 axes, as in
+/// [`ConstantAcceleration`]:
+///
+/// ```text
+/// F = [I  T·I  T²/2·I]      Q = σ² Γ Γᵀ ⊗ I,   Γ = [T²/2, T, 1]ᵀ
+///     [0   I     T·I ]
+///     [0   0      I  ]
+/// ```
+///
+/// σ is the standard deviation of the acceleration increment over one sampling period (units of the
+/// position per s², per step). Unlike a continuous-time density it does not rescale with T.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WienerAcceleration<const N: usize> {
+    /// Std σ of the acceleration increment per sampling period.
+    pub sigma: f64,
+}
+
+impl<const N: usize> WienerAcceleration<N> {
+    /// Discrete Wiener-process acceleration model with increment std `sigma`.
+    pub fn new(sigma: f64) -> Self {
+        const { assert!(N % 3 == 0, "CA state is [position; velocity; acceleration]") };
+        Self { sigma }
+    }
+}
+
+impl<const N: usize> TransitionModel<N> for WienerAcceleration<N> {
+    fn function(&self, x: &SVector<f64, N>, dt: f64) -> SVector<f64, N> {
+        self.matrix(dt) * x
+    }
+    fn jacobian(&self, _x: &SVector<f64, N>, dt: f64) -> SMatrix<f64, N, N> {
+        self.matrix(dt)
+    }
+    fn covar(&self, dt: f64) -> SMatrix<f64, N, N> {
+        let d = N / 3;
+        let gamma = [0.5 * dt * dt, dt, 1.0];
+        let s2 = self.sigma * self.sigma;
+        let mut q = SMatrix::<f64, N, N>::zeros();
+        for (i, gi) in gamma.iter().enumerate() {
+            for (j, gj) in gamma.iter().enumerate() {
+                for a in 0..d {
+                    q[(i * d + a, j * d + a)] = s2 * gi * gj;
+                }
+            }
+        }
+        q
+    }
+}
+
+impl<const N: usize> LinearTransition<N> for WienerAcceleration<N> {
+    fn matrix(&self, dt: f64) -> SMatrix<f64, N, N> {
+        kinematic_matrix::<N, 3>(dt)
+    }
+}
+
 /// Block transition matrix of a K-th order kinematic chain (K = 2: CV, K = 3: CA), D = N/K axes.
 fn kinematic_matrix<const N: usize, const K: usize>(dt: f64) -> SMatrix<f64, N, N> {
     let d = N / K;
@@ -264,5 +319,25 @@ mod tests {
         // ω → 0 is CV.
         let z = ConstantTurn::<4>::new(0.0, 0.0).matrix(3.0);
         assert_relative_eq!(z, ConstantVelocity::<4>::new(0.0).matrix(3.0));
+    }
+
+    #[test]
+    fn wiener_acceleration_matrices() {
+        let m = WienerAcceleration::<3>::new(2.0);
+        let f = m.matrix(0.5);
+        assert_relative_eq!(
+            f,
+            nalgebra::Matrix3::new(1.0, 0.5, 0.125, 0.0, 1.0, 0.5, 0.0, 0.0, 1.0)
+        );
+        // Same F as the continuous-time CA model.
+        assert_relative_eq!(f, ConstantAcceleration::<3>::new(1.0).matrix(0.5));
+        let g = nalgebra::Vector3::new(0.125, 0.5, 1.0);
+        assert_relative_eq!(m.covar(0.5), g * g.transpose() * 4.0);
+        // Two axes: blocks [p1 p2 v1 v2 a1 a2].
+        let m6 = WienerAcceleration::<6>::new(1.0);
+        let q6 = m6.covar(2.0);
+        assert_relative_eq!(q6[(1, 5)], 2.0); // T²/2 · 1 for axis 2
+        assert_relative_eq!(q6[(0, 1)], 0.0);
+        assert_relative_eq!(m6.matrix(2.0)[(1, 3)], 2.0);
     }
 }

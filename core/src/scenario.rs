@@ -808,10 +808,7 @@ pub fn truth_at(truth: &[TruthRow], t: f64) -> Option<([f64; 6], &str, bool)> {
     }
     let (a, b) = (&truth[i - 1], &truth[i]);
     let w = (t - a.t) / (b.t - a.t);
-    let mut s = [0.0; 6];
-    for k in 0..6 {
-        s[k] = (1.0 - w) * a.state[k] + w * b.state[k];
-    }
+    let s: [f64; 6] = std::array::from_fn(|k| (1.0 - w) * a.state[k] + w * b.state[k]);
     Some((s, &a.mode, false))
 }
 

@@ -109,6 +109,14 @@ pub static ESTIMATORS: &[EstimatorInfo] = &[
     estimators::gaussian::KF,
     estimators::gaussian::EKF,
     estimators::gaussian::CDKF,
+    estimators::angles::CA_KF,
+    estimators::angles::STF,
+    estimators::angles::ESE,
+    estimators::obe::OBE,
+    estimators::obe::OBE_TRACE,
+    estimators::icdkf::ICDKF,
+    estimators::icdkf::ICDKF_GENERAL,
+    estimators::bias::CDKF_BIAS,
 ];
 
 /// Looks up `name` and builds it for `sc`, rejecting unknown parameters.

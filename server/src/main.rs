@@ -39,17 +39,21 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// List the estimators and their parameters.
-    Estimators,
+    /// List the estimators, one line each.
+    Estimators {
+        /// Also list each estimator's `--param` names.
+        #[arg(long)]
+        params: bool,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Estimators => {
+        Command::Estimators { params } => {
             for e in ESTIMATORS {
                 println!("{:<14} {}", e.name, e.summary);
-                for (p, d) in e.params {
+                for (p, d) in e.params.iter().filter(|_| params) {
                     println!("{:<14}   --param {p}=…  {d}", "");
                 }
             }

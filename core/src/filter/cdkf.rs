@@ -70,30 +70,100 @@ impl CentralDifference {
         g: impl Fn(&SVector<f64, N>) -> SVector<f64, Y>,
         diff: impl Fn(&SVector<f64, Y>, &SVector<f64, Y>) -> SVector<f64, Y>,
     ) -> Result<(SVector<f64, Y>, SMatrix<f64, Y, Y>, SMatrix<f64, N, Y>)> {
-        let h = self.h;
-        let h2 = h * h;
         let L = cholesky(P, "state covariance")?.unpack();
         let y0 = g(x);
-        let mut mean_dev = SVector::<f64, Y>::zeros();
-        let mut Pyy1 = SMatrix::<f64, Y, Y>::zeros();
-        let mut Pyy2 = SMatrix::<f64, Y, Y>::zeros();
-        let mut Pxy = SMatrix::<f64, N, Y>::zeros();
+        let mut acc = Stirling::new();
         for j in 0..N {
-            let s = L.column(j) * h;
-            // Deviations from g(x), so that angles are differenced with wrapping.
-            let dp = diff(&g(&(x + s)), &y0);
-            let dm = diff(&g(&(x - s)), &y0);
-            let d1 = dp - dm;
-            let d2 = dp + dm;
-            mean_dev += d2;
-            Pyy1 += d1 * d1.transpose();
-            Pyy2 += d2 * d2.transpose();
-            Pxy += L.column(j) * d1.transpose();
+            let s = L.column(j) * self.h;
+            acc.add(
+                diff(&g(&(x + s)), &y0),
+                diff(&g(&(x - s)), &y0),
+                Some(&L.column(j).into_owned()),
+            );
         }
-        // ȳ = g(x) + 1/(2h²) Σ (yⱼ⁺ + yⱼ⁻ − 2 g(x))   (same as eq. (3.98))
-        let mean = y0 + mean_dev / (2.0 * h2);
-        let Pyy = symmetrize(&(Pyy1 / (4.0 * h2) + Pyy2 * ((h2 - 1.0) / (4.0 * h2 * h2))));
-        let Pxy = Pxy / (2.0 * h);
+        acc.finish(y0, self.h)
+    }
+
+    /// Moments of a function with non-additive noise, `y = g(x, w)`, `w ~ N(0, W)`: the noise is
+    /// augmented into the sigma points ([NPR00] §4, "general" form). The interval points perturb the
+    /// state with w = 0 and the noise with x = x̂; `Pxy` is the cross-covariance with the state only.
+    pub fn moments_with_noise<const N: usize, const W: usize, const Y: usize>(
+        &self,
+        x: &SVector<f64, N>,
+        P: &SMatrix<f64, N, N>,
+        noise_cov: &SMatrix<f64, W, W>,
+        g: impl Fn(&SVector<f64, N>, &SVector<f64, W>) -> SVector<f64, Y>,
+        diff: impl Fn(&SVector<f64, Y>, &SVector<f64, Y>) -> SVector<f64, Y>,
+    ) -> Result<(SVector<f64, Y>, SMatrix<f64, Y, Y>, SMatrix<f64, N, Y>)> {
+        let L = cholesky(P, "state covariance")?.unpack();
+        let Lw = cholesky(noise_cov, "noise covariance")?.unpack();
+        let w0 = SVector::<f64, W>::zeros();
+        let y0 = g(x, &w0);
+        let mut acc = Stirling::new();
+        for j in 0..N {
+            let s = L.column(j) * self.h;
+            acc.add(
+                diff(&g(&(x + s), &w0), &y0),
+                diff(&g(&(x - s), &w0), &y0),
+                Some(&L.column(j).into_owned()),
+            );
+        }
+        for j in 0..W {
+            let s = Lw.column(j) * self.h;
+            acc.add(
+                diff(&g(x, &(w0 + s)), &y0),
+                diff(&g(x, &(w0 - s)), &y0),
+                None,
+            );
+        }
+        acc.finish(y0, self.h)
+    }
+}
+
+/// Accumulates the Stirling-interpolation sums of [VdM04] eqs. (3.98)–(3.102) from the deviations
+/// `dⱼ± = g(x̂ ± h sⱼ) ⊖ g(x̂)`.
+struct Stirling<const N: usize, const Y: usize> {
+    mean_dev: SVector<f64, Y>,
+    pyy1: SMatrix<f64, Y, Y>,
+    pyy2: SMatrix<f64, Y, Y>,
+    pxy: SMatrix<f64, N, Y>,
+}
+
+impl<const N: usize, const Y: usize> Stirling<N, Y> {
+    fn new() -> Self {
+        Self {
+            mean_dev: SVector::zeros(),
+            pyy1: SMatrix::zeros(),
+            pyy2: SMatrix::zeros(),
+            pxy: SMatrix::zeros(),
+        }
+    }
+
+    /// One interval pair; `s` is the state column sⱼ (None for noise columns).
+    fn add(&mut self, dp: SVector<f64, Y>, dm: SVector<f64, Y>, s: Option<&SVector<f64, N>>) {
+        let d1 = dp - dm;
+        let d2 = dp + dm;
+        self.mean_dev += d2;
+        self.pyy1 += d1 * d1.transpose();
+        self.pyy2 += d2 * d2.transpose();
+        if let Some(s) = s {
+            self.pxy += s * d1.transpose();
+        }
+    }
+
+    fn finish(
+        self,
+        y0: SVector<f64, Y>,
+        h: f64,
+    ) -> Result<(SVector<f64, Y>, SMatrix<f64, Y, Y>, SMatrix<f64, N, Y>)> {
+        let h2 = h * h;
+        // ȳ = g(x) + 1/(2h²) Σ (yⱼ⁺ + yⱼ⁻ − 2 g(x))   (eq. (3.98) in deviation form)
+        let mean = y0 + self.mean_dev / (2.0 * h2);
+        // Pyy = 1/(4h²) Σ d1 d1ᵀ + (h² − 1)/(4h⁴) Σ d2 d2ᵀ   (eq. (3.99))
+        let Pyy =
+            symmetrize(&(self.pyy1 / (4.0 * h2) + self.pyy2 * ((h2 - 1.0) / (4.0 * h2 * h2))));
+        // Pxy = 1/(2h) Σ sⱼ d1ᵀ   (eq. (3.102))
+        let Pxy = self.pxy / (2.0 * h);
         ensure_finite(&mean, "sigma-point mean")?;
         ensure_finite(&Pyy, "sigma-point covariance")?;
         Ok((mean, Pyy, Pxy))

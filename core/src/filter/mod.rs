@@ -7,18 +7,38 @@
 //! | [`Kalman`] | [`Gaussian`] | [`LinearTransition`] | [`LinearMeasurement`] |
 //! | [`Extended`] | [`Gaussian`] | [`TransitionModel`] | [`MeasurementModel`] |
 //! | [`CentralDifference`] | [`Gaussian`] | [`TransitionModel`] | [`MeasurementModel`] |
+//! | [`StrongTracking`] | [`StfState`] (Gaussian + `V_k`) | [`LinearTransition`] | [`LinearMeasurement`] (one combined step) |
+//! | [`ErrorSpacePredictor`] | two [`Gaussian`]s (guide data, guide error) | [`LinearTransition`] | [`LinearMeasurement`] (predicts the next measurement) |
+//! | [`IncrementalCdkf`] | [`Gaussian`] `[x_k; x_{k−1}]` | [`TransitionModel`] | [`MeasurementModel`] (increments) |
+//! | [`Obe`] (set membership) | [`Ellipsoid`] | [`BoundedLinearTransition`] | [`BoundedLinearMeasurement`] |
 //!
 //! [`Gaussian`]: crate::state::Gaussian
+//! [`Ellipsoid`]: crate::state::Ellipsoid
 //! [`TransitionModel`]: crate::motion::TransitionModel
 //! [`LinearTransition`]: crate::motion::LinearTransition
 //! [`MeasurementModel`]: crate::measurement::MeasurementModel
 //! [`LinearMeasurement`]: crate::measurement::LinearMeasurement
 
+mod bias;
 mod cdkf;
+mod ese;
+mod icdkf;
 mod kalman;
+mod obe;
+mod stf;
 
+pub use bias::{BiasAwareCdkf, BiasUpdate, BiasedMeasurement, WithBias};
 pub use cdkf::CentralDifference;
+pub use ese::{
+    DifferenceStart, ErrorSpace, ErrorSpacePredictor, EseStage, EseState, difference_start,
+};
+pub use icdkf::{IcdkfForm, IncrementalCdkf, current};
 pub use kalman::{Extended, Kalman, joseph_update};
+pub use obe::{
+    BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, intersect_strip,
+    minkowski_outer,
+};
+pub use stf::{StfState, StfStep, StrongTracking};
 
 use nalgebra::SVector;
 

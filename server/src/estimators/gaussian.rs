@@ -3,7 +3,7 @@
 
 use harrier_core::filter::{CentralDifference, Extended, Kalman, Predictor, Updater};
 use harrier_core::motion::ConstantVelocity;
-use harrier_core::scenario::{Estimate, Scenario};
+use harrier_core::scenario::{Estimate, MeasKind, Scenario};
 use harrier_core::state::Gaussian;
 use harrier_core::{EstimationError, Result};
 use nalgebra::{Vector2, Vector3};
@@ -21,7 +21,15 @@ pub const KF: EstimatorInfo = EstimatorInfo {
     name: "kf",
     summary: "Kalman filter, CV model, Joseph form (linear position measurements only)",
     params: PARAMS,
-    build: |sc, p| build(sc, p, Kalman),
+    build: |sc, p| {
+        if let Some(s) = sc.sensors.iter().find(|s| s.kind != MeasKind::Position) {
+            return Err(setup(format!(
+                "the linear KF takes only position measurements, sensor {:?} is {:?}; use ekf or cdkf",
+                s.id, s.kind
+            )));
+        }
+        build(sc, p, Kalman)
+    },
 };
 
 /// `ekf`: extended Kalman filter.

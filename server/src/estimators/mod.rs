@@ -1,7 +1,11 @@
 //! The estimators `harrier replay` can run, and the glue they share: building the prior and the
 //! measurement models from `scenario.json`, and writing estimate lines.
 
+pub mod angles;
+pub mod bias;
 pub mod gaussian;
+pub mod icdkf;
+pub mod obe;
 
 use harrier_core::measurement::{AzEl, BearingSize, Geometry, Position, RangeBearing, TargetSize};
 use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};

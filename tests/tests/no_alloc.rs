@@ -1,0 +1,121 @@
+//! The filters' hot path never touches the heap: 100 predict + update steps at N = 6, M = 2 must
+//! make zero allocations.
+//!
+//! How: this test binary links `allocation-counter`, which installs a global allocator wrapping
+//! `std::alloc::System` and counting allocations per thread (the `unsafe impl GlobalAlloc` lives in
+//! that crate; this workspace forbids unsafe code). [`allocation_counter::measure`] returns what the
+//! closure allocated on the current thread only, so tests running in parallel threads, or the test
+//! harness, cannot add noise.
+//!
+//! To cover another filter, add a `#[test]` calling [`assert_steps_do_not_allocate`] with the
+//! filter, a motion model and a measurement model (or, for non-Gaussian filters, a loop of the same
+//! shape inside [`assert_no_allocations`]).
+
+use std::hint::black_box;
+
+use harrier_core::filter::{CentralDifference, Extended, Kalman, Predictor, Updater};
+use harrier_core::measurement::{AzEl, Geometry, MeasurementModel, Position, RangeBearing};
+use harrier_core::motion::{ConstantVelocity, TransitionModel};
+use harrier_core::state::Gaussian;
+use nalgebra::{Matrix6, SVector, Vector3, Vector6};
+
+const STEPS: u32 = 100;
+const DT: f64 = 0.1;
+
+/// Truth `[x, y, z, vx, vy, vz]` at step `k`: straight and level at 120 m, 18 m/s.
+fn truth(k: u32) -> Vector6<f64> {
+    let t = f64::from(k) * DT;
+    Vector6::new(1500.0 + 12.0 * t, 800.0 + 13.5 * t, 120.0, 12.0, 13.5, 0.0)
+}
+
+fn initial() -> Gaussian<6> {
+    let mean = truth(0) + Vector6::new(20.0, -15.0, 5.0, 2.0, -1.5, 0.5);
+    let cov = Matrix6::from_diagonal(&Vector6::new(400.0, 400.0, 100.0, 25.0, 25.0, 4.0));
+    Gaussian::new(mean, cov).expect("valid initial state")
+}
+
+/// Runs `body` under the counting allocator and fails if it allocated anything.
+fn assert_no_allocations(name: &str, body: impl FnOnce()) {
+    let info = allocation_counter::measure(body);
+    assert_eq!(
+        (info.count_total, info.bytes_total),
+        (0, 0),
+        "{name}: the filter allocated on the heap ({info:?})"
+    );
+}
+
+/// [`STEPS`] predict + update steps of `filter` on noise-free measurements of [`truth`] make no
+/// heap allocation. One step runs first, outside the measurement, so that nothing lazily
+/// initialised on first use is counted.
+fn assert_steps_do_not_allocate<F, T, H, const M: usize>(
+    name: &str,
+    filter: &F,
+    motion: &T,
+    sensor: &H,
+) where
+    F: Predictor<T, 6, State = Gaussian<6>> + Updater<H, 6, M, State = Gaussian<6>>,
+    T: TransitionModel<6>,
+    H: MeasurementModel<6, M>,
+{
+    let step = |state: &Gaussian<6>, k: u32| -> Gaussian<6> {
+        let predicted = filter.predict(motion, state, DT).expect("predict");
+        let z: SVector<f64, M> = sensor.function(&truth(k));
+        filter.update(sensor, &predicted, &z).expect("update").state
+    };
+    let mut state = step(&initial(), 1);
+    assert_no_allocations(name, || {
+        for k in 2..=STEPS + 1 {
+            state = black_box(step(black_box(&state), k));
+        }
+    });
+    // The run tracked the target: the check above measured real work, not a diverged filter.
+    let err = (state.mean.fixed_rows::<2>(0) - truth(STEPS + 1).fixed_rows::<2>(0)).norm();
+    assert!(
+        err < 20.0,
+        "{name}: position error {err} m after {STEPS} steps"
+    );
+}
+
+fn cv6() -> ConstantVelocity<6> {
+    ConstantVelocity::<6>::new(1.0)
+}
+
+fn sensor() -> Vector3<f64> {
+    Vector3::new(-200.0, -300.0, 2.0)
+}
+
+fn radar() -> RangeBearing {
+    RangeBearing::new(Geometry::spatial(), sensor(), [5.0, 0.005])
+}
+
+fn camera() -> AzEl {
+    AzEl::new(Geometry::spatial(), sensor(), [0.002, 0.002])
+}
+
+#[test]
+fn counter_sees_allocations() {
+    // Positive control: the counting allocator is installed and counts this thread.
+    let info = allocation_counter::measure(|| {
+        black_box(vec![0_u8; 64]);
+    });
+    assert_eq!(info.count_total, 1);
+}
+
+#[test]
+fn kf_does_not_allocate() {
+    let position = Position::<2>::new(Geometry::spatial(), [5.0, 5.0]);
+    assert_steps_do_not_allocate("KF cv6/position2", &Kalman, &cv6(), &position);
+}
+
+#[test]
+fn ekf_does_not_allocate() {
+    assert_steps_do_not_allocate("EKF cv6/range_bearing", &Extended, &cv6(), &radar());
+    assert_steps_do_not_allocate("EKF cv6/az_el", &Extended, &cv6(), &camera());
+}
+
+#[test]
+fn cdkf_does_not_allocate() {
+    let cd = CentralDifference::default();
+    assert_steps_do_not_allocate("CDKF cv6/range_bearing", &cd, &cv6(), &radar());
+    assert_steps_do_not_allocate("CDKF cv6/az_el", &cd, &cv6(), &camera());
+}
