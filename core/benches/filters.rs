@@ -18,11 +18,15 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use harrier_core::filter::{CentralDifference, Extended, Kalman, Predictor, Updater};
+use harrier_core::filter::{
+    BiasAwareCdkf, BiasedMeasurement, BoundedLinearMeasurement, BoundedLinearTransition,
+    CentralDifference, Extended, IncrementalCdkf, Kalman, Obe, ObeCriterion, Predictor, StfState,
+    StrongTracking, Updater, WithBias, current,
+};
 use harrier_core::measurement::{AzEl, Geometry, MeasurementModel, Position, RangeBearing};
-use harrier_core::motion::{ConstantVelocity, TransitionModel};
-use harrier_core::state::Gaussian;
-use nalgebra::{Matrix6, SVector, Vector2, Vector3, Vector6};
+use harrier_core::motion::{ConstantVelocity, LinearTransition, TransitionModel};
+use harrier_core::state::{Ellipsoid, Gaussian};
+use nalgebra::{Matrix2x6, Matrix6, Matrix6x3, SMatrix, SVector, Vector2, Vector3, Vector6};
 
 /// Filter period (s): 10 Hz.
 const DT: f64 = 0.1;
@@ -126,6 +130,157 @@ fn cdkf(c: &mut Criterion) {
     bench_step(c, "cdkf", "cv6_az_el", &cd, &cv6(), &camera());
 }
 
+fn stf(c: &mut Criterion) {
+    let stf = StrongTracking::new(1.0, 0.95).expect("valid STF");
+    let (motion, sensor) = (cv6(), position2());
+    // Steady state from the KF, then one STF step so that V_{k−1} exists.
+    let (prior, z) = steady_state(&Kalman, &motion, &sensor);
+    let state = StfState::new(prior);
+    let state = stf
+        .step(&motion, &sensor, &state, &z, DT)
+        .expect("stf")
+        .state;
+    let z = sensor.function(&truth(WARM_UP_STEPS + 2));
+    let mut g = c.benchmark_group("stf");
+    g.bench_function("cv6_position2", |b| {
+        b.iter(|| {
+            black_box(&stf)
+                .step(
+                    black_box(&motion),
+                    black_box(&sensor),
+                    black_box(&state),
+                    black_box(&z),
+                    DT,
+                )
+                .expect("stf step")
+        });
+    });
+    g.finish();
+}
+
+fn obe(c: &mut Criterion) {
+    // x⁺ = F x + B w, ‖w‖ ≤ 1 (B = acceleration over one step), y = [x, y] + v, |vᵢ| ≤ 2 m.
+    let f = cv6().matrix(DT);
+    let b = Matrix6x3::from_fn(|i, j| match (i, j) {
+        (i, j) if i == j => 0.5 * DT * DT,
+        (i, j) if i == j + 3 => DT,
+        _ => 0.0,
+    }) * 2.0;
+    let motion = BoundedLinearTransition::new(f, b, 1.0).expect("valid system");
+    let h = Matrix2x6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0);
+    let sensor = BoundedLinearMeasurement::new(h, Vector2::new(2.0, 2.0)).expect("valid sensor");
+    for criterion in [ObeCriterion::MinVolume, ObeCriterion::MinTrace] {
+        let obe = Obe::new(criterion);
+        let mut set = Ellipsoid::new(
+            truth(0),
+            Matrix6::from_diagonal(&Vector6::new(400.0, 400.0, 100.0, 25.0, 25.0, 4.0)),
+        )
+        .expect("valid set");
+        for k in 1..=WARM_UP_STEPS {
+            set = obe.predict(&motion, &set, DT).expect("warm-up predict");
+            let z = Vector2::new(truth(k)[0], truth(k)[1]);
+            set = obe.update(&sensor, &set, &z).expect("warm-up update").state;
+        }
+        let t = truth(WARM_UP_STEPS + 1);
+        let z = Vector2::new(t[0], t[1]);
+        let mut g = c.benchmark_group("obe");
+        g.bench_function(format!("cv6_position2_{criterion:?}"), |bch| {
+            bch.iter(|| {
+                let o = black_box(&obe);
+                let predicted = o
+                    .predict(black_box(&motion), black_box(&set), DT)
+                    .expect("predict");
+                o.update(black_box(&sensor), &predicted, black_box(&z))
+                    .expect("update")
+            });
+        });
+        g.finish();
+    }
+}
+
+fn icdkf(c: &mut Criterion) {
+    // Planar CV (N = 4, augmented 8) with a radar, as in the [ICDKF] scenarios.
+    let motion = ConstantVelocity::<4>::new(Q);
+    let geo = Geometry::planar(120.0);
+    let at = |k: u32| {
+        RangeBearing::new(
+            geo,
+            sensor() + Vector3::new(0.5 * f64::from(k), 0.0, 0.0),
+            [5.0, 0.005],
+        )
+    };
+    let x = |k: u32| {
+        let t = truth(k);
+        nalgebra::Vector4::new(t[0], t[1], t[3], t[4])
+    };
+    let f = IncrementalCdkf::default();
+    let mut g4 = Gaussian::new(
+        x(0),
+        nalgebra::Matrix4::from_diagonal(&nalgebra::Vector4::new(400.0, 400.0, 25.0, 25.0)),
+    )
+    .expect("valid prior");
+    let z = |k: u32| -> Vector2<f64> { at(k).function(&x(k)) };
+    for k in 1..=WARM_UP_STEPS {
+        let pred: Gaussian<8> = f.predict(&motion, &g4, DT).expect("predict");
+        let post = f
+            .update::<_, 4, 8, 2>(&at(k), &at(k - 1), &pred, &(z(k) - z(k - 1)))
+            .expect("update");
+        g4 = current(&post.state);
+    }
+    let k = WARM_UP_STEPS + 1;
+    let (now, prev, dz) = (at(k), at(k - 1), z(k) - z(k - 1));
+    let mut g = c.benchmark_group("icdkf");
+    g.bench_function("cv4_range_bearing", |b| {
+        b.iter(|| {
+            let pred: Gaussian<8> = f
+                .predict(black_box(&motion), black_box(&g4), DT)
+                .expect("predict");
+            f.update::<_, 4, 8, 2>(black_box(&now), black_box(&prev), &pred, black_box(&dz))
+                .expect("update")
+        });
+    });
+    g.finish();
+}
+
+fn cdkf_bias(c: &mut Criterion) {
+    // CV6 + range/azimuth bias states (N = 8) with the jump test.
+    let motion =
+        WithBias::<_, 6, 2>::new(cv6(), [0.05, 5e-5], f64::INFINITY).expect("valid bias model");
+    let filter = BiasAwareCdkf {
+        cd: CentralDifference::default(),
+        jump_std: [200.0, 0.2],
+        jump_prob: 1e-5,
+    };
+    let sensor = BiasedMeasurement::<_, 6> { inner: radar() };
+    let init = initial();
+    let mut mean = SVector::<f64, 8>::zeros();
+    mean.fixed_rows_mut::<6>(0).copy_from(&init.mean);
+    let mut cov = SMatrix::<f64, 8, 8>::identity() * 1e-6;
+    cov.fixed_view_mut::<6, 6>(0, 0).copy_from(&init.cov);
+    let mut state = Gaussian::new(mean, cov).expect("valid prior");
+    for k in 1..=WARM_UP_STEPS {
+        let pred = filter.predict(&motion, &state, DT).expect("predict");
+        state = filter
+            .update(&sensor, &pred, &radar().function(&truth(k)))
+            .expect("update")
+            .posterior
+            .state;
+    }
+    let z = radar().function(&truth(WARM_UP_STEPS + 1));
+    let mut g = c.benchmark_group("cdkf-bias");
+    g.bench_function("cv6_range_bearing", |b| {
+        b.iter(|| {
+            let f = black_box(&filter);
+            let pred = f
+                .predict(black_box(&motion), black_box(&state), DT)
+                .expect("predict");
+            f.update(black_box(&sensor), &pred, black_box(&z))
+                .expect("update")
+        });
+    });
+    g.finish();
+}
+
 fn config() -> Criterion {
     Criterion::default()
         .warm_up_time(Duration::from_secs(1))
@@ -135,6 +290,6 @@ fn config() -> Criterion {
 criterion_group! {
     name = filters;
     config = config();
-    targets = kf, ekf, cdkf
+    targets = kf, ekf, cdkf, stf, obe, icdkf, cdkf_bias
 }
 criterion_main!(filters);

@@ -1,5 +1,5 @@
-//! The filters' hot path never touches the heap: 100 predict + update steps at N = 6, M = 2 must
-//! make zero allocations.
+//! The filters' hot path never touches the heap: 100 predict + update steps at N = 6, M = 2 (KF,
+//! EKF, CDKF, STF, OBE, ICDKF, bias-aware CDKF) must make zero allocations.
 //!
 //! How: this test binary links `allocation-counter`, which installs a global allocator wrapping
 //! `std::alloc::System` and counting allocations per thread (the `unsafe impl GlobalAlloc` lives in
@@ -13,11 +13,15 @@
 
 use std::hint::black_box;
 
-use harrier_core::filter::{CentralDifference, Extended, Kalman, Predictor, Updater};
+use harrier_core::filter::{
+    BiasAwareCdkf, BiasedMeasurement, BoundedLinearMeasurement, BoundedLinearTransition,
+    CentralDifference, Extended, IncrementalCdkf, Kalman, Obe, ObeCriterion, Predictor, StfState,
+    StrongTracking, Updater, WithBias, current,
+};
 use harrier_core::measurement::{AzEl, Geometry, MeasurementModel, Position, RangeBearing};
-use harrier_core::motion::{ConstantVelocity, TransitionModel};
-use harrier_core::state::Gaussian;
-use nalgebra::{Matrix6, SVector, Vector3, Vector6};
+use harrier_core::motion::{ConstantVelocity, LinearTransition, TransitionModel};
+use harrier_core::state::{Ellipsoid, Gaussian};
+use nalgebra::{Matrix2x6, Matrix6, Matrix6x3, SMatrix, SVector, Vector2, Vector3, Vector6};
 
 const STEPS: u32 = 100;
 const DT: f64 = 0.1;
@@ -118,4 +122,101 @@ fn cdkf_does_not_allocate() {
     let cd = CentralDifference::default();
     assert_steps_do_not_allocate("CDKF cv6/range_bearing", &cd, &cv6(), &radar());
     assert_steps_do_not_allocate("CDKF cv6/az_el", &cd, &cv6(), &camera());
+}
+
+#[test]
+fn stf_does_not_allocate() {
+    let stf = StrongTracking::new(1.0, 0.95).expect("valid STF");
+    let sensor = Position::<2>::new(Geometry::spatial(), [5.0, 5.0]);
+    let mut state = StfState::new(initial());
+    let mut step = |k: u32| {
+        let z = sensor.function(&truth(k));
+        state = stf
+            .step(&cv6(), &sensor, &state, &z, DT)
+            .expect("stf step")
+            .state;
+    };
+    step(1);
+    assert_no_allocations("STF cv6/position2", || (2..=STEPS).for_each(&mut step));
+}
+
+#[test]
+fn obe_does_not_allocate() {
+    let f = cv6().matrix(DT);
+    let b = Matrix6x3::from_fn(|i, j| {
+        if i == j + 3 {
+            2.0 * DT
+        } else if i == j {
+            DT * DT
+        } else {
+            0.0
+        }
+    });
+    let motion = BoundedLinearTransition::new(f, b, 1.0).expect("valid system");
+    let h = Matrix2x6::new(1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0);
+    let sensor = BoundedLinearMeasurement::new(h, Vector2::new(2.0, 2.0)).expect("valid sensor");
+    for criterion in [ObeCriterion::MinVolume, ObeCriterion::MinTrace] {
+        let obe = Obe::new(criterion);
+        let mut set = Ellipsoid::new(truth(0), initial().cov).expect("valid set");
+        let mut step = |k: u32| {
+            let p = obe.predict(&motion, &set, DT).expect("predict");
+            set = obe
+                .update(&sensor, &p, &Vector2::new(truth(k)[0], truth(k)[1]))
+                .expect("update")
+                .state;
+        };
+        step(1);
+        assert_no_allocations("OBE cv6/position2", || (2..=STEPS).for_each(&mut step));
+    }
+}
+
+#[test]
+fn icdkf_and_bias_aware_cdkf_do_not_allocate() {
+    let f = IncrementalCdkf::default();
+    let mut g = initial();
+    let at = |k: u32| {
+        RangeBearing::new(
+            Geometry::spatial(),
+            sensor() + Vector3::new(f64::from(k), 0.0, 0.0),
+            [5.0, 0.005],
+        )
+    };
+    let z = |k: u32| -> Vector2<f64> { at(k).function(&truth(k)) };
+    let mut step = |k: u32| {
+        let pred: Gaussian<12> = f.predict(&cv6(), &g, DT).expect("predict");
+        g = current(
+            &f.update::<_, 6, 12, 2>(&at(k), &at(k - 1), &pred, &(z(k) - z(k - 1)))
+                .expect("update")
+                .state,
+        );
+    };
+    step(1);
+    assert_no_allocations("ICDKF cv6/range_bearing", || {
+        (2..=STEPS).for_each(&mut step)
+    });
+
+    let motion = WithBias::<_, 6, 2>::new(cv6(), [0.05, 5e-5], f64::INFINITY).expect("bias model");
+    let filter = BiasAwareCdkf {
+        cd: CentralDifference::default(),
+        jump_std: [200.0, 0.2],
+        jump_prob: 1e-5,
+    };
+    let sensor = BiasedMeasurement::<_, 6> { inner: radar() };
+    let mut mean = SVector::<f64, 8>::zeros();
+    mean.fixed_rows_mut::<6>(0).copy_from(&initial().mean);
+    let mut cov = SMatrix::<f64, 8, 8>::identity() * 1e-6;
+    cov.fixed_view_mut::<6, 6>(0, 0).copy_from(&initial().cov);
+    let mut state = Gaussian::new(mean, cov).expect("valid prior");
+    let mut step = |k: u32| {
+        let pred = filter.predict(&motion, &state, DT).expect("predict");
+        state = filter
+            .update(&sensor, &pred, &radar().function(&truth(k)))
+            .expect("update")
+            .posterior
+            .state;
+    };
+    step(1);
+    assert_no_allocations("bias-aware CDKF cv6/range_bearing", || {
+        (2..=STEPS).for_each(&mut step)
+    });
 }

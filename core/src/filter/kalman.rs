@@ -90,9 +90,10 @@ pub fn joseph_update<const N: usize, const M: usize>(
     // K = P Hᵀ S⁻¹  ⇔  Kᵀ = S⁻¹ H P  (P symmetric)
     let K = chol.solve(&PHt.transpose()).transpose();
     let mean = predicted.mean + K * innovation;
-    let I_KH = SMatrix::<f64, N, N>::identity() - K * H;
-    // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ
-    let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R * K.transpose()));
+    // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N
+    // product is formed:  A = (I − K H) P = P − K (H P),  A (I − K H)ᵀ = A − (A Hᵀ) Kᵀ.
+    let A = P - K * PHt.transpose();
+    let cov = symmetrize(&(A - (A * H.transpose()) * K.transpose() + K * R * K.transpose()));
     ensure_finite(&mean, "updated mean")?;
     ensure_finite(&cov, "updated covariance")?;
     Ok(Posterior {
