@@ -25,6 +25,17 @@ pub trait TransitionModel<const N: usize> {
     fn jacobian(&self, x: &SVector<f64, N>, dt: f64) -> SMatrix<f64, N, N>;
     /// Process-noise covariance `Q(Δt)`.
     fn covar(&self, dt: f64) -> SMatrix<f64, N, N>;
+    /// `F P Fᵀ` with `F = ∂f/∂x` at `x`: the propagated covariance without `Q`. Models whose `F`
+    /// is sparse override it to skip the dense N×N×N products (the CV model does).
+    fn propagate_cov(
+        &self,
+        x: &SVector<f64, N>,
+        p: &SMatrix<f64, N, N>,
+        dt: f64,
+    ) -> SMatrix<f64, N, N> {
+        let f = self.jacobian(x, dt);
+        f * p * f.transpose()
+    }
 }
 
 /// A transition model with `f(x) = F x`.
@@ -62,6 +73,24 @@ impl<const N: usize> TransitionModel<N> for ConstantVelocity<N> {
     }
     fn covar(&self, dt: f64) -> SMatrix<f64, N, N> {
         kinematic_noise::<N, 2>(self.q, dt)
+    }
+    /// Block form of `F P Fᵀ` for `F = [I Δt·I; 0 I]`, `P = [A B; Bᵀ C]`:
+    /// `[A + Δt(B + Bᵀ) + Δt²C,  B + Δt·C;  Bᵀ + Δt·C,  C]` (same result as the dense product).
+    fn propagate_cov(
+        &self,
+        _x: &SVector<f64, N>,
+        p: &SMatrix<f64, N, N>,
+        dt: f64,
+    ) -> SMatrix<f64, N, N> {
+        let d = N / 2;
+        SMatrix::<f64, N, N>::from_fn(|i, j| match (i < d, j < d) {
+            (true, true) => {
+                p[(i, j)] + dt * (p[(i, j + d)] + p[(i + d, j)]) + dt * dt * p[(i + d, j + d)]
+            }
+            (true, false) => p[(i, j)] + dt * p[(i + d, j)],
+            (false, true) => p[(i, j)] + dt * p[(i, j + d)],
+            (false, false) => p[(i, j)],
+        })
     }
 }
 
@@ -292,6 +321,19 @@ mod tests {
         assert_relative_eq!(q[(0, 2)], 2.0 * 0.25 / 2.0);
         assert_relative_eq!(q[(2, 2)], 2.0 * 0.5);
         assert_relative_eq!(q[(0, 1)], 0.0);
+    }
+
+    #[test]
+    fn cv_block_propagation_equals_dense_product() {
+        let m = ConstantVelocity::<6>::new(1.0);
+        let a = nalgebra::Matrix6::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 - 5.0);
+        let p = a * a.transpose();
+        let f = m.matrix(0.7);
+        assert_relative_eq!(
+            m.propagate_cov(&nalgebra::Vector6::zeros(), &p, 0.7),
+            f * p * f.transpose(),
+            max_relative = 1e-12
+        );
     }
 
     #[test]

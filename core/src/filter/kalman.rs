@@ -32,15 +32,14 @@ pub struct Kalman;
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Extended;
 
-/// `P⁻ = F P Fᵀ + Q`, symmetrised and checked.
+/// `P⁻ = F P Fᵀ + Q` (`FPFt` from [`TransitionModel::propagate_cov`]), symmetrised and checked.
 fn propagate<const N: usize>(
     mean: SVector<f64, N>,
-    F: &SMatrix<f64, N, N>,
-    P: &SMatrix<f64, N, N>,
+    FPFt: &SMatrix<f64, N, N>,
     Q: &SMatrix<f64, N, N>,
 ) -> Result<Gaussian<N>> {
     ensure_finite(&mean, "predicted mean")?;
-    let cov = symmetrize(&(F * P * F.transpose() + Q));
+    let cov = symmetrize(&(FPFt + Q));
     ensure_finite(&cov, "predicted covariance")?;
     Ok(Gaussian { mean, cov })
 }
@@ -49,8 +48,8 @@ impl<T: LinearTransition<N>, const N: usize> Predictor<T, N> for Kalman {
     type State = Gaussian<N>;
     /// `x⁻ = F x`, `P⁻ = F P Fᵀ + Q` ([BLK01] eq. (5.2.3-5), (5.2.3-9)).
     fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
-        let F = model.matrix(dt);
-        propagate(F * prior.mean, &F, &prior.cov, &model.covar(dt))
+        let FPFt = model.propagate_cov(&prior.mean, &prior.cov, dt);
+        propagate(model.matrix(dt) * prior.mean, &FPFt, &model.covar(dt))
     }
 }
 
@@ -58,13 +57,8 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for Extended {
     type State = Gaussian<N>;
     /// `x⁻ = f(x)`, `P⁻ = F P Fᵀ + Q` with `F = ∂f/∂x(x)` ([BLK01] §10.3.2).
     fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
-        let F = model.jacobian(&prior.mean, dt);
-        propagate(
-            model.function(&prior.mean, dt),
-            &F,
-            &prior.cov,
-            &model.covar(dt),
-        )
+        let FPFt = model.propagate_cov(&prior.mean, &prior.cov, dt);
+        propagate(model.function(&prior.mean, dt), &FPFt, &model.covar(dt))
     }
 }
 
