@@ -1,0 +1,257 @@
+//! Guidance laws: from a UAV state and a target estimate to a commanded velocity vector.
+//!
+//! Every law here is a pure function of `(UAV state, target estimate, limits, parameters)` that
+//! returns a [`Command`] (a desired ENU velocity, m/s). None of them panics: a missing or
+//! non-finite target estimate, or a non-finite UAV state, gives the defined safe command
+//! [`hold`]. The [`kinematics`] module closes the loop for evaluation: a 3-DOF point mass that
+//! enforces the speed, turn-rate and vertical limits of a [`Limits`] profile.
+//!
+//! | law | module | paper |
+//! |---|---|---|
+//! | time-optimal guidance vector field (tangent to the limit cycle, time-optimal climb/descent) | [`togvf`] | [CIMM] §4.1–4.2 |
+//! | Lyapunov guidance vector field (baseline) | [`lgvf`] | Frew, Lawrence & Morris 2008 |
+//! | phase spacing of several UAVs on the circle (speed correction) | [`phase`] | [CIMM] §4.3 |
+//! | LOS-range formation control with reference model, P compensator, adaptive element | [`formation`] | [BOT] §III.A eqs. (5)–(6) |
+//! | "steer towards silhouette edge" obstacle avoidance | [`obstacle`] | [BOT] §III.B |
+//! | range-observability maneuver for bearings-only followers | [`observability`] | [BOT] §II.B eqs. (2)–(4) |
+//!
+//! Frame: ENU metres (x East, y North, z Up), FORMAT.md §1. Phases `θ = atan2(y − y_t, x − x_t)`
+//! are measured from the x axis as in [CIMM] §4.3.
+//!
+//! # References
+//! * [CIMM] the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
+//! * [BOT] Calise, Johnson, Sattigeri, Watanabe, Madyastha, *Estimation and Guidance Strategies
+//!   for Vision-based Target Tracking* (`shared/papers/002_*.txt`).
+//! * [FLM08] E. W. Frew, D. A. Lawrence, S. Morris, "Coordinated Standoff Tracking of Moving
+//!   Targets Using Lyapunov Guidance Vector Fields", JGCD 31(2), 2008.
+//! * [LFP08] D. A. Lawrence, E. W. Frew, W. J. Pisano, "Lyapunov Vector Fields for Autonomous
+//!   Unmanned Aircraft Flight Control", JGCD 31(5), 2008.
+
+pub mod formation;
+pub mod kinematics;
+pub mod lgvf;
+pub mod observability;
+pub mod obstacle;
+pub mod phase;
+pub mod togvf;
+
+use nalgebra::{Vector2, Vector3};
+
+pub use kinematics::{Limits, UavState};
+
+/// A commanded velocity (ENU, m/s). The kinematics enforce the limits; laws already respect the
+/// speed bounds where they can.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Command {
+    /// Desired velocity `[vx, vy, vz]` (m/s).
+    pub velocity: Vector3<f64>,
+}
+
+impl Command {
+    /// A command with the horizontal velocity `vh` and the vertical speed `vz`.
+    #[inline]
+    pub fn new(vh: Vector2<f64>, vz: f64) -> Self {
+        Self {
+            velocity: Vector3::new(vh.x, vh.y, vz),
+        }
+    }
+    /// Whether every component is finite.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.velocity.iter().all(|v| v.is_finite())
+    }
+}
+
+/// What the guidance knows about the target: a ground position and velocity estimate (ENU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TargetEstimate {
+    /// Position (m); `z` is the ground height of the target.
+    pub position: Vector3<f64>,
+    /// Velocity (m/s).
+    pub velocity: Vector3<f64>,
+}
+
+impl TargetEstimate {
+    /// A static target at `position`.
+    pub fn fixed(position: Vector3<f64>) -> Self {
+        Self {
+            position,
+            velocity: Vector3::zeros(),
+        }
+    }
+    /// Whether position and velocity are finite.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.position
+            .iter()
+            .chain(self.velocity.iter())
+            .all(|v| v.is_finite())
+    }
+}
+
+/// Sense of rotation on the limit cycle (seen from above).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Orbit {
+    /// Counter-clockwise (phase increasing).
+    Ccw,
+    /// Clockwise (phase decreasing).
+    Cw,
+    /// Whichever needs the smaller heading change now ([CIMM] §4.1; ties go to `Ccw`).
+    Auto,
+}
+
+impl Orbit {
+    /// `+1` for counter-clockwise, `−1` for clockwise (`Auto` counts as `+1`).
+    #[inline]
+    pub fn sign(self) -> f64 {
+        match self {
+            Orbit::Cw => -1.0,
+            Orbit::Ccw | Orbit::Auto => 1.0,
+        }
+    }
+}
+
+/// The defined safe command when the target estimate is missing or invalid: keep station.
+///
+/// A vehicle that can hover ([`Limits::can_hover`]) is commanded to stop (zero velocity). A
+/// fixed-wing vehicle is commanded into a left loiter turn at its minimum speed: the commanded
+/// direction is the current velocity rotated by +90°, which the kinematics turn into a
+/// minimum-radius circle. Vertical speed zero (hold altitude). With a non-finite UAV state the
+/// command is zero, which the kinematics also treat as "hold".
+pub fn hold(uav: &UavState, limits: &Limits) -> Command {
+    let vh = uav.horizontal_velocity();
+    if limits.can_hover() || !vh.iter().all(|v| v.is_finite()) {
+        return Command::new(Vector2::zeros(), 0.0);
+    }
+    let dir = if vh.norm() > 1e-9 {
+        vh / vh.norm()
+    } else {
+        Vector2::new(1.0, 0.0)
+    };
+    Command::new(perp(dir) * limits.v_min, 0.0)
+}
+
+/// `max(lo, min(hi, x))` without `f64::clamp`'s panic on `lo > hi` or NaN bounds (limits and
+/// gains come from callers).
+#[inline]
+pub(crate) fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
+    x.min(hi).max(lo)
+}
+
+/// `v` rotated by +90° (counter-clockwise).
+#[inline]
+pub(crate) fn perp(v: Vector2<f64>) -> Vector2<f64> {
+    Vector2::new(-v.y, v.x)
+}
+
+/// `v` rotated by `a` radians counter-clockwise.
+#[inline]
+pub(crate) fn rotate(v: Vector2<f64>, a: f64) -> Vector2<f64> {
+    let (s, c) = a.sin_cos();
+    Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y)
+}
+
+/// Signed angle from `a` to `b` in `[-π, π]`.
+#[inline]
+pub(crate) fn angle_between(a: Vector2<f64>, b: Vector2<f64>) -> f64 {
+    (a.x * b.y - a.y * b.x).atan2(a.dot(&b))
+}
+
+/// The validated inputs shared by the standoff laws, or `None` when [`hold`] applies.
+pub(crate) fn valid_inputs<'a>(
+    uav: &UavState,
+    target: Option<&'a TargetEstimate>,
+) -> Option<&'a TargetEstimate> {
+    target.filter(|t| t.is_finite() && uav.is_finite())
+}
+
+/// Scales a relative horizontal velocity `v_rel` by the largest `α ∈ [0, 1]` such that
+/// `|α v_rel + v_t| ≤ v_max` and returns `α v_rel + v_t` ([CIMM] §4.2/§4.3: "the horizontal speed
+/// in the relative frame is `α v₀`"). If even `α = 0` violates the bound the target is faster than
+/// the UAV and the result is `v_t` clipped to `v_max`.
+pub(crate) fn add_target_velocity(
+    v_rel: Vector2<f64>,
+    v_t: Vector2<f64>,
+    v_max: f64,
+) -> Vector2<f64> {
+    let full = v_rel + v_t;
+    if full.norm() <= v_max {
+        return full;
+    }
+    // |α a + b|² = v²  →  α²|a|² + 2α a·b + |b|² − v² = 0, the larger root.
+    let a2 = v_rel.norm_squared();
+    let ab = v_rel.dot(&v_t);
+    let c = v_t.norm_squared() - v_max * v_max;
+    if a2 <= 0.0 || c > 0.0 {
+        let n = v_t.norm();
+        return if n > v_max { v_t * (v_max / n) } else { v_t };
+    }
+    let alpha = ((-ab + (ab * ab - a2 * c).max(0.0).sqrt()) / a2).clamp(0.0, 1.0);
+    v_rel * alpha + v_t
+}
+
+/// Common interface of the standoff laws ([`togvf::Togvf`], [`lgvf::Lgvf`]) so that the simulator
+/// and the tests can swap them.
+pub trait StandoffLaw {
+    /// Commanded velocity for one UAV. `phase` carries the phases of its neighbours on the circle
+    /// when several UAVs share the target ([CIMM] §4.3); `None` for a single UAV.
+    fn command(
+        &self,
+        uav: &UavState,
+        target: Option<&TargetEstimate>,
+        limits: &Limits,
+        phase: Option<&phase::PhaseNeighbours>,
+    ) -> Command;
+    /// Standoff radius R (m).
+    fn radius(&self) -> f64;
+    /// Observation height H above the target (m).
+    fn height(&self) -> f64;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn add_target_velocity_respects_vmax() {
+        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(10.0, 0.0), 30.0);
+        assert!((v.norm() - 30.0).abs() < 1e-9);
+        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(-10.0, 0.0), 30.0);
+        assert!((v.x - 15.0).abs() < 1e-12);
+        let v = add_target_velocity(Vector2::new(5.0, 0.0), Vector2::new(0.0, 50.0), 30.0);
+        assert!(v.norm() <= 30.0 + 1e-9);
+    }
+
+    /// Nonsense limits or gains must not panic (no `f64::clamp` on caller-supplied bounds).
+    #[test]
+    fn bad_limits_do_not_panic() {
+        let bad = Limits {
+            v_max: f64::NAN,
+            v_min: 40.0,
+            turn_rate_max: -1.0,
+            accel_max: f64::NAN,
+            vz_max: -5.0,
+            az_max: f64::INFINITY,
+            pivot_speed: f64::NAN,
+        };
+        let uav = UavState::new(Vector3::new(0.0, 0.0, 100.0), Vector3::new(20.0, 0.0, 0.0));
+        let tgt = TargetEstimate::fixed(Vector3::new(1000.0, 0.0, 0.0));
+        let c1 = togvf::Togvf::new(300.0, 300.0, 25.0).command(&uav, Some(&tgt), &bad, None);
+        let c2 = lgvf::Lgvf::new(300.0, 300.0, 25.0).command(&uav, Some(&tgt), &bad, None);
+        for c in [c1, c2, hold(&uav, &bad)] {
+            let _ = kinematics::step(&uav, &c, &bad, 0.1);
+        }
+        let reg = formation::RangeRegulator {
+            v_ad_max: -1.0,
+            ..Default::default()
+        };
+        let _ = reg.advance(&formation::PairState::start(100.0), 90.0, 100.0, 0.1);
+    }
+
+    #[test]
+    fn hold_is_finite() {
+        let uav = UavState::new(Vector3::new(f64::NAN, 0.0, 0.0), Vector3::zeros());
+        assert!(hold(&uav, &Limits::fixed_wing()).is_finite());
+        assert!(hold(&uav, &Limits::multirotor()).is_finite());
+    }
+}
