@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Time FilterPy's KalmanFilter predict + update at dim_x = 6, dim_z = 2.
+"""Time FilterPy's KalmanFilter and IMMEstimator predict + update at dim_x = 6, dim_z = 2.
 
 The same problem as the `kf/cv6_position2` benchmark of core/benches/filters.rs: the 3-D
 constant-velocity model [x, y, z, vx, vy, vz] at dt = 0.1 s with acceleration spectral density
@@ -23,7 +23,7 @@ import numpy as np
 
 try:
     import filterpy
-    from filterpy.kalman import KalmanFilter
+    from filterpy.kalman import IMMEstimator, KalmanFilter
 except ImportError:
     sys.exit("filterpy is not installed: pip install filterpy")
 
@@ -56,6 +56,45 @@ def make_filter():
     return kf
 
 
+def ct6_matrix(dt, omega):
+    """F of a coordinated turn at rate omega in the horizontal plane (z straight), layout as cv6."""
+    f, _ = cv6_matrices(dt, 0.0)
+    s, c = np.sin(omega * dt), np.cos(omega * dt)
+    f[0, 3], f[0, 4], f[1, 3], f[1, 4] = s / omega, -(1 - c) / omega, (1 - c) / omega, s / omega
+    f[3, 3], f[3, 4], f[4, 3], f[4, 4] = c, -s, s, c
+    return f
+
+
+def make_imm():
+    """IMM of three KFs (CV, right turn, left turn) as the `imm/imm3_cv6_position2` bench."""
+    filters = []
+    for omega in (None, -0.1, 0.1):
+        kf = make_filter()
+        if omega is not None:
+            kf.F = ct6_matrix(DT, omega)
+        filters.append(kf)
+    mu = np.array([0.98, 0.01, 0.01])
+    trans = np.array([[0.98, 0.01, 0.01], [0.01, 0.98, 0.01], [0.01, 0.01, 0.98]])
+    return IMMEstimator(filters, mu, trans)
+
+
+def time_filter(flt, args):
+    n_steps = 1 + args.number * args.repeat
+    zs = [truth(k)[:2].reshape(2, 1).copy() for k in range(1, n_steps + 1)]
+    it = iter(zs)
+
+    def step():
+        flt.predict()
+        flt.update(next(it))
+
+    step()  # warm-up
+    times = timeit.Timer(step).repeat(repeat=args.repeat, number=args.number)
+    if not np.all(np.isfinite(flt.x)) or np.abs(flt.x[:2, 0] - truth(n_steps)[:2]).max() > 100.0:
+        sys.exit("FilterPy state diverged during the benchmark")
+    per_step_us = [t / args.number * 1e6 for t in times]
+    return statistics.median(per_step_us), min(per_step_us)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--number", type=int, default=20000, help="steps per repeat")
@@ -63,20 +102,9 @@ def main():
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     args = ap.parse_args()
 
-    kf = make_filter()
-    n_steps = 1 + args.number * args.repeat
-    zs = [truth(k)[:2].reshape(2, 1).copy() for k in range(1, n_steps + 1)]
-    it = iter(zs)
-
-    def step():
-        kf.predict()
-        kf.update(next(it))
-
-    step()  # warm-up
-    times = timeit.Timer(step).repeat(repeat=args.repeat, number=args.number)
-    per_step_us = [t / args.number * 1e6 for t in times]
-    if not np.all(np.isfinite(kf.x)) or np.abs(kf.x[:2, 0] - truth(n_steps)[:2]).max() > 100.0:
-        sys.exit("FilterPy state diverged during the benchmark")
+    kf_median, kf_min = time_filter(make_filter(), args)
+    imm_args = argparse.Namespace(number=max(1, args.number // 10), repeat=args.repeat)
+    imm_median, imm_min = time_filter(make_imm(), imm_args)
 
     result = {
         "filter": "filterpy.kalman.KalmanFilter",
@@ -87,8 +115,10 @@ def main():
         "dim_z": 2,
         "number": args.number,
         "repeat": args.repeat,
-        "median_us": statistics.median(per_step_us),
-        "min_us": min(per_step_us),
+        "median_us": kf_median,
+        "min_us": kf_min,
+        "imm_median_us": imm_median,
+        "imm_min_us": imm_min,
     }
     if args.json:
         print(json.dumps(result))
@@ -97,6 +127,8 @@ def main():
               f"numpy {result['numpy']}, Python {result['python']}:")
         print(f"  median {result['median_us']:.2f} us/step, min {result['min_us']:.2f} us/step "
               f"({args.repeat} repeats x {args.number} steps)")
+        print(f"FilterPy IMMEstimator of 3 KalmanFilters: median {imm_median:.2f} us/step, "
+              f"min {imm_min:.2f} us/step")
 
 
 if __name__ == "__main__":

@@ -40,12 +40,16 @@
 
 pub mod error;
 pub mod filter;
+pub mod fusion;
+pub mod guidance;
 pub mod linalg;
 pub mod measurement;
 pub mod metrics;
 pub mod motion;
+pub mod road;
 pub mod scenario;
 pub mod state;
+pub mod tracker;
 
 pub use error::EstimationError;
 

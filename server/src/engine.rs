@@ -117,6 +117,13 @@ pub static ESTIMATORS: &[EstimatorInfo] = &[
     estimators::icdkf::ICDKF,
     estimators::icdkf::ICDKF_GENERAL,
     estimators::bias::CDKF_BIAS,
+    estimators::bearings::MPEKF,
+    estimators::bearings::MPEKF_NN,
+    estimators::imm::IMM,
+    estimators::imm::CIMM,
+    estimators::imm::CIMM_FUSION,
+    estimators::imm::CIMM_CI,
+    estimators::tracker::TRACKER,
 ];
 
 /// Looks up `name` and builds it for `sc`, rejecting unknown parameters.

@@ -8,4 +8,5 @@
 
 pub mod engine;
 pub mod estimators;
+pub mod guidance_sim;
 pub mod replay;

@@ -10,6 +10,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 use harrier_server::engine::{ESTIMATORS, Params};
+use harrier_server::guidance_sim;
 use harrier_server::replay;
 
 /// Harrier: ground-control station for UAV target tracking.
@@ -39,6 +40,46 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
+    /// Run a closed-loop guidance scenario (see GUIDANCE.md) and print its figures.
+    GuidanceSim {
+        /// Built-in case: cimm-static, cimm-moving, three-static, three-moving, bot-formation,
+        /// bot-observability.
+        #[arg(long, default_value = "cimm-static")]
+        case: String,
+        /// Standoff law: togvf or lgvf.
+        #[arg(long, default_value = "togvf")]
+        law: String,
+        /// What the guidance sees of the target: kf (simulated camera measurements) or truth;
+        /// default kf for moving targets, truth for static ones.
+        #[arg(long)]
+        estimator: Option<String>,
+        /// Time step (s).
+        #[arg(long, default_value_t = 0.1)]
+        dt: f64,
+        /// Duration (s); default per case.
+        #[arg(long)]
+        duration: Option<f64>,
+        /// RNG seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Trajectory file (.csv or .jsonl).
+        #[arg(long, short)]
+        out: Option<PathBuf>,
+        /// SVG picture of the paths, circle and obstacles.
+        #[arg(long)]
+        plot: Option<PathBuf>,
+        /// Print the summary as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write a seeded multi-target scenario: crossing targets, Pd 0.9, clutter (FORMAT-MULTI.md).
+    GenMulti {
+        /// Output directory (created if missing).
+        dir: PathBuf,
+        /// RNG seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// List the estimators, one line each.
     Estimators {
         /// Also list each estimator's `--param` names.
@@ -59,6 +100,45 @@ fn main() -> ExitCode {
             }
             ExitCode::SUCCESS
         }
+        Command::GenMulti { dir, seed } => {
+            match harrier_server::estimators::tracker::write_generated(&dir, seed) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("harrier gen-multi: error: {e:#}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
+        Command::GuidanceSim {
+            case,
+            law,
+            estimator,
+            dt,
+            duration,
+            seed,
+            out,
+            plot,
+            json,
+        } => {
+            let args = GuidanceSimArgs {
+                case,
+                law,
+                estimator,
+                dt,
+                duration,
+                seed,
+                out,
+                plot,
+                json,
+            };
+            match run_guidance_sim(&args) {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("harrier guidance-sim: error: {e}");
+                    ExitCode::from(2)
+                }
+            }
+        }
         Command::Replay {
             scenario,
             estimator,
@@ -73,6 +153,59 @@ fn main() -> ExitCode {
             }
         },
     }
+}
+
+/// Options of `harrier guidance-sim`.
+struct GuidanceSimArgs {
+    case: String,
+    law: String,
+    estimator: Option<String>,
+    dt: f64,
+    duration: Option<f64>,
+    seed: u64,
+    out: Option<PathBuf>,
+    plot: Option<PathBuf>,
+    json: bool,
+}
+
+fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
+    use guidance_sim::{Case, EstimatorKind, LawKind, SimConfig, SimError};
+    let estimator = match a.estimator.as_deref() {
+        None => None,
+        Some("kf") => Some(EstimatorKind::Kalman),
+        Some("truth") => Some(EstimatorKind::Truth),
+        Some(other) => {
+            return Err(SimError::Setup(format!(
+                "unknown estimator {other:?}; kf or truth"
+            )));
+        }
+    };
+    let cfg = SimConfig {
+        case: Case::parse(&a.case)?,
+        law: LawKind::parse(&a.law)?,
+        estimator,
+        dt: a.dt,
+        duration: a.duration,
+        seed: a.seed,
+    };
+    let result = guidance_sim::run(&cfg)?;
+    if let Some(out) = &a.out {
+        guidance_sim::write_tracks(out, &result.tracks)?;
+    }
+    if let Some(plot) = &a.plot {
+        guidance_sim::plot_svg(plot, &result, 600)?;
+    }
+    if a.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&result.summary).unwrap_or_default()
+        );
+    } else {
+        for line in guidance_sim::summary_lines(&result.summary) {
+            println!("{line}");
+        }
+    }
+    Ok(())
 }
 
 fn run_replay(

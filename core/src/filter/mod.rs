@@ -23,7 +23,10 @@ mod bias;
 mod cdkf;
 mod ese;
 mod icdkf;
+mod imm;
 mod kalman;
+pub mod mpekf;
+pub mod nn;
 mod obe;
 mod stf;
 
@@ -33,6 +36,7 @@ pub use ese::{
     DifferenceStart, ErrorSpace, ErrorSpacePredictor, EseStage, EseState, difference_start,
 };
 pub use icdkf::{IcdkfForm, IncrementalCdkf, current};
+pub use imm::{Imm, ImmState, ModeModel, PROB_FLOOR};
 pub use kalman::{Extended, Kalman, joseph_update};
 pub use obe::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, intersect_strip,

@@ -2,10 +2,13 @@
 //! measurement models from `scenario.json`, and writing estimate lines.
 
 pub mod angles;
+pub mod bearings;
 pub mod bias;
 pub mod gaussian;
 pub mod icdkf;
+pub mod imm;
 pub mod obe;
+pub mod tracker;
 
 use harrier_core::measurement::{AzEl, BearingSize, Geometry, Position, RangeBearing, TargetSize};
 use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
