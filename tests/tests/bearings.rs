@@ -9,27 +9,14 @@
 use harrier_core::metrics::Score;
 use harrier_server::engine::Params;
 use harrier_server::replay::{self, ReplayReport};
-use harrier_tests::{scenario, score_py};
+use harrier_tests::scenario;
 
 fn run(name: &str, estimator: &str) -> ReplayReport {
-    let data = replay::load(&scenario(name)).expect("reference scenario loads");
-    replay::run(&data, estimator, &Params::default()).expect("replay runs")
+    harrier_tests::replay(name, estimator)
 }
 
 fn score(name: &str, estimator: &str) -> Score {
-    let r = run(name, estimator);
-    assert!(
-        r.rejected.is_empty(),
-        "{estimator} on {name} rejected steps: {:?}",
-        r.rejected
-    );
-    let s = r.score.expect("reference scenarios have truth");
-    println!(
-        "{name:<22} {estimator:<9} pos RMSE {:8.3} m  NEES-95% ok {:.3}",
-        s.pos_rmse.unwrap_or(f64::NAN),
-        nees_ok(&s)
-    );
-    s
+    harrier_tests::replay_score(name, estimator)
 }
 
 fn rmse(s: &Score) -> f64 {
@@ -80,25 +67,7 @@ fn cartesian_filters_need_a_known_size() {
 
 #[test]
 fn rust_metrics_agree_with_score_py() {
-    let name = "bearings_leader";
-    let r = run(name, "mpekf-nn");
-    let s = r.score.clone().unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("estimates.jsonl");
-    replay::write_estimates(&out, &r.estimates).unwrap();
-    let py = score_py(&scenario(name), &out).unwrap();
-    let close = |a: f64, b: &serde_json::Value| {
-        let b = b.as_f64().unwrap();
-        assert!(
-            (a - b).abs() <= 1e-9 * (1.0 + b.abs()),
-            "{name}: rust {a} vs score.py {b}"
-        );
-    };
-    close(s.pos_rmse.unwrap(), &py["pos_rmse"]);
-    close(s.vel_rmse.unwrap(), &py["vel_rmse"]);
-    let (n, pn) = (s.nees.unwrap(), &py["nees"]);
-    close(n.mean, &pn["mean"]);
-    close(n.frac_within_95, &pn["frac_within_95"]);
+    harrier_tests::assert_score_py_agrees("bearings_leader", &run("bearings_leader", "mpekf-nn"));
 }
 
 /// A variant of a reference scenario in a temporary directory, with `scenario.json` and every

@@ -15,34 +15,14 @@
 use harrier_core::metrics::Score;
 use harrier_server::engine::Params;
 use harrier_server::replay::{self, ReplayReport};
-use harrier_tests::{scenario, score_py};
+use harrier_tests::scenario;
 
 fn run(name: &str, estimator: &str) -> ReplayReport {
-    let data = replay::load(&scenario(name)).expect("reference scenario loads");
-    replay::run(&data, estimator, &Params::default()).expect("replay runs")
+    harrier_tests::replay(name, estimator)
 }
 
 fn score(name: &str, estimator: &str) -> Score {
-    let r = run(name, estimator);
-    assert!(
-        r.rejected.is_empty(),
-        "{estimator} on {name} rejected steps: {:?}",
-        r.rejected
-    );
-    for e in &r.estimates {
-        let p = e.model_probs.as_ref().expect("model_probs on every line");
-        assert_eq!(p.len(), 3, "aligned with motion.models");
-        let sum: f64 = p.iter().sum();
-        assert!((sum - 1.0).abs() <= 1e-9, "{estimator} at {}: {p:?}", e.t);
-    }
-    let s = r.score.expect("reference scenarios have truth");
-    println!(
-        "{name:<16} {estimator:<12} pos RMSE {:6.3} m  vel RMSE {:6.3} m/s  NEES-95% ok {:.3}",
-        rmse(&s),
-        s.vel_rmse.unwrap_or(f64::NAN),
-        nees_ok(&s)
-    );
-    s
+    harrier_tests::replay_score(name, estimator)
 }
 
 fn rmse(s: &Score) -> f64 {
@@ -135,28 +115,7 @@ fn model_probabilities_identify_the_manoeuvre() {
 
 #[test]
 fn rust_metrics_agree_with_score_py() {
-    let name = "cimm_road_3uav";
-    let r = run(name, "cimm");
-    let s = r.score.clone().unwrap();
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("estimates.jsonl");
-    replay::write_estimates(&out, &r.estimates).unwrap();
-    let py = score_py(&scenario(name), &out).unwrap();
-    let close = |a: f64, b: &serde_json::Value| {
-        let b = b.as_f64().unwrap();
-        assert!(
-            (a - b).abs() <= 1e-9 * (1.0 + b.abs()),
-            "rust {a} vs score.py {b}"
-        );
-    };
-    close(s.pos_rmse.unwrap(), &py["pos_rmse"]);
-    close(s.vel_rmse.unwrap(), &py["vel_rmse"]);
-    let (n, pn) = (s.nees.unwrap(), &py["nees"]);
-    close(n.mean, &pn["mean"]);
-    close(n.frac_within_95, &pn["frac_within_95"]);
-    for (mode, v) in &s.pos_rmse_by_mode {
-        close(*v, &py["pos_rmse_by_mode"][mode]);
-    }
+    harrier_tests::assert_score_py_agrees("cimm_road_3uav", &run("cimm_road_3uav", "cimm"));
 }
 
 /// The IMM / CIMM steps and the fusion rules never touch the heap (the road is built once).

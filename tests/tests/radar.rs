@@ -5,29 +5,14 @@
 //! `_abrupt` / `_markov`.
 
 use harrier_core::metrics::Score;
-use harrier_server::engine::Params;
-use harrier_server::replay::{self, ReplayReport};
-use harrier_tests::{scenario, score_py};
+use harrier_server::replay::ReplayReport;
 
 fn run(name: &str, estimator: &str) -> ReplayReport {
-    let data = replay::load(&scenario(name)).expect("reference scenario loads");
-    replay::run(&data, estimator, &Params::default()).expect("replay runs")
+    harrier_tests::replay(name, estimator)
 }
 
 fn score(name: &str, estimator: &str) -> Score {
-    let r = run(name, estimator);
-    assert!(
-        r.rejected.is_empty(),
-        "{estimator} on {name} rejected steps: {:?}",
-        r.rejected
-    );
-    let s = r.score.expect("reference scenarios have truth");
-    println!(
-        "{name:<18} {estimator:<14} pos RMSE {:8.2} m  NEES-95% ok {:.3}",
-        s.pos_rmse.unwrap_or(f64::NAN),
-        s.nees.as_ref().map_or(f64::NAN, |n| n.frac_within_95)
-    );
-    s
+    harrier_tests::replay_score(name, estimator)
 }
 
 fn rmse(s: &Score) -> f64 {
@@ -80,29 +65,6 @@ fn rust_metrics_agree_with_score_py() {
         ("radar_bias_none", "cdkf"),
         ("radar_bias_abrupt", "cdkf-bias"),
     ] {
-        let r = run(name, est);
-        let s = r.score.clone().unwrap();
-        let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("estimates.jsonl");
-        replay::write_estimates(&out, &r.estimates).unwrap();
-        let py = score_py(&scenario(name), &out).unwrap();
-        let close = |a: f64, b: &serde_json::Value| {
-            let b = b.as_f64().unwrap();
-            assert!(
-                (a - b).abs() <= 1e-9 * (1.0 + b.abs()),
-                "{name}: rust {a} vs score.py {b}"
-            );
-        };
-        close(s.pos_rmse.unwrap(), &py["pos_rmse"]);
-        close(s.vel_rmse.unwrap(), &py["vel_rmse"]);
-        close(s.pos_max.unwrap(), &py["pos_max"]);
-        let (n, pn) = (s.nees.unwrap(), &py["nees"]);
-        close(n.mean, &pn["mean"]);
-        close(n.frac_within_95, &pn["frac_within_95"]);
-        close(n.chi2_95_bound, &pn["chi2_95_bound"]);
-        close(s.nees_pos.unwrap().mean, &py["nees_pos"]["mean"]);
-        for (mode, v) in &s.pos_rmse_by_mode {
-            close(*v, &py["pos_rmse_by_mode"][mode]);
-        }
+        harrier_tests::assert_score_py_agrees(name, &run(name, est));
     }
 }

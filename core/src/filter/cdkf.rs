@@ -205,25 +205,39 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
             |x| model.function(x),
             |a, b| model.residual(a, b),
         )?;
-        let R = model.covar();
-        let S = symmetrize(&(Pzz + R));
-        let chol_S = cholesky(&S, "innovation covariance")?;
-        // K = Pxz S⁻¹
-        let K = chol_S.solve(&Pxz.transpose()).transpose();
         let nu = model.residual(z, &zhat);
-        ensure_finite(&nu, "innovation")?;
-        let mean = predicted.mean + K * nu;
-        // H̃ = Pxzᵀ P⁻¹ (statistical linearisation), R̃ = S − H̃ P H̃ᵀ.
-        let Ht = cholesky(P, "predicted covariance")?.solve(&Pxz).transpose();
-        let R_eff = symmetrize(&(S - Ht * Pxz));
-        let I_KH = SMatrix::<f64, N, N>::identity() - K * Ht;
-        let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R_eff * K.transpose()));
-        ensure_finite(&mean, "updated mean")?;
-        ensure_finite(&cov, "updated covariance")?;
-        Ok(Posterior {
-            state: Gaussian { mean, cov },
-            innovation: nu,
-            innovation_cov: S,
-        })
+        sigma_point_update(predicted, symmetrize(&(Pzz + model.covar())), &Pxz, nu)
     }
+}
+
+/// The measurement update shared by the sigma-point filters (CDKF, ICDKF), given the innovation
+/// covariance `S`, the cross-covariance `Pxz` and the innovation `ν`:
+/// `K = Pxz S⁻¹`, `x = x⁻ + K ν`, and the Joseph form through the statistically linearised
+/// `H̃ = Pxzᵀ P⁻⁻¹` and `R̃ = S − H̃ Pxz` ([VdM04] eqs. (3.103)–(3.105) with the covariance written
+/// as `(I − K H̃) P⁻ (I − K H̃)ᵀ + K R̃ Kᵀ`).
+pub(crate) fn sigma_point_update<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    S: SMatrix<f64, M, M>,
+    Pxz: &SMatrix<f64, N, M>,
+    nu: SVector<f64, M>,
+) -> Result<Posterior<Gaussian<N>, M>> {
+    ensure_finite(&nu, "innovation")?;
+    let P = &predicted.cov;
+    // K = Pxz S⁻¹
+    let K = cholesky(&S, "innovation covariance")?
+        .solve(&Pxz.transpose())
+        .transpose();
+    let mean = predicted.mean + K * nu;
+    // H̃ = Pxzᵀ P⁻¹ (statistical linearisation), R̃ = S − H̃ Pxz.
+    let Ht = cholesky(P, "predicted covariance")?.solve(Pxz).transpose();
+    let R_eff = symmetrize(&(S - Ht * Pxz));
+    let I_KH = SMatrix::<f64, N, N>::identity() - K * Ht;
+    let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R_eff * K.transpose()));
+    ensure_finite(&mean, "updated mean")?;
+    ensure_finite(&cov, "updated covariance")?;
+    Ok(Posterior {
+        state: Gaussian { mean, cov },
+        innovation: nu,
+        innovation_cov: S,
+    })
 }

@@ -33,11 +33,12 @@
 //! * [NPR00] M. Nørgaard, N. K. Poulsen, O. Ravn, *Automatica* 36(11), 2000.
 #![allow(non_snake_case)]
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 
 use super::CentralDifference;
+use super::cdkf::sigma_point_update;
 use crate::Result;
-use crate::linalg::{cholesky, ensure_finite, symmetrize};
+use crate::linalg::{ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
 use crate::state::{Gaussian, Posterior};
@@ -141,25 +142,8 @@ impl IncrementalCdkf {
                 (m, Pzz + R2, Pxz)
             }
         };
-        let S = symmetrize(&Pzz);
-        let K = cholesky(&S, "innovation covariance")?
-            .solve(&Pxz.transpose())
-            .transpose();
         let nu = now.residual(dz, &zhat);
-        ensure_finite(&nu, "innovation")?;
-        let mean = predicted.mean + K * nu;
-        // Joseph form through H̃ = Pxzᵀ P⁻¹ and R̃ = S − H̃ Pxz (see the CDKF module docs).
-        let Ht = cholesky(P, "predicted covariance")?.solve(&Pxz).transpose();
-        let R_eff = symmetrize(&(S - Ht * Pxz));
-        let I_KH = SMatrix::<f64, N2, N2>::identity() - K * Ht;
-        let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R_eff * K.transpose()));
-        ensure_finite(&mean, "updated mean")?;
-        ensure_finite(&cov, "updated covariance")?;
-        Ok(Posterior {
-            state: Gaussian { mean, cov },
-            innovation: nu,
-            innovation_cov: S,
-        })
+        sigma_point_update(predicted, symmetrize(&Pzz), &Pxz, nu)
     }
 }
 
