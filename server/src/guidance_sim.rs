@@ -16,11 +16,14 @@
 //! | `bot-formation` | [BOT] §IV Fig. 8: leader + 3 followers regulating LOS ranges, four obstacles |
 //! | `bot-observability` | [BOT] §II.B: one bearings-only follower, straight following vs. the eq. (4) maneuver |
 //!
-//! **Estimator.** CIMM is not implemented yet; the moving cases use the best filter available,
-//! a linear Kalman filter (`Kalman`, `ConstantVelocity::<4>`, q = 0.05 m²/s³) fed with simulated
-//! camera geolocation `Position::<2>` measurements, σ = 10 m, 1 Hz per UAV (as in
-//! `cimm_road_3uav`), and the guidance sees the filter's estimate extrapolated to the current time,
-//! never the truth. `--estimator truth` feeds the truth instead. The observability case uses a
+//! **Estimator.** The moving cases use the road-constrained IMM of [CIMM] §3.2
+//! ([`EstimatorKind::Cimm`], the default; modes CV / CT −0.008 / CT +0.01 rad/s and the road of
+//! [`road_network`], σ_m = 2 m, see `RoadCimm`) fed with simulated camera geolocation
+//! `Position::<2>` measurements, σ = 10 m, 1 Hz per UAV (as in `cimm_road_3uav`), every UAV's fix
+//! applied sequentially; the guidance sees the estimate extrapolated to the current time, never the
+//! truth. [`EstimatorKind::Kalman`] (`--estimator kf`) is the comparison: a linear Kalman filter
+//! (`Kalman`, `ConstantVelocity::<4>`, q = 0.05 m²/s³) on the same fixes. `--estimator truth`
+//! feeds the truth instead. The observability case uses a
 //! bearings-only EKF (Joseph update, CV model) on the leader, σ = 1°, 10 Hz.
 
 use std::f64::consts::TAU;
@@ -28,7 +31,9 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-use harrier_core::filter::{Kalman, Predictor, Updater, joseph_update};
+use harrier_core::filter::{
+    Extended, Imm, ImmState, Kalman, ModeModel, Predictor, Updater, joseph_update,
+};
 use harrier_core::guidance::formation::{PairState, RangeRegulator, vector_sum};
 use harrier_core::guidance::kinematics::step;
 use harrier_core::guidance::lgvf::Lgvf;
@@ -40,12 +45,16 @@ use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate
 use harrier_core::linalg::wrap_angle;
 use harrier_core::measurement::{Geometry, Position};
 use harrier_core::motion::ConstantVelocity;
+use harrier_core::road::RoadNetwork;
+use harrier_core::scenario::{self, Segment};
 use harrier_core::state::Gaussian;
 use nalgebra::{Matrix1x4, Matrix4, SMatrix, Vector1, Vector2, Vector3, Vector4};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::Serialize;
+
+use crate::estimators::imm::road_update;
 
 /// Why a simulation could not run or its output could not be written.
 #[derive(Debug, thiserror::Error)]
@@ -161,6 +170,8 @@ pub enum EstimatorKind {
     Truth,
     /// Kalman filter on simulated camera measurements.
     Kalman,
+    /// Road-constrained IMM ([CIMM] §3.2) on simulated camera measurements.
+    Cimm,
 }
 
 /// Options of one run.
@@ -170,7 +181,7 @@ pub struct SimConfig {
     pub case: Case,
     /// Standoff law (standoff cases).
     pub law: LawKind,
-    /// Estimator (standoff cases; default: Kalman for moving targets, truth for static ones).
+    /// Estimator (standoff cases; default: CIMM for moving targets, truth for static ones).
     pub estimator: Option<EstimatorKind>,
     /// Time step (s).
     pub dt: f64,
@@ -366,35 +377,79 @@ pub const STATIC_TARGET: [f64; 3] = [1500.0, 1800.0, 0.0];
 /// UAV start of [CIMM] §5.2.
 pub const STATIC_START: [f64; 3] = [1100.0, 1000.0, 400.0];
 
-/// The [CIMM] §5.1 target (the road of `cimm_road_1uav`): from (200, 300) m at (6, 8) m/s,
-/// right turn at −0.008 rad/s from 140 s, left turn at 0.01 rad/s from 360 s.
+/// Legs of the [CIMM] §5.1 target: (start time s, turn rate rad/s). Straight, right turn at
+/// −0.008 rad/s from 140 s, left turn at 0.01 rad/s from 360 s (the `motion.models` turn rates of
+/// `cimm_road_1uav`).
+const ROAD_LEGS: [(f64, f64); 3] = [(0.0, 0.0), (140.0, -0.008), (360.0, 0.01)];
+/// End of the road's last segment (s of travel); beyond it the road continues along its tangent.
+const ROAD_END_S: f64 = 700.0;
+/// Lateral-offset std of the road (m), as `sigma_m` of `cimm_road_1uav`.
+pub const ROAD_SIGMA_M: f64 = 2.0;
+
+/// Constant-turn propagation of position `p` and velocity `v` at rate `w` over `dt`.
+fn ct_step(p: Vector2<f64>, v: Vector2<f64>, w: f64, dt: f64) -> (Vector2<f64>, Vector2<f64>) {
+    if w.abs() < 1e-12 {
+        return (p + v * dt, v);
+    }
+    let (s, c) = (w * dt).sin_cos();
+    let p = p + Vector2::new(
+        (s * v.x - (1.0 - c) * v.y) / w,
+        ((1.0 - c) * v.x + s * v.y) / w,
+    );
+    (p, Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y))
+}
+
+/// The [CIMM] §5.1 target (the road of `cimm_road_1uav`): from (200, 300) m at (6, 8) m/s along
+/// [`ROAD_LEGS`].
 pub fn road_target(t: f64) -> (Vector3<f64>, Vector3<f64>) {
-    let p0 = Vector2::new(200.0, 300.0);
-    let v0 = Vector2::new(6.0, 8.0);
-    // Constant-turn propagation over one segment.
-    let ct = |p: Vector2<f64>, v: Vector2<f64>, w: f64, dt: f64| {
-        if w.abs() < 1e-12 {
-            return (p + v * dt, v);
+    let (mut p, mut v) = (Vector2::new(200.0, 300.0), Vector2::new(6.0, 8.0));
+    for (i, &(t0, w)) in ROAD_LEGS.iter().enumerate() {
+        if i > 0 && t <= t0 {
+            break;
         }
-        let (s, c) = (w * dt).sin_cos();
-        let p = p + Vector2::new(
-            (s * v.x - (1.0 - c) * v.y) / w,
-            ((1.0 - c) * v.x + s * v.y) / w,
-        );
-        (p, Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y))
-    };
-    let (p, v) = ct(p0, v0, 0.0, t.min(140.0));
-    let (p, v) = if t > 140.0 {
-        ct(p, v, -0.008, t.min(360.0) - 140.0)
-    } else {
-        (p, v)
-    };
-    let (p, v) = if t > 360.0 {
-        ct(p, v, 0.01, t - 360.0)
-    } else {
-        (p, v)
-    };
+        let t1 = ROAD_LEGS.get(i + 1).map_or(f64::INFINITY, |l| l.0);
+        (p, v) = ct_step(p, v, w, t.min(t1) - t0);
+    }
     (Vector3::new(p.x, p.y, 0.0), Vector3::new(v.x, v.y, 0.0))
+}
+
+/// The road the moving target drives on, built from the same legs as [`road_target`]: one line
+/// or arc per leg (arc centre on the turn side at |v|/|ω|, sweep ω·duration), `sigma_m` =
+/// [`ROAD_SIGMA_M`], width 7 m. Equals the `roads` of `cimm_road_1uav` up to the line's start.
+pub fn road_network() -> Result<RoadNetwork, SimError> {
+    let at = |t: f64| {
+        let (p, v) = road_target(t);
+        (p.xy(), v.xy())
+    };
+    let segments = ROAD_LEGS
+        .iter()
+        .enumerate()
+        .map(|(i, &(t0, w))| {
+            let t1 = ROAD_LEGS.get(i + 1).map_or(ROAD_END_S, |l| l.0);
+            let ((a, v), (b, _)) = (at(t0), at(t1));
+            if w == 0.0 {
+                Segment::Line {
+                    start: a.into(),
+                    end: b.into(),
+                }
+            } else {
+                Segment::Arc {
+                    center: (a + Vector2::new(-v.y, v.x) / w).into(),
+                    radius: v.norm() / w.abs(),
+                    start: a.into(),
+                    end: b.into(),
+                    sweep_rad: w * (t1 - t0),
+                }
+            }
+        })
+        .collect();
+    let road = scenario::Road {
+        id: "road1".into(),
+        width_m: Some(7.0),
+        sigma_m: Some(ROAD_SIGMA_M),
+        segments,
+    };
+    RoadNetwork::from_scenario(&[road]).map_err(|e| SimError::Setup(format!("road: {e}")))
 }
 
 /// Runs one simulation.
@@ -413,7 +468,7 @@ pub fn run(cfg: &SimConfig) -> Result<SimResult, SimError> {
     }
     match cfg.case {
         Case::CimmStatic | Case::CimmMoving | Case::ThreeStatic | Case::ThreeMoving => {
-            Ok(run_standoff(cfg, duration))
+            run_standoff(cfg, duration)
         }
         Case::BotFormation => Ok(run_formation(cfg, duration)),
         Case::BotObservability => Ok(run_observability(cfg, duration)),
@@ -423,7 +478,7 @@ pub fn run(cfg: &SimConfig) -> Result<SimResult, SimError> {
 // ---------------------------------------------------------------------------------------------
 // Standoff cases.
 
-fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
+fn run_standoff(cfg: &SimConfig, duration: f64) -> Result<SimResult, SimError> {
     let moving = matches!(cfg.case, Case::CimmMoving | Case::ThreeMoving);
     let starts: Vec<Vector3<f64>> = match cfg.case {
         Case::CimmStatic => vec![Vector3::from(STATIC_START)],
@@ -441,7 +496,7 @@ fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
     };
     let n = starts.len();
     let estimator = cfg.estimator.unwrap_or(if moving {
-        EstimatorKind::Kalman
+        EstimatorKind::Cimm
     } else {
         EstimatorKind::Truth
     });
@@ -484,6 +539,10 @@ fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
     let cv = ConstantVelocity::<4>::new(0.05);
     let cam = Position::<2>::new(Geometry::planar(0.0), [10.0, 10.0]);
     let mut kf: Option<(f64, Gaussian<4>)> = None;
+    let mut cimm = match estimator {
+        EstimatorKind::Cimm => Some(RoadCimm::new()?),
+        _ => None,
+    };
     let mut next_meas = 0.0;
     let mut est_err2 = (0.0, 0usize);
 
@@ -500,28 +559,35 @@ fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
                 position: pt,
                 velocity: vt,
             }),
-            EstimatorKind::Kalman => {
+            EstimatorKind::Kalman | EstimatorKind::Cimm => {
                 if t + 1e-9 >= next_meas {
                     next_meas += 1.0;
-                    for _ in 0..n {
-                        let z = match noise {
+                    let zs: Vec<Vector2<f64>> = (0..n)
+                        .map(|_| match noise {
                             Some(nd) => {
                                 Vector2::new(pt.x + nd.sample(&mut rng), pt.y + nd.sample(&mut rng))
                             }
                             None => pt.xy(),
-                        };
-                        kf = Some(kalman_step(kf, &cv, &cam, t, z));
+                        })
+                        .collect();
+                    match &mut cimm {
+                        Some(c) => c.step(&cam, t, &zs),
+                        None => {
+                            for z in zs {
+                                kf = Some(kalman_step(kf, &cv, &cam, t, z));
+                            }
+                        }
                     }
                 }
-                kf.map(|(tk, g)| {
+                let last = match &cimm {
+                    Some(c) => c.estimate(),
+                    None => kf.map(|(tk, g)| (tk, g.mean)),
+                };
+                last.map(|(tk, x)| {
                     let dt = t - tk;
                     TargetEstimate {
-                        position: Vector3::new(
-                            g.mean[0] + g.mean[2] * dt,
-                            g.mean[1] + g.mean[3] * dt,
-                            0.0,
-                        ),
-                        velocity: Vector3::new(g.mean[2], g.mean[3], 0.0),
+                        position: Vector3::new(x[0] + x[2] * dt, x[1] + x[3] * dt, 0.0),
+                        velocity: Vector3::new(x[2], x[3], 0.0),
                     }
                 })
             }
@@ -587,7 +653,7 @@ fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
         .map(|s| Vector2::new(s.pos[0], s.pos[1]));
     let mut tracks_all = tracks;
     tracks_all.push(target_track);
-    if estimator == EstimatorKind::Kalman {
+    if estimator != EstimatorKind::Truth {
         tracks_all.push(est_track);
     }
     let mut summary = base_summary(cfg, duration, n, elapsed_ms, &tracks_all, limits);
@@ -595,20 +661,99 @@ fn run_standoff(cfg: &SimConfig, duration: f64) -> SimResult {
     summary.estimator = match estimator {
         EstimatorKind::Truth => "truth",
         EstimatorKind::Kalman => "kf (CV, camera position σ = 10 m, 1 Hz per UAV)",
+        EstimatorKind::Cimm => {
+            "cimm (CV / CT −0.008 / CT +0.01 rad/s, road σ_m = 2 m, camera position σ = 10 m, 1 Hz per UAV)"
+        }
     };
     summary.radius_m = Some(R);
     summary.height_m = Some(H);
     summary.per_uav = per_uav;
     summary.optimal_path_m = optimal_path_m.filter(|v| v.is_finite());
-    summary.estimate_rms_m = (estimator == EstimatorKind::Kalman && est_err2.1 > 0)
+    summary.estimate_rms_m = (estimator != EstimatorKind::Truth && est_err2.1 > 0)
         .then(|| (est_err2.0 / est_err2.1 as f64).sqrt());
     summary.phase_max_error_deg = phase_max;
     summary.phase_rms_error_deg = phase_rms;
-    SimResult {
+    Ok(SimResult {
         summary,
         tracks: tracks_all,
         obstacles: Vec::new(),
         circle: last.map(|c| (c, R)),
+    })
+}
+
+/// The road-constrained IMM of the moving cases ([CIMM] §3.2, as the `cimm` estimator): EKF mode
+/// filters CV / right turn / left turn with the `motion` block of `cimm_road_1uav` (turn rates of
+/// [`ROAD_LEGS`], q = accel_std² = 0.0025 m²/s³, transition matrix 0.98 / 0.01, initial
+/// probabilities 0.98 / 0.01 / 0.01), every UAV's camera fix applied sequentially, then the road
+/// pseudo-measurement on [`road_network`] (σ_m = 2 m, σ_v = σ_m / 1 s).
+struct RoadCimm {
+    imm: Imm<Extended, ModeModel, 3>,
+    roads: RoadNetwork,
+    /// Time and state of the last update; `None` before the first fix.
+    state: Option<(f64, ImmState<4, 3>)>,
+}
+
+impl RoadCimm {
+    const Q: f64 = 0.05 * 0.05;
+    const PROBS: [f64; 3] = [0.98, 0.01, 0.01];
+    const TPM: [[f64; 3]; 3] = [[0.98, 0.01, 0.01], [0.01, 0.98, 0.01], [0.01, 0.01, 0.98]];
+
+    fn new() -> Result<Self, SimError> {
+        let q = Self::Q;
+        let models = [
+            ModeModel::Cv { q },
+            ModeModel::Ct {
+                omega: ROAD_LEGS[1].1,
+                q,
+            },
+            ModeModel::Ct {
+                omega: ROAD_LEGS[2].1,
+                q,
+            },
+        ];
+        let imm = Imm::new(Extended, models, Self::TPM)
+            .map_err(|e| SimError::Setup(format!("cimm: {e}")))?;
+        Ok(Self {
+            imm,
+            roads: road_network()?,
+            state: None,
+        })
+    }
+
+    /// Predict to `t`, update with every fix of `zs` in turn, then the road constraint. The first
+    /// fix starts the filter (as [`kalman_step`]); a failed step keeps the previous state.
+    fn step(&mut self, cam: &Position<2>, t: f64, zs: &[Vector2<f64>]) {
+        let (s, rest) = match (self.state, zs.split_first()) {
+            (Some((tk, s)), _) => (
+                if t > tk {
+                    self.imm.predict(&s, t - tk).unwrap_or(s)
+                } else {
+                    s
+                },
+                zs,
+            ),
+            (None, Some((z, rest))) => {
+                let prior = Gaussian {
+                    mean: Vector4::new(z.x, z.y, 0.0, 0.0),
+                    cov: Matrix4::from_diagonal(&Vector4::new(100.0, 100.0, 100.0, 100.0)),
+                };
+                let Ok(s) = ImmState::new(prior, Self::PROBS) else {
+                    return;
+                };
+                (s, rest)
+            }
+            (None, None) => return,
+        };
+        let s = rest
+            .iter()
+            .fold(s, |s, z| self.imm.update(cam, &s, z).unwrap_or(s));
+        let s = road_update(&self.imm, &s, &self.roads, None, 1.0).unwrap_or(s);
+        self.state = Some((t, s));
+    }
+
+    /// Time and combined mean of the last update.
+    fn estimate(&self) -> Option<(f64, Vector4<f64>)> {
+        self.state.map(|(t, s)| (t, s.combined().mean))
     }
 }
 
@@ -1348,6 +1493,7 @@ pub fn plot_svg(path: &Path, result: &SimResult, max_points: usize) -> Result<()
 #[cfg(test)]
 mod tests {
     use super::*;
+    use harrier_core::road::RoadSegment;
 
     #[test]
     fn road_target_matches_the_scenario_truth() {
@@ -1359,6 +1505,38 @@ mod tests {
         assert!((v - Vector3::new(6.728774, -7.397541, 0.0)).norm() < 1e-4);
         let (p, _) = road_target(700.0);
         assert!((p - Vector3::new(4247.691708, 3023.548213, 0.0)).norm() < 1e-3);
+    }
+
+    #[test]
+    fn road_network_is_the_scenario_road_and_carries_the_target() {
+        let net = road_network().unwrap();
+        let road = &net.roads()[0];
+        assert_eq!(road.sigma_m(), ROAD_SIGMA_M);
+        // cimm_road_1uav/scenario.json roads: arc centres, radii, sweeps, end point.
+        let segs = road.segments();
+        assert_eq!(segs.len(), 3);
+        let expect = [
+            (Vector2::new(2040.0, 670.0), 1250.0, -1.76),
+            (Vector2::new(3704.446638, 2183.974038), 1000.0, 3.4),
+        ];
+        for (seg, (c, r, sweep)) in segs[1..].iter().zip(expect) {
+            let RoadSegment::Arc {
+                center,
+                radius,
+                sweep: sw,
+                ..
+            } = *seg
+            else {
+                panic!("arc expected, got {seg:?}");
+            };
+            assert!((center - c).norm() < 1e-4, "{center}");
+            assert!((radius - r).abs() < 1e-6 && (sw - sweep).abs() < 1e-9);
+        }
+        assert!((segs[2].end() - Vector2::new(4247.691708, 3023.548213)).norm() < 1e-3);
+        for k in 0..=700 {
+            let (p, _) = road_target(f64::from(k));
+            assert!(road.project(&p.xy()).offset.abs() < 1e-6, "t = {k}");
+        }
     }
 
     #[test]

@@ -9,6 +9,15 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+
+/// `println!` that does not panic when stdout is closed (e.g. piped into `head`): output that
+/// cannot be written is dropped.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
+    }};
+}
 use harrier_server::engine::{ESTIMATORS, Params};
 use harrier_server::guidance_sim;
 use harrier_server::replay;
@@ -49,8 +58,9 @@ enum Command {
         /// Standoff law: togvf or lgvf.
         #[arg(long, default_value = "togvf")]
         law: String,
-        /// What the guidance sees of the target: kf (simulated camera measurements) or truth;
-        /// default kf for moving targets, truth for static ones.
+        /// What the guidance sees of the target: cimm (road-constrained IMM on simulated camera
+        /// measurements), kf (Kalman filter on the same) or truth; default cimm for moving
+        /// targets, truth for static ones.
         #[arg(long)]
         estimator: Option<String>,
         /// Time step (s).
@@ -93,9 +103,9 @@ fn main() -> ExitCode {
     match cli.command {
         Command::Estimators { params } => {
             for e in ESTIMATORS {
-                println!("{:<14} {}", e.name, e.summary);
+                out!("{:<14} {}", e.name, e.summary);
                 for (p, d) in e.params.iter().filter(|_| params) {
-                    println!("{:<14}   --param {p}=…  {d}", "");
+                    out!("{:<14}   --param {p}=…  {d}", "");
                 }
             }
             ExitCode::SUCCESS
@@ -172,11 +182,12 @@ fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
     use guidance_sim::{Case, EstimatorKind, LawKind, SimConfig, SimError};
     let estimator = match a.estimator.as_deref() {
         None => None,
+        Some("cimm") => Some(EstimatorKind::Cimm),
         Some("kf") => Some(EstimatorKind::Kalman),
         Some("truth") => Some(EstimatorKind::Truth),
         Some(other) => {
             return Err(SimError::Setup(format!(
-                "unknown estimator {other:?}; kf or truth"
+                "unknown estimator {other:?}; cimm, kf or truth"
             )));
         }
     };
@@ -196,13 +207,13 @@ fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
         guidance_sim::plot_svg(plot, &result, 600)?;
     }
     if a.json {
-        println!(
+        out!(
             "{}",
             serde_json::to_string_pretty(&result.summary).unwrap_or_default()
         );
     } else {
         for line in guidance_sim::summary_lines(&result.summary) {
-            println!("{line}");
+            out!("{line}");
         }
     }
     Ok(())
@@ -244,13 +255,13 @@ fn run_replay(
     }
     if let Some(score) = &report.score {
         if json {
-            println!(
+            out!(
                 "{}",
                 serde_json::to_string_pretty(score).unwrap_or_default()
             );
         } else {
             for line in replay::summary_lines(score) {
-                println!("{line}");
+                out!("{line}");
             }
         }
     }

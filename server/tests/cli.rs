@@ -228,3 +228,145 @@ fn unknown_estimator_and_parameter_are_clear_errors() {
     );
     assert!(!out_file.exists());
 }
+
+#[test]
+fn guidance_sim_writes_trajectories_plot_and_summary() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("three.csv");
+    let svg = dir.path().join("three.svg");
+    let out = harrier(&[
+        "guidance-sim",
+        "--case",
+        "three-moving",
+        "--duration",
+        "60",
+        "-o",
+        csv.to_str().unwrap(),
+        "--plot",
+        svg.to_str().unwrap(),
+    ]);
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // Summary: header with the default (CIMM) estimator, one line per UAV, the phase figures.
+    assert!(
+        stdout.starts_with("three-moving: law togvf, 3 UAV(s), 60 s at 10 Hz, estimator cimm"),
+        "{stdout}"
+    );
+    for id in ["uav1", "uav2", "uav3"] {
+        assert!(
+            stdout.contains(&format!("  {id}: path to circle")),
+            "{stdout}"
+        );
+    }
+    assert!(stdout.contains("phase spacing error"), "{stdout}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with("t,id,kind,x,y,z,vx,vy,vz\n"));
+    // 3 UAVs + target + estimate, 601 samples each.
+    assert_eq!(text.lines().count(), 1 + 5 * 601);
+    let picture = std::fs::read_to_string(&svg).unwrap();
+    assert!(picture.contains("<svg"), "not an SVG");
+    // --json: the summary as one JSON document, here with the KF for comparison.
+    let out = harrier(&[
+        "guidance-sim",
+        "--case",
+        "cimm-moving",
+        "--duration",
+        "60",
+        "--estimator",
+        "kf",
+        "--json",
+    ]);
+    assert!(out.status.success());
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["case"], "cimm-moving");
+    assert!(s["estimator"].as_str().unwrap().starts_with("kf"));
+    assert!(s["estimate_rms_m"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn guidance_sim_rejects_bad_arguments_with_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("t.csv");
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["--case", "nope"],
+            "unknown case \"nope\"; one of cimm-static",
+        ),
+        (&["--law", "pid"], "unknown law \"pid\""),
+        (&["--estimator", "oracle"], "unknown estimator \"oracle\""),
+        (&["--dt", "0"], "--dt 0 must be in (0, 1] s"),
+        (&["--duration", "0"], "--duration 0 must be in (0, 36000] s"),
+    ];
+    for (args, message) in cases {
+        let mut all = vec!["guidance-sim", "-o", csv.to_str().unwrap()];
+        all.extend_from_slice(args);
+        let out = harrier(&all);
+        let stderr = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(message), "{args:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "{args:?}");
+        assert!(!csv.exists(), "{args:?} wrote {}", csv.display());
+    }
+    // A positional argument (the case must be given with --case) is refused by the parser.
+    let out = harrier(&["guidance-sim", "cimm-moving"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8(out.stderr)
+            .unwrap()
+            .contains("unexpected argument 'cimm-moving'")
+    );
+}
+
+#[test]
+fn generated_multi_target_scenario_replays_with_the_tracker() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("multi");
+    let out = harrier(&["gen-multi", sc.to_str().unwrap(), "--seed", "3"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in ["scenario.json", "measurements.jsonl", "truth.csv"] {
+        assert!(
+            std::fs::metadata(sc.join(f)).is_ok_and(|m| m.len() > 0),
+            "{f} missing or empty"
+        );
+    }
+    let scenario: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(sc.join("scenario.json")).unwrap()).unwrap();
+    assert_eq!(scenario["format"], "gcs-scenario/1");
+    // Scans = distinct measurement times.
+    let mut scans: Vec<f64> = std::fs::read_to_string(sc.join("measurements.jsonl"))
+        .unwrap()
+        .lines()
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            serde_json::from_str::<serde_json::Value>(l).unwrap()["t"]
+                .as_f64()
+                .unwrap()
+        })
+        .collect();
+    scans.dedup();
+    assert!(scans.len() > 1);
+    let est = dir.path().join("tracks.jsonl");
+    let out = replay(&sc, &est, "tracker");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&est).unwrap();
+    assert_eq!(text.lines().count(), scans.len(), "one line per scan");
+    for (l, t) in text.lines().zip(&scans) {
+        let v: serde_json::Value = serde_json::from_str(l).unwrap();
+        assert_eq!(v["t"].as_f64(), Some(*t));
+        assert!(v["tracks"].is_array());
+    }
+}

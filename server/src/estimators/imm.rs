@@ -221,21 +221,34 @@ impl<const R: usize> ImmTracker<R> {
             t = step.t;
         }
         if let Some((net, sigma_v)) = &self.roads {
-            let c = s.combined().mean;
-            if let Some(road) = net.nearest(&Vector2::new(c[0], c[1])) {
-                let sigma_v = sigma_v.unwrap_or(road.sigma_m() / self.sc.time.dt);
-                s = self.imm.update(
-                    &RoadConstraint::new(road, sigma_v),
-                    &s,
-                    &RoadConstraint::z(),
-                )?;
-            }
+            s = road_update(&self.imm, &s, net, *sigma_v, self.sc.time.dt)?;
         }
         Ok(Local {
             platform: local.platform.clone(),
             t,
             state: s,
         })
+    }
+}
+
+/// The road pseudo-measurement of [CIMM] §3.1 applied once in every mode filter of `s`, on the
+/// road of `net` nearest to the combined estimate, with normal-velocity std `sigma_v` (default
+/// the road's `sigma_m / dt`, `dt` the sensor period). Without a road, `s` is returned as is.
+/// Shared with the CIMM of `harrier guidance-sim`.
+pub fn road_update<const R: usize>(
+    imm: &Imm<Extended, ModeModel, R>,
+    s: &ImmState<4, R>,
+    net: &RoadNetwork,
+    sigma_v: Option<f64>,
+    dt: f64,
+) -> Result<ImmState<4, R>> {
+    let c = s.combined().mean;
+    match net.nearest(&Vector2::new(c[0], c[1])) {
+        Some(road) => {
+            let sigma_v = sigma_v.unwrap_or(road.sigma_m() / dt);
+            imm.update(&RoadConstraint::new(road, sigma_v), s, &RoadConstraint::z())
+        }
+        None => Ok(*s),
     }
 }
 
