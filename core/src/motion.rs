@@ -181,6 +181,53 @@ impl<const N: usize> TransitionModel<N> for ConstantTurn<N> {
     fn covar(&self, dt: f64) -> SMatrix<f64, N, N> {
         kinematic_noise::<N, 2>(self.q, dt)
     }
+    /// Block form of `F P Fᵀ` for `F = [I A; 0 G]` (A, G the position–velocity and velocity blocks
+    /// of the turn): `[P₁₁ + A P₂₁ + P₁₂ Aᵀ + A P₂₂ Aᵀ, (P₁₂ + A P₂₂) Gᵀ; G (P₂₁ + P₂₂ Aᵀ), G P₂₂ Gᵀ]`,
+    /// with D × D blocks instead of one dense N × N × N product.
+    fn propagate_cov(
+        &self,
+        _x: &SVector<f64, N>,
+        p: &SMatrix<f64, N, N>,
+        dt: f64,
+    ) -> SMatrix<f64, N, N> {
+        let d = N / 2;
+        let f = self.matrix(dt);
+        // P₂₂ Aᵀ (D × D) and G rows, read from F: A = F[0..d, d..N], G = F[d..N, d..N].
+        let a = |i: usize, k: usize| f[(i, d + k)];
+        let g = |i: usize, k: usize| f[(d + i, d + k)];
+        // B = P₁₂ + A P₂₂ (D × D, rows: position), C = B Gᵀ, T = P₂₂ Aᵀ.
+        let mut out = SMatrix::<f64, N, N>::zeros();
+        let mut b = [[0.0; 3]; 3];
+        let mut gp = [[0.0; 3]; 3]; // G P₂₂
+        for i in 0..d {
+            for j in 0..d {
+                let (mut ab, mut gq) = (p[(i, d + j)], 0.0);
+                for k in 0..d {
+                    ab += a(i, k) * p[(d + k, d + j)];
+                    gq += g(i, k) * p[(d + k, d + j)];
+                }
+                b[i][j] = ab;
+                gp[i][j] = gq;
+            }
+        }
+        for i in 0..d {
+            for j in 0..d {
+                // Top-left: P₁₁ + A P₂₁ + B Aᵀ  (= P₁₁ + A P₂₁ + P₁₂ Aᵀ + A P₂₂ Aᵀ).
+                let mut tl = p[(i, j)];
+                let (mut tr, mut br) = (0.0, 0.0);
+                for k in 0..d {
+                    tl += a(i, k) * p[(d + k, j)] + b[i][k] * a(j, k);
+                    tr += b[i][k] * g(j, k);
+                    br += gp[i][k] * g(j, k);
+                }
+                out[(i, j)] = tl;
+                out[(i, d + j)] = tr;
+                out[(d + j, i)] = tr;
+                out[(d + i, d + j)] = br;
+            }
+        }
+        out
+    }
 }
 
 impl<const N: usize> LinearTransition<N> for ConstantTurn<N> {
@@ -332,6 +379,27 @@ mod tests {
         assert_relative_eq!(
             m.propagate_cov(&nalgebra::Vector6::zeros(), &p, 0.7),
             f * p * f.transpose(),
+            max_relative = 1e-12
+        );
+    }
+
+    #[test]
+    fn ct_block_propagation_equals_dense_product() {
+        let a = nalgebra::Matrix6::from_fn(|i, j| ((i * 5 + j * 7) % 13) as f64 - 6.0);
+        let p = a * a.transpose();
+        let m = ConstantTurn::<6>::new(-0.07, 1.0);
+        let f = m.matrix(1.3);
+        assert_relative_eq!(
+            m.propagate_cov(&nalgebra::Vector6::zeros(), &p, 1.3),
+            f * p * f.transpose(),
+            max_relative = 1e-12
+        );
+        let p4 = p.fixed_view::<4, 4>(0, 0).into_owned();
+        let m4 = ConstantTurn::<4>::new(0.2, 1.0);
+        let f4 = m4.matrix(0.9);
+        assert_relative_eq!(
+            m4.propagate_cov(&Vector4::zeros(), &p4, 0.9),
+            f4 * p4 * f4.transpose(),
             max_relative = 1e-12
         );
     }

@@ -81,8 +81,9 @@ pub fn joseph_update<const N: usize, const M: usize>(
     // S = H P Hᵀ + R
     let S = symmetrize(&(H * PHt + R));
     let chol = cholesky(&S, "innovation covariance")?;
-    // K = P Hᵀ S⁻¹  ⇔  Kᵀ = S⁻¹ H P  (P symmetric)
-    let K = chol.solve(&PHt.transpose()).transpose();
+    // K = P Hᵀ S⁻¹, with S⁻¹ from the Cholesky factor (M × M solves against the identity, cheaper
+    // than solving for the M × N right-hand side Hᵀ P when M < N).
+    let K = PHt * chol.inverse();
     let mean = predicted.mean + K * innovation;
     // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N
     // product is formed:  A = (I − K H) P = P − K (H P),  A (I − K H)ᵀ = A − (A Hᵀ) Kᵀ.

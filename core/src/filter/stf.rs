@@ -184,7 +184,7 @@ impl StrongTracking {
         let mean = F * prior.estimate.mean;
         ensure_finite(&mean, "predicted mean")?;
         let gamma = measurement.residual(z, &(Hm * mean));
-        let FPFt = F * P * F.transpose();
+        let FPFt = transition.propagate_cov(&prior.estimate.mean, P, dt);
         let (lambda, V) =
             self.fading_factor(&gamma, prior.innovation_cov.as_ref(), &FPFt, &Q, &Hm, &R)?;
         // P⁻ = λ F P Fᵀ + Q.
