@@ -1,0 +1,92 @@
+//! A real MAVLink client flies harrier-sim: the vehicle runs in-process on real UDP sockets and
+//! `tests/python/pymavlink_flight.py` (pymavlink, installed by `.ci/run`) connects to its API link,
+//! reads telemetry and parameters, arms, takes off, flies OFFBOARD velocity setpoints and lands.
+//!
+//! A second link plays the GCS (`udpout` to a socket held here): it must receive the telemetry
+//! but none of the replies meant for the API client.
+
+use std::net::UdpSocket;
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use harrier_sim::mavlink::MavlinkReader;
+use harrier_sim::mavlink::dialects::common::MavMessage;
+use harrier_sim::net::{LinkConfig, spawn};
+use harrier_sim::vehicle::{FlightMode, VehicleConfig};
+
+#[test]
+fn pymavlink_flies_the_simulated_vehicle() {
+    let gcs = UdpSocket::bind("127.0.0.1:0").expect("bind GCS socket");
+    gcs.set_nonblocking(true).expect("nonblocking");
+    let gcs_port = gcs.local_addr().expect("GCS address").port();
+    let sim = spawn(
+        VehicleConfig::new(1),
+        &LinkConfig {
+            endpoints: vec![
+                format!("udpout:127.0.0.1:{gcs_port}"),
+                "udpin:127.0.0.1:0".to_owned(),
+            ],
+        },
+    )
+    .expect("start the vehicle");
+    let api_port = sim.local_addrs()[1].expect("API link bound").port();
+
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/pymavlink_flight.py");
+    let check = Command::new("python3")
+        .args(["-c", "import pymavlink"])
+        .status()
+        .expect("python3 not found");
+    assert!(
+        check.success(),
+        "python3 lacks pymavlink: python3 -m pip install pymavlink (.ci/run pins the version)"
+    );
+    let mut child = Command::new("python3")
+        .arg(&script)
+        .args(["--port", &api_port.to_string()])
+        .stdin(Stdio::null())
+        .spawn()
+        .expect("run pymavlink_flight.py");
+    let deadline = Instant::now() + Duration::from_secs(120);
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("wait for the script") {
+            break status;
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("pymavlink_flight.py did not finish within 120 s");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    assert!(status.success(), "pymavlink_flight.py failed: {status}");
+
+    {
+        let v = sim.vehicle();
+        assert!(!v.armed());
+        assert_eq!(v.mode(), FlightMode::Hold);
+        assert!(v.state().position.y > 8.0, "{:?}", v.state()); // flew north (ENU y)
+        assert_eq!(v.param("MIS_TAKEOFF_ALT"), Some(4.0));
+        assert_eq!(v.counters().rejected_params, 1);
+        assert_eq!(v.counters().malformed, 0);
+    }
+
+    // The GCS link saw telemetry, but no reply to the API client's requests.
+    let mut buf = [0u8; 2048];
+    let (mut heartbeats, mut replies) = (0, 0);
+    while let Ok(n) = gcs.recv(&mut buf) {
+        let mut reader = MavlinkReader::new(&buf[..n]);
+        while let Ok((_, m)) = reader.read_any_message::<MavMessage>() {
+            match m {
+                MavMessage::HEARTBEAT(_) => heartbeats += 1,
+                MavMessage::COMMAND_ACK(_)
+                | MavMessage::PARAM_VALUE(_)
+                | MavMessage::AUTOPILOT_VERSION(_) => replies += 1,
+                _ => {}
+            }
+        }
+    }
+    assert!(heartbeats >= 5, "GCS saw {heartbeats} heartbeats");
+    assert_eq!(replies, 0, "replies leaked to the GCS link");
+    sim.stop();
+}
