@@ -50,38 +50,7 @@ enum Command {
         json: bool,
     },
     /// Run a closed-loop guidance scenario (see GUIDANCE.md) and print its figures.
-    GuidanceSim {
-        /// Built-in case: cimm-static, cimm-moving, three-static, three-moving, bot-formation,
-        /// bot-observability.
-        #[arg(long, default_value = "cimm-static")]
-        case: String,
-        /// Standoff law: togvf or lgvf.
-        #[arg(long, default_value = "togvf")]
-        law: String,
-        /// What the guidance sees of the target: cimm (road-constrained IMM on simulated camera
-        /// measurements), kf (Kalman filter on the same) or truth; default cimm for moving
-        /// targets, truth for static ones.
-        #[arg(long)]
-        estimator: Option<String>,
-        /// Time step (s).
-        #[arg(long, default_value_t = 0.1)]
-        dt: f64,
-        /// Duration (s); default per case.
-        #[arg(long)]
-        duration: Option<f64>,
-        /// RNG seed.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Trajectory file (.csv or .jsonl).
-        #[arg(long, short)]
-        out: Option<PathBuf>,
-        /// SVG picture of the paths, circle and obstacles.
-        #[arg(long)]
-        plot: Option<PathBuf>,
-        /// Print the summary as JSON.
-        #[arg(long)]
-        json: bool,
-    },
+    GuidanceSim(GuidanceSimArgs),
     /// Write a seeded multi-target scenario: crossing targets, Pd 0.9, clutter (FORMAT-MULTI.md).
     GenMulti {
         /// Output directory (created if missing).
@@ -119,36 +88,13 @@ fn main() -> ExitCode {
                 }
             }
         }
-        Command::GuidanceSim {
-            case,
-            law,
-            estimator,
-            dt,
-            duration,
-            seed,
-            out,
-            plot,
-            json,
-        } => {
-            let args = GuidanceSimArgs {
-                case,
-                law,
-                estimator,
-                dt,
-                duration,
-                seed,
-                out,
-                plot,
-                json,
-            };
-            match run_guidance_sim(&args) {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("harrier guidance-sim: error: {e}");
-                    ExitCode::from(2)
-                }
+        Command::GuidanceSim(args) => match run_guidance_sim(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier guidance-sim: error: {e}");
+                ExitCode::from(2)
             }
-        }
+        },
         Command::Replay {
             scenario,
             estimator,
@@ -165,16 +111,38 @@ fn main() -> ExitCode {
     }
 }
 
-/// Options of `harrier guidance-sim`.
+/// Arguments of `harrier guidance-sim`.
+#[derive(Debug, clap::Args)]
 struct GuidanceSimArgs {
+    /// Built-in case: cimm-static, cimm-moving, three-static, three-moving, bot-formation,
+    /// bot-observability.
+    #[arg(long, default_value = "cimm-static")]
     case: String,
+    /// Standoff law: togvf or lgvf.
+    #[arg(long, default_value = "togvf")]
     law: String,
+    /// What the guidance sees of the target: cimm (road-constrained IMM on simulated camera
+    /// measurements), kf (Kalman filter on the same) or truth; default cimm for moving
+    /// targets, truth for static ones.
+    #[arg(long)]
     estimator: Option<String>,
+    /// Time step (s).
+    #[arg(long, default_value_t = 0.1)]
     dt: f64,
+    /// Duration (s); default per case.
+    #[arg(long)]
     duration: Option<f64>,
+    /// RNG seed.
+    #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Trajectory file (.csv or .jsonl).
+    #[arg(long, short)]
     out: Option<PathBuf>,
+    /// SVG picture of the paths, circle and obstacles.
+    #[arg(long)]
     plot: Option<PathBuf>,
+    /// Print the summary as JSON.
+    #[arg(long)]
     json: bool,
 }
 
