@@ -52,12 +52,36 @@ impl fmt::Display for FormatError {
     }
 }
 
-fn err(file: ScenarioFile, line: Option<usize>, message: impl Into<String>) -> FormatError {
+pub(crate) fn err(
+    file: ScenarioFile,
+    line: Option<usize>,
+    message: impl Into<String>,
+) -> FormatError {
     FormatError {
         file,
         line,
         message: message.into(),
     }
+}
+
+/// A CSV cell that must be a finite number; the error names the column, the value and the line.
+pub(crate) fn finite_cell(
+    cell: &str,
+    column: &str,
+    file: ScenarioFile,
+    line: usize,
+) -> Result<f64, FormatError> {
+    cell.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| {
+            err(
+                file,
+                Some(line),
+                format!("{column:?} = {cell:?} is not a finite number"),
+            )
+        })
 }
 
 /// The format identifier this module reads and writes.
@@ -725,18 +749,7 @@ pub fn parse_truth(text: &str) -> Result<Vec<TruthRow>, FormatError> {
             let cell = cells
                 .get(col[k])
                 .ok_or_else(|| err(f, Some(ln), format!("missing column {:?}", names[k])))?;
-            v[k] = cell
-                .trim()
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    err(
-                        f,
-                        Some(ln),
-                        format!("{:?} = {cell:?} is not a finite number", names[k]),
-                    )
-                })?;
+            v[k] = finite_cell(cell, names[k], f, ln)?;
         }
         if rows.last().is_some_and(|r| r.t > v[0]) {
             return Err(err(f, Some(ln), "rows are not sorted by t"));

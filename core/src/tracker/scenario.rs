@@ -11,7 +11,8 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::scenario::{
-    FormatError, Measurement, Scenario, ScenarioFile, Target, TruthRow, parse_measurements,
+    FormatError, Measurement, Scenario, ScenarioFile, Target, TruthRow, err, finite_cell,
+    parse_measurements,
 };
 
 /// `detection` block of a multi-target `scenario.json`: what the sensors are known to do.
@@ -75,14 +76,6 @@ pub struct MultiScenario {
     pub truth: Option<Vec<Vec<TruthRow>>>,
     /// Detections skipped because a component was NaN/null.
     pub skipped_nonfinite: usize,
-}
-
-fn err(file: ScenarioFile, line: Option<usize>, message: impl Into<String>) -> FormatError {
-    FormatError {
-        file,
-        line,
-        message: message.into(),
-    }
 }
 
 impl MultiScenario {
@@ -246,17 +239,7 @@ pub fn parse_multi_truth(
         let mut v = [0.0; 7];
         for (slot, k) in v.iter_mut().zip([0, 2, 3, 4, 5, 6, 7]) {
             let c = cell(k)?;
-            *slot = c
-                .parse::<f64>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    err(
-                        f,
-                        Some(ln),
-                        format!("{:?} = {c:?} is not a finite number", names[k]),
-                    )
-                })?;
+            *slot = finite_cell(c, names[k], f, ln)?;
         }
         if v[0] < last_t {
             return Err(err(f, Some(ln), "rows are not sorted by t"));
