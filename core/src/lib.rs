@@ -38,6 +38,7 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+pub mod detection;
 pub mod error;
 pub mod filter;
 pub mod fusion;
