@@ -1,12 +1,21 @@
 //! harrier-sim: simulated UAVs that MAVLink clients (pymavlink, MAVSDK, QGroundControl, Harrier's
 //! server) can fly as if they were PX4 SITL instances.
 //!
+//! - [`bus`]: Zenoh session publishing detections and truth (keys and schema of
+//!   `harrier_core::detection`).
+//! - [`live`]: the live sensor loop: world, sensors of every vehicle, Zenoh publication.
 //! - [`geo`]: WGS-84 geodetic ↔ ECEF ↔ local ENU/NED.
 //! - [`vehicle`]: one vehicle — point-mass flight with harrier-core's kinematic limits, PX4 modes,
 //!   and the MAVLink 2 protocol (commands, parameters, offboard setpoints, telemetry streams),
 //!   independent of sockets and clock.
-//! - [`net`]: UDP links from connection strings and [`net::spawn`], which runs a vehicle on its
+//! - [`net`]: UDP and TCP links from connection strings and [`net::spawn`], which runs a vehicle on its
 //!   own thread over real sockets (bind port 0 and read [`net::SimHandle::local_addrs`] in tests).
+//! - [`scenario`]: [`scenario::SimScenario`], the world, sensors and vehicle behaviour of a
+//!   simulation — built-in presets by name or a JSON file.
+//! - [`world`]: seeded, deterministic targets (road vehicles, CV/CT segments, the [BOT] leader).
+//! - [`sensors`]: gimbal cameras and radars of one vehicle ([`sensors::SensorSuite`]) producing
+//!   harrier-core's [`DetectionScan`](harrier_core::detection::DetectionScan)s.
+//! - [`record`]: `harrier-sim record`, a whole run written as a `gcs-scenario/1` directory.
 //!
 //! ```no_run
 //! use harrier_sim::{net::{spawn, LinkConfig}, vehicle::VehicleConfig};
@@ -15,8 +24,14 @@
 //! # Ok::<(), harrier_sim::net::LinkError>(())
 //! ```
 
+pub mod bus;
 pub mod geo;
+pub mod live;
 pub mod net;
+pub mod record;
+pub mod scenario;
+pub mod sensors;
 pub mod vehicle;
+pub mod world;
 
 pub use mavlink;

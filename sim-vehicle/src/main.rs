@@ -4,13 +4,18 @@
 //! harrier-sim                        # vehicle 1: GCS udpout:127.0.0.1:14550, API udpin:0.0.0.0:14540
 //! harrier-sim --count 3              # vehicles 1-3, API ports 14540-14542
 //! harrier-sim --airframe fixed-wing --gcs none --api udpin:127.0.0.1:14600
+//! harrier-sim record --scenario cimm-road --seed 1 --duration 300 --out /tmp/run   # offline
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
+use harrier_core::detection::GeoPoint;
+use harrier_sim::bus::{Bus, BusConfig, Mode};
 use harrier_sim::geo::Geodetic;
+use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
+use harrier_sim::scenario::SimScenario;
 use harrier_sim::vehicle::{Airframe, VehicleConfig};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -38,13 +43,49 @@ struct Args {
     /// GCS link, shared by all vehicles' telemetry (`none` to disable).
     #[arg(long, default_value = "udpout:127.0.0.1:14550")]
     gcs: String,
-    /// API link of the first vehicle; the port grows by one per further vehicle.
-    /// Default: udpin:0.0.0.0:{14540 + id - 1}.
+    /// API link of the first vehicle (udpin:, udpout:, tcpin: or tcpout:HOST:PORT); the port grows
+    /// by one per further vehicle. Default: udpin:0.0.0.0:{14540 + id - 1}.
     #[arg(long)]
     api: Option<String>,
-    /// Home / geodetic origin: LAT,LON,ALT_AMSL (degrees, metres).
-    #[arg(long, default_value = "47.397742,8.545594,488.0", value_parser = parse_home)]
-    home: Geodetic,
+    /// Home / geodetic origin: LAT,LON,ALT_AMSL (degrees, metres). Default: the scenario's
+    /// origin (PX4 SITL's Zurich home for the presets).
+    #[arg(long, value_parser = parse_home)]
+    home: Option<Geodetic>,
+    /// World and sensors: a preset (cimm-road, leader, radar, crossing) or a JSON file.
+    #[arg(long, default_value = "crossing")]
+    scenario: String,
+    /// Seed of the world and the sensors.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Scan rate of every sensor (Hz), overriding the scenario's.
+    #[arg(long)]
+    detection_hz: Option<f64>,
+    /// Rate of the simulation-only truth on harrier/v1/sim/truth (Hz).
+    #[arg(long, default_value_t = 10.0)]
+    truth_hz: f64,
+    /// Do not publish detections (MAVLink only).
+    #[arg(long)]
+    no_zenoh: bool,
+    /// Zenoh session mode.
+    #[arg(long, value_enum, default_value_t = Mode::Peer)]
+    zenoh_mode: Mode,
+    /// Zenoh endpoint to connect to (repeatable); retried in the background while absent.
+    #[arg(long, default_values_t = ["tcp/127.0.0.1:7447".to_owned()])]
+    zenoh_connect: Vec<String>,
+    /// Zenoh endpoint to listen on (repeatable), e.g. tcp/127.0.0.1:7448.
+    #[arg(long)]
+    zenoh_listen: Vec<String>,
+    /// Enable Zenoh multicast scouting (off by default: nothing leaks onto the LAN).
+    #[arg(long)]
+    zenoh_scouting: bool,
+    #[command(subcommand)]
+    command: Option<SubCommand>,
+}
+
+#[derive(Debug, clap::Subcommand)]
+enum SubCommand {
+    /// Run a scenario offline (no sockets, no wall clock) and write a gcs-scenario/1 directory.
+    Record(harrier_sim::record::RecordArgs),
 }
 
 fn parse_home(s: &str) -> Result<Geodetic, String> {
@@ -64,30 +105,55 @@ fn parse_home(s: &str) -> Result<Geodetic, String> {
     }
 }
 
-/// The API endpoint of the `k`-th vehicle: the first one's port plus `k`.
+/// The API endpoint of the `k`-th vehicle: the first one's, with its port plus `k` (any link kind).
 fn api_endpoint(args: &Args, id: u8, k: u16) -> Result<String, String> {
     let first = args
         .api
         .clone()
         .unwrap_or_else(|| format!("udpin:0.0.0.0:{}", 14540 + u16::from(args.id) - 1));
-    let (kind, addr) = match Endpoint::parse(&first).map_err(|e| e.to_string())? {
-        Endpoint::UdpIn(a) => ("udpin", a),
-        Endpoint::UdpOut(a) => ("udpout", a),
-    };
+    let endpoint = Endpoint::parse(&first).map_err(|e| e.to_string())?;
+    let mut addr = endpoint.addr();
     let port = addr
         .port()
         .checked_add(k)
         .filter(|_| addr.port() != 0 || k == 0)
         .ok_or_else(|| format!("no API port for vehicle {id}"))?;
-    let mut a = addr;
-    a.set_port(port);
-    Ok(format!("{kind}:{a}"))
+    addr.set_port(port);
+    Ok(endpoint.with_addr(addr).to_string())
 }
 
-fn run(args: &Args) -> Result<Vec<SimHandle>, String> {
+/// The scenario with the command line's overrides (home, detection rate).
+fn scenario(args: &Args) -> Result<SimScenario, String> {
+    let mut scenario = SimScenario::load(&args.scenario).map_err(|e| e.to_string())?;
+    if let Some(home) = args.home {
+        scenario.origin = GeoPoint {
+            lat_deg: home.lat_deg,
+            lon_deg: home.lon_deg,
+            alt_m: home.alt_m,
+        };
+    }
+    if let Some(hz) = args.detection_hz {
+        if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
+            return Err(format!("--detection-hz {hz} must be in (0, 1000]"));
+        }
+        for s in &mut scenario.sensors {
+            s.rate_hz = hz;
+        }
+    }
+    Ok(scenario)
+}
+
+/// Starts the vehicles and, unless `--no-zenoh`, the sensor loop publishing over Zenoh.
+fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
     if !(args.speedup.is_finite() && args.speedup > 0.0 && args.speedup <= 100.0) {
         return Err("--speedup must be in (0, 100]".to_owned());
     }
+    if !(args.truth_hz.is_finite() && args.truth_hz > 0.0 && args.truth_hz <= 1000.0) {
+        return Err("--truth-hz must be in (0, 1000]".to_owned());
+    }
+    let scenario = scenario(args)?;
+    let o = scenario.origin;
+    let origin = Geodetic::new(o.lat_deg, o.lon_deg, o.alt_m);
     let mut sims = Vec::new();
     for k in 0..args.count {
         let id = u8::try_from(u16::from(args.id) + k)
@@ -103,7 +169,7 @@ fn run(args: &Args) -> Result<Vec<SimHandle>, String> {
                 AirframeArg::Multirotor => Airframe::Multirotor,
                 AirframeArg::FixedWing => Airframe::FixedWing,
             },
-            origin: args.home,
+            origin,
             speedup: args.speedup,
         };
         let sim = spawn(config, &LinkConfig { endpoints }).map_err(|e| e.to_string())?;
@@ -113,13 +179,47 @@ fn run(args: &Args) -> Result<Vec<SimHandle>, String> {
         );
         sims.push(sim);
     }
-    Ok(sims)
+    if args.no_zenoh {
+        return Ok((sims, None));
+    }
+    let bus = Bus::open(&BusConfig {
+        mode: args.zenoh_mode,
+        connect: args.zenoh_connect.clone(),
+        listen: args.zenoh_listen.clone(),
+        multicast_scouting: args.zenoh_scouting,
+    })
+    .map_err(|e| e.to_string())?;
+    let config = LiveConfig {
+        scenario,
+        seed: args.seed,
+        speedup: args.speedup,
+        truth_hz: args.truth_hz,
+    };
+    let live = harrier_sim::live::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
+        .map_err(|e| e.to_string())?;
+    eprintln!(
+        "harrier-sim: publishing detections on harrier/v1/vehicle/{{id}}/detections (zenoh {:?}, connect {:?}, listen {:?})",
+        args.zenoh_mode, args.zenoh_connect, args.zenoh_listen
+    );
+    Ok((sims, Some(live)))
 }
 
 fn main() -> ExitCode {
     let args = Args::parse();
+    if let Some(SubCommand::Record(r)) = &args.command {
+        return match harrier_sim::record::run(r) {
+            Ok(stats) => {
+                eprintln!("harrier-sim record: wrote {} ({stats:?})", r.out.display());
+                ExitCode::SUCCESS
+            }
+            Err(e) => {
+                eprintln!("harrier-sim record: {e}");
+                ExitCode::from(2)
+            }
+        };
+    }
     match run(&args) {
-        Ok(_sims) => {
+        Ok(_running) => {
             // Run until interrupted: the vehicles live on their own threads.
             loop {
                 std::thread::park();
@@ -129,5 +229,32 @@ fn main() -> ExitCode {
             eprintln!("harrier-sim: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn api_ports_grow_per_vehicle_for_every_link_kind() {
+        let args = |api: &str| Args::try_parse_from(["harrier-sim", "--count", "3", "--api", api]);
+        for (api, third) in [
+            ("udpin:127.0.0.1:14600", "udpin:127.0.0.1:14602"),
+            ("udpout:127.0.0.1:14600", "udpout:127.0.0.1:14602"),
+            ("tcpin:127.0.0.1:5760", "tcpin:127.0.0.1:5762"),
+            ("tcp:127.0.0.1:5760", "tcpout:127.0.0.1:5762"),
+        ] {
+            let a = args(api).expect("parse");
+            assert_eq!(api_endpoint(&a, 3, 2).as_deref(), Ok(third));
+        }
+        let a = Args::try_parse_from(["harrier-sim", "--id", "2"]).expect("parse");
+        assert_eq!(api_endpoint(&a, 2, 0).as_deref(), Ok("udpin:0.0.0.0:14541"));
+        let a = args("tcpin:127.0.0.1:0").expect("parse");
+        assert!(api_endpoint(&a, 2, 1).is_err());
+        let a = args("tcpin:127.0.0.1:65535").expect("parse");
+        assert!(api_endpoint(&a, 2, 1).is_err());
+        let a = args("serial:/dev/ttyUSB0").expect("parse");
+        assert!(api_endpoint(&a, 1, 0).is_err_and(|e| e.contains("tcpin:HOST:PORT")));
     }
 }

@@ -1,26 +1,41 @@
-//! MAVLink links over UDP and the threads that run vehicles on them.
+//! MAVLink links over UDP and TCP, and the threads that run vehicles on them.
 //!
-//! A link is one UDP socket described by a connection string: `udpin:HOST:PORT` binds and answers
-//! whoever sends to it (telemetry goes to every peer seen); `udpout:HOST:PORT` binds an ephemeral
-//! port and sends to HOST:PORT. Replies go back on the link, and to the address, the request came
-//! from, so a GCS and an API client never see each other's replies.
+//! A link is described by a connection string:
+//!
+//! - `udpin:HOST:PORT` binds a UDP socket and answers whoever sends to it (telemetry goes to every
+//!   peer seen); `udpout:HOST:PORT` binds an ephemeral port and sends to HOST:PORT.
+//! - `tcpin:HOST:PORT` listens and accepts any number of clients, each a peer that gets the
+//!   telemetry from the moment it connects; `tcpout:HOST:PORT` connects to a server and reconnects
+//!   (every [`TCP_RETRY`]) when the connection fails or drops, without ever blocking the
+//!   simulation loop (the connect runs on a short-lived helper thread).
+//!
+//! Replies go back on the link, and to the peer (address or TCP connection), the request came
+//! from, so a GCS and an API client never see each other's replies. Sockets are non-blocking. TCP
+//! is a byte stream: each connection keeps a receive buffer and frames are parsed across reads
+//! ([`StreamParser`]), so a frame split over several segments waits for its end.
 
-use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::io::{self, Read, Write};
+use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use mavlink::consts::MAX_FRAME_SIZE;
 use mavlink::dialects::common::MavMessage;
-use mavlink::{MavHeader, MavlinkReader};
+use mavlink::{MAVLinkMessageRaw, MavHeader, MavlinkReader, Message};
 
 use crate::vehicle::{COMPONENT_ID, Vehicle, VehicleConfig};
 
 /// Errors from setting up links.
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
-    /// The connection string is not `udpin:HOST:PORT` or `udpout:HOST:PORT`.
-    #[error("bad connection string {0:?}: expected udpin:HOST:PORT or udpout:HOST:PORT")]
+    /// The connection string is not one of the supported forms.
+    #[error(
+        "bad connection string {0:?}: expected udpin:HOST:PORT, udpout:HOST:PORT, \
+         tcpin:HOST:PORT or tcpout:HOST:PORT"
+    )]
     BadAddress(String),
     /// A socket operation failed.
     #[error("{what} {address}: {source}")]
@@ -35,16 +50,21 @@ pub enum LinkError {
 }
 
 /// A parsed connection string.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Endpoint {
     /// Bind here and answer whoever sends.
     UdpIn(SocketAddr),
     /// Send to this address from an ephemeral port.
     UdpOut(SocketAddr),
+    /// Listen here and serve every client that connects.
+    TcpIn(SocketAddr),
+    /// Connect to this server, and reconnect when the connection drops.
+    TcpOut(SocketAddr),
 }
 
 impl Endpoint {
-    /// Parses `udpin:HOST:PORT` or `udpout:HOST:PORT` (`udp:` is `udpin:`).
+    /// Parses `udpin:HOST:PORT`, `udpout:HOST:PORT`, `tcpin:HOST:PORT` or `tcpout:HOST:PORT`
+    /// (as in pymavlink, `udp:` is `udpin:` and `tcp:` is `tcpout:`).
     pub fn parse(s: &str) -> Result<Self, LinkError> {
         let bad = || LinkError::BadAddress(s.to_owned());
         let (kind, rest) = s.split_once(':').ok_or_else(bad)?;
@@ -56,98 +76,464 @@ impl Endpoint {
         match kind {
             "udpin" | "udp" => Ok(Self::UdpIn(addr)),
             "udpout" => Ok(Self::UdpOut(addr)),
+            "tcpin" => Ok(Self::TcpIn(addr)),
+            "tcpout" | "tcp" => Ok(Self::TcpOut(addr)),
             _ => Err(bad()),
+        }
+    }
+
+    /// The address: where to bind or listen (`*in`), or where to send or connect (`*out`).
+    pub fn addr(&self) -> SocketAddr {
+        match *self {
+            Self::UdpIn(a) | Self::UdpOut(a) | Self::TcpIn(a) | Self::TcpOut(a) => a,
+        }
+    }
+
+    /// The same kind of endpoint at another address.
+    pub fn with_addr(&self, addr: SocketAddr) -> Self {
+        match self {
+            Self::UdpIn(_) => Self::UdpIn(addr),
+            Self::UdpOut(_) => Self::UdpOut(addr),
+            Self::TcpIn(_) => Self::TcpIn(addr),
+            Self::TcpOut(_) => Self::TcpOut(addr),
         }
     }
 }
 
-/// One UDP link of a vehicle.
+/// The canonical connection string, which [`Endpoint::parse`] reads back.
+impl std::fmt::Display for Endpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self {
+            Self::UdpIn(_) => "udpin",
+            Self::UdpOut(_) => "udpout",
+            Self::TcpIn(_) => "tcpin",
+            Self::TcpOut(_) => "tcpout",
+        };
+        write!(f, "{kind}:{}", self.addr())
+    }
+}
+
+/// Reassembles MAVLink frames (1 or 2) from a byte stream delivered in arbitrary pieces.
+///
+/// Bytes that cannot start a frame are skipped; each stretch of skipped bytes between two valid
+/// frames counts once as malformed (as a UDP datagram without a valid frame does), and so does a
+/// frame with a valid checksum whose payload does not decode. A partial frame at the end of the
+/// buffer waits for the next bytes.
+#[derive(Debug, Default)]
+pub struct StreamParser {
+    buf: Vec<u8>,
+    /// The bytes skipped since the last valid frame have already been counted.
+    counted: bool,
+}
+
+/// What one [`StreamParser::push`] produced.
+#[derive(Debug, Default)]
+pub struct Parsed {
+    /// The complete messages, in stream order.
+    pub messages: Vec<MavMessage>,
+    /// Stretches of skipped bytes and undecodable frames.
+    pub malformed: u64,
+}
+
+impl StreamParser {
+    /// Appends `bytes` and returns every message completed by them.
+    pub fn push(&mut self, bytes: &[u8]) -> Parsed {
+        self.buf.extend_from_slice(bytes);
+        let mut out = Parsed::default();
+        // Everything before `pos` is consumed (frames and skipped bytes).
+        let mut pos = 0;
+        let mut reader = MavlinkReader::with_capacity(0, &self.buf[..]);
+        // The reader skips to the next valid frame and fails at the end of the buffer (a partial
+        // frame or nothing left); where the frame lies tells how many bytes were skipped.
+        while let Ok(raw) = reader.read_any_raw_message::<MavMessage>() {
+            let frame = match &raw {
+                MAVLinkMessageRaw::V1(m) => m.raw_bytes(),
+                MAVLinkMessageRaw::V2(m) => m.raw_bytes(),
+            };
+            let Some(at) = self.buf[pos..]
+                .windows(frame.len())
+                .position(|w| w == frame)
+            else {
+                break; // the reader only returns frames it read from the buffer
+            };
+            if at > 0 && !self.counted {
+                out.malformed += 1;
+            }
+            self.counted = false;
+            pos += at + frame.len();
+            match MavMessage::parse(raw.version(), raw.message_id(), raw.payload()) {
+                Ok(m) => out.messages.push(m),
+                Err(_) => out.malformed += 1,
+            }
+        }
+        // A frame still to be completed starts within the last MAX_FRAME_SIZE bytes: anything
+        // before is garbage.
+        let keep_from = pos.max(self.buf.len().saturating_sub(MAX_FRAME_SIZE));
+        if keep_from > pos && !self.counted {
+            out.malformed += 1;
+            self.counted = true;
+        }
+        self.buf.drain(..keep_from);
+        out
+    }
+
+    /// Bytes waiting for the rest of a frame.
+    pub fn pending(&self) -> usize {
+        self.buf.len()
+    }
+}
+
+/// Where a message came from, so that its replies go back there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Peer {
+    /// A UDP sender.
+    Udp(SocketAddr),
+    /// A TCP connection of the link, by its number.
+    Tcp(u64),
+}
+
+/// Messages received from one peer in one poll.
+#[derive(Debug)]
+struct Received {
+    from: Peer,
+    messages: Vec<MavMessage>,
+    /// Datagrams without a valid frame, skipped stretches of a stream, undecodable frames.
+    malformed: u64,
+}
+
+/// Most bytes queued for a slow TCP peer; further frames to it are dropped (telemetry is lossy,
+/// and a frame is never cut).
+const MAX_TX_BACKLOG: usize = 256 * 1024;
+
+/// Most reads from one TCP connection per poll (the rest waits for the next tick).
+const MAX_TCP_READS: usize = 16;
+
+/// One TCP connection: non-blocking stream, receive parser and send backlog.
+#[derive(Debug)]
+struct TcpConn {
+    id: u64,
+    stream: TcpStream,
+    parser: StreamParser,
+    backlog: Vec<u8>,
+}
+
+impl TcpConn {
+    fn new(id: u64, stream: TcpStream) -> io::Result<Self> {
+        stream.set_nonblocking(true)?;
+        stream.set_nodelay(true)?;
+        Ok(Self {
+            id,
+            stream,
+            parser: StreamParser::default(),
+            backlog: Vec::new(),
+        })
+    }
+
+    /// Reads what is available (at most [`MAX_TCP_READS`] buffers, so that a flooding client
+    /// cannot stall the loop); `None` when the connection is closed or broken.
+    fn receive(&mut self, buf: &mut [u8]) -> Option<Received> {
+        let mut got = Received {
+            from: Peer::Tcp(self.id),
+            messages: Vec::new(),
+            malformed: 0,
+        };
+        for _ in 0..MAX_TCP_READS {
+            match self.stream.read(buf) {
+                Ok(0) => return None,
+                Ok(n) => {
+                    let p = self.parser.push(&buf[..n]);
+                    got.messages.extend(p.messages);
+                    got.malformed += p.malformed;
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
+                Err(_) => return None,
+            }
+        }
+        Some(got)
+    }
+
+    /// Queues a frame and writes as much of the backlog as the socket takes; `false` when the
+    /// connection is broken.
+    fn send(&mut self, frame: &[u8]) -> bool {
+        if self.backlog.len() + frame.len() <= MAX_TX_BACKLOG {
+            self.backlog.extend_from_slice(frame);
+        }
+        self.flush()
+    }
+
+    fn flush(&mut self) -> bool {
+        while !self.backlog.is_empty() {
+            match self.stream.write(&self.backlog) {
+                Ok(0) => return false,
+                Ok(n) => {
+                    self.backlog.drain(..n);
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) if e.kind() == io::ErrorKind::WouldBlock => return true,
+                Err(_) => return false,
+            }
+        }
+        true
+    }
+}
+
+/// Wait between two connection attempts of a `tcpout` link.
+pub const TCP_RETRY: Duration = Duration::from_secs(1);
+/// Longest a `tcpout` connection attempt may take (on its helper thread).
+const TCP_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// The sockets of a link.
+#[derive(Debug)]
+enum Transport {
+    Udp {
+        socket: UdpSocket,
+        /// Fixed destination (udpout) or the peers seen so far (udpin).
+        peers: Vec<SocketAddr>,
+    },
+    TcpIn {
+        listener: TcpListener,
+        clients: Vec<TcpConn>,
+    },
+    TcpOut {
+        server: SocketAddr,
+        conn: Option<TcpConn>,
+        /// The connection attempt under way, on its helper thread.
+        connecting: Option<Receiver<io::Result<TcpStream>>>,
+        /// When the next attempt may start.
+        retry_at: Instant,
+    },
+}
+
+/// One link of a vehicle.
 #[derive(Debug)]
 pub struct Link {
-    socket: UdpSocket,
-    /// Fixed destination (udpout) or the peers seen so far (udpin).
-    peers: Vec<SocketAddr>,
+    transport: Transport,
     sequence: u8,
+    /// Number of the next TCP connection (replies find their connection by it).
+    next_conn: u64,
 }
 
 /// Most peers a udpin link remembers (the oldest is forgotten first).
 const MAX_PEERS: usize = 8;
 
 impl Link {
-    /// Opens a link.
+    /// Opens a link. A `tcpout` link starts connecting on the first poll.
     pub fn open(endpoint: &Endpoint) -> Result<Self, LinkError> {
         let io = |what, source| LinkError::Io {
             what,
-            address: format!("{endpoint:?}"),
+            address: endpoint.to_string(),
             source,
         };
-        let (bind, peers): (SocketAddr, Vec<SocketAddr>) = match *endpoint {
-            Endpoint::UdpIn(a) => (a, Vec::new()),
-            Endpoint::UdpOut(a) => {
-                let any: SocketAddr = if a.is_ipv4() {
-                    ([0, 0, 0, 0], 0).into()
-                } else {
-                    (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+        let transport = match *endpoint {
+            Endpoint::UdpIn(a) | Endpoint::UdpOut(a) => {
+                let (bind, peers): (SocketAddr, Vec<SocketAddr>) = match endpoint {
+                    Endpoint::UdpOut(_) => {
+                        let any: SocketAddr = if a.is_ipv4() {
+                            ([0, 0, 0, 0], 0).into()
+                        } else {
+                            (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+                        };
+                        (any, vec![a])
+                    }
+                    _ => (a, Vec::new()),
                 };
-                (any, vec![a])
+                let socket = UdpSocket::bind(bind).map_err(|e| io("bind", e))?;
+                socket
+                    .set_nonblocking(true)
+                    .map_err(|e| io("set_nonblocking", e))?;
+                Transport::Udp { socket, peers }
             }
+            Endpoint::TcpIn(a) => {
+                let listener = TcpListener::bind(a).map_err(|e| io("listen", e))?;
+                listener
+                    .set_nonblocking(true)
+                    .map_err(|e| io("set_nonblocking", e))?;
+                Transport::TcpIn {
+                    listener,
+                    clients: Vec::new(),
+                }
+            }
+            Endpoint::TcpOut(server) => Transport::TcpOut {
+                server,
+                conn: None,
+                connecting: None,
+                retry_at: Instant::now(),
+            },
         };
-        let socket = UdpSocket::bind(bind).map_err(|e| io("bind", e))?;
-        socket
-            .set_nonblocking(true)
-            .map_err(|e| io("set_nonblocking", e))?;
         Ok(Self {
-            socket,
-            peers,
+            transport,
             sequence: 0,
+            next_conn: 0,
         })
     }
 
-    /// The bound local address.
+    /// The bound local address (`None` for `tcpout`, whose connections come and go).
     pub fn local_addr(&self) -> Option<SocketAddr> {
-        self.socket.local_addr().ok()
+        match &self.transport {
+            Transport::Udp { socket, .. } => socket.local_addr().ok(),
+            Transport::TcpIn { listener, .. } => listener.local_addr().ok(),
+            Transport::TcpOut { .. } => None,
+        }
     }
 
-    fn send(&mut self, sysid: u8, msg: &MavMessage, to: SocketAddr) {
+    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link.
+    fn frame(&mut self, sysid: u8, msg: &MavMessage) -> Option<Vec<u8>> {
         let header = MavHeader {
             system_id: sysid.into(),
             component_id: COMPONENT_ID,
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
-        let mut buf = Vec::with_capacity(280);
-        if mavlink::write_v2_msg(&mut buf, header, msg).is_ok() {
-            // UDP is lossy by nature: a failed send (no listener yet) is not an error.
-            let _ = self.socket.send_to(&buf, to);
+        let mut buf = Vec::with_capacity(MAX_FRAME_SIZE);
+        mavlink::write_v2_msg(&mut buf, header, msg).ok()?;
+        Some(buf)
+    }
+
+    fn send(&mut self, sysid: u8, msg: &MavMessage, to: Peer) {
+        let Some(frame) = self.frame(sysid, msg) else {
+            return;
+        };
+        match (&mut self.transport, to) {
+            (Transport::Udp { socket, .. }, Peer::Udp(addr)) => {
+                // UDP is lossy by nature: a failed send (no listener yet) is not an error.
+                let _ = socket.send_to(&frame, addr);
+            }
+            (Transport::TcpIn { clients, .. }, Peer::Tcp(id)) => {
+                clients.retain_mut(|c| c.id != id || c.send(&frame));
+            }
+            (Transport::TcpOut { conn, retry_at, .. }, Peer::Tcp(id)) => {
+                let broken = conn.as_mut().is_some_and(|c| c.id == id && !c.send(&frame));
+                if broken {
+                    *conn = None;
+                    *retry_at = Instant::now() + TCP_RETRY;
+                }
+            }
+            _ => {}
         }
     }
 
     fn broadcast(&mut self, sysid: u8, msg: &MavMessage) {
-        for i in 0..self.peers.len() {
-            let to = self.peers[i];
-            self.send(sysid, msg, to);
+        let Some(frame) = self.frame(sysid, msg) else {
+            return;
+        };
+        match &mut self.transport {
+            Transport::Udp { socket, peers } => {
+                for to in peers.iter() {
+                    let _ = socket.send_to(&frame, to);
+                }
+            }
+            Transport::TcpIn { clients, .. } => clients.retain_mut(|c| c.send(&frame)),
+            Transport::TcpOut { conn, retry_at, .. } => {
+                if conn.as_mut().is_some_and(|c| !c.send(&frame)) {
+                    *conn = None;
+                    *retry_at = Instant::now() + TCP_RETRY;
+                }
+            }
         }
     }
 
-    /// Receives every pending datagram; returns `(sender, messages)` per datagram (empty when it
-    /// held no valid frame).
-    fn poll(&mut self, buf: &mut [u8]) -> Vec<(SocketAddr, Vec<MavMessage>)> {
+    /// Receives everything pending: one entry per UDP datagram (no messages when it held no valid
+    /// frame) and per TCP connection. Accepts new TCP clients, drops closed connections and
+    /// (re)connects `tcpout` links.
+    fn poll(&mut self, buf: &mut [u8]) -> Vec<Received> {
         let mut out = Vec::new();
-        while let Ok((n, from)) = self.socket.recv_from(buf) {
-            let mut reader = MavlinkReader::new(&buf[..n]);
-            let mut msgs = Vec::new();
-            while let Ok((_, m)) = reader.read_any_message::<MavMessage>() {
-                msgs.push(m);
-            }
-            if !self.peers.contains(&from) && !msgs.is_empty() {
-                if self.peers.len() >= MAX_PEERS {
-                    self.peers.remove(0);
+        match &mut self.transport {
+            Transport::Udp { socket, peers } => {
+                while let Ok((n, from)) = socket.recv_from(buf) {
+                    let mut reader = MavlinkReader::new(&buf[..n]);
+                    let mut messages = Vec::new();
+                    while let Ok((_, m)) = reader.read_any_message::<MavMessage>() {
+                        messages.push(m);
+                    }
+                    if !peers.contains(&from) && !messages.is_empty() {
+                        if peers.len() >= MAX_PEERS {
+                            peers.remove(0);
+                        }
+                        peers.push(from);
+                    }
+                    out.push(Received {
+                        from: Peer::Udp(from),
+                        malformed: u64::from(messages.is_empty()),
+                        messages,
+                    });
                 }
-                self.peers.push(from);
             }
-            out.push((from, msgs));
+            Transport::TcpIn { listener, clients } => {
+                while let Ok((stream, _)) = listener.accept() {
+                    if let Ok(c) = TcpConn::new(self.next_conn, stream) {
+                        clients.push(c);
+                    }
+                    self.next_conn += 1;
+                }
+                clients.retain_mut(|c| match c.receive(buf) {
+                    Some(r) => {
+                        out.push(r);
+                        c.flush()
+                    }
+                    None => false,
+                });
+            }
+            Transport::TcpOut {
+                server,
+                conn,
+                connecting,
+                retry_at,
+            } => {
+                if conn.is_none() {
+                    *conn = Self::connect(*server, connecting, retry_at, &mut self.next_conn);
+                }
+                if let Some(c) = conn {
+                    match c.receive(buf) {
+                        Some(r) if c.flush() => out.push(r),
+                        _ => {
+                            *conn = None;
+                            *retry_at = Instant::now() + TCP_RETRY;
+                        }
+                    }
+                }
+            }
         }
         out
+    }
+
+    /// Advances a `tcpout` connection attempt without blocking: collects the result of the one
+    /// under way, or starts one on a helper thread when it is time to.
+    fn connect(
+        server: SocketAddr,
+        connecting: &mut Option<Receiver<io::Result<TcpStream>>>,
+        retry_at: &mut Instant,
+        next_conn: &mut u64,
+    ) -> Option<TcpConn> {
+        if let Some(rx) = connecting {
+            let result = match rx.try_recv() {
+                Err(TryRecvError::Empty) => return None,
+                Ok(Ok(stream)) => {
+                    *next_conn += 1;
+                    TcpConn::new(*next_conn, stream).ok()
+                }
+                Ok(Err(_)) | Err(TryRecvError::Disconnected) => None,
+            };
+            *connecting = None;
+            if result.is_none() {
+                *retry_at = Instant::now() + TCP_RETRY;
+            }
+            return result;
+        }
+        if Instant::now() >= *retry_at {
+            let (tx, rx) = mpsc::channel();
+            let spawned = std::thread::Builder::new()
+                .name("harrier-sim-connect".to_owned())
+                .spawn(move || {
+                    // The link may be gone by now: then nobody wants the result.
+                    let _ = tx.send(TcpStream::connect_timeout(&server, TCP_CONNECT_TIMEOUT));
+                });
+            match spawned {
+                Ok(_) => *connecting = Some(rx),
+                Err(_) => *retry_at = Instant::now() + TCP_RETRY,
+            }
+        }
+        None
     }
 }
 
@@ -188,6 +574,10 @@ impl SimHandle {
     /// Locks the vehicle (to inspect it; the simulation waits meanwhile).
     pub fn vehicle(&self) -> MutexGuard<'_, Vehicle> {
         self.vehicle.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+    /// A shared reference to the vehicle (for other threads: the Zenoh sensor loop).
+    pub fn shared(&self) -> Arc<Mutex<Vehicle>> {
+        Arc::clone(&self.vehicle)
     }
     /// Stops the vehicle and waits for its thread.
     pub fn stop(mut self) {
@@ -250,13 +640,13 @@ pub fn spawn(config: VehicleConfig, links: &LinkConfig) -> Result<SimHandle, Lin
 fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
     let sysid = v.id();
     for link in links.iter_mut() {
-        for (from, msgs) in link.poll(buf) {
-            if msgs.is_empty() {
+        for r in link.poll(buf) {
+            for _ in 0..r.malformed {
                 v.count_malformed();
             }
-            for m in &msgs {
+            for m in &r.messages {
                 for reply in v.handle(now, m) {
-                    link.send(sysid, &reply, from);
+                    link.send(sysid, &reply, r.from);
                 }
             }
         }
@@ -271,25 +661,289 @@ fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use mavlink::MessageData;
+    use mavlink::dialects::common::{
+        COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MavCmd, MavResult,
+        PARAM_REQUEST_READ_DATA,
+    };
 
     #[test]
     fn connection_strings() {
+        let local = |port| SocketAddr::from(([127, 0, 0, 1], port));
+        for (s, e) in [
+            ("udpin:127.0.0.1:14540", Endpoint::UdpIn(local(14540))),
+            ("udp:127.0.0.1:14540", Endpoint::UdpIn(local(14540))),
+            ("udpout:127.0.0.1:14550", Endpoint::UdpOut(local(14550))),
+            ("tcpin:127.0.0.1:5760", Endpoint::TcpIn(local(5760))),
+            ("tcpout:127.0.0.1:5760", Endpoint::TcpOut(local(5760))),
+            ("tcp:127.0.0.1:5760", Endpoint::TcpOut(local(5760))),
+        ] {
+            assert_eq!(Endpoint::parse(s).ok(), Some(e), "{s}");
+            // Display gives the canonical form, which parses back.
+            assert_eq!(Endpoint::parse(&e.to_string()).ok(), Some(e));
+        }
         assert_eq!(
-            Endpoint::parse("udpin:127.0.0.1:14540").ok(),
-            Some(Endpoint::UdpIn(([127, 0, 0, 1], 14540).into()))
-        );
-        assert_eq!(
-            Endpoint::parse("udpout:127.0.0.1:14550").ok(),
-            Some(Endpoint::UdpOut(([127, 0, 0, 1], 14550).into()))
+            Endpoint::TcpIn(local(5760))
+                .with_addr(local(5762))
+                .to_string(),
+            "tcpin:127.0.0.1:5762"
         );
         for bad in [
             "",
             "udpin",
-            "tcpin:0.0.0.0:5760",
+            "tcpin",
+            "serial:/dev/ttyUSB0",
             "udpin:nohost",
+            "tcpout:nohost",
             "udpout:1.2.3.4:99999",
         ] {
-            assert!(Endpoint::parse(bad).is_err(), "{bad}");
+            let e = Endpoint::parse(bad).expect_err(bad);
+            assert!(e.to_string().contains("tcpout:HOST:PORT"), "{e}");
+        }
+    }
+
+    fn gcs_frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
+        let mut frame = Vec::new();
+        mavlink::write_v2_msg(
+            &mut frame,
+            MavHeader {
+                system_id: 255,
+                component_id: 190,
+                sequence,
+            },
+            msg,
+        )
+        .expect("serialise");
+        frame
+    }
+
+    fn command(command: MavCmd, param1: f32, param2: f32) -> MavMessage {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            param1,
+            param2,
+            command,
+            target_system: 1,
+            target_component: 1,
+            ..COMMAND_LONG_DATA::DEFAULT
+        })
+    }
+
+    fn heartbeat() -> MavMessage {
+        MavMessage::HEARTBEAT(HEARTBEAT_DATA::DEFAULT)
+    }
+
+    #[test]
+    fn stream_parser_reassembles_frames_and_counts_garbage_stretches() {
+        let hb = gcs_frame(&heartbeat(), 0);
+        let cmd = gcs_frame(&command(MavCmd::MAV_CMD_REQUEST_MESSAGE, 148.0, 0.0), 1);
+        let mut p = StreamParser::default();
+        // One byte at a time: nothing until the last byte of the frame.
+        for (i, b) in hb.iter().enumerate() {
+            let r = p.push(&[*b]);
+            assert_eq!(r.messages.len(), usize::from(i + 1 == hb.len()), "byte {i}");
+            assert_eq!(r.malformed, 0);
+        }
+        assert_eq!(p.pending(), 0);
+        // Garbage (with a false start marker), then two adjacent frames in one piece: the garbage
+        // counts once.
+        let mut bytes = vec![0xFD, 9, 0, 0, 1, 2, 3, b'x'];
+        bytes.extend_from_slice(&cmd);
+        bytes.extend_from_slice(&hb);
+        let r = p.push(&bytes);
+        assert_eq!(r.messages.len(), 2);
+        assert!(matches!(r.messages[0], MavMessage::COMMAND_LONG(_)));
+        assert_eq!(r.malformed, 1);
+        // A corrupted frame is skipped and counted; the frame after it is read.
+        let mut bad = cmd.clone();
+        let last = bad.len() - 1;
+        bad[last] ^= 0xFF;
+        bad.extend_from_slice(&hb);
+        let r = p.push(&bad);
+        assert_eq!((r.messages.len(), r.malformed), (1, 1));
+        // A long stretch of garbage is dropped as it comes (the buffer stays bounded) and counts
+        // once, however many pieces it arrives in.
+        let mut malformed = 0;
+        for _ in 0..10 {
+            let r = p.push(&[0x55; 200]);
+            assert!(r.messages.is_empty());
+            malformed += r.malformed;
+            assert!(p.pending() <= MAX_FRAME_SIZE);
+        }
+        let r = p.push(&hb);
+        assert_eq!(r.messages.len(), 1);
+        assert_eq!(malformed + r.malformed, 1);
+        // MAVLink 1 frames are read too.
+        let mut v1 = Vec::new();
+        mavlink::write_v1_msg(&mut v1, MavHeader::default(), &heartbeat()).expect("serialise");
+        assert_eq!(p.push(&v1).messages.len(), 1);
+    }
+
+    /// A blocking TCP client of a test vehicle.
+    struct Client(MavlinkReader<TcpStream>);
+
+    impl Client {
+        fn connect(addr: SocketAddr) -> Self {
+            let stream = TcpStream::connect(addr).expect("connect");
+            stream
+                .set_read_timeout(Some(Duration::from_millis(100)))
+                .expect("timeout");
+            Self(MavlinkReader::new(stream))
+        }
+        fn write(&mut self, bytes: &[u8]) {
+            self.0.get_mut().write_all(bytes).expect("write");
+        }
+        /// Reads messages until one satisfies `done` (within 5 s); returns all of them.
+        fn read_until(&mut self, mut done: impl FnMut(&MavMessage) -> bool) -> Vec<MavMessage> {
+            let deadline = Instant::now() + Duration::from_secs(5);
+            let mut got = Vec::new();
+            while Instant::now() < deadline {
+                if let Ok((h, m)) = self.0.read_any_message::<MavMessage>() {
+                    assert_eq!((h.system_id, h.component_id), (1, 1));
+                    let stop = done(&m);
+                    got.push(m);
+                    if stop {
+                        return got;
+                    }
+                }
+            }
+            panic!("no expected message within 5 s; got {got:?}");
+        }
+    }
+
+    fn is_ack(m: &MavMessage, command: MavCmd) -> bool {
+        matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command)
+    }
+
+    fn tcp_vehicle() -> (SimHandle, SocketAddr) {
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec!["tcpin:127.0.0.1:0".to_owned()],
+            },
+        )
+        .expect("spawn");
+        let addr = sim.local_addrs()[0].expect("listening");
+        (sim, addr)
+    }
+
+    /// Returns once the simulation loop has run a whole tick after this call.
+    fn wait_one_tick(sim: &SimHandle) {
+        let t0 = sim.vehicle().sim_time();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while sim.vehicle().sim_time() == t0 {
+            assert!(Instant::now() < deadline, "the simulation loop stalled");
+            std::thread::yield_now();
+        }
+    }
+
+    #[test]
+    fn tcp_frames_split_over_two_writes_are_reassembled() {
+        let (sim, addr) = tcp_vehicle();
+        let mut c = Client::connect(addr);
+        // Telemetry flows as soon as the client is connected.
+        c.read_until(|m| matches!(m, MavMessage::GLOBAL_POSITION_INT(_)));
+        let frame = gcs_frame(&command(MavCmd::MAV_CMD_REQUEST_MESSAGE, 148.0, 0.0), 0);
+        let (head, tail) = frame.split_at(frame.len() / 2);
+        let mut first = b"garbage".to_vec();
+        first.extend_from_slice(head);
+        c.write(&first);
+        // The loop reads the garbage and the half frame, and waits for the rest.
+        wait_one_tick(&sim);
+        c.write(tail);
+        let got = c.read_until(|m| is_ack(m, MavCmd::MAV_CMD_REQUEST_MESSAGE));
+        let Some(MavMessage::COMMAND_ACK(ack)) = got.last() else {
+            unreachable!()
+        };
+        assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
+        c.read_until(|m| matches!(m, MavMessage::AUTOPILOT_VERSION(_)));
+        assert_eq!(sim.vehicle().counters().malformed, 1);
+    }
+
+    #[test]
+    fn two_tcp_clients_each_get_only_their_own_replies() {
+        let (sim, addr) = tcp_vehicle();
+        let mut a = Client::connect(addr);
+        let mut b = Client::connect(addr);
+        for c in [&mut a, &mut b] {
+            c.read_until(|m| matches!(m, MavMessage::GLOBAL_POSITION_INT(_)));
+        }
+        let ack_a = MavCmd::MAV_CMD_REQUEST_MESSAGE;
+        let ack_b = MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL;
+        a.write(&gcs_frame(&command(ack_a, 148.0, 0.0), 0));
+        a.read_until(|m| is_ack(m, ack_a));
+        // A's reply was sent before B's: had it leaked to B, B would read it before its own.
+        b.write(&gcs_frame(&command(ack_b, 33.0, 50_000.0), 0));
+        let seen_b = b.read_until(|m| is_ack(m, ack_b));
+        assert!(!seen_b.iter().any(|m| is_ack(m, ack_a)), "{seen_b:?}");
+        assert!(
+            !seen_b
+                .iter()
+                .any(|m| matches!(m, MavMessage::AUTOPILOT_VERSION(_)))
+        );
+        // Likewise B's reply would reach A before the answer to A's next request.
+        let read = MavMessage::PARAM_REQUEST_READ(PARAM_REQUEST_READ_DATA {
+            param_index: -1,
+            target_system: 1,
+            target_component: 1,
+            param_id: "MIS_TAKEOFF_ALT".into(),
+        });
+        a.write(&gcs_frame(&read, 1));
+        let seen_a = a.read_until(|m| matches!(m, MavMessage::PARAM_VALUE(_)));
+        assert!(!seen_a.iter().any(|m| is_ack(m, ack_b)), "{seen_a:?}");
+        // B's command took effect for everyone: position at 20 Hz.
+        let iv = sim.vehicle().stream_interval(GLOBAL_POSITION_INT_DATA::ID);
+        assert!(iv.is_some_and(|iv| (iv - 0.05).abs() < 1e-9), "{iv:?}");
+        assert_eq!(sim.vehicle().counters().malformed, 0);
+    }
+
+    #[test]
+    fn tcpout_connects_and_reconnects_after_the_server_drops_it() {
+        let server = TcpListener::bind("127.0.0.1:0").expect("listen");
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec![format!("tcpout:{}", server.local_addr().expect("addr"))],
+            },
+        )
+        .expect("spawn");
+        assert_eq!(sim.local_addrs(), &[None]);
+        for round in 0..2 {
+            let (stream, _) = server.accept().expect("the vehicle connects");
+            stream
+                .set_read_timeout(Some(Duration::from_millis(100)))
+                .expect("timeout");
+            let mut c = Client(MavlinkReader::new(stream));
+            c.read_until(|m| matches!(m, MavMessage::GLOBAL_POSITION_INT(_)));
+            c.write(&gcs_frame(
+                &command(MavCmd::MAV_CMD_NAV_LAND, 0.0, 0.0),
+                round,
+            ));
+            let got = c.read_until(|m| is_ack(m, MavCmd::MAV_CMD_NAV_LAND));
+            let Some(MavMessage::COMMAND_ACK(ack)) = got.last() else {
+                unreachable!()
+            };
+            assert_eq!(ack.result, MavResult::MAV_RESULT_DENIED); // not armed
+            // Dropping the client closes the connection; the vehicle connects again.
+        }
+        assert_eq!(sim.vehicle().counters().refused_commands, 2);
+    }
+
+    #[test]
+    fn tcpout_to_nowhere_does_not_stall_the_vehicle() {
+        // A port with no listener: every attempt is refused, the loop keeps running.
+        let port = TcpListener::bind("127.0.0.1:0")
+            .and_then(|l| l.local_addr())
+            .expect("free port")
+            .port();
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec![format!("tcpout:127.0.0.1:{port}")],
+            },
+        )
+        .expect("spawn");
+        for _ in 0..20 {
+            wait_one_tick(&sim);
         }
     }
 

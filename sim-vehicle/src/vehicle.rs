@@ -99,8 +99,9 @@ impl FlightMode {
 /// Counters of bad or refused input (the vehicle keeps flying).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counters {
-    /// Datagrams that held no valid MAVLink frame (bad CRC, truncated, unknown message or enum
-    /// value).
+    /// Input that held no valid MAVLink frame (bad CRC, truncated, unknown message or enum
+    /// value): UDP datagrams, stretches of a TCP stream between two valid frames, and frames
+    /// with a valid checksum that do not decode.
     pub malformed: u64,
     /// Setpoints ignored: non-finite values, unsupported frame or type mask.
     pub rejected_setpoints: u64,
@@ -292,6 +293,18 @@ impl Vehicle {
     pub fn state(&self) -> UavState {
         self.state
     }
+    /// Attitude `[roll, pitch, yaw]` (rad, MAVLink ATTITUDE convention: yaw clockwise from North
+    /// in `[-π, π)`): the tilt that produces the current acceleration, body x along the yaw.
+    pub fn attitude(&self) -> [f64; 3] {
+        let a = enu_to_ned(&self.accel);
+        let (sy, cy) = self.yaw.sin_cos();
+        let fwd = a.x * cy + a.y * sy;
+        let right = -a.x * sy + a.y * cy;
+        let g0 = 9.81;
+        let yaw = (self.yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        [(right / g0).atan(), (-fwd / g0).atan(), yaw]
+    }
     /// Geodetic position.
     pub fn position(&self) -> Geodetic {
         self.frame.from_enu(&self.state.position)
@@ -300,7 +313,7 @@ impl Vehicle {
     pub fn counters(&self) -> Counters {
         self.counters
     }
-    /// Counts a datagram that held no valid frame.
+    /// Counts malformed input (see [`Counters::malformed`]).
     pub fn count_malformed(&mut self) {
         self.counters.malformed += 1;
     }
@@ -787,18 +800,12 @@ impl Vehicle {
                 })
             }
             ATTITUDE_DATA::ID => {
-                // Tilt that produces the current acceleration (body x forward along the yaw).
-                let a = enu_to_ned(&self.accel);
-                let (sy, cy) = self.yaw.sin_cos();
-                let fwd = a.x * cy + a.y * sy;
-                let right = -a.x * sy + a.y * cy;
-                let g0 = 9.81;
+                let [roll, pitch, yaw] = self.attitude();
                 MavMessage::ATTITUDE(ATTITUDE_DATA {
                     time_boot_ms: self.time_boot_ms(),
-                    roll: (right / g0).atan() as f32,
-                    pitch: (-fwd / g0).atan() as f32,
-                    yaw: (self.yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) as f32
-                        - std::f32::consts::PI,
+                    roll: roll as f32,
+                    pitch: pitch as f32,
+                    yaw: yaw as f32,
                     rollspeed: 0.0,
                     pitchspeed: 0.0,
                     yawspeed: 0.0,

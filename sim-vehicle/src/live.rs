@@ -1,0 +1,139 @@
+//! The live sensor loop: moves the world in (sped-up) wall time, scans every vehicle's sensors from
+//! the vehicle's real pose, and publishes the scans and the truth over Zenoh.
+//!
+//! It runs on its own thread beside the vehicles' threads ([`crate::net::spawn`]) and only reads
+//! the vehicles (their pose under their lock). Unlike `record`, a live run is not reproducible:
+//! the vehicles fly whatever their MAVLink clients command, when the packets arrive.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
+
+use crate::bus::{Bus, BusCounters};
+use crate::scenario::{ScenarioError, SimScenario};
+use crate::sensors::{SensorSuite, platform_pose};
+use crate::vehicle::Vehicle;
+use crate::world::World;
+
+/// Settings of the live loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LiveConfig {
+    /// World and sensors.
+    pub scenario: SimScenario,
+    /// Seed of the world and of every sensor.
+    pub seed: u64,
+    /// Simulated seconds per wall-clock second (as the vehicles').
+    pub speedup: f64,
+    /// Truth publication rate (Hz of simulated time).
+    pub truth_hz: f64,
+}
+
+/// The running loop; stopped when dropped.
+#[derive(Debug)]
+pub struct LiveHandle {
+    stop: Arc<AtomicBool>,
+    counters: Arc<Mutex<BusCounters>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl LiveHandle {
+    /// Publication counters so far.
+    pub fn counters(&self) -> BusCounters {
+        *self.counters.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+    /// Stops the loop and waits for it.
+    pub fn stop(mut self) {
+        self.shutdown();
+    }
+    fn shutdown(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+impl Drop for LiveHandle {
+    fn drop(&mut self) {
+        self.shutdown();
+    }
+}
+
+/// Why the loop could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// The scenario does not build a world or sensors.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The thread could not be started.
+    #[error("cannot start the sensor thread: {0}")]
+    Thread(std::io::Error),
+}
+
+/// Longest wall-clock sleep between two passes of the loop.
+const MAX_TICK: Duration = Duration::from_millis(5);
+
+/// Starts the loop for `vehicles` (their sensor suites are built from the scenario, seeded per
+/// vehicle id), publishing on `bus`.
+pub fn spawn(
+    config: &LiveConfig,
+    vehicles: Vec<Arc<Mutex<Vehicle>>>,
+    mut bus: Bus,
+) -> Result<LiveHandle, LiveError> {
+    let mut world = World::new(&config.scenario, config.seed)?;
+    let mut suites = Vec::with_capacity(vehicles.len());
+    for v in &vehicles {
+        let id = v.lock().unwrap_or_else(PoisonError::into_inner).id();
+        suites.push((id, SensorSuite::new(&config.scenario, config.seed, id)?));
+    }
+    let origin = config.scenario.origin;
+    // Sleep a quarter of the fastest sensor's period, at most MAX_TICK (wall time).
+    let fastest = config
+        .scenario
+        .sensors
+        .iter()
+        .map(|s| s.rate_hz)
+        .fold(config.truth_hz, f64::max);
+    let tick = Duration::from_secs_f64(0.25 / (fastest * config.speedup)).min(MAX_TICK);
+    let truth_period = 1.0 / config.truth_hz;
+    let speedup = config.speedup;
+    let stop = Arc::new(AtomicBool::new(false));
+    let counters = Arc::new(Mutex::new(BusCounters::default()));
+    let (s, c) = (Arc::clone(&stop), Arc::clone(&counters));
+    let thread = std::thread::Builder::new()
+        .name("harrier-sim-sensors".into())
+        .spawn(move || {
+            let start = Instant::now();
+            let mut next_truth = 0.0;
+            while !s.load(Ordering::Relaxed) {
+                let t = start.elapsed().as_secs_f64() * speedup;
+                world.advance(t);
+                for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
+                    let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
+                    for scan in suite.scan(t, *id, &pose, origin, &world) {
+                        bus.publish_scan(&scan);
+                    }
+                }
+                if t >= next_truth {
+                    bus.publish_truth(&TruthSample {
+                        schema: TRUTH_SCHEMA.into(),
+                        t,
+                        origin,
+                        targets: world.truth(),
+                    });
+                    next_truth = (t / truth_period).floor() * truth_period + truth_period;
+                }
+                *c.lock().unwrap_or_else(PoisonError::into_inner) = bus.counters();
+                std::thread::sleep(tick);
+            }
+        })
+        .map_err(LiveError::Thread)?;
+    Ok(LiveHandle {
+        stop,
+        counters,
+        thread: Some(thread),
+    })
+}

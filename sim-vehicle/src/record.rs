@@ -1,0 +1,797 @@
+//! `harrier-sim record`: runs a [`SimScenario`] for T simulated seconds, as fast as possible (no
+//! sockets, no wall clock), and writes what the vehicles' sensors saw as a `gcs-scenario/1`
+//! directory (`../shared/scenarios/FORMAT.md`), or its multi-target extension (`FORMAT-MULTI.md`)
+//! when there are several targets or clutter, so every simulated run can be replayed with
+//! `harrier replay` and scored with `score.py`.
+//!
+//! The vehicles are [`Vehicle`]s flown through their MAVLink interface like a client would:
+//! COMMAND_LONG arm and takeoff, then OFFBOARD with a SET_POSITION_TARGET_LOCAL_NED velocity
+//! setpoint every physics step, computed from the true target state by the scenario's
+//! [`Behaviour`] (LGVF standoff orbit, leader–follower offset, hold, cruise). Vehicle `k`
+//! (ids 1…K) launches `3 (k − 1)` s after the first, which also breaks the symmetry of several
+//! vehicles orbiting one target (phase coordination then spreads them, [CIMM] §4.3). During the
+//! scenario's pre-roll the targets wait at their t = 0 state and nothing is recorded.
+//!
+//! Time runs on a 50 Hz grid; every sensor rate must divide 50 Hz, so scan times are exact
+//! (`k / rate`). `truth.csv` has a row (per target) at every scan time of any sensor.
+
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use harrier_core::guidance::lgvf::Lgvf;
+use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
+use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
+use harrier_core::scenario::{self as fmt, MeasKind};
+use mavlink::dialects::common::{
+    COMMAND_LONG_DATA, MavCmd, MavFrame, MavMessage, MavResult, PositionTargetTypemask,
+    SET_POSITION_TARGET_LOCAL_NED_DATA,
+};
+use nalgebra::{Vector2, Vector3};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
+use serde_json::json;
+
+use crate::geo::Geodetic;
+use crate::scenario::{
+    AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
+};
+use crate::sensors::{SensorSuite, platform_pose};
+use crate::vehicle::{Airframe, FlightMode, Vehicle, VehicleConfig};
+use crate::world::World;
+
+/// Rate of the simulation grid (Hz): physics, setpoints and the times sensors may scan at.
+pub const GRID_HZ: u32 = 50;
+/// ChaCha stream of the prior's draw (the world uses 0, sensors `1 << 32 | …`).
+const PRIOR_STREAM: u64 = 1;
+/// Delay between two vehicles' launches (s).
+const LAUNCH_STAGGER_S: f64 = 3.0;
+/// Height of the initial takeoff before OFFBOARD takes over (m).
+const TAKEOFF_HEIGHT_M: f32 = 10.0;
+/// Longest run (s).
+const MAX_DURATION_S: f64 = 86_400.0;
+
+/// `harrier-sim record` options.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RecordArgs {
+    /// Preset name (cimm-road, leader, radar, radar-abrupt, radar-markov, crossing) or JSON file.
+    #[arg(long)]
+    pub scenario: String,
+    /// Seed of every random draw (targets, noise, detection, clutter, prior).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Simulated duration (s) after the pre-roll.
+    #[arg(long)]
+    pub duration: f64,
+    /// Output directory (must not exist, or be empty).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Number of vehicles (ids 1…K), each with every sensor of the scenario.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
+    pub count: u8,
+}
+
+/// Why a recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    /// The scenario is unusable.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// Options or scenario do not fit `record`.
+    #[error("{0}")]
+    Config(String),
+    /// A vehicle refused a command.
+    #[error("vehicle {vehicle}: {message}")]
+    Vehicle {
+        /// Vehicle id.
+        vehicle: u8,
+        /// What it refused.
+        message: String,
+    },
+    /// The output could not be written.
+    #[error("writing {path}: {source}")]
+    Write {
+        /// Path.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+}
+
+/// What to record.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordConfig {
+    /// Seed of every random draw.
+    pub seed: u64,
+    /// Simulated duration after the pre-roll (s).
+    pub duration_s: f64,
+    /// Number of vehicles.
+    pub count: u8,
+}
+
+/// Counts of a recording.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RecordStats {
+    /// Sensor scans (all vehicles).
+    pub scans: u64,
+    /// Target-originated detections.
+    pub detections: u64,
+    /// Clutter detections written (multi-target format only).
+    pub clutter: u64,
+    /// Truth rows.
+    pub truth_rows: u64,
+    /// Whether the multi-target extension was written.
+    pub multi: bool,
+}
+
+/// The three files of a recorded scenario.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recording {
+    /// `scenario.json`.
+    pub scenario_json: String,
+    /// `measurements.jsonl`.
+    pub measurements_jsonl: String,
+    /// `truth.csv`.
+    pub truth_csv: String,
+    /// Counts.
+    pub stats: RecordStats,
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
+/// A vehicle and where it is in its launch sequence.
+struct Pilot {
+    vehicle: Vehicle,
+    launch_at: f64,
+    launched: bool,
+    limits: Limits,
+}
+
+fn command_long(id: u8, command: MavCmd, p: [f32; 7]) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        param5: p[4],
+        param6: p[5],
+        param7: p[6],
+        command,
+        target_system: id,
+        target_component: crate::vehicle::COMPONENT_ID,
+        confirmation: 0,
+    })
+}
+
+/// An ENU velocity as a LOCAL_NED velocity setpoint (position, acceleration and yaw ignored).
+fn velocity_setpoint(id: u8, v: &Vector3<f64>) -> MavMessage {
+    use PositionTargetTypemask as M;
+    let ignore = M::POSITION_TARGET_TYPEMASK_X_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_Y_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_Z_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_AX_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_AY_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_AZ_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_YAW_IGNORE
+        | M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE;
+    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
+        vx: v.y as f32,
+        vy: v.x as f32,
+        vz: -v.z as f32,
+        type_mask: ignore,
+        target_system: id,
+        target_component: crate::vehicle::COMPONENT_ID,
+        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
+        ..SET_POSITION_TARGET_LOCAL_NED_DATA::DEFAULT
+    })
+}
+
+impl Pilot {
+    fn send(&mut self, now: f64, msg: &MavMessage, what: &str) -> Result<(), RecordError> {
+        let id = self.vehicle.id();
+        let replies = self.vehicle.handle(now, msg);
+        match replies.first() {
+            Some(MavMessage::COMMAND_ACK(a)) if a.result == MavResult::MAV_RESULT_ACCEPTED => {
+                Ok(())
+            }
+            other => Err(RecordError::Vehicle {
+                vehicle: id,
+                message: format!("{what} refused: {other:?}"),
+            }),
+        }
+    }
+
+    /// Launch sequence and setpoint at vehicle time `now`, the behaviour's velocity `cmd`.
+    fn fly(&mut self, now: f64, cmd: Option<Vector3<f64>>) -> Result<(), RecordError> {
+        let id = self.vehicle.id();
+        if !self.launched {
+            if now < self.launch_at {
+                return Ok(());
+            }
+            let amsl = self.vehicle.config().origin.alt_m as f32 + TAKEOFF_HEIGHT_M;
+            let mut arm = [0.0; 7];
+            arm[0] = 1.0;
+            self.send(
+                now,
+                &command_long(id, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, arm),
+                "arm",
+            )?;
+            let mut takeoff = [f32::NAN; 7];
+            takeoff[6] = amsl;
+            self.send(
+                now,
+                &command_long(id, MavCmd::MAV_CMD_NAV_TAKEOFF, takeoff),
+                "takeoff",
+            )?;
+            self.launched = true;
+        }
+        let Some(v) = cmd.filter(|v| v.iter().all(|x| x.is_finite())) else {
+            return Ok(());
+        };
+        self.vehicle.handle(now, &velocity_setpoint(id, &v));
+        if self.vehicle.mode() != FlightMode::Offboard {
+            // DO_SET_MODE: custom mode enabled, PX4 main mode OFFBOARD (6).
+            let mode = [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+            self.send(
+                now,
+                &command_long(id, MavCmd::MAV_CMD_DO_SET_MODE, mode),
+                "OFFBOARD",
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// Velocity command of behaviour `b` for vehicle `k` (0-based) of `n`.
+fn behaviour_command(
+    b: &Behaviour,
+    k: usize,
+    uav: &UavState,
+    others: &[Vector2<f64>],
+    targets: &[TargetEstimate],
+    limits: &Limits,
+) -> Option<Vector3<f64>> {
+    let clamp_h = |v: Vector2<f64>| {
+        let n = v.norm();
+        if n > limits.v_max {
+            v * (limits.v_max / n)
+        } else {
+            v
+        }
+    };
+    let vz_to = |z: f64| (0.5 * (z - uav.position.z)).clamp(-limits.vz_max, limits.vz_max);
+    match b {
+        Behaviour::Orbit {
+            target,
+            radius_m,
+            height_m,
+            speed_mps,
+        } => {
+            let t = targets.get(*target)?;
+            let law = Lgvf::new(*radius_m, *height_m, *speed_mps);
+            // Ring order along the (counter-clockwise) orbit: ascending phase.
+            let centre = t.position.xy();
+            let mut ring: Vec<(f64, usize)> = others
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (phase_of(*p, centre), i))
+                .collect();
+            ring.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            let phases: Vec<f64> = ring.iter().map(|r| r.0).collect();
+            let me = ring.iter().position(|r| r.1 == k)?;
+            let phase = PhaseNeighbours::ring(&phases, me);
+            Some(law.command(uav, Some(t), limits, phase.as_ref()).velocity)
+        }
+        Behaviour::Follow {
+            target,
+            offset_m,
+            height_m,
+            spacing_m,
+        } => {
+            let t = targets.get(*target)?;
+            let vt = t.velocity.xy();
+            let fwd = vt.try_normalize(0.1).unwrap_or(Vector2::new(0.0, 1.0));
+            let right = Vector2::new(fwd.y, -fwd.x);
+            let goal =
+                t.position.xy() + right * (offset_m[0] + k as f64 * spacing_m) + fwd * offset_m[1];
+            let vh = clamp_h(vt + (goal - uav.horizontal_position()) * 0.3);
+            Some(Vector3::new(vh.x, vh.y, vz_to(t.position.z + height_m)))
+        }
+        Behaviour::Hold {
+            position,
+            spacing_m,
+        } => {
+            let goal = Vector2::new(position[0] + k as f64 * spacing_m, position[1]);
+            let vh = clamp_h((goal - uav.horizontal_position()) * 0.5);
+            Some(Vector3::new(vh.x, vh.y, vz_to(position[2])))
+        }
+        Behaviour::Cruise {
+            velocity,
+            altitude_m,
+        } => Some(Vector3::new(velocity[0], velocity[1], vz_to(*altitude_m))),
+    }
+}
+
+/// Runs `scenario` and returns the three files; `progress` gets the fraction done (0–1).
+pub fn record(
+    scenario: &SimScenario,
+    cfg: &RecordConfig,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Recording, RecordError> {
+    scenario.validate(&Source::Named(scenario.name.clone()))?;
+    if !(cfg.duration_s.is_finite() && cfg.duration_s > 0.0 && cfg.duration_s <= MAX_DURATION_S) {
+        return Err(RecordError::Config(format!(
+            "--duration must be in (0, {MAX_DURATION_S}] s, got {}",
+            cfg.duration_s
+        )));
+    }
+    if cfg.count == 0 {
+        return Err(RecordError::Config("--count must be at least 1".into()));
+    }
+    let hz = f64::from(GRID_HZ);
+    let mut truth_every = 0;
+    for s in &scenario.sensors {
+        let steps = hz / s.rate_hz;
+        if (steps - steps.round()).abs() > 1e-9 || steps.round() < 1.0 {
+            return Err(RecordError::Config(format!(
+                "sensor {}: record needs rates that divide {GRID_HZ} Hz, got {} Hz",
+                s.id, s.rate_hz
+            )));
+        }
+        truth_every = gcd(truth_every, steps.round() as u64);
+    }
+    let multi = scenario.is_multi();
+    let origin = scenario.origin;
+    let airframe = match scenario.vehicles.airframe {
+        AirframeSpec::Multirotor => Airframe::Multirotor,
+        AirframeSpec::FixedWing => Airframe::FixedWing,
+    };
+    let mut world = World::new(scenario, cfg.seed)?;
+    let initial = world.truth();
+    let mut pilots = Vec::with_capacity(cfg.count.into());
+    let mut suites = Vec::with_capacity(cfg.count.into());
+    for k in 0..cfg.count {
+        let id = k + 1;
+        let config = VehicleConfig {
+            id,
+            airframe,
+            origin: Geodetic::new(origin.lat_deg, origin.lon_deg, origin.alt_m),
+            speedup: 1.0,
+        };
+        pilots.push(Pilot {
+            vehicle: Vehicle::new(config, 0.0),
+            launch_at: f64::from(k) * LAUNCH_STAGGER_S,
+            launched: false,
+            limits: airframe.limits(),
+        });
+        suites.push(SensorSuite::new(scenario, cfg.seed, id)?);
+    }
+
+    let n_pre = (scenario.vehicles.preroll_s * hz).round() as u64;
+    let n_run = (cfg.duration_s * hz + 1e-6).floor() as u64;
+    let mut meas = String::new();
+    let mut truth = String::from(if multi {
+        "t,target,x,y,z,vx,vy,vz,mode\n"
+    } else {
+        "t,x,y,z,vx,vy,vz,mode\n"
+    });
+    let mut stats = RecordStats {
+        multi,
+        ..RecordStats::default()
+    };
+    let mut last_pct = 0;
+    for n in 0..=n_pre + n_run {
+        let now = n as f64 / hz;
+        let running = n >= n_pre;
+        let t = if running {
+            (n - n_pre) as f64 / hz
+        } else {
+            0.0
+        };
+        world.advance(t);
+        let truths = world.truth();
+        for p in &mut pilots {
+            p.vehicle.advance(now);
+        }
+        if running {
+            let m = n - n_pre;
+            if m % truth_every == 0 {
+                for tr in &truths {
+                    let s = tr.state;
+                    let id = if multi {
+                        format!("{},", tr.id)
+                    } else {
+                        String::new()
+                    };
+                    // Writing to a String cannot fail.
+                    let _ = writeln!(
+                        truth,
+                        "{t:.6},{id}{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
+                        s[0], s[1], s[2], s[3], s[4], s[5], tr.mode
+                    );
+                    stats.truth_rows += 1;
+                }
+            }
+            let mut lines: Vec<(String, String)> = Vec::new();
+            for (p, suite) in pilots.iter().zip(&mut suites) {
+                let id = p.vehicle.id();
+                let pose = platform_pose(&p.vehicle);
+                for l in suite.scan_labelled(t, id, &pose, origin, &world) {
+                    stats.scans += 1;
+                    let sensor = format!("{}{id}", l.scan.sensor);
+                    for (d, src) in l.scan.detections.iter().zip(&l.sources) {
+                        match src {
+                            Some(_) => stats.detections += 1,
+                            None if multi => stats.clutter += 1,
+                            None => continue,
+                        }
+                        let line = fmt::Measurement {
+                            t,
+                            sensor: sensor.clone(),
+                            kind: l.scan.kind,
+                            platform: fmt::PlatformPose {
+                                pos: pose.pos,
+                                vel: pose.vel,
+                            },
+                            z: d.z.clone(),
+                        };
+                        let text = serde_json::to_string(&line).map_err(|e| {
+                            RecordError::Config(format!("cannot serialise a measurement: {e}"))
+                        })?;
+                        lines.push((sensor.clone(), text));
+                    }
+                }
+            }
+            // Sorted by sensor within a time (stable: a scan's detections keep their order).
+            lines.sort_by(|a, b| a.0.cmp(&b.0));
+            for (_, l) in lines {
+                meas.push_str(&l);
+                meas.push('\n');
+            }
+            let pct = (100 * m / n_run.max(1)) as u32;
+            if pct > last_pct {
+                last_pct = pct;
+                progress(f64::from(pct) / 100.0);
+            }
+        }
+        // Setpoints for the next step, from the state now.
+        let estimates: Vec<TargetEstimate> = truths
+            .iter()
+            .map(|s| TargetEstimate {
+                position: Vector3::new(s.state[0], s.state[1], s.state[2]),
+                velocity: if running {
+                    Vector3::new(s.state[3], s.state[4], s.state[5])
+                } else {
+                    Vector3::zeros()
+                },
+            })
+            .collect();
+        let positions: Vec<Vector2<f64>> = pilots
+            .iter()
+            .map(|p| p.vehicle.state().horizontal_position())
+            .collect();
+        for (k, p) in pilots.iter_mut().enumerate() {
+            let cmd = behaviour_command(
+                &scenario.vehicles.behaviour,
+                k,
+                &p.vehicle.state(),
+                &positions,
+                &estimates,
+                &p.limits,
+            );
+            p.fly(now, cmd)?;
+        }
+    }
+    let scenario_json = scenario_json(scenario, cfg, &initial, truth_every, multi)?;
+    Ok(Recording {
+        scenario_json,
+        measurements_jsonl: meas,
+        truth_csv: truth,
+        stats,
+    })
+}
+
+/// `scenario.json` of a recording.
+fn scenario_json(
+    s: &SimScenario,
+    cfg: &RecordConfig,
+    initial: &[harrier_core::detection::TargetTruth],
+    truth_every: u64,
+    multi: bool,
+) -> Result<String, RecordError> {
+    let target_json = |i: usize| {
+        let t = &s.targets[i];
+        let on_ground = matches!(t.motion, TargetMotion::Road { .. }) || s.plane_z() == 0.0;
+        if t.size_known {
+            json!({"id": t.id, "size_m": t.size_m, "size_prior": null, "on_ground": on_ground})
+        } else {
+            json!({"id": t.id, "size_m": null,
+                   "size_prior": {"mean": 1.2 * t.size_m, "std": 0.3 * t.size_m},
+                   "on_ground": on_ground})
+        }
+    };
+    let mut sensors = Vec::new();
+    let mut platforms = Vec::new();
+    for id in 1..=cfg.count {
+        platforms.push(json!({
+            "id": format!("uav{id}"),
+            "kind": match s.vehicles.airframe {
+                AirframeSpec::Multirotor => "multirotor",
+                AirframeSpec::FixedWing => "fixed_wing",
+            },
+            "description": format!("harrier-sim vehicle {id}")
+        }));
+        for spec in &s.sensors {
+            let mut j = json!({
+                "id": format!("{}{id}", spec.id),
+                "platform": format!("uav{id}"),
+                "kind": spec.kind(),
+                "rate_hz": spec.rate_hz,
+                "noise": {"type": "gaussian", "std": spec.noise_std},
+            });
+            if spec.kind() == MeasKind::Position {
+                j["ncomp"] = json!(2);
+            }
+            if let SensorModel::Radar { .. } = spec.model {
+                j["bias"] = json!({"model": "unknown",
+                    "description": "z_i = (1 + s_i) h_i + o_i + v_i with unknown, possibly \
+                                    time-varying s, o (may be zero)"});
+            }
+            sensors.push(j);
+        }
+    }
+    let motion = s.estimator.motion.clone().map_or_else(
+        || json!({"models": [{"name": "CV", "type": "CV"}], "accel_std": 1.0}),
+        |m| json!(m),
+    );
+    let prior = if multi {
+        serde_json::Value::Null
+    } else {
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        rng.set_stream(PRIOR_STREAM);
+        let x = initial.first().map_or([0.0; 6], |t| t.state);
+        let sd = s.estimator.prior_std;
+        let mut state = x;
+        for (k, i) in [0, 1, 3, 4].into_iter().enumerate() {
+            let n: f64 = rng.sample(StandardNormal);
+            state[i] += sd[k] * n;
+        }
+        let cov: Vec<Vec<f64>> = (0..4)
+            .map(|r| {
+                (0..4)
+                    .map(|c| if r == c { sd[r] * sd[r] } else { 0.0 })
+                    .collect()
+            })
+            .collect();
+        json!({"t": 0.0, "state": state, "cov": cov, "cov_dims": [0, 1, 3, 4]})
+    };
+    let dt = truth_every as f64 / f64::from(GRID_HZ);
+    let o = s.origin;
+    let mut doc = json!({
+        "format": fmt::FORMAT_ID,
+        "name": format!("sim_{}_seed{}", s.name.replace('-', "_"), cfg.seed),
+        "description": format!("harrier-sim record of {}: {}", s.name, s.description),
+        "frame": {"type": "ENU", "units": "m",
+                  "origin_geodetic": {"lat_deg": o.lat_deg, "lon_deg": o.lon_deg, "alt_m": o.alt_m}},
+        "dims": 2,
+        "plane_z": s.plane_z(),
+        "time": {"t0": 0.0, "dt": dt, "t_end": cfg.duration_s},
+        "target": if multi { json!({"id": "multi", "description": "several targets, see targets"}) }
+                  else { target_json(0) },
+        "platforms": platforms,
+        "sensors": sensors,
+        "roads": s.roads,
+        "motion": motion,
+        "prior": prior,
+        "linear_system": null,
+        "hints": {},
+        "scoring": {"t_start": s.estimator.scoring_t_start, "primary": "state"},
+        "generator": {
+            "family": "harrier-sim",
+            "seed": cfg.seed,
+            "params": {
+                "scenario": s,
+                "count": cfg.count,
+                "duration": cfg.duration_s,
+                "grid_hz": GRID_HZ,
+                "launch_stagger_s": LAUNCH_STAGGER_S,
+                "version": env!("CARGO_PKG_VERSION"),
+            }
+        }
+    });
+    if multi {
+        doc["targets"] = json!((0..s.targets.len()).map(target_json).collect::<Vec<_>>());
+        let first = &s.sensors[0];
+        if s.sensors
+            .iter()
+            .all(|x| x.pd == first.pd && x.clutter_rate == first.clutter_rate)
+        {
+            doc["detection"] = json!({"pd": first.pd, "clutter_rate": first.clutter_rate});
+        }
+    }
+    serde_json::to_string_pretty(&doc)
+        .map(|mut t| {
+            t.push('\n');
+            t
+        })
+        .map_err(|e| RecordError::Config(format!("cannot serialise scenario.json: {e}")))
+}
+
+/// Writes a recording into `out` atomically: the files go to a temporary directory beside it,
+/// which is then renamed. `out` must not exist or be an empty directory.
+pub fn write_dir(rec: &Recording, out: &Path) -> Result<(), RecordError> {
+    let werr = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| RecordError::Write { path, source }
+    };
+    if out.exists() {
+        let empty = out.is_dir() && std::fs::read_dir(out).map_err(werr(out))?.next().is_none();
+        if !empty {
+            return Err(RecordError::Write {
+                path: out.to_path_buf(),
+                source: std::io::Error::new(
+                    std::io::ErrorKind::AlreadyExists,
+                    "already exists and is not an empty directory",
+                ),
+            });
+        }
+    }
+    let parent = out
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).map_err(werr(parent))?;
+    let name = out
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "scenario".into());
+    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+    let result = (|| {
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp)?;
+        }
+        std::fs::create_dir(&tmp)?;
+        for (file, text) in [
+            ("scenario.json", &rec.scenario_json),
+            ("measurements.jsonl", &rec.measurements_jsonl),
+            ("truth.csv", &rec.truth_csv),
+        ] {
+            let mut f = std::fs::File::create(tmp.join(file))?;
+            f.write_all(text.as_bytes())?;
+            f.sync_all()?;
+        }
+        if out.exists() {
+            std::fs::remove_dir(out)?;
+        }
+        std::fs::rename(&tmp, out)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_dir_all(&tmp);
+    }
+    result.map_err(werr(out))
+}
+
+/// The `record` command: load, run with progress on stderr, write. Returns the counts.
+pub fn run(args: &RecordArgs) -> Result<RecordStats, RecordError> {
+    let scenario = SimScenario::load(&args.scenario)?;
+    let cfg = RecordConfig {
+        seed: args.seed,
+        duration_s: args.duration,
+        count: args.count,
+    };
+    let start = std::time::Instant::now();
+    let mut next_report = 0.1;
+    let rec = record(&scenario, &cfg, &mut |f| {
+        if f + 1e-9 >= next_report {
+            if start.elapsed().as_secs_f64() > 1.0 {
+                eprintln!(
+                    "harrier-sim record: {:3.0} % ({:.0} / {} s simulated)",
+                    f * 100.0,
+                    f * cfg.duration_s,
+                    cfg.duration_s
+                );
+            }
+            next_report += 0.1;
+        }
+    })?;
+    write_dir(&rec, &args.out)?;
+    Ok(rec.stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harrier_core::scenario::ScenarioData;
+    use harrier_core::tracker::scenario::MultiScenario;
+
+    fn rec(name: &str, seed: u64, duration_s: f64, count: u8) -> Recording {
+        let s = SimScenario::preset(name).expect("preset");
+        let cfg = RecordConfig {
+            seed,
+            duration_s,
+            count,
+        };
+        record(&s, &cfg, &mut |_| {}).expect("record")
+    }
+
+    #[test]
+    fn single_target_recordings_parse_and_are_consistent() {
+        let r = rec("cimm-road", 3, 60.0, 2);
+        let d = ScenarioData::parse(&r.scenario_json, &r.measurements_jsonl, Some(&r.truth_csv))
+            .expect("valid gcs-scenario/1");
+        assert_eq!(d.scenario.sensors.len(), 2);
+        assert_eq!(d.scenario.platforms.len(), 2);
+        // Both UAVs see the target every second, t = 0..60.
+        assert_eq!(d.measurements.len(), 2 * 61, "{:?}", r.stats);
+        let truth = d.truth.expect("truth");
+        assert_eq!(truth.len(), 61);
+        // Platforms orbit at about R = 300 m, 300 m above after the pre-roll.
+        for m in &d.measurements {
+            let (x, y) = harrier_core::scenario::truth_at(&truth, m.t)
+                .map(|(s, _, _)| (s[0], s[1]))
+                .expect("truth");
+            let r = (m.platform.pos[0] - x).hypot(m.platform.pos[1] - y);
+            assert!((r - 300.0).abs() < 60.0, "t {} r {r}", m.t);
+            assert!(
+                (m.platform.pos[2] - 300.0).abs() < 20.0,
+                "alt {}",
+                m.platform.pos[2]
+            );
+        }
+        assert!(r.stats.detections == 122 && !r.stats.multi);
+    }
+
+    #[test]
+    fn multi_target_recordings_use_the_extension() {
+        let r = rec("crossing", 4, 40.0, 1);
+        let m = MultiScenario::parse(&r.scenario_json, &r.measurements_jsonl, Some(&r.truth_csv))
+            .expect("valid FORMAT-MULTI");
+        assert_eq!(m.targets.len(), 4);
+        assert_eq!(m.scans.len(), 81);
+        assert!(
+            r.stats.multi && r.stats.clutter > 40 && r.stats.clutter < 130,
+            "{:?}",
+            r.stats
+        );
+        assert_eq!(m.detection.as_ref().map(|d| d.pd), Some(0.9));
+    }
+
+    #[test]
+    fn bad_configurations_are_refused() {
+        let s = SimScenario::preset("radar").expect("preset");
+        let bad = |cfg: RecordConfig| record(&s, &cfg, &mut |_| {}).expect_err("refused");
+        let ok = RecordConfig {
+            seed: 1,
+            duration_s: 10.0,
+            count: 1,
+        };
+        for d in [0.0, -1.0, f64::NAN, 1e9] {
+            assert!(
+                bad(RecordConfig {
+                    duration_s: d,
+                    ..ok
+                })
+                .to_string()
+                .contains("--duration")
+            );
+        }
+        let mut s3 = s.clone();
+        s3.sensors[0].rate_hz = 3.0;
+        let e = record(&s3, &ok, &mut |_| {}).expect_err("3 Hz");
+        assert!(e.to_string().contains("divide 50 Hz"), "{e}");
+        let dir = std::env::temp_dir().join(format!("harrier-record-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("full")).expect("mkdir");
+        std::fs::write(dir.join("full/x"), "x").expect("write");
+        let r = record(&s, &ok, &mut |_| {}).expect("record");
+        let e = write_dir(&r, &dir.join("full")).expect_err("not empty");
+        assert!(e.to_string().contains("full"), "{e}");
+        write_dir(&r, &dir.join("new/run")).expect("write");
+        assert!(dir.join("new/run/truth.csv").exists());
+        assert!(std::fs::read_dir(dir.join("new")).expect("dir").count() == 1);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,793 @@
+//! The sensors a vehicle carries: gimbal cameras (`az_el`, `bearing_size`, or ground
+//! `position` by geolocation) and radars (`range_bearing` with the bias models of [ICDKF]), each
+//! scanning at its own rate and producing one [`DetectionScan`] per scan.
+//!
+//! Per scan and sensor: every target inside the field of view (a cone of half-angle `fov/2`
+//! about the boresight for cameras; all around for radars) and within `max_range_m` is detected
+//! with probability `pd`; the noise-free value `h` comes from harrier-core's measurement models
+//! ([`harrier_core::measurement`], FORMAT.md §1/§3 conventions), Gaussian noise of `noise_std` is
+//! added, azimuths are wrapped to `[-π, π)` and elevations kept in `[-π/2, π/2]`. A Poisson number
+//! of clutter detections (mean `clutter_rate`) falls uniformly in the field of view: directions
+//! uniform over the cone's solid angle (cameras; geolocated onto the target plane for `position`
+//! output, range uniform up to `max_range_m` for `bearing_size`), range and azimuth uniform for
+//! radars. Detections are shuffled, so their order reveals nothing; [`LabelledScan::sources`]
+//! keeps which target made each (simulation only).
+//!
+//! Randomness: one ChaCha8 stream per (vehicle, sensor) from the run's seed, so adding a vehicle
+//! or a sensor never changes another one's noise; every scan draws the same numbers whatever was
+//! detected, so changing `pd` or the geometry does not reshuffle later noise.
+
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+use harrier_core::detection::{
+    DETECTIONS_SCHEMA, Detection, DetectionScan, GeoPoint, PlatformPose,
+};
+use harrier_core::linalg::wrap_angle;
+use harrier_core::measurement::{
+    AzEl, BearingSize, Geometry, MeasurementModel, RangeBearing, TargetSize,
+};
+use harrier_core::scenario::MeasKind;
+use nalgebra::{SVector, Vector3};
+use rand::seq::SliceRandom;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Poisson, StandardNormal};
+
+use crate::scenario::{
+    BiasModel, Pointing, ScenarioError, SensorModel, SensorSpec, SimScenario, Source,
+};
+use crate::vehicle::Vehicle;
+use crate::world::World;
+
+/// ChaCha stream of sensor `index` on vehicle `vehicle` (the world uses stream 0).
+fn sensor_stream(vehicle: u8, index: usize) -> u64 {
+    (1 << 32) | (u64::from(vehicle) << 16) | (index as u64 & 0xffff)
+}
+
+/// A scan with, for each detection, the index of the target that produced it (`None`: clutter).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelledScan {
+    /// The published scan.
+    pub scan: DetectionScan,
+    /// Aligned with `scan.detections`.
+    pub sources: Vec<Option<usize>>,
+}
+
+#[derive(Debug, Clone)]
+struct SensorState {
+    spec: SensorSpec,
+    kind: MeasKind,
+    rng: ChaCha8Rng,
+    poisson: Option<Poisson<f64>>,
+    seq: u64,
+    next_k: u64,
+    /// Markov bias offsets and the time they hold for.
+    markov: Option<([f64; 2], f64)>,
+}
+
+/// The sensors of one vehicle.
+#[derive(Debug, Clone)]
+pub struct SensorSuite {
+    sensors: Vec<SensorState>,
+    sizes: Vec<f64>,
+    plane_z: f64,
+}
+
+/// The pose of a simulated vehicle as published with its detections: ENU position and velocity,
+/// attitude and geodetic position.
+pub fn platform_pose(v: &Vehicle) -> PlatformPose {
+    let s = v.state();
+    let g = v.position();
+    PlatformPose {
+        pos: [s.position.x, s.position.y, s.position.z],
+        vel: [s.velocity.x, s.velocity.y, s.velocity.z],
+        attitude: v.attitude(),
+        geodetic: GeoPoint {
+            lat_deg: g.lat_deg,
+            lon_deg: g.lon_deg,
+            alt_m: g.alt_m,
+        },
+    }
+}
+
+/// Azimuth (clockwise from North, `[-π, π)`) and elevation of a direction (FORMAT.md §1).
+fn az_el_of(d: &Vector3<f64>) -> [f64; 2] {
+    [wrap_angle(d.x.atan2(d.y)), d.z.atan2(d.x.hypot(d.y))]
+}
+
+/// A unit vector uniformly distributed over the solid angle of the cone of half-angle `half`
+/// about the unit vector `b`.
+fn in_cone(rng: &mut ChaCha8Rng, b: &Vector3<f64>, half: f64) -> Vector3<f64> {
+    let cos_t = 1.0 - rng.random::<f64>() * (1.0 - half.cos());
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = rng.random_range(0.0..TAU);
+    let helper = if b.z.abs() < 0.9 {
+        Vector3::z()
+    } else {
+        Vector3::x()
+    };
+    let e1 = b.cross(&helper).normalize();
+    let e2 = b.cross(&e1);
+    b * cos_t + (e1 * phi.cos() + e2 * phi.sin()) * sin_t
+}
+
+impl SensorSuite {
+    /// The sensors of `scenario` on vehicle `vehicle`, with noise streams drawn from `seed`.
+    pub fn new(scenario: &SimScenario, seed: u64, vehicle: u8) -> Result<Self, ScenarioError> {
+        scenario.validate(&Source::Named(scenario.name.clone()))?;
+        let sensors = scenario
+            .sensors
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                rng.set_stream(sensor_stream(vehicle, i));
+                SensorState {
+                    kind: spec.kind(),
+                    spec: spec.clone(),
+                    rng,
+                    // `validate` bounds the rate to [0, 1e4]; Poisson needs it > 0.
+                    poisson: Poisson::new(spec.clutter_rate).ok(),
+                    seq: 0,
+                    next_k: 0,
+                    markov: None,
+                }
+            })
+            .collect();
+        Ok(Self {
+            sensors,
+            sizes: scenario.targets.iter().map(|t| t.size_m).collect(),
+            plane_z: scenario.plane_z(),
+        })
+    }
+
+    /// One [`DetectionScan`] per sensor due at `t` (each scans at `k / rate_hz`; a sensor whose
+    /// scan time was passed over scans once at the next call).
+    pub fn scan(
+        &mut self,
+        t: f64,
+        vehicle_id: u8,
+        pose: &PlatformPose,
+        origin: GeoPoint,
+        world: &World,
+    ) -> Vec<DetectionScan> {
+        self.scan_labelled(t, vehicle_id, pose, origin, world)
+            .into_iter()
+            .map(|l| l.scan)
+            .collect()
+    }
+
+    /// [`Self::scan`] with the source of every detection.
+    pub fn scan_labelled(
+        &mut self,
+        t: f64,
+        vehicle_id: u8,
+        pose: &PlatformPose,
+        origin: GeoPoint,
+        world: &World,
+    ) -> Vec<LabelledScan> {
+        if !t.is_finite() {
+            return Vec::new();
+        }
+        let due: Vec<bool> = self.sensors.iter_mut().map(|s| s.due(t)).collect();
+        if !due.contains(&true) {
+            return Vec::new();
+        }
+        let truths: Vec<Vector3<f64>> = world
+            .truth()
+            .iter()
+            .map(|s| Vector3::new(s.state[0], s.state[1], s.state[2]))
+            .collect();
+        let (sizes, plane_z) = (&self.sizes, self.plane_z);
+        let mut out = Vec::new();
+        for (s, _) in self.sensors.iter_mut().zip(due).filter(|(_, d)| *d) {
+            let (detections, sources) = s.detect(t, pose, &truths, sizes, plane_z);
+            let scan = DetectionScan {
+                schema: DETECTIONS_SCHEMA.into(),
+                t,
+                vehicle: vehicle_id,
+                seq: s.seq,
+                sensor: s.spec.id.clone(),
+                kind: s.kind,
+                origin,
+                platform: *pose,
+                noise_std: s.spec.noise_std.clone(),
+                detections,
+            };
+            s.seq += 1;
+            out.push(LabelledScan { scan, sources });
+        }
+        out
+    }
+}
+
+impl SensorState {
+    /// Whether a scan is due at `t`; moves the schedule past `t`.
+    fn due(&mut self, t: f64) -> bool {
+        let k = (t * self.spec.rate_hz + 1e-6).floor();
+        if k < 0.0 || k < self.next_k as f64 {
+            return false;
+        }
+        self.next_k = k as u64 + 1;
+        true
+    }
+
+    fn boresight(&self, pose: &PlatformPose, truths: &[Vector3<f64>]) -> Vector3<f64> {
+        let nadir = -Vector3::z();
+        let SensorModel::Camera { pointing, .. } = &self.spec.model else {
+            return nadir;
+        };
+        match *pointing {
+            Pointing::Nadir => nadir,
+            Pointing::Fixed {
+                pan_deg,
+                depression_deg,
+            } => {
+                let az = pose.attitude[2] + pan_deg.to_radians();
+                let dep = depression_deg.to_radians();
+                Vector3::new(az.sin() * dep.cos(), az.cos() * dep.cos(), -dep.sin())
+            }
+            Pointing::Track { target } => truths
+                .get(target)
+                .map(|p| p - Vector3::from(pose.pos))
+                .and_then(|d| d.try_normalize(1e-9))
+                .unwrap_or(nadir),
+        }
+    }
+
+    /// Bias `(scale, offset)` at `t` ([ICDKF] eq. (9)); draws two normals per scan for Markov.
+    fn bias(&mut self, t: f64) -> ([f64; 2], [f64; 2]) {
+        let SensorModel::Radar { bias } = self.spec.model else {
+            return ([0.0; 2], [0.0; 2]);
+        };
+        match bias {
+            BiasModel::None => ([0.0; 2], [0.0; 2]),
+            BiasModel::Abrupt {
+                t_on,
+                t_off,
+                scale,
+                offset,
+            } => {
+                if t >= t_on && t < t_off {
+                    (scale, offset)
+                } else {
+                    ([0.0; 2], [0.0; 2])
+                }
+            }
+            BiasModel::Markov {
+                mean,
+                std,
+                tau_s,
+                scale,
+            } => {
+                let w: [f64; 2] = [
+                    self.rng.sample(StandardNormal),
+                    self.rng.sample(StandardNormal),
+                ];
+                let o = match self.markov {
+                    // Stationary start.
+                    None => [mean[0] + std[0] * w[0], mean[1] + std[1] * w[1]],
+                    // Exact discretisation of do = −(o − m)/τ dt + σ √(2/τ) dW.
+                    Some((o, t0)) => {
+                        let a = (-(t - t0).max(0.0) / tau_s).exp();
+                        let k = (1.0 - a * a).sqrt();
+                        [
+                            mean[0] + a * (o[0] - mean[0]) + std[0] * k * w[0],
+                            mean[1] + a * (o[1] - mean[1]) + std[1] * k * w[1],
+                        ]
+                    }
+                };
+                self.markov = Some((o, t));
+                (scale, o)
+            }
+        }
+    }
+
+    fn detect(
+        &mut self,
+        t: f64,
+        pose: &PlatformPose,
+        truths: &[Vector3<f64>],
+        sizes: &[f64],
+        plane_z: f64,
+    ) -> (Vec<Detection>, Vec<Option<usize>>) {
+        let sensor = Vector3::from(pose.pos);
+        let b = self.boresight(pose, truths);
+        let cos_half = match &self.spec.model {
+            SensorModel::Camera { fov_deg, .. } => (0.5 * fov_deg.to_radians()).cos(),
+            SensorModel::Radar { .. } => -1.0,
+        };
+        let (scale, offset) = self.bias(t);
+        let std = self.spec.noise_std.clone();
+        let mut found: Vec<(Detection, Option<usize>)> = Vec::new();
+        for (i, p) in truths.iter().enumerate() {
+            // Same draws every scan: detection, then three normals.
+            let u: f64 = self.rng.random();
+            let n: [f64; 3] = [
+                self.rng.sample(StandardNormal),
+                self.rng.sample(StandardNormal),
+                self.rng.sample(StandardNormal),
+            ];
+            let d = p - sensor;
+            let rho = d.norm();
+            let visible = rho > 1e-6 && rho <= self.spec.max_range_m && d.dot(&b) >= cos_half * rho;
+            if !visible || u >= self.spec.pd {
+                continue;
+            }
+            let x = SVector::<f64, 6>::new(p.x, p.y, p.z, 0.0, 0.0, 0.0);
+            let g = Geometry::spatial();
+            let z = match self.kind {
+                MeasKind::Position => vec![p.x + std[0] * n[0], p.y + std[1] * n[1]],
+                MeasKind::RangeBearing => {
+                    let h = RangeBearing::new(g, sensor, [std[0], std[1]]).function(&x);
+                    vec![
+                        ((1.0 + scale[0]) * h[0] + offset[0] + std[0] * n[0]).max(0.0),
+                        wrap_angle((1.0 + scale[1]) * h[1] + offset[1] + std[1] * n[1]),
+                    ]
+                }
+                MeasKind::AzEl => {
+                    let h = AzEl::new(g, sensor, [std[0], std[1]]).function(&x);
+                    vec![
+                        wrap_angle(h[0] + std[0] * n[0]),
+                        (h[1] + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
+                    ]
+                }
+                MeasKind::BearingSize => {
+                    let size = TargetSize::Known(sizes.get(i).copied().unwrap_or(1.0));
+                    let h =
+                        BearingSize::new(g, sensor, size, [std[0], std[1], std[2]]).function(&x);
+                    vec![
+                        wrap_angle(h[0] + std[0] * n[0]),
+                        (h[1] + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
+                        h[2] + std[2] * n[2],
+                    ]
+                }
+            };
+            if z.iter().all(|v| v.is_finite()) {
+                found.push((Detection { z }, Some(i)));
+            }
+        }
+        let clutter = self
+            .poisson
+            .map_or(0.0, |p| p.sample(&mut self.rng))
+            .min(1e5) as usize;
+        let mean_size = sizes.iter().sum::<f64>() / sizes.len().max(1) as f64;
+        let half = cos_half.clamp(-1.0, 1.0).acos();
+        for _ in 0..clutter {
+            let z = match (&self.spec.model, self.kind) {
+                (SensorModel::Radar { .. }, _) => Some(vec![
+                    self.rng.random_range(0.0..=self.spec.max_range_m),
+                    self.rng.random_range(-PI..PI),
+                ]),
+                (_, MeasKind::Position) => {
+                    let dir = in_cone(&mut self.rng, &b, half);
+                    let lambda = (plane_z - sensor.z) / dir.z;
+                    (dir.z < -1e-9 && lambda > 0.0 && lambda <= self.spec.max_range_m).then(|| {
+                        let q = sensor + dir * lambda;
+                        vec![q.x, q.y]
+                    })
+                }
+                (_, MeasKind::BearingSize) => {
+                    let dir = in_cone(&mut self.rng, &b, half);
+                    let lo = mean_size.min(self.spec.max_range_m);
+                    let rho = self.rng.random_range(lo..=self.spec.max_range_m);
+                    let [az, el] = az_el_of(&dir);
+                    Some(vec![az, el, 2.0 * (mean_size / (2.0 * rho)).atan()])
+                }
+                _ => Some(az_el_of(&in_cone(&mut self.rng, &b, half)).to_vec()),
+            };
+            if let Some(z) = z.filter(|z| z.iter().all(|v| v.is_finite())) {
+                found.push((Detection { z }, None));
+            }
+        }
+        found.shuffle(&mut self.rng);
+        found.into_iter().unzip()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scenario::{
+        AirframeSpec, Behaviour, CameraOutput, Jitter, MotionSegment, TargetMotion, TargetSpec,
+        VehicleSpec,
+    };
+    use harrier_core::detection::TargetTruth;
+
+    const ORIGIN: GeoPoint = GeoPoint {
+        lat_deg: 47.0,
+        lon_deg: 8.0,
+        alt_m: 400.0,
+    };
+
+    fn pose(pos: [f64; 3], yaw: f64) -> PlatformPose {
+        PlatformPose {
+            pos,
+            vel: [0.0; 3],
+            attitude: [0.0, 0.0, yaw],
+            geodetic: ORIGIN,
+        }
+    }
+
+    fn still(id: &str, x: f64, y: f64) -> TargetSpec {
+        TargetSpec {
+            id: id.into(),
+            size_m: 10.0,
+            size_known: true,
+            motion: TargetMotion::Segments {
+                position: [x, y],
+                velocity: [0.0, 0.0],
+                z_m: 0.0,
+                segments: Vec::<MotionSegment>::new(),
+            },
+            jitter: Jitter::default(),
+        }
+    }
+
+    /// A scenario with static targets and one sensor.
+    fn scenario(targets: Vec<TargetSpec>, sensor: SensorSpec) -> SimScenario {
+        let mut s = SimScenario::preset("crossing").expect("preset");
+        s.targets = targets;
+        s.sensors = vec![sensor];
+        s.vehicles = VehicleSpec {
+            airframe: AirframeSpec::Multirotor,
+            preroll_s: 0.0,
+            behaviour: Behaviour::Hold {
+                position: [0.0, 0.0, 100.0],
+                spacing_m: 0.0,
+            },
+        };
+        s
+    }
+
+    fn camera(
+        output: CameraOutput,
+        fov_deg: f64,
+        pointing: Pointing,
+        noise: Vec<f64>,
+    ) -> SensorSpec {
+        SensorSpec {
+            id: "cam".into(),
+            rate_hz: 10.0,
+            pd: 1.0,
+            clutter_rate: 0.0,
+            max_range_m: 1000.0,
+            noise_std: noise,
+            model: SensorModel::Camera {
+                output,
+                fov_deg,
+                pointing,
+            },
+        }
+    }
+
+    fn run(s: &SimScenario, p: &PlatformPose, scans: usize, seed: u64) -> Vec<LabelledScan> {
+        let world = World::new(s, seed).expect("world");
+        let mut suite = SensorSuite::new(s, seed, 1).expect("suite");
+        let mut out = Vec::new();
+        for k in 0..scans {
+            let t = k as f64 / s.sensors[0].rate_hz;
+            for l in suite.scan_labelled(t, 1, p, ORIGIN, &world) {
+                l.scan.validate().expect("valid scan");
+                assert_eq!(l.scan.seq, k as u64);
+                assert_eq!(l.scan.t, t);
+                out.push(l);
+            }
+        }
+        assert_eq!(out.len(), scans);
+        out
+    }
+
+    #[test]
+    fn field_of_view_and_range_limit_detections() {
+        // Nadir camera 100 m up, 60° FOV: ground footprint radius 100·tan 30° = 57.7 m.
+        let targets = vec![
+            still("in", 40.0, 0.0),
+            still("edge_out", 0.0, -60.0),
+            still("far", 2000.0, 0.0),
+        ];
+        let s = scenario(
+            targets,
+            camera(
+                CameraOutput::AzEl,
+                60.0,
+                Pointing::Nadir,
+                vec![0.001, 0.001],
+            ),
+        );
+        let scans = run(&s, &pose([0.0, 0.0, 100.0], 0.0), 50, 1);
+        for l in &scans {
+            assert_eq!(l.sources, vec![Some(0)]);
+        }
+        // A fixed gimbal looking East (yaw 90°, pan 0, depression 45°) from 100 m sees (100, 0).
+        let s = scenario(
+            vec![still("east", 100.0, 0.0), still("west", -100.0, 0.0)],
+            camera(
+                CameraOutput::AzEl,
+                20.0,
+                Pointing::Fixed {
+                    pan_deg: 0.0,
+                    depression_deg: 45.0,
+                },
+                vec![0.001, 0.001],
+            ),
+        );
+        let scans = run(&s, &pose([0.0, 0.0, 100.0], FRAC_PI_2), 20, 2);
+        assert!(scans.iter().all(|l| l.sources == vec![Some(0)]));
+        // Radar range limit.
+        let mut radar = SensorSpec {
+            id: "radar".into(),
+            rate_hz: 1.0,
+            pd: 1.0,
+            clutter_rate: 0.0,
+            max_range_m: 1500.0,
+            noise_std: vec![5.0, 0.005],
+            model: SensorModel::Radar {
+                bias: BiasModel::None,
+            },
+        };
+        let s = scenario(
+            vec![still("near", 1000.0, 0.0), still("far", 0.0, -1600.0)],
+            radar.clone(),
+        );
+        let scans = run(&s, &pose([0.0, 0.0, 0.0], 0.0), 20, 3);
+        assert!(scans.iter().all(|l| l.sources == vec![Some(0)]));
+        radar.max_range_m = 2000.0;
+        let s = scenario(
+            vec![still("near", 1000.0, 0.0), still("far", 0.0, -1600.0)],
+            radar,
+        );
+        let scans = run(&s, &pose([0.0, 0.0, 0.0], 0.0), 20, 3);
+        assert!(scans.iter().all(|l| l.sources.len() == 2));
+    }
+
+    #[test]
+    fn measurements_follow_the_conventions_and_the_noise() {
+        // Target due East and 100 m below: azimuth +π/2, elevation −45°.
+        let p = pose([-100.0, 0.0, 100.0], 0.0);
+        let n = 4000;
+        let check = |output, noise: Vec<f64>, expected: Vec<f64>| {
+            let s = scenario(
+                vec![still("t", 0.0, 0.0)],
+                camera(output, 90.0, Pointing::Track { target: 0 }, noise.clone()),
+            );
+            let scans = run(&s, &p, n, 4);
+            for (c, (e, sd)) in expected.iter().zip(&noise).enumerate() {
+                let r: Vec<f64> = scans
+                    .iter()
+                    .map(|l| {
+                        let r = l.scan.detections[0].z[c] - e;
+                        if output == CameraOutput::Position {
+                            r
+                        } else {
+                            wrap_angle(r)
+                        }
+                    })
+                    .collect();
+                let mean = r.iter().sum::<f64>() / n as f64;
+                let var = r.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / n as f64;
+                // Mean within 4 standard errors, std within 5 %.
+                assert!(
+                    mean.abs() < 4.0 * sd / (n as f64).sqrt(),
+                    "{output:?}[{c}] mean {mean}"
+                );
+                assert!(
+                    (var.sqrt() / sd - 1.0).abs() < 0.05,
+                    "{output:?}[{c}] std {}",
+                    var.sqrt()
+                );
+            }
+        };
+        let sub = 2.0 * (10.0 / (2.0 * 100.0 * 2f64.sqrt())).atan();
+        check(
+            CameraOutput::AzEl,
+            vec![0.01, 0.02],
+            vec![FRAC_PI_2, -PI / 4.0],
+        );
+        check(
+            CameraOutput::BearingSize,
+            vec![0.01, 0.01, 0.001],
+            vec![FRAC_PI_2, -PI / 4.0, sub],
+        );
+        check(CameraOutput::Position, vec![10.0, 5.0], vec![0.0, 0.0]);
+        // harrier-core's models give the same h (FORMAT.md §1: North = 0, East = +π/2).
+        let x = SVector::<f64, 6>::zeros();
+        let h = AzEl::new(Geometry::spatial(), Vector3::from(p.pos), [1.0, 1.0]).function(&x);
+        assert!((h[0] - FRAC_PI_2).abs() < 1e-12 && (h[1] + PI / 4.0).abs() < 1e-12);
+        // Azimuth wraps to [−π, π): a target due South straddles the cut.
+        let s = scenario(
+            vec![still("t", 0.0, -100.0)],
+            camera(
+                CameraOutput::AzEl,
+                90.0,
+                Pointing::Track { target: 0 },
+                vec![0.05, 0.05],
+            ),
+        );
+        let scans = run(&s, &pose([0.0, 0.0, 10.0], 0.0), 500, 5);
+        let az: Vec<f64> = scans.iter().map(|l| l.scan.detections[0].z[0]).collect();
+        assert!(az.iter().all(|a| (-PI..PI).contains(a)));
+        assert!(az.iter().any(|a| *a > 3.0) && az.iter().any(|a| *a < -3.0));
+    }
+
+    #[test]
+    fn pd_and_clutter_rates_are_right() {
+        let mut cam = camera(
+            CameraOutput::Position,
+            90.0,
+            Pointing::Nadir,
+            vec![5.0, 5.0],
+        );
+        cam.pd = 0.7;
+        cam.clutter_rate = 2.5;
+        let s = scenario(vec![still("a", 10.0, 0.0), still("b", -10.0, 20.0)], cam);
+        let p = pose([0.0, 0.0, 100.0], 0.0);
+        let n = 4000;
+        let scans = run(&s, &p, n, 6);
+        let det = scans
+            .iter()
+            .flat_map(|l| &l.sources)
+            .filter(|s| s.is_some())
+            .count();
+        let clutter: Vec<usize> = scans
+            .iter()
+            .map(|l| l.sources.iter().filter(|s| s.is_none()).count())
+            .collect();
+        let pd = det as f64 / (2 * n) as f64;
+        // Binomial: std sqrt(0.21 / 8000) = 0.005.
+        assert!((pd - 0.7).abs() < 0.02, "pd {pd}");
+        let mean = clutter.iter().sum::<usize>() as f64 / n as f64;
+        let var = clutter
+            .iter()
+            .map(|&c| (c as f64 - mean).powi(2))
+            .sum::<f64>()
+            / n as f64;
+        // Poisson: mean = variance = 2.5; std error of the mean 0.025.
+        assert!((mean - 2.5).abs() < 0.1, "clutter mean {mean}");
+        assert!((var / mean - 1.0).abs() < 0.1, "dispersion {}", var / mean);
+        // Clutter falls in the footprint (radius 100 m for a 90° cone from 100 m).
+        for l in &scans {
+            for (d, src) in l.scan.detections.iter().zip(&l.sources) {
+                if src.is_none() {
+                    assert!(d.z[0].hypot(d.z[1]) <= 100.0 + 1e-6);
+                }
+            }
+        }
+        // Clutter directions are uniform over the cone: the fraction inside half the cone's
+        // solid angle is 1/2.
+        let mut cam = camera(CameraOutput::AzEl, 60.0, Pointing::Nadir, vec![0.01, 0.01]);
+        cam.clutter_rate = 3.0;
+        let s = scenario(vec![still("far", 5000.0, 0.0)], cam);
+        let scans = run(&s, &p, 2000, 7);
+        let half_cos = 1.0 - 0.5 * (1.0 - (PI / 6.0).cos());
+        let (mut inner, mut all) = (0.0_f64, 0.0_f64);
+        for d in scans.iter().flat_map(|l| &l.scan.detections) {
+            let off_nadir = FRAC_PI_2 + d.z[1];
+            assert!(off_nadir <= PI / 6.0 + 1e-9);
+            all += 1.0;
+            if off_nadir.cos() >= half_cos {
+                inner += 1.0;
+            }
+        }
+        assert!((inner / all - 0.5).abs() < 0.03, "{}", inner / all);
+    }
+
+    fn radar_run(bias: BiasModel, scans: usize) -> Vec<[f64; 2]> {
+        let radar = SensorSpec {
+            id: "radar".into(),
+            rate_hz: 1.0,
+            pd: 1.0,
+            clutter_rate: 0.0,
+            max_range_m: 20_000.0,
+            noise_std: vec![1e-6, 1e-9],
+            model: SensorModel::Radar { bias },
+        };
+        let s = scenario(vec![still("t", 3000.0, 4000.0)], radar);
+        run(&s, &pose([0.0, 0.0, 0.0], 0.0), scans, 8)
+            .iter()
+            .map(|l| {
+                [
+                    l.scan.detections[0].z[0] - 5000.0,
+                    l.scan.detections[0].z[1] - 0.6435011087932844,
+                ]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn radar_bias_models() {
+        for r in radar_run(BiasModel::None, 10) {
+            assert!(r[0].abs() < 1e-4 && r[1].abs() < 1e-7);
+        }
+        // Abrupt: z = (1 + s) h + o while t_on ≤ t < t_off ([ICDKF] eq. (9)).
+        let abrupt = BiasModel::Abrupt {
+            t_on: 3.0,
+            t_off: 6.0,
+            scale: [0.01, 0.0],
+            offset: [100.0, 0.01],
+        };
+        for (t, r) in radar_run(abrupt, 10).iter().enumerate() {
+            let on = (3..6).contains(&t);
+            let expected = if on { [150.0, 0.01] } else { [0.0, 0.0] };
+            assert!(
+                (r[0] - expected[0]).abs() < 1e-4 && (r[1] - expected[1]).abs() < 1e-7,
+                "{t}"
+            );
+        }
+        // Markov: stationary mean and std, correlation exp(−Δ/τ) at lag 1 s.
+        let markov = BiasModel::Markov {
+            mean: [60.0, 0.006],
+            std: [30.0, 0.004],
+            tau_s: 10.0,
+            scale: [0.0, 0.0],
+        };
+        let r = radar_run(markov, 20_000);
+        let o: Vec<f64> = r.iter().map(|x| x[0]).collect();
+        let n = o.len() as f64;
+        let mean = o.iter().sum::<f64>() / n;
+        let var = o.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n;
+        let cov1 = o
+            .windows(2)
+            .map(|w| (w[0] - mean) * (w[1] - mean))
+            .sum::<f64>()
+            / (n - 1.0);
+        // Effective sample size ≈ n (1 − a)/(1 + a) ≈ 1000: mean std error ≈ 1 m.
+        assert!((mean - 60.0).abs() < 5.0, "mean {mean}");
+        assert!((var.sqrt() / 30.0 - 1.0).abs() < 0.1, "std {}", var.sqrt());
+        assert!(
+            (cov1 / var - (-0.1f64).exp()).abs() < 0.03,
+            "rho {}",
+            cov1 / var
+        );
+    }
+
+    #[test]
+    fn streams_are_independent_per_vehicle_and_scans_are_due_on_time() {
+        let s = SimScenario::preset("crossing").expect("preset");
+        let mut world = World::new(&s, 1).expect("world");
+        world.advance(1.0);
+        let p = pose([0.0, 0.0, 400.0], 0.0);
+        let mut a1 = SensorSuite::new(&s, 1, 1).expect("suite");
+        let mut a2 = SensorSuite::new(&s, 1, 2).expect("suite");
+        let mut b1 = SensorSuite::new(&s, 1, 1).expect("suite");
+        let x = a1.scan(1.0, 1, &p, ORIGIN, &world);
+        let y = a2.scan(1.0, 2, &p, ORIGIN, &world);
+        let z = b1.scan(1.0, 1, &p, ORIGIN, &world);
+        assert_eq!(x, z);
+        assert_ne!(x[0].detections, y[0].detections);
+        // 2 Hz: due at 1.0 (done), not at 1.2, due at 1.5, and once only after a gap.
+        assert!(a1.scan(1.2, 1, &p, ORIGIN, &world).is_empty());
+        assert_eq!(a1.scan(1.5, 1, &p, ORIGIN, &world).len(), 1);
+        let late = a1.scan(3.7, 1, &p, ORIGIN, &world);
+        assert_eq!(late.len(), 1);
+        assert_eq!(late[0].seq, 2);
+        assert!(a1.scan(3.9, 1, &p, ORIGIN, &world).is_empty());
+        assert!(a1.scan(f64::NAN, 1, &p, ORIGIN, &world).is_empty());
+        let _: Vec<TargetTruth> = world.truth();
+    }
+
+    #[test]
+    fn degenerate_geometry_never_gives_nan() {
+        // Target exactly at the sensor, straight below, straight above: no NaN, valid scans.
+        let s = scenario(
+            vec![still("t", 0.0, 0.0)],
+            camera(
+                CameraOutput::BearingSize,
+                170.0,
+                Pointing::Track { target: 0 },
+                vec![0.01; 3],
+            ),
+        );
+        for z in [0.0, 50.0, -50.0] {
+            let scans = run(&s, &pose([0.0, 0.0, z], 0.0), 20, 9);
+            for l in scans {
+                assert!(
+                    l.scan
+                        .detections
+                        .iter()
+                        .all(|d| d.z.iter().all(|v| v.is_finite()))
+                );
+            }
+        }
+    }
+}
