@@ -32,6 +32,7 @@ pub mod record;
 pub mod scenario;
 pub mod sensors;
 pub mod vehicle;
+mod worker;
 pub mod world;
 
 pub use mavlink;

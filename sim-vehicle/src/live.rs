@@ -5,9 +5,7 @@
 //! the vehicles (their pose under their lock). Unlike `record`, a live run is not reproducible:
 //! the vehicles fly whatever their MAVLink clients command, when the packets arrive.
 
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
@@ -16,6 +14,7 @@ use crate::bus::{Bus, BusCounters};
 use crate::scenario::{ScenarioError, SimScenario};
 use crate::sensors::{SensorSuite, platform_pose};
 use crate::vehicle::Vehicle;
+use crate::worker::Worker;
 use crate::world::World;
 
 /// Settings of the live loop.
@@ -34,9 +33,8 @@ pub struct LiveConfig {
 /// The running loop; stopped when dropped.
 #[derive(Debug)]
 pub struct LiveHandle {
-    stop: Arc<AtomicBool>,
     counters: Arc<Mutex<BusCounters>>,
-    thread: Option<JoinHandle<()>>,
+    worker: Worker,
 }
 
 impl LiveHandle {
@@ -46,19 +44,7 @@ impl LiveHandle {
     }
     /// Stops the loop and waits for it.
     pub fn stop(mut self) {
-        self.shutdown();
-    }
-    fn shutdown(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Drop for LiveHandle {
-    fn drop(&mut self) {
-        self.shutdown();
+        self.worker.stop();
     }
 }
 
@@ -100,40 +86,31 @@ pub fn spawn(
     let tick = Duration::from_secs_f64(0.25 / (fastest * config.speedup)).min(MAX_TICK);
     let truth_period = 1.0 / config.truth_hz;
     let speedup = config.speedup;
-    let stop = Arc::new(AtomicBool::new(false));
     let counters = Arc::new(Mutex::new(BusCounters::default()));
-    let (s, c) = (Arc::clone(&stop), Arc::clone(&counters));
-    let thread = std::thread::Builder::new()
-        .name("harrier-sim-sensors".into())
-        .spawn(move || {
-            let start = Instant::now();
-            let mut next_truth = 0.0;
-            while !s.load(Ordering::Relaxed) {
-                let t = start.elapsed().as_secs_f64() * speedup;
-                world.advance(t);
-                for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
-                    let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
-                    for scan in suite.scan(t, *id, &pose, origin, &world) {
-                        bus.publish_scan(&scan);
-                    }
-                }
-                if t >= next_truth {
-                    bus.publish_truth(&TruthSample {
-                        schema: TRUTH_SCHEMA.into(),
-                        t,
-                        origin,
-                        targets: world.truth(),
-                    });
-                    next_truth = (t / truth_period).floor() * truth_period + truth_period;
-                }
-                *c.lock().unwrap_or_else(PoisonError::into_inner) = bus.counters();
-                std::thread::sleep(tick);
+    let c = Arc::clone(&counters);
+    let start = Instant::now();
+    let mut next_truth = 0.0;
+    let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
+        let t = start.elapsed().as_secs_f64() * speedup;
+        world.advance(t);
+        for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
+            let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
+            for scan in suite.scan(t, *id, &pose, origin, &world) {
+                bus.publish_scan(&scan);
             }
-        })
-        .map_err(LiveError::Thread)?;
-    Ok(LiveHandle {
-        stop,
-        counters,
-        thread: Some(thread),
+        }
+        if t >= next_truth {
+            bus.publish_truth(&TruthSample {
+                schema: TRUTH_SCHEMA.into(),
+                t,
+                origin,
+                targets: world.truth(),
+            });
+            next_truth = (t / truth_period).floor() * truth_period + truth_period;
+        }
+        *c.lock().unwrap_or_else(PoisonError::into_inner) = bus.counters();
+        std::thread::sleep(tick);
     })
+    .map_err(LiveError::Thread)?;
+    Ok(LiveHandle { counters, worker })
 }

@@ -209,7 +209,19 @@ fn main() -> ExitCode {
     if let Some(SubCommand::Record(r)) = &args.command {
         return match harrier_sim::record::run(r) {
             Ok(stats) => {
-                eprintln!("harrier-sim record: wrote {} ({stats:?})", r.out.display());
+                eprintln!(
+                    "harrier-sim record: wrote {} ({}): {} scans, {} target detections, {} clutter, {} truth rows",
+                    r.out.display(),
+                    if stats.multi {
+                        "gcs-scenario/1 + FORMAT-MULTI"
+                    } else {
+                        "gcs-scenario/1"
+                    },
+                    stats.scans,
+                    stats.detections,
+                    stats.clutter,
+                    stats.truth_rows
+                );
                 ExitCode::SUCCESS
             }
             Err(e) => {

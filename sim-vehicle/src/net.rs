@@ -16,10 +16,8 @@
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs, UdpSocket};
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use mavlink::consts::MAX_FRAME_SIZE;
@@ -27,6 +25,7 @@ use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, MavlinkReader, Message};
 
 use crate::vehicle::{COMPONENT_ID, Vehicle, VehicleConfig};
+use crate::worker::Worker;
 
 /// Errors from setting up links.
 #[derive(Debug, thiserror::Error)]
@@ -562,8 +561,7 @@ impl LinkConfig {
 pub struct SimHandle {
     vehicle: Arc<Mutex<Vehicle>>,
     local_addrs: Vec<Option<SocketAddr>>,
-    stop: Arc<AtomicBool>,
-    thread: Option<JoinHandle<()>>,
+    worker: Worker,
 }
 
 impl SimHandle {
@@ -581,19 +579,7 @@ impl SimHandle {
     }
     /// Stops the vehicle and waits for its thread.
     pub fn stop(mut self) {
-        self.shutdown();
-    }
-    fn shutdown(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
-
-impl Drop for SimHandle {
-    fn drop(&mut self) {
-        self.shutdown();
+        self.worker.stop();
     }
 }
 
@@ -610,30 +596,24 @@ pub fn spawn(config: VehicleConfig, links: &LinkConfig) -> Result<SimHandle, Lin
     let local_addrs = opened.iter().map(Link::local_addr).collect();
     let start = Instant::now();
     let vehicle = Arc::new(Mutex::new(Vehicle::new(config, 0.0)));
-    let stop = Arc::new(AtomicBool::new(false));
-    let (v, s) = (Arc::clone(&vehicle), Arc::clone(&stop));
-    let thread = std::thread::Builder::new()
-        .name(format!("harrier-sim-{}", config.id))
-        .spawn(move || {
-            let mut buf = vec![0u8; 65_536];
-            while !s.load(Ordering::Relaxed) {
-                {
-                    let mut v = v.lock().unwrap_or_else(PoisonError::into_inner);
-                    run_once(&mut v, &mut opened, &mut buf, start.elapsed().as_secs_f64());
-                }
-                std::thread::sleep(TICK);
-            }
-        })
-        .map_err(|e| LinkError::Io {
-            what: "spawn thread for",
-            address: links.endpoints.join(","),
-            source: e,
-        })?;
+    let v = Arc::clone(&vehicle);
+    let mut buf = vec![0u8; 65_536];
+    let worker = Worker::spawn(format!("harrier-sim-{}", config.id), move || {
+        {
+            let mut v = v.lock().unwrap_or_else(PoisonError::into_inner);
+            run_once(&mut v, &mut opened, &mut buf, start.elapsed().as_secs_f64());
+        }
+        std::thread::sleep(TICK);
+    })
+    .map_err(|e| LinkError::Io {
+        what: "spawn thread for",
+        address: links.endpoints.join(","),
+        source: e,
+    })?;
     Ok(SimHandle {
         vehicle,
         local_addrs,
-        stop,
-        thread: Some(thread),
+        worker,
     })
 }
 

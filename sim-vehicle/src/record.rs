@@ -24,7 +24,7 @@ use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
 use harrier_core::scenario::{self as fmt, MeasKind};
 use mavlink::dialects::common::{
-    COMMAND_LONG_DATA, MavCmd, MavFrame, MavMessage, MavResult, PositionTargetTypemask,
+    MavCmd, MavFrame, MavMessage, MavResult, PositionTargetTypemask,
     SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 use nalgebra::{Vector2, Vector3};
@@ -38,7 +38,7 @@ use crate::scenario::{
     AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
 };
 use crate::sensors::{SensorSuite, platform_pose};
-use crate::vehicle::{Airframe, FlightMode, Vehicle, VehicleConfig};
+use crate::vehicle::{Airframe, FlightMode, Vehicle, VehicleConfig, command_long};
 use crate::world::World;
 
 /// Rate of the simulation grid (Hz): physics, setpoints and the times sensors may scan at.
@@ -148,22 +148,6 @@ struct Pilot {
     launch_at: f64,
     launched: bool,
     limits: Limits,
-}
-
-fn command_long(id: u8, command: MavCmd, p: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command,
-        target_system: id,
-        target_component: crate::vehicle::COMPONENT_ID,
-        confirmation: 0,
-    })
 }
 
 /// An ENU velocity as a LOCAL_NED velocity setpoint (position, acceleration and yaw ignored).

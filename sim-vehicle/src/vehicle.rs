@@ -917,25 +917,30 @@ impl Vehicle {
     }
 }
 
+/// A COMMAND_LONG to component 1 of vehicle `target` with parameters `p` (what a GCS sends).
+pub fn command_long(target: u8, command: MavCmd, p: [f32; 7]) -> MavMessage {
+    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        param5: p[4],
+        param6: p[5],
+        param7: p[6],
+        command,
+        target_system: target,
+        target_component: COMPONENT_ID,
+        confirmation: 0,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use mavlink::dialects::common::{PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA};
 
     fn cmd(command: MavCmd, p: [f32; 7]) -> MavMessage {
-        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-            param1: p[0],
-            param2: p[1],
-            param3: p[2],
-            param4: p[3],
-            param5: p[4],
-            param6: p[5],
-            param7: p[6],
-            command,
-            target_system: 1,
-            target_component: 1,
-            confirmation: 0,
-        })
+        command_long(1, command, p)
     }
 
     fn ack_of(replies: &[MavMessage]) -> MavResult {

@@ -1,8 +1,11 @@
 //! Helpers for Harrier's end-to-end tests: where the reference scenarios are, how to replay one
-//! in-process and how to run the independent scorer (`shared/scenarios/score.py`).
+//! in-process, how to run the independent scorer (`shared/scenarios/score.py`), and how to run
+//! the real external clients (Python scripts in `tests/python`) with a deadline.
 
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
 
 /// `shared/scenarios`, which CI places beside the repository (`../shared`). `HARRIER_SHARED`
 /// overrides the location of `shared/`.
@@ -98,5 +101,59 @@ pub fn assert_score_py_agrees(name: &str, report: &harrier_server::replay::Repla
     }
     if let Some(n) = &s.nees_pos {
         close("nees_pos.mean", n.mean, &py["nees_pos"]["mean"]);
+    }
+}
+
+/// Panics with an install hint unless `python3` can import `module` (`pip` names the pinned
+/// package, as `.ci/run` installs it).
+pub fn require_python_module(module: &str, pip: &str) {
+    let ok = Command::new("python3")
+        .args(["-W", "ignore", "-c", &format!("import {module}")])
+        .stderr(Stdio::null())
+        .status()
+        .expect("python3 not found")
+        .success();
+    assert!(
+        ok,
+        "python3 lacks {module}: python3 -m pip install {pip} (.ci/run installs it)"
+    );
+}
+
+/// `python3 tests/python/<script>` in its own process group (so that whatever it starts, such as
+/// mavsdk_server, can be killed with it), stdin closed.
+pub fn python_script(script: &str) -> Command {
+    let mut c = Command::new("python3");
+    c.arg(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("python")
+            .join(script),
+    )
+    .stdin(Stdio::null())
+    .process_group(0);
+    c
+}
+
+/// Kills a child's whole process group (started with [`python_script`] or `process_group(0)`)
+/// and reaps the child.
+pub fn kill_group(child: &mut Child) {
+    let _ = Command::new("kill")
+        .args(["-KILL", "--", &format!("-{}", child.id())])
+        .stderr(Stdio::null())
+        .status();
+    let _ = child.wait();
+}
+
+/// Waits for `child` to exit; past `timeout`, kills its process group and panics naming `what`.
+pub fn wait_with_deadline(child: &mut Child, timeout: Duration, what: &str) -> ExitStatus {
+    let deadline = Instant::now() + timeout;
+    loop {
+        if let Some(status) = child.try_wait().expect("wait for a child process") {
+            return status;
+        }
+        if Instant::now() > deadline {
+            kill_group(child);
+            panic!("{what} did not finish within {timeout:?}");
+        }
+        std::thread::sleep(Duration::from_millis(50));
     }
 }

@@ -8,22 +8,14 @@
 
 use std::net::UdpSocket;
 use std::os::unix::process::CommandExt;
-use std::process::{Child, Command, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use harrier_sim::mavlink::MavlinkReader;
 use harrier_sim::mavlink::dialects::common::{MavCmd, MavMessage, MavResult};
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::VehicleConfig;
-
-/// Kills a child's whole process group (the child leads it) and reaps the child.
-fn kill_group(child: &mut Child) {
-    let _ = Command::new("kill")
-        .args(["-KILL", "--", &format!("-{}", child.id())])
-        .stderr(Stdio::null())
-        .status();
-    let _ = child.wait();
-}
+use harrier_tests::{kill_group, require_python_module};
 
 /// The messages of a telemetry log: records of an 8-byte big-endian timestamp (µs since the Unix
 /// epoch) and one raw MAVLink frame, as `(timestamp, sysid, message)`. Frames outside the common
@@ -60,14 +52,7 @@ fn read_tlog(data: &[u8]) -> Vec<(u64, u32, MavMessage)> {
 
 #[test]
 fn mavproxy_logs_and_forwards_the_simulated_vehicle_over_tcp() {
-    let check = Command::new("python3")
-        .args(["-c", "import MAVProxy"])
-        .status()
-        .expect("python3 not found");
-    assert!(
-        check.success(),
-        "python3 lacks MAVProxy: python3 -m pip install MAVProxy==1.8.75 (.ci/run pins the version)"
-    );
+    require_python_module("MAVProxy", "MAVProxy==1.8.75");
     let sim = spawn(
         VehicleConfig::new(1),
         &LinkConfig {

@@ -7,33 +7,15 @@
 //! The script runs in its own process group (it starts `mavsdk_server`), which is killed at the
 //! end, whatever happened.
 
-use std::os::unix::process::CommandExt;
-use std::path::Path;
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::{FlightMode, VehicleConfig};
-
-/// Kills a child's whole process group (the child leads it) and reaps the child.
-fn kill_group(child: &mut Child) {
-    let _ = Command::new("kill")
-        .args(["-KILL", "--", &format!("-{}", child.id())])
-        .stderr(Stdio::null())
-        .status();
-    let _ = child.wait();
-}
+use harrier_tests::{kill_group, python_script, require_python_module, wait_with_deadline};
 
 #[test]
 fn mavsdk_flies_the_simulated_vehicle() {
-    let check = Command::new("python3")
-        .args(["-W", "ignore", "-c", "import mavsdk"])
-        .status()
-        .expect("python3 not found");
-    assert!(
-        check.success(),
-        "python3 lacks mavsdk: python3 -m pip install mavsdk==3.17.4 (.ci/run pins the version)"
-    );
+    require_python_module("mavsdk", "mavsdk==3.17.4");
     let sim = spawn(
         VehicleConfig::new(1),
         &LinkConfig {
@@ -43,26 +25,12 @@ fn mavsdk_flies_the_simulated_vehicle() {
     .expect("start the vehicle");
     let api_port = sim.local_addrs()[0].expect("API link bound").port();
 
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/mavsdk_flight.py");
-    let mut child = Command::new("python3")
-        .arg(&script)
+    let mut child = python_script("mavsdk_flight.py")
         .args(["--url", &format!("udpout://127.0.0.1:{api_port}")])
         .args(["--takeoff-alt", "4.0"])
-        .stdin(Stdio::null())
-        .process_group(0)
         .spawn()
         .expect("run mavsdk_flight.py");
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for the script") {
-            break status;
-        }
-        if Instant::now() > deadline {
-            kill_group(&mut child);
-            panic!("mavsdk_flight.py did not finish within 60 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = wait_with_deadline(&mut child, Duration::from_secs(60), "mavsdk_flight.py");
     // mavsdk_server normally exits with the script; make sure nothing outlives the test.
     kill_group(&mut child);
     assert!(status.success(), "mavsdk_flight.py failed: {status}");

@@ -6,14 +6,13 @@
 //! but none of the replies meant for the API client.
 
 use std::net::UdpSocket;
-use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use harrier_sim::mavlink::MavlinkReader;
 use harrier_sim::mavlink::dialects::common::MavMessage;
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::{FlightMode, VehicleConfig};
+use harrier_tests::{python_script, require_python_module, wait_with_deadline};
 
 #[test]
 fn pymavlink_flies_the_simulated_vehicle() {
@@ -32,33 +31,12 @@ fn pymavlink_flies_the_simulated_vehicle() {
     .expect("start the vehicle");
     let api_port = sim.local_addrs()[1].expect("API link bound").port();
 
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/pymavlink_flight.py");
-    let check = Command::new("python3")
-        .args(["-c", "import pymavlink"])
-        .status()
-        .expect("python3 not found");
-    assert!(
-        check.success(),
-        "python3 lacks pymavlink: python3 -m pip install pymavlink (.ci/run pins the version)"
-    );
-    let mut child = Command::new("python3")
-        .arg(&script)
+    require_python_module("pymavlink", "pymavlink==2.4.50");
+    let mut child = python_script("pymavlink_flight.py")
         .args(["--port", &api_port.to_string()])
-        .stdin(Stdio::null())
         .spawn()
         .expect("run pymavlink_flight.py");
-    let deadline = Instant::now() + Duration::from_secs(120);
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for the script") {
-            break status;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("pymavlink_flight.py did not finish within 120 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = wait_with_deadline(&mut child, Duration::from_secs(120), "pymavlink_flight.py");
     assert!(status.success(), "pymavlink_flight.py failed: {status}");
 
     {

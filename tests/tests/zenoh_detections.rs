@@ -5,15 +5,15 @@
 //! decodes every field of DETECTIONS.md and measures the rate; this test checks the rate and that
 //! the subscriber saw what was published.
 
-use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Stdio;
+use std::time::Duration;
 
 use harrier_sim::bus::{Bus, BusConfig};
 use harrier_sim::live::{self, LiveConfig};
 use harrier_sim::net::{LinkConfig, SimHandle, spawn};
 use harrier_sim::scenario::SimScenario;
 use harrier_sim::vehicle::VehicleConfig;
+use harrier_tests::{python_script, require_python_module, wait_with_deadline};
 
 const RATE_HZ: f64 = 20.0;
 const SCANS: usize = 60;
@@ -28,14 +28,7 @@ fn free_tcp_port() -> u16 {
 
 #[test]
 fn eclipse_zenoh_subscriber_decodes_the_detections() {
-    let check = Command::new("python3")
-        .args(["-c", "import zenoh"])
-        .status()
-        .expect("python3 not found");
-    assert!(
-        check.success(),
-        "python3 lacks eclipse-zenoh: python3 -m pip install eclipse-zenoh (.ci/run pins the version)"
-    );
+    require_python_module("zenoh", "eclipse-zenoh==1.10.2");
 
     let vehicles: Vec<SimHandle> = [1u8, 2]
         .iter()
@@ -71,27 +64,13 @@ fn eclipse_zenoh_subscriber_decodes_the_detections() {
     )
     .expect("start the sensor loop");
 
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/zenoh_subscriber.py");
-    let mut child = Command::new("python3")
-        .arg(&script)
+    let mut child = python_script("zenoh_subscriber.py")
         .args(["--connect", &endpoint, "--vehicles", "1,2"])
         .args(["--scans", &SCANS.to_string(), "--timeout", "40"])
-        .stdin(Stdio::null())
         .stdout(Stdio::piped())
         .spawn()
         .expect("run zenoh_subscriber.py");
-    let deadline = Instant::now() + Duration::from_secs(60);
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("wait for the script") {
-            break status;
-        }
-        if Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("zenoh_subscriber.py did not finish within 60 s");
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    };
+    let status = wait_with_deadline(&mut child, Duration::from_secs(60), "zenoh_subscriber.py");
     let out = child.wait_with_output().expect("script output");
     assert!(status.success(), "zenoh_subscriber.py failed: {status}");
     let summary: serde_json::Value =
