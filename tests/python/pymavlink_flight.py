@@ -184,7 +184,15 @@ def main():
     ack = c.recv("COMMAND_ACK", lambda m: m.command == mavlink.MAV_CMD_DO_SET_MODE, on_msg=send_setpoint)
     assert ack.result == mavlink.MAV_RESULT_ACCEPTED, ack
     c.recv("HEARTBEAT", lambda m: mavutil.mode_string_v10(m) == "OFFBOARD", on_msg=send_setpoint)
+    # Bad input in flight: a NaN setpoint and a datagram of garbage are refused and counted (the
+    # Rust side checks the counters); the vehicle keeps flying the last good setpoint.
+    c.conn.mav.set_position_target_local_ned_send(
+        0, args.sysid, 1, mavlink.MAV_FRAME_LOCAL_NED, vel_only,
+        0, 0, 0, nan, 0.0, 0.0, 0, 0, 0, 0, 0,
+    )
+    c.conn.write(b"\xfd\x09 not a MAVLink frame")
     end = c.recv("LOCAL_POSITION_NED", lambda m: m.x - start.x > 8.0, 10, on_msg=send_setpoint)
+    assert mavutil.mode_string_v10(c.last_hb) == "OFFBOARD", c.last_hb
     assert abs(end.y - start.y) < 0.5 and abs(end.z - start.z) < 0.5, (start, end)
     assert abs(end.vx - 3.0) < 0.3, end
     log(f"offboard ok: moved {end.x - start.x:.1f} m north at {end.vx:.2f} m/s")

@@ -1,6 +1,8 @@
 //! A real MAVLink client flies harrier-sim: the vehicle runs in-process on real UDP sockets and
 //! `tests/python/pymavlink_flight.py` (pymavlink, installed by `.ci/run`) connects to its API link,
-//! reads telemetry and parameters, arms, takes off, flies OFFBOARD velocity setpoints and lands.
+//! reads telemetry and parameters, arms, takes off, flies OFFBOARD velocity setpoints (sending a
+//! NaN setpoint and a garbage datagram in flight, which must be refused, counted and survived) and
+//! lands.
 //!
 //! A second link plays the GCS (`udpout` to a socket held here): it must receive the telemetry
 //! but none of the replies meant for the API client.
@@ -46,7 +48,9 @@ fn pymavlink_flies_the_simulated_vehicle() {
         assert!(v.state().position.y > 8.0, "{:?}", v.state()); // flew north (ENU y)
         assert_eq!(v.param("MIS_TAKEOFF_ALT"), Some(4.0));
         assert_eq!(v.counters().rejected_params, 1);
-        assert_eq!(v.counters().malformed, 0);
+        // The NaN setpoint and the garbage datagram sent in flight, and nothing else.
+        assert_eq!(v.counters().rejected_setpoints, 1);
+        assert_eq!(v.counters().malformed, 1);
     }
 
     // The GCS link saw telemetry, but no reply to the API client's requests.
