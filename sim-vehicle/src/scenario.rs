@@ -867,6 +867,21 @@ pub fn road_from_trajectory(
     out
 }
 
+/// Hints for a single white-noise-acceleration CV model, scored from t = 5 s.
+fn cv_hints(accel_std: f64, prior_std: [f64; 4]) -> EstimatorHints {
+    EstimatorHints {
+        motion: Some(Motion {
+            models: vec![model("CV", None)],
+            initial_probs: None,
+            transition_matrix: None,
+            accel_std: Some(accel_std),
+            accel_bound: None,
+        }),
+        prior_std,
+        scoring_t_start: 5.0,
+    }
+}
+
 fn model(name: &str, turn_rate: Option<f64>) -> MotionModelSpec {
     MotionModelSpec {
         name: name.into(),
@@ -1011,17 +1026,7 @@ fn leader() -> SimScenario {
                 spacing_m: 30.0,
             },
         },
-        estimator: EstimatorHints {
-            motion: Some(Motion {
-                models: vec![model("CV", None)],
-                initial_probs: None,
-                transition_matrix: None,
-                accel_std: Some(2.0),
-                accel_bound: None,
-            }),
-            prior_std: [40.0, 40.0, 5.0, 5.0],
-            scoring_t_start: 5.0,
-        },
+        estimator: cv_hints(2.0, [40.0, 40.0, 5.0, 5.0]),
     }
 }
 
@@ -1075,17 +1080,7 @@ fn radar(bias: BiasModel, name: &str) -> SimScenario {
                 altitude_m: 20.0,
             },
         },
-        estimator: EstimatorHints {
-            motion: Some(Motion {
-                models: vec![model("CV", None)],
-                initial_probs: None,
-                transition_matrix: None,
-                accel_std: Some(1.0),
-                accel_bound: None,
-            }),
-            prior_std: [100.0, 100.0, 5.0, 5.0],
-            scoring_t_start: 5.0,
-        },
+        estimator: cv_hints(1.0, [100.0, 100.0, 5.0, 5.0]),
     }
 }
 
@@ -1142,17 +1137,7 @@ fn crossing() -> SimScenario {
                 spacing_m: 30.0,
             },
         },
-        estimator: EstimatorHints {
-            motion: Some(Motion {
-                models: vec![model("CV", None)],
-                initial_probs: None,
-                transition_matrix: None,
-                accel_std: Some(0.3),
-                accel_bound: None,
-            }),
-            prior_std: [20.0, 20.0, 2.0, 2.0],
-            scoring_t_start: 5.0,
-        },
+        estimator: cv_hints(0.3, [20.0, 20.0, 2.0, 2.0]),
     }
 }
 
