@@ -54,6 +54,9 @@ pub enum LiveError {
     /// The scenario does not build a world or sensors.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
+    /// A rate or the speed-up is not a finite positive number.
+    #[error("{0} must be a finite number > 0")]
+    NotPositive(&'static str),
     /// The thread could not be started.
     #[error("cannot start the sensor thread: {0}")]
     Thread(std::io::Error),
@@ -69,6 +72,11 @@ pub fn spawn(
     vehicles: Vec<Arc<Mutex<Vehicle>>>,
     mut bus: Bus,
 ) -> Result<LiveHandle, LiveError> {
+    for (name, v) in [("speedup", config.speedup), ("truth_hz", config.truth_hz)] {
+        if !(v.is_finite() && v > 0.0) {
+            return Err(LiveError::NotPositive(name));
+        }
+    }
     let mut world = World::new(&config.scenario, config.seed)?;
     let mut suites = Vec::with_capacity(vehicles.len());
     for v in &vehicles {
@@ -113,4 +121,26 @@ pub fn spawn(
     })
     .map_err(LiveError::Thread)?;
     Ok(LiveHandle { counters, worker })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bus::BusConfig;
+
+    #[test]
+    fn bad_rates_are_refused_not_panicked_on() {
+        let scenario = SimScenario::load("radar").expect("preset");
+        for (speedup, truth_hz, what) in [(0.0, 10.0, "speedup"), (1.0, f64::NAN, "truth_hz")] {
+            let bus = Bus::open(&BusConfig::default()).expect("session");
+            let config = LiveConfig {
+                scenario: scenario.clone(),
+                seed: 1,
+                speedup,
+                truth_hz,
+            };
+            let e = spawn(&config, Vec::new(), bus).expect_err(what);
+            assert!(e.to_string().starts_with(what), "{e}");
+        }
+    }
 }
