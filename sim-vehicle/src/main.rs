@@ -51,7 +51,8 @@ struct Args {
     /// origin (PX4 SITL's Zurich home for the presets).
     #[arg(long, value_parser = parse_home)]
     home: Option<Geodetic>,
-    /// World and sensors: a preset (cimm-road, leader, radar, crossing) or a JSON file.
+    /// World and sensors: a preset (cimm-road, leader, radar, radar-abrupt, radar-markov,
+    /// crossing) or a JSON file.
     #[arg(long, default_value = "crossing")]
     scenario: String,
     /// Seed of the world and the sensors.
