@@ -13,7 +13,7 @@
 
 use nalgebra::{Vector2, Vector3};
 
-use super::{Command, angle_between, clampf, hold, rotate};
+use super::{Command, angle_between, clampf, rotate};
 
 /// Flight envelope of a vehicle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,17 +121,13 @@ impl UavState {
 /// velocity direction turns towards the commanded one by at most `ω_max·dt` (a hovering vehicle
 /// below [`Limits::pivot_speed`] may point anywhere); the vertical speed moves towards
 /// `clamp(v_z,cmd, ±v_z,max)` by at most `a_z,max·dt`. Position is integrated with the mean of the
-/// old and new velocity. A non-finite command is replaced by [`hold`]; a non-finite state or `dt`
-/// is returned unchanged.
+/// old and new velocity. A non-finite command is replaced by [`hold`](super::hold); a non-finite
+/// state or `dt` is returned unchanged.
 pub fn step(state: &UavState, cmd: &Command, limits: &Limits, dt: f64) -> UavState {
     if !state.is_finite() || !dt.is_finite() || dt <= 0.0 {
         return *state;
     }
-    let cmd = if cmd.is_finite() {
-        *cmd
-    } else {
-        hold(state, limits)
-    };
+    let cmd = cmd.or_hold(state, limits);
     let v = state.horizontal_velocity();
     let s = v.norm();
     let vd = cmd.velocity.xy();

@@ -101,12 +101,7 @@ impl StandoffLaw for Lgvf {
         let vh = add_target_velocity(self.direction(d, s) * speed, t.velocity.xy(), limits.v_max);
         let e = uav.position.z - t.position.z - self.height;
         let vz = clampf(-self.kz * e, -limits.vz_max, limits.vz_max) + t.velocity.z;
-        let cmd = Command::new(vh, vz);
-        if cmd.is_finite() {
-            cmd
-        } else {
-            hold(uav, limits)
-        }
+        Command::new(vh, vz).or_hold(uav, limits)
     }
     fn radius(&self) -> f64 {
         self.radius

@@ -60,6 +60,15 @@ impl Command {
     pub fn is_finite(&self) -> bool {
         self.velocity.iter().all(|v| v.is_finite())
     }
+    /// This command if it is finite, else [`hold`] for `uav`.
+    #[inline]
+    pub fn or_hold(self, uav: &UavState, limits: &Limits) -> Self {
+        if self.is_finite() {
+            self
+        } else {
+            hold(uav, limits)
+        }
+    }
 }
 
 /// What the guidance knows about the target: a ground position and velocity estimate (ENU).

@@ -172,12 +172,7 @@ impl StandoffLaw for Togvf {
         let dir = self.direction(d, s, r_min);
         let vh = add_target_velocity(dir * speed, vt, limits.v_max);
         let e = uav.position.z - t.position.z - self.height;
-        let cmd = Command::new(vh, Self::vertical_speed(e, limits) + t.velocity.z);
-        if cmd.is_finite() {
-            cmd
-        } else {
-            hold(uav, limits)
-        }
+        Command::new(vh, Self::vertical_speed(e, limits) + t.velocity.z).or_hold(uav, limits)
     }
     fn radius(&self) -> f64 {
         self.radius
