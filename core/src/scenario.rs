@@ -64,6 +64,23 @@ pub(crate) fn err(
     }
 }
 
+/// The index in a CSV `header` of each column of `names`, and of the optional `mode` column; the
+/// error names the first missing column (line 1 of `file`).
+pub(crate) fn header_columns<const K: usize>(
+    header: &[&str],
+    names: [&str; K],
+    file: ScenarioFile,
+) -> Result<([usize; K], Option<usize>), FormatError> {
+    let mut col = [0usize; K];
+    for (c, n) in col.iter_mut().zip(names) {
+        *c = header
+            .iter()
+            .position(|h| *h == n)
+            .ok_or_else(|| err(file, Some(1), format!("header has no column {n:?}")))?;
+    }
+    Ok((col, header.iter().position(|h| *h == "mode")))
+}
+
 /// A CSV cell that must be a finite number; the error names the column, the value and the line.
 pub(crate) fn finite_cell(
     cell: &str,
@@ -729,14 +746,7 @@ pub fn parse_truth(text: &str) -> Result<Vec<TruthRow>, FormatError> {
         }
     };
     let names = ["t", "x", "y", "z", "vx", "vy", "vz"];
-    let mut col = [0usize; 7];
-    for (k, n) in names.iter().enumerate() {
-        col[k] = header
-            .iter()
-            .position(|h| h == n)
-            .ok_or_else(|| err(f, Some(1), format!("header has no column {n:?}")))?;
-    }
-    let mode_col = header.iter().position(|h| *h == "mode");
+    let (col, mode_col) = header_columns(&header, names, f)?;
     let mut rows: Vec<TruthRow> = Vec::new();
     for (i, line) in lines {
         let ln = i + 1;

@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::scenario::{
     FormatError, Measurement, Scenario, ScenarioFile, Target, TruthRow, err, finite_cell,
-    parse_measurements,
+    header_columns, parse_measurements,
 };
 
 /// `detection` block of a multi-target `scenario.json`: what the sensors are known to do.
@@ -205,14 +205,7 @@ pub fn parse_multi_truth(
         None => return Err(err(f, Some(1), "empty file: expected a header")),
     };
     let names = ["t", "target", "x", "y", "z", "vx", "vy", "vz"];
-    let mut col = [0usize; 8];
-    for (k, n) in names.iter().enumerate() {
-        col[k] = header
-            .iter()
-            .position(|h| h == n)
-            .ok_or_else(|| err(f, Some(1), format!("header has no column {n:?}")))?;
-    }
-    let mode_col = header.iter().position(|h| *h == "mode");
+    let (col, mode_col) = header_columns(&header, names, f)?;
     let index: BTreeMap<&str, usize> = targets
         .iter()
         .enumerate()
