@@ -104,6 +104,17 @@ pub fn assert_score_py_agrees(name: &str, report: &harrier_server::replay::Repla
     }
 }
 
+/// Position RMSE of a score (panics if the estimator wrote no states).
+pub fn pos_rmse(s: &harrier_core::metrics::Score) -> f64 {
+    s.pos_rmse.expect("state estimates")
+}
+
+/// Fraction of epochs with NEES within the χ² 95 % bound; NaN when there are no covariances (so
+/// any bound on it fails).
+pub fn nees_ok(s: &harrier_core::metrics::Score) -> f64 {
+    s.nees.as_ref().map_or(f64::NAN, |n| n.frac_within_95)
+}
+
 /// Panics with an install hint unless `python3` can import `module` (`pip` names the pinned
 /// package, as `.ci/run` installs it).
 pub fn require_python_module(module: &str, pip: &str) {

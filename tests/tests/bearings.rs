@@ -6,26 +6,9 @@
 //! Reference (independent implementations): 0.90 m on `_known` (all libraries); FilterPy EKF
 //! 34.6 m (NEES-95 % ok 0.10) and UKF 140 m on `bearings_leader` (size unknown).
 
-use harrier_core::metrics::Score;
 use harrier_server::engine::Params;
-use harrier_server::replay::{self, ReplayReport};
-use harrier_tests::scenario;
-
-fn run(name: &str, estimator: &str) -> ReplayReport {
-    harrier_tests::replay(name, estimator)
-}
-
-fn score(name: &str, estimator: &str) -> Score {
-    harrier_tests::replay_score(name, estimator)
-}
-
-fn rmse(s: &Score) -> f64 {
-    s.pos_rmse.expect("state estimates")
-}
-
-fn nees_ok(s: &Score) -> f64 {
-    s.nees.as_ref().map_or(f64::NAN, |n| n.frac_within_95)
-}
+use harrier_server::replay;
+use harrier_tests::{nees_ok, pos_rmse as rmse, replay as run, replay_score as score, scenario};
 
 #[test]
 fn known_size_is_accurate_and_consistent_with_and_without_the_network() {

@@ -12,26 +12,9 @@
 //! Every parameter comes from `scenario.json` (models, transition matrix, initial probabilities,
 //! `accel_std`, sensor noise, road `sigma_m`) or from the estimators' documented defaults.
 
-use harrier_core::metrics::Score;
 use harrier_server::engine::Params;
-use harrier_server::replay::{self, ReplayReport};
-use harrier_tests::scenario;
-
-fn run(name: &str, estimator: &str) -> ReplayReport {
-    harrier_tests::replay(name, estimator)
-}
-
-fn score(name: &str, estimator: &str) -> Score {
-    harrier_tests::replay_score(name, estimator)
-}
-
-fn rmse(s: &Score) -> f64 {
-    s.pos_rmse.expect("state estimates")
-}
-
-fn nees_ok(s: &Score) -> f64 {
-    s.nees.as_ref().expect("covariances").frac_within_95
-}
+use harrier_server::replay;
+use harrier_tests::{nees_ok, pos_rmse as rmse, replay as run, replay_score as score, scenario};
 
 #[test]
 fn three_uavs_imm_and_cimm_meet_the_reference() {

@@ -4,20 +4,7 @@
 //! Reference (independent implementations): EKF/UKF 12.3 m on `_none`; CDKF 96.4 / 98.8 m on
 //! `_abrupt` / `_markov`.
 
-use harrier_core::metrics::Score;
-use harrier_server::replay::ReplayReport;
-
-fn run(name: &str, estimator: &str) -> ReplayReport {
-    harrier_tests::replay(name, estimator)
-}
-
-fn score(name: &str, estimator: &str) -> Score {
-    harrier_tests::replay_score(name, estimator)
-}
-
-fn rmse(s: &Score) -> f64 {
-    s.pos_rmse.expect("state estimates")
-}
+use harrier_tests::{pos_rmse as rmse, replay as run, replay_score as score};
 
 #[test]
 fn ekf_and_cdkf_are_accurate_and_consistent_without_bias() {
