@@ -112,6 +112,32 @@ fn riccati(
     out
 }
 
+/// Per-seed (RMSE, expected RMSE, NEES-ok) pooled over seeds: RMS of the errors, mean NEES-ok.
+#[derive(Default)]
+struct Pooled {
+    mse: f64,
+    expected: f64,
+    nees_ok: f64,
+    n: f64,
+}
+
+impl Pooled {
+    fn add(&mut self, rmse: f64, expected: f64, nees_ok: f64) {
+        self.mse += rmse * rmse;
+        self.expected += expected * expected;
+        self.nees_ok += nees_ok;
+        self.n += 1.0;
+    }
+    fn mean(&self) -> (f64, f64, f64) {
+        let n = self.n;
+        (
+            (self.mse / n).sqrt(),
+            (self.expected / n).sqrt(),
+            self.nees_ok / n,
+        )
+    }
+}
+
 fn rms(traces: impl Iterator<Item = f64>) -> f64 {
     let v: Vec<f64> = traces.collect();
     (v.iter().sum::<f64>() / v.len() as f64).sqrt()
@@ -125,9 +151,8 @@ fn rms(traces: impl Iterator<Item = f64>) -> f64 {
 #[test]
 fn kf_on_recorded_cimm_road_reaches_the_noise_limit() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let seeds = 1..=8u64;
-    let (mut mse, mut expected, mut nees_ok) = (0.0, 0.0, 0.0);
-    for seed in seeds.clone() {
+    let mut pooled = Pooled::default();
+    for seed in 1..=8u64 {
         let rec = record_preset("cimm-road", seed, 130.0, 3);
         let dir = tmp.path().join(format!("cimm{seed}"));
         let r = replay_recording(&rec, &dir, "kf");
@@ -150,12 +175,9 @@ fn kf_on_recorded_cimm_road_reaches_the_noise_limit() {
         println!(
             "cimm-road seed {seed}: KF pos RMSE {rmse:.3} m, expected {theory:.3} m, NEES-95% ok {ok:.3}"
         );
-        mse += rmse * rmse;
-        expected += theory * theory;
-        nees_ok += ok;
+        pooled.add(rmse, theory, ok);
     }
-    let n = seeds.count() as f64;
-    let (rmse, theory, ok) = ((mse / n).sqrt(), (expected / n).sqrt(), nees_ok / n);
+    let (rmse, theory, ok) = pooled.mean();
     println!(
         "cimm-road pooled: KF pos RMSE {rmse:.3} m vs expected {theory:.3} m, NEES ok {ok:.3}"
     );
@@ -195,9 +217,8 @@ fn cimm_on_recorded_road_matches_the_reference_generator() {
 #[test]
 fn ekf_on_recorded_radar_reaches_the_noise_limit() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let (mut mse, mut expected, mut nees_ok) = (0.0, 0.0, 0.0);
-    let seeds = 1..=4u64;
-    for seed in seeds.clone() {
+    let mut pooled = Pooled::default();
+    for seed in 1..=4u64 {
         let rec = record_preset("radar", seed, 300.0, 1);
         let dir = tmp.path().join(format!("radar{seed}"));
         let r = replay_recording(&rec, &dir, "ekf");
@@ -230,12 +251,9 @@ fn ekf_on_recorded_radar_reaches_the_noise_limit() {
         println!(
             "radar seed {seed}: EKF pos RMSE {rmse:.3} m, filter-claimed {theory:.3} m, NEES-95% ok {ok:.3}"
         );
-        mse += rmse * rmse;
-        expected += theory * theory;
-        nees_ok += ok;
+        pooled.add(rmse, theory, ok);
     }
-    let n = seeds.count() as f64;
-    let (rmse, theory, ok) = ((mse / n).sqrt(), (expected / n).sqrt(), nees_ok / n);
+    let (rmse, theory, ok) = pooled.mean();
     let reference = harrier_tests::replay_score("radar_bias_none", "ekf");
     let refr = reference.pos_rmse.expect("rmse");
     println!(
