@@ -794,15 +794,16 @@ mod tests {
         matches!(m, MavMessage::COMMAND_ACK(a) if a.command == command)
     }
 
-    fn tcp_vehicle() -> (SimHandle, SocketAddr) {
+    /// Vehicle 1 with one link, `endpoint`, and that link's bound address.
+    fn vehicle_on(endpoint: &str) -> (SimHandle, SocketAddr) {
         let sim = spawn(
             VehicleConfig::new(1),
             &LinkConfig {
-                endpoints: vec!["tcpin:127.0.0.1:0".to_owned()],
+                endpoints: vec![endpoint.to_owned()],
             },
         )
         .expect("spawn");
-        let addr = sim.local_addrs()[0].expect("listening");
+        let addr = sim.local_addrs()[0].expect("bound");
         (sim, addr)
     }
 
@@ -818,7 +819,7 @@ mod tests {
 
     #[test]
     fn tcp_frames_split_over_two_writes_are_reassembled() {
-        let (sim, addr) = tcp_vehicle();
+        let (sim, addr) = vehicle_on("tcpin:127.0.0.1:0");
         let mut c = Client::connect(addr);
         // Telemetry flows as soon as the client is connected.
         c.read_until(|m| matches!(m, MavMessage::GLOBAL_POSITION_INT(_)));
@@ -841,7 +842,7 @@ mod tests {
 
     #[test]
     fn two_tcp_clients_each_get_only_their_own_replies() {
-        let (sim, addr) = tcp_vehicle();
+        let (sim, addr) = vehicle_on("tcpin:127.0.0.1:0");
         let mut a = Client::connect(addr);
         let mut b = Client::connect(addr);
         for c in [&mut a, &mut b] {
@@ -929,14 +930,7 @@ mod tests {
 
     #[test]
     fn garbage_is_counted_and_the_vehicle_keeps_answering() {
-        let sim = spawn(
-            VehicleConfig::new(1),
-            &LinkConfig {
-                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
-            },
-        )
-        .expect("spawn");
-        let addr = sim.local_addrs()[0].expect("bound");
+        let (sim, addr) = vehicle_on("udpin:127.0.0.1:0");
         let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
         client
             .set_read_timeout(Some(Duration::from_millis(200)))
