@@ -42,6 +42,17 @@ pub struct GeoPoint {
     pub alt_m: f64,
 }
 
+impl GeoPoint {
+    /// A geodetic position from degrees and metres.
+    pub fn new(lat_deg: f64, lon_deg: f64, alt_m: f64) -> Self {
+        Self {
+            lat_deg,
+            lon_deg,
+            alt_m,
+        }
+    }
+}
+
 /// The pose of the sensor's platform at the scan time.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 pub struct PlatformPose {

@@ -15,61 +15,43 @@ pub const WGS84_F: f64 = 1.0 / 298.257_223_563;
 const E2: f64 = WGS84_F * (2.0 - WGS84_F);
 
 /// A geodetic position: latitude and longitude in degrees, height above the ellipsoid in metres
-/// (the simulator reports it as altitude AMSL: it models no geoid).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Geodetic {
-    /// Latitude (degrees, north positive).
-    pub lat_deg: f64,
-    /// Longitude (degrees, east positive).
-    pub lon_deg: f64,
-    /// Height (m).
-    pub alt_m: f64,
+/// (the simulator reports it as altitude AMSL: it models no geoid). The type of the detection
+/// messages, so poses need no conversion.
+pub use harrier_core::detection::GeoPoint as Geodetic;
+
+/// ECEF coordinates (m) of a geodetic position.
+pub fn to_ecef(g: &Geodetic) -> Vector3<f64> {
+    let (lat, lon) = (g.lat_deg.to_radians(), g.lon_deg.to_radians());
+    let n = WGS84_A / (1.0 - E2 * lat.sin().powi(2)).sqrt();
+    let r = (n + g.alt_m) * lat.cos();
+    Vector3::new(
+        r * lon.cos(),
+        r * lon.sin(),
+        (n * (1.0 - E2) + g.alt_m) * lat.sin(),
+    )
 }
 
-impl Geodetic {
-    /// A geodetic position from degrees and metres.
-    pub fn new(lat_deg: f64, lon_deg: f64, alt_m: f64) -> Self {
-        Self {
-            lat_deg,
-            lon_deg,
-            alt_m,
-        }
-    }
-
-    /// ECEF coordinates (m).
-    pub fn to_ecef(&self) -> Vector3<f64> {
-        let (lat, lon) = (self.lat_deg.to_radians(), self.lon_deg.to_radians());
+/// The geodetic position of ECEF coordinates (m).
+pub fn from_ecef(p: &Vector3<f64>) -> Geodetic {
+    let lon = p.y.atan2(p.x);
+    let rho = p.x.hypot(p.y);
+    let b = WGS84_A * (1.0 - WGS84_F);
+    let ep2 = E2 / (1.0 - E2);
+    // Bowring's initial latitude, then fixed-point refinement.
+    let theta = (p.z * WGS84_A).atan2(rho * b);
+    let mut lat =
+        (p.z + ep2 * b * theta.sin().powi(3)).atan2(rho - E2 * WGS84_A * theta.cos().powi(3));
+    let mut alt = 0.0;
+    for _ in 0..4 {
         let n = WGS84_A / (1.0 - E2 * lat.sin().powi(2)).sqrt();
-        let r = (n + self.alt_m) * lat.cos();
-        Vector3::new(
-            r * lon.cos(),
-            r * lon.sin(),
-            (n * (1.0 - E2) + self.alt_m) * lat.sin(),
-        )
+        alt = if lat.cos().abs() > 1e-9 {
+            rho / lat.cos() - n
+        } else {
+            p.z.abs() - b
+        };
+        lat = p.z.atan2(rho * (1.0 - E2 * n / (n + alt)));
     }
-
-    /// The geodetic position of ECEF coordinates (m).
-    pub fn from_ecef(p: &Vector3<f64>) -> Self {
-        let lon = p.y.atan2(p.x);
-        let rho = p.x.hypot(p.y);
-        let b = WGS84_A * (1.0 - WGS84_F);
-        let ep2 = E2 / (1.0 - E2);
-        // Bowring's initial latitude, then fixed-point refinement.
-        let theta = (p.z * WGS84_A).atan2(rho * b);
-        let mut lat =
-            (p.z + ep2 * b * theta.sin().powi(3)).atan2(rho - E2 * WGS84_A * theta.cos().powi(3));
-        let mut alt = 0.0;
-        for _ in 0..4 {
-            let n = WGS84_A / (1.0 - E2 * lat.sin().powi(2)).sqrt();
-            alt = if lat.cos().abs() > 1e-9 {
-                rho / lat.cos() - n
-            } else {
-                p.z.abs() - b
-            };
-            lat = p.z.atan2(rho * (1.0 - E2 * n / (n + alt)));
-        }
-        Self::new(lat.to_degrees(), lon.to_degrees(), alt)
-    }
+    Geodetic::new(lat.to_degrees(), lon.to_degrees(), alt)
 }
 
 /// A local East-North-Up tangent plane at a geodetic origin; NED is the same plane with axes
@@ -90,7 +72,7 @@ impl LocalFrame {
         let ecef_to_enu = Matrix3::new(-so, co, 0.0, -sl * co, -sl * so, cl, cl * co, cl * so, sl);
         Self {
             origin,
-            origin_ecef: origin.to_ecef(),
+            origin_ecef: to_ecef(&origin),
             ecef_to_enu,
         }
     }
@@ -102,12 +84,12 @@ impl LocalFrame {
 
     /// ENU coordinates (m) of a geodetic position.
     pub fn to_enu(&self, g: &Geodetic) -> Vector3<f64> {
-        self.ecef_to_enu * (g.to_ecef() - self.origin_ecef)
+        self.ecef_to_enu * (to_ecef(g) - self.origin_ecef)
     }
 
     /// The geodetic position of ENU coordinates (m).
     pub fn from_enu(&self, enu: &Vector3<f64>) -> Geodetic {
-        Geodetic::from_ecef(&(self.origin_ecef + self.ecef_to_enu.transpose() * enu))
+        from_ecef(&(self.origin_ecef + self.ecef_to_enu.transpose() * enu))
     }
 
     /// NED coordinates (m) of a geodetic position.
@@ -137,11 +119,11 @@ mod tests {
 
     #[test]
     fn ecef_of_known_points() {
-        let p = Geodetic::new(0.0, 0.0, 0.0).to_ecef();
+        let p = to_ecef(&Geodetic::new(0.0, 0.0, 0.0));
         assert!((p - Vector3::new(WGS84_A, 0.0, 0.0)).norm() < 1e-6);
-        let pole = Geodetic::new(90.0, 0.0, 0.0).to_ecef();
+        let pole = to_ecef(&Geodetic::new(90.0, 0.0, 0.0));
         assert!((pole.z - 6_356_752.314_245).abs() < 1e-3);
-        let g = Geodetic::from_ecef(&pole);
+        let g = from_ecef(&pole);
         assert!((g.lat_deg - 90.0).abs() < 1e-9 && g.alt_m.abs() < 1e-3);
     }
 
@@ -155,7 +137,7 @@ mod tests {
             (60.0, -45.0, 20_000.0),
         ] {
             let g = Geodetic::new(lat, lon, alt);
-            let back = Geodetic::from_ecef(&g.to_ecef());
+            let back = from_ecef(&to_ecef(&g));
             assert!((back.lat_deg - lat).abs() < 1e-10, "{back:?}");
             assert!((back.lon_deg - lon).abs() < 1e-10, "{back:?}");
             assert!((back.alt_m - alt).abs() < 1e-6, "{back:?}");

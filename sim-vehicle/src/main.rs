@@ -10,7 +10,6 @@
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use harrier_core::detection::GeoPoint;
 use harrier_sim::bus::{Bus, BusConfig, Mode};
 use harrier_sim::geo::Geodetic;
 use harrier_sim::live::{LiveConfig, LiveHandle};
@@ -127,11 +126,7 @@ fn api_endpoint(args: &Args, id: u8, k: u16) -> Result<String, String> {
 fn scenario(args: &Args) -> Result<SimScenario, String> {
     let mut scenario = SimScenario::load(&args.scenario).map_err(|e| e.to_string())?;
     if let Some(home) = args.home {
-        scenario.origin = GeoPoint {
-            lat_deg: home.lat_deg,
-            lon_deg: home.lon_deg,
-            alt_m: home.alt_m,
-        };
+        scenario.origin = home;
     }
     if let Some(hz) = args.detection_hz {
         if !(hz.is_finite() && hz > 0.0 && hz <= 1000.0) {
@@ -153,8 +148,7 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         return Err("--truth-hz must be in (0, 1000]".to_owned());
     }
     let scenario = scenario(args)?;
-    let o = scenario.origin;
-    let origin = Geodetic::new(o.lat_deg, o.lon_deg, o.alt_m);
+    let origin = scenario.origin;
     let mut sims = Vec::new();
     for k in 0..args.count {
         let id = u8::try_from(u16::from(args.id) + k)

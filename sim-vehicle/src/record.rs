@@ -33,7 +33,6 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde_json::json;
 
-use crate::geo::Geodetic;
 use crate::scenario::{
     AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
 };
@@ -342,7 +341,7 @@ pub fn record(
         let config = VehicleConfig {
             id,
             airframe,
-            origin: Geodetic::new(origin.lat_deg, origin.lon_deg, origin.alt_m),
+            origin,
             speedup: 1.0,
         };
         pilots.push(Pilot {

@@ -77,16 +77,11 @@ pub struct SensorSuite {
 /// attitude and geodetic position.
 pub fn platform_pose(v: &Vehicle) -> PlatformPose {
     let s = v.state();
-    let g = v.position();
     PlatformPose {
         pos: [s.position.x, s.position.y, s.position.z],
         vel: [s.velocity.x, s.velocity.y, s.velocity.z],
         attitude: v.attitude(),
-        geodetic: GeoPoint {
-            lat_deg: g.lat_deg,
-            lon_deg: g.lon_deg,
-            alt_m: g.alt_m,
-        },
+        geodetic: v.position(),
     }
 }
 
