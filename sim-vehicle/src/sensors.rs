@@ -293,7 +293,7 @@ impl SensorState {
             SensorModel::Radar { .. } => -1.0,
         };
         let (scale, offset) = self.bias(t);
-        let std = self.spec.noise_std.clone();
+        let std = &self.spec.noise_std;
         let mut found: Vec<(Detection, Option<usize>)> = Vec::new();
         for (i, p) in truths.iter().enumerate() {
             // Same draws every scan: detection, then three normals.
