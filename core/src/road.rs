@@ -446,6 +446,105 @@ impl RoadNetwork {
     }
 }
 
+/// The road traced by a piecewise constant-turn trajectory (FORMAT.md §2 `roads`): one straight
+/// line per run of straight legs and one arc per turning leg, as the road of [CIMM] §5.1 is built
+/// from its target's trajectory.
+///
+/// The trajectory is at `start` with `velocity` (non-zero; its speed is kept) when the first leg
+/// begins. `legs` are `(start time s, turn rate rad/s)` in increasing time (rate > 0 turns left,
+/// 0 is straight); each leg lasts until the next one starts, the last until `end_t`. A turning
+/// leg is an arc of radius speed/|ω| about a centre on the inside of the turn, sweeping ω·duration;
+/// consecutive straight legs merge into one line. To let the road begin before the point where a
+/// target starts, begin the first (straight) leg earlier and at the matching point.
+///
+/// # Errors
+/// [`EstimationError::InvalidParameter`] if a value is not finite, the speed is zero, the legs
+/// are empty or their start times (then `end_t`) do not increase.
+pub fn road_from_turn_legs(
+    start: Vector2<f64>,
+    velocity: Vector2<f64>,
+    legs: &[(f64, f64)],
+    end_t: f64,
+    id: &str,
+    width_m: Option<f64>,
+    sigma_m: Option<f64>,
+) -> Result<scenario::Road> {
+    let bad = |what: &str| EstimationError::InvalidParameter(format!("road {id:?}: {what}"));
+    let speed = velocity.x.hypot(velocity.y);
+    if !(start.iter().all(|v| v.is_finite()) && speed.is_finite() && speed > 0.0) {
+        return Err(bad("start and velocity must be finite, the speed > 0"));
+    }
+    if legs.is_empty() {
+        return Err(bad("no legs"));
+    }
+    let ends = legs.iter().skip(1).map(|l| l.0).chain([end_t]);
+    let durations: Vec<f64> = legs.iter().zip(ends).map(|(l, t1)| t1 - l.0).collect();
+    if !legs
+        .iter()
+        .zip(&durations)
+        .all(|(l, d)| l.1.is_finite() && d.is_finite() && *d > 0.0)
+    {
+        return Err(bad(
+            "leg start times and end_t must be finite and increasing, turn rates finite",
+        ));
+    }
+    let mut dir = [velocity.x / speed, velocity.y / speed];
+    let mut p = [start.x, start.y];
+    let mut line_start = p;
+    let mut segments = Vec::new();
+    let mut in_line = true;
+    for (&(_, turn_rate), &duration) in legs.iter().zip(&durations) {
+        if turn_rate == 0.0 {
+            if !in_line {
+                line_start = p;
+                in_line = true;
+            }
+            p = [
+                p[0] + dir[0] * speed * duration,
+                p[1] + dir[1] * speed * duration,
+            ];
+            continue;
+        }
+        if in_line && p != line_start {
+            segments.push(Segment::Line {
+                start: line_start,
+                end: p,
+            });
+        }
+        in_line = false;
+        let radius = speed / turn_rate.abs();
+        let sign = turn_rate.signum();
+        // Centre on the inside of the turn: the left normal for a left turn.
+        let center = [p[0] - sign * dir[1] * radius, p[1] + sign * dir[0] * radius];
+        let a0 = (p[1] - center[1]).atan2(p[0] - center[0]);
+        let sweep = turn_rate * duration;
+        let a1 = a0 + sweep;
+        let end = [center[0] + radius * a1.cos(), center[1] + radius * a1.sin()];
+        segments.push(Segment::Arc {
+            center,
+            radius,
+            start: p,
+            end,
+            sweep_rad: sweep,
+        });
+        let (sn, cs) = sweep.sin_cos();
+        dir = [dir[0] * cs - dir[1] * sn, dir[0] * sn + dir[1] * cs];
+        p = end;
+    }
+    if in_line && p != line_start {
+        segments.push(Segment::Line {
+            start: line_start,
+            end: p,
+        });
+    }
+    Ok(scenario::Road {
+        id: id.into(),
+        width_m,
+        sigma_m,
+        segments,
+    })
+}
+
 /// The road pseudo-measurement of [CIMM] §3.1 for a CV-layout state (`[p; v]`, planar or 3-D):
 /// `h_r(x) = [offset(p), n(p)·v]`, measured as `z^r = [0, 0]` with noise
 /// `diag(sigma_m², sigma_v²)`: the target is on the centre line (lateral offset 0, std `sigma_m`)
@@ -518,6 +617,75 @@ mod tests {
            "start":[2964.6925767461007,1511.0966879679652],"end":[4247.691708011238,3023.548212590115],
            "sweep_rad":3.4}]}"#;
         Road::from_scenario(&serde_json::from_str(json).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn road_from_turn_legs_rebuilds_the_cimm_road() {
+        // (200, 300) m at (6, 8) m/s; the road begins 100 m (10 s) before it.
+        let legs = [(-10.0, 0.0), (140.0, -0.008), (360.0, 0.01)];
+        let (start, v) = (Vector2::new(140.0, 220.0), Vector2::new(6.0, 8.0));
+        let built = road_from_turn_legs(start, v, &legs, 700.0, "r", None, Some(2.0)).unwrap();
+        let built = Road::from_scenario(&built).unwrap();
+        let want = road();
+        assert_eq!(built.segments().len(), want.segments().len());
+        for (a, b) in built.segments().iter().zip(want.segments()) {
+            assert_relative_eq!(a.start(), b.start(), epsilon = 1e-9);
+            assert_relative_eq!(a.end(), b.end(), epsilon = 1e-9);
+            assert_relative_eq!(a.length(), b.length(), epsilon = 1e-9);
+        }
+    }
+
+    #[test]
+    fn road_from_turn_legs_follows_the_constant_turn_model() {
+        use crate::motion::{ConstantTurn, TransitionModel};
+        let legs = [
+            (0.0, 0.0),
+            (20.0, 0.0),
+            (50.0, 0.05),
+            (80.0, 0.0),
+            (90.0, -0.02),
+        ];
+        let (start, v) = (Vector2::new(10.0, -5.0), Vector2::new(3.0, -4.0));
+        let sc = road_from_turn_legs(start, v, &legs, 150.0, "r", Some(7.0), Some(1.0)).unwrap();
+        assert_eq!(
+            (sc.id.as_str(), sc.width_m, sc.sigma_m),
+            ("r", Some(7.0), Some(1.0))
+        );
+        // Straight legs merge: line, arc, line, arc.
+        assert_eq!(sc.segments.len(), 4);
+        let road = Road::from_scenario(&sc).unwrap();
+        let mut x = Vector4::new(start.x, start.y, v.x, v.y);
+        let mut t = 0.0;
+        let ends = legs.iter().skip(1).map(|l| l.0).chain([150.0]);
+        for (&(_, w), t1) in legs.iter().zip(ends) {
+            while t < t1 - 1e-9 {
+                let dt = (t1 - t).min(1.0);
+                x = ConstantTurn::<4>::new(w, 0.0).function(&x, dt);
+                t += dt;
+                let rp = road.project(&Vector2::new(x[0], x[1]));
+                assert!(rp.offset.abs() < 1e-6, "t {t}: offset {}", rp.offset);
+                assert_relative_eq!(rp.tangent, Vector2::new(x[2], x[3]) / 5.0, epsilon = 1e-9);
+            }
+        }
+        assert_relative_eq!(
+            road.segments()[3].end(),
+            Vector2::new(x[0], x[1]),
+            epsilon = 1e-9
+        );
+    }
+
+    #[test]
+    fn road_from_turn_legs_refuses_bad_input() {
+        let (p, v) = (Vector2::zeros(), Vector2::new(1.0, 0.0));
+        let ok = |legs: &[(f64, f64)], end, v| {
+            road_from_turn_legs(p, v, legs, end, "r", None, None).is_ok()
+        };
+        assert!(ok(&[(0.0, 0.1)], 1.0, v));
+        assert!(!ok(&[], 1.0, v));
+        assert!(!ok(&[(0.0, 0.1)], 0.0, v));
+        assert!(!ok(&[(0.0, 0.0), (0.0, 0.1)], 1.0, v));
+        assert!(!ok(&[(0.0, f64::NAN)], 1.0, v));
+        assert!(!ok(&[(0.0, 0.1)], 1.0, Vector2::zeros()));
     }
 
     #[test]
