@@ -255,14 +255,6 @@ impl Sensor {
     pub fn dim(&self) -> usize {
         self.kind.len(self.ncomp)
     }
-    /// Whether the scenario declares an unknown measurement bias.
-    pub fn has_unknown_bias(&self) -> bool {
-        self.bias
-            .as_ref()
-            .and_then(|b| b.get("model"))
-            .and_then(|m| m.as_str())
-            .is_some_and(|m| m == "unknown")
-    }
 }
 
 /// Noise block.
@@ -871,18 +863,6 @@ pub struct PredictionOut {
     pub sensor: String,
     /// Predicted measurement.
     pub z: Vec<f64>,
-}
-
-/// Parses `estimates.jsonl` (to score an existing file).
-pub fn parse_estimates(text: &str) -> Result<Vec<Estimate>, String> {
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            serde_json::from_str(l)
-                .map_err(|e| format!("line {}: {}", i + 1, strip_position(&e.to_string())))
-        })
-        .collect()
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 //! ```text
 //! predict:  x⁻ = f(x),             P⁻ = F P Fᵀ + Q                    [BLK01] eq. (5.2.3-5), (5.2.3-9)
 //! update:   ν  = z ⊖ h(x⁻),        S  = H P⁻ Hᵀ + R                   [BLK01] eq. (5.2.3-13), (5.2.3-15)
-//!           K  = P⁻ Hᵀ S⁻¹  (Cholesky solve, never an explicit inverse)   eq. (5.2.3-11)
+//!           K  = P⁻ Hᵀ S⁻¹  (S⁻¹ from the Cholesky factor of S)         eq. (5.2.3-11)
 //!           x  = x⁻ + K ν
 //!           P  = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ  (Joseph form)      eq. (5.2.3-18)
 //! ```
@@ -66,7 +66,7 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for Extended {
 ///
 /// Given the predicted state, the innovation `ν = z ⊖ ẑ`, the (linearised) measurement matrix `H`
 /// and the noise covariance `R`:
-/// `S = H P⁻ Hᵀ + R`, `K = P⁻ Hᵀ S⁻¹` (Cholesky solve), `x = x⁻ + K ν`,
+/// `S = H P⁻ Hᵀ + R`, `K = P⁻ Hᵀ S⁻¹` (S⁻¹ from the Cholesky factor), `x = x⁻ + K ν`,
 /// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ` ([BLK01] eq. (5.2.3-18)), symmetrised.
 pub fn joseph_update<const N: usize, const M: usize>(
     predicted: &Gaussian<N>,
@@ -81,8 +81,9 @@ pub fn joseph_update<const N: usize, const M: usize>(
     // S = H P Hᵀ + R
     let S = symmetrize(&(H * PHt + R));
     let chol = cholesky(&S, "innovation covariance")?;
-    // K = P Hᵀ S⁻¹, with S⁻¹ from the Cholesky factor (M × M solves against the identity, cheaper
-    // than solving for the M × N right-hand side Hᵀ P when M < N).
+    // K = P Hᵀ S⁻¹ with the explicit M × M inverse S⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L of S
+    // (M triangular solves against the identity, cheaper than solving for the M × N right-hand
+    // side Hᵀ P when M < N; S is SPD and checked by the factorisation, so the inverse is stable).
     let K = PHt * chol.inverse();
     let mean = predicted.mean + K * innovation;
     // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N

@@ -335,22 +335,6 @@ impl ModifiedPolarEkf {
         ensure_finite(&cov, "predicted covariance")?;
         Ok(Gaussian { mean, cov })
     }
-
-    /// `∂y⁻/∂a_t` (6×3): how the predicted kinematic state responds to the assumed target
-    /// acceleration, `∂g⁻¹/∂x(x⁻) [½Δt² I; Δt I]`.
-    pub fn accel_sensitivity<const N: usize>(
-        &self,
-        predicted: &SVector<f64, N>,
-        dt: f64,
-    ) -> Result<SMatrix<f64, 6, 3>> {
-        let jout = relative_to_mp_jacobian(&kinematic(predicted))?;
-        let mut b = SMatrix::<f64, 6, 3>::zeros();
-        for a in 0..3 {
-            b[(a, a)] = 0.5 * dt * dt;
-            b[(a + 3, a)] = dt;
-        }
-        Ok(jout * b)
-    }
 }
 
 /// Enforces `x[index] ≥ min` on a Gaussian by estimate projection (Simon & Chia 2002, with the

@@ -46,12 +46,6 @@ impl ObservabilityManeuver {
         })
     }
 
-    /// Bearing offset `β − β_d = B sin ωt` (rad).
-    #[inline]
-    pub fn bearing_offset(&self, t: f64) -> f64 {
-        self.amplitude * (self.omega * t).sin()
-    }
-
     /// Desired bearing rate `β̇_d = B ω cos ωt` (rad/s).
     #[inline]
     pub fn bearing_rate(&self, t: f64) -> f64 {
