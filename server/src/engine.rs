@@ -1,13 +1,17 @@
-//! Type erasure of the estimators: every estimator Harrier can run by name implements
-//! [`ReplayEstimator`] and is listed once in [`ESTIMATORS`]. This is the only place where generic
-//! harrier-core filters become trait objects.
+//! The engine's interface: what an estimator looks like once its filter types are erased. Every
+//! estimator Harrier can run by name implements [`ReplayEstimator`] and is described by an
+//! [`EstimatorInfo`]; the drivers in [`crate::estimators`] build them from a scenario and
+//! [`Params`], and [`crate::registry`] lists them and builds one by name. A `Box<dyn
+//! ReplayEstimator>` is the only form in which the offline tools (`replay`, `guidance-sim`) see a
+//! filter.
+//!
+//! This module is a leaf: it imports nothing from the crate, so drivers depend on it and never on
+//! the registry.
 
 use std::collections::BTreeMap;
 
 use harrier_core::EstimationError;
 use harrier_core::scenario::{Estimate, Measurement, Scenario};
-
-use crate::estimators;
 
 /// Why an estimator could not be built or could not process a time step.
 #[derive(Debug, thiserror::Error)]
@@ -83,15 +87,34 @@ impl Params {
     pub fn opt(&self, name: &str) -> Option<f64> {
         self.0.get(name).copied()
     }
-    fn names(&self) -> impl Iterator<Item = &str> {
+    /// These settings with `name` set to `value` (a caller's own tuning, e.g. guidance-sim's).
+    pub fn with(mut self, name: &str, value: f64) -> Self {
+        self.0.insert(name.to_string(), value);
+        self
+    }
+    /// The parameter names given.
+    pub fn names(&self) -> impl Iterator<Item = &str> {
         self.0.keys().map(String::as_str)
     }
+    /// The acceleration spectral density `q` (m²/s³) of the kinematic models ([`Q_PARAM`]):
+    /// `--param q=…`, else `motion.accel_std²` of the scenario.
+    pub fn q(&self, sc: &Scenario) -> Result<f64, EngineError> {
+        self.opt("q")
+            .or(sc.accel_q())
+            .ok_or_else(|| setup("scenario.json has no motion.accel_std; pass --param q=<m²/s³>"))
+    }
 }
+
+/// The `q` parameter of every estimator that resolves it with [`Params::q`].
+pub const Q_PARAM: (&str, &str) = (
+    "q",
+    "acceleration spectral density, m²/s³ (default motion.accel_std²)",
+);
 
 /// Builds an estimator for a scenario.
 pub type BuildFn = fn(&Scenario, &Params) -> Result<Box<dyn ReplayEstimator>, EngineError>;
 
-/// A named estimator.
+/// A named estimator, as a driver declares it and [`crate::registry::ESTIMATORS`] lists it.
 #[derive(Debug)]
 pub struct EstimatorInfo {
     /// Name used with `--estimator`.
@@ -102,56 +125,4 @@ pub struct EstimatorInfo {
     pub params: &'static [(&'static str, &'static str)],
     /// Constructor.
     pub build: BuildFn,
-}
-
-/// Every estimator Harrier can run by name.
-pub static ESTIMATORS: &[EstimatorInfo] = &[
-    estimators::gaussian::KF,
-    estimators::gaussian::EKF,
-    estimators::gaussian::CDKF,
-    estimators::angles::CA_KF,
-    estimators::angles::STF,
-    estimators::angles::ESE,
-    estimators::obe::OBE,
-    estimators::obe::OBE_TRACE,
-    estimators::icdkf::ICDKF,
-    estimators::icdkf::ICDKF_GENERAL,
-    estimators::bias::CDKF_BIAS,
-    estimators::bearings::MPEKF,
-    estimators::bearings::MPEKF_NN,
-    estimators::imm::IMM,
-    estimators::imm::CIMM,
-    estimators::imm::CIMM_FUSION,
-    estimators::imm::CIMM_CI,
-    estimators::tracker::TRACKER,
-];
-
-/// Looks up `name` and builds it for `sc`, rejecting unknown parameters.
-pub fn build(
-    name: &str,
-    sc: &Scenario,
-    params: &Params,
-) -> Result<Box<dyn ReplayEstimator>, EngineError> {
-    let info = ESTIMATORS.iter().find(|e| e.name == name).ok_or_else(|| {
-        let names: Vec<_> = ESTIMATORS.iter().map(|e| e.name).collect();
-        setup(format!(
-            "unknown estimator {name:?}; known: {}",
-            names.join(", ")
-        ))
-    })?;
-    if let Some(bad) = params
-        .names()
-        .find(|p| !info.params.iter().any(|(n, _)| n == p))
-    {
-        let known: Vec<_> = info.params.iter().map(|(n, _)| *n).collect();
-        return Err(setup(format!(
-            "estimator {name:?} has no parameter {bad:?}; it takes: {}",
-            if known.is_empty() {
-                "none".to_string()
-            } else {
-                known.join(", ")
-            }
-        )));
-    }
-    (info.build)(sc, params)
 }

@@ -18,8 +18,9 @@ macro_rules! out {
         let _ = writeln!(std::io::stdout().lock(), $($arg)*);
     }};
 }
-use harrier_server::engine::{ESTIMATORS, Params};
+use harrier_server::engine::Params;
 use harrier_server::guidance_sim;
+use harrier_server::registry::ESTIMATORS;
 use harrier_server::replay;
 
 /// Harrier: ground-control station for UAV target tracking.
@@ -121,9 +122,9 @@ struct GuidanceSimArgs {
     /// Standoff law: togvf or lgvf.
     #[arg(long, default_value = "togvf")]
     law: String,
-    /// What the guidance sees of the target: cimm (road-constrained IMM on simulated camera
-    /// measurements), kf (Kalman filter on the same) or truth; default cimm for moving
-    /// targets, truth for static ones.
+    /// What the guidance sees of the target: truth, or a registry estimator (`harrier
+    /// estimators`) on simulated camera measurements, e.g. cimm (road-constrained IMM) or kf
+    /// (Kalman filter); default cimm for moving targets, truth for static ones.
     #[arg(long)]
     estimator: Option<String>,
     /// Time step (s).
@@ -147,29 +148,18 @@ struct GuidanceSimArgs {
 }
 
 fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
-    use guidance_sim::{Case, EstimatorKind, LawKind, SimConfig, SimError};
-    let estimator = match a.estimator.as_deref() {
-        None => None,
-        Some("cimm") => Some(EstimatorKind::Cimm),
-        Some("kf") => Some(EstimatorKind::Kalman),
-        Some("truth") => Some(EstimatorKind::Truth),
-        Some(other) => {
-            return Err(SimError::Setup(format!(
-                "unknown estimator {other:?}; cimm, kf or truth"
-            )));
-        }
-    };
+    use guidance_sim::{Case, LawKind, SimConfig};
     let cfg = SimConfig {
         case: Case::parse(&a.case)?,
         law: LawKind::parse(&a.law)?,
-        estimator,
+        estimator: a.estimator.clone(),
         dt: a.dt,
         duration: a.duration,
         seed: a.seed,
     };
     let result = guidance_sim::run(&cfg)?;
     if let Some(out) = &a.out {
-        guidance_sim::write_tracks(out, &result.tracks)?;
+        guidance_sim::write_trajectories(out, &result.trajectories)?;
     }
     if let Some(plot) = &a.plot {
         guidance_sim::plot_svg(plot, &result, 600)?;

@@ -10,7 +10,8 @@ use std::time::{Duration, Instant};
 use harrier_core::metrics::{self, Score};
 use harrier_core::scenario::{Estimate, FormatError, ScenarioData, ScenarioFile};
 
-use crate::engine::{self, EngineError, Params, Step};
+use crate::engine::{EngineError, Params, Step};
+use crate::registry;
 
 /// Why a replay failed. Every variant is the user's input being wrong (exit code 2) except `Io`
 /// on the output side.
@@ -104,7 +105,7 @@ pub fn run(
 ) -> Result<ReplayReport, ReplayError> {
     let sc = &data.scenario;
     let mut est =
-        engine::build(estimator, sc, params).map_err(|e| ReplayError::Setup(e.to_string()))?;
+        registry::build(estimator, sc, params).map_err(|e| ReplayError::Setup(e.to_string()))?;
     // Measurement times per sensor, for Step::next_time.
     let mut times: HashMap<&str, Vec<f64>> = HashMap::new();
     for m in data.measurements.iter().filter(|m| m.is_finite()) {

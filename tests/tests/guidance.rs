@@ -11,7 +11,7 @@ use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::togvf::Togvf;
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState, hold};
 use harrier_server::guidance_sim::{
-    Case, EstimatorKind, LawKind, R, SimConfig, SimResult, Summary, plot_svg, run, write_tracks,
+    Case, LawKind, R, SimConfig, SimResult, Summary, plot_svg, run, write_trajectories,
 };
 use nalgebra::Vector3;
 
@@ -99,7 +99,7 @@ fn moving_target_standoff_with_estimated_target() {
         s.estimator
     );
     let kf = run(&SimConfig {
-        estimator: Some(EstimatorKind::Kalman),
+        estimator: Some("kf".to_string()),
         ..SimConfig::new(Case::CimmMoving)
     })
     .expect("simulation runs")
@@ -196,7 +196,7 @@ fn missing_or_nan_target_gives_hold_and_a_feasible_flight() {
 #[test]
 fn outputs_are_written() {
     let cfg = SimConfig {
-        estimator: Some(EstimatorKind::Kalman),
+        estimator: Some("kf".to_string()),
         duration: Some(60.0),
         ..SimConfig::new(Case::ThreeMoving)
     };
@@ -205,8 +205,8 @@ fn outputs_are_written() {
     let csv = dir.path().join("t.csv");
     let jsonl = dir.path().join("t.jsonl");
     let svg = dir.path().join("t.svg");
-    write_tracks(&csv, &res.tracks).unwrap();
-    write_tracks(&jsonl, &res.tracks).unwrap();
+    write_trajectories(&csv, &res.trajectories).unwrap();
+    write_trajectories(&jsonl, &res.trajectories).unwrap();
     plot_svg(&svg, &res, 300).unwrap();
     let text = std::fs::read_to_string(&csv).unwrap();
     assert!(text.starts_with("t,id,kind,x,y,z,vx,vy,vz\n"));

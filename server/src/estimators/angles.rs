@@ -380,8 +380,20 @@ fn build<A: AxisFilter + 'static>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::engine::build as build_estimator;
     use harrier_core::scenario::{Measurement, PlatformPose};
+
+    /// Builds one of this module's estimators by name.
+    fn build_estimator(
+        name: &str,
+        sc: &Scenario,
+        p: &Params,
+    ) -> Result<Box<dyn ReplayEstimator>, EngineError> {
+        let info = [CA_KF, STF, ESE]
+            .into_iter()
+            .find(|e| e.name == name)
+            .unwrap();
+        (info.build)(sc, p)
+    }
 
     fn scenario(sensors: &str) -> Scenario {
         Scenario::parse(&format!(

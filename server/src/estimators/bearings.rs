@@ -54,15 +54,13 @@ use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3, Vector6};
 
 use super::{cv_dims, prior};
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, Step, setup};
-
-const Q_HELP: &str = "acceleration spectral density, m²/s³ (default motion.accel_std²)";
+use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
 /// `mpekf`: modified-polar EKF without the network.
 pub const MPEKF: EstimatorInfo = EstimatorInfo {
     name: "mpekf",
     summary: "modified-polar (spherical) EKF relative to the moving platform, subtended angle, size state if unknown ([BOT] §II); one bearing_size or az_el sensor",
-    params: &[("q", Q_HELP)],
+    params: &[Q_PARAM],
     build: |sc, p| build(sc, p, false),
 };
 
@@ -71,7 +69,7 @@ pub const MPEKF_NN: EstimatorInfo = EstimatorInfo {
     name: "mpekf-nn",
     summary: "mpekf augmented with the adaptive neural network that learns the target acceleration ([BOT] §II.D)",
     params: &[
-        ("q", Q_HELP),
+        Q_PARAM,
         (
             "nn_tau",
             "adaptation time constant of the network, s (default 2)",
@@ -151,10 +149,7 @@ fn build(
         )));
     };
     let std = sensor.noise.std();
-    let q = params
-        .opt("q")
-        .or(sc.accel_q())
-        .ok_or_else(|| setup("scenario.json has no motion.accel_std; pass --param q=<m²/s³>"))?;
+    let q = params.q(sc)?;
     let amax = params
         .opt("nn_amax")
         .or(sc.motion.as_ref().and_then(|m| m.accel_bound))

@@ -2,23 +2,21 @@
 //! augmented with additive range/azimuth bias states, with a bias-jump hypothesis test.
 
 use harrier_core::filter::{BiasAwareCdkf, BiasedMeasurement, CentralDifference, WithBias};
+use harrier_core::measurement::SensorModel;
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{Matrix6, Vector2, Vector6};
 
-use super::{AnyModel, cv_estimate, geometry, model_for, prior};
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, Step, setup};
+use super::{cv_estimate, geometry, model_for, prior};
+use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
 /// `cdkf-bias`.
 pub const CDKF_BIAS: EstimatorInfo = EstimatorInfo {
     name: "cdkf-bias",
     summary: "bias-robust radar CDKF: bias states + bias-jump hypothesis test (Harrier's design)",
     params: &[
-        (
-            "q",
-            "acceleration spectral density, m²/s³ (default motion.accel_std²)",
-        ),
+        Q_PARAM,
         (
             "sigma0",
             "initial bias std in units of the noise std (default 0)",
@@ -53,10 +51,7 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
             "cdkf-bias needs a two-component sensor (range_bearing or az_el)",
         ));
     }
-    let q = p
-        .opt("q")
-        .or(sc.accel_q())
-        .ok_or_else(|| setup("scenario has no motion.accel_std; pass --param q=…"))?;
+    let q = p.q(sc)?;
     let (t, kin) = prior::<4>(sc, super::cv_dims(4))?;
     let unit = |k: f64| [k * std[0], k * std[1]];
     let motion = WithBias::new(
@@ -110,11 +105,11 @@ impl ReplayEstimator for CdkfBias {
             }
             let z = Vector2::new(m.z[0], m.z[1]);
             let up = match model_for(&self.sc, geo, m, None)? {
-                AnyModel::RangeBearing(h) => {
+                SensorModel::RangeBearing(h) => {
                     self.filter
                         .update(&BiasedMeasurement::<_, 4> { inner: h }, &g, &z)?
                 }
-                AnyModel::AzEl(h) => {
+                SensorModel::AzEl(h) => {
                     self.filter
                         .update(&BiasedMeasurement::<_, 4> { inner: h }, &g, &z)?
                 }

@@ -2,21 +2,16 @@
 //! measurement increments. The first measurement only sets the reference for the first increment.
 
 use harrier_core::filter::{CentralDifference, IcdkfForm, IncrementalCdkf, Predictor, current};
+use harrier_core::measurement::SensorModel;
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::Vector2;
 
-use super::{AnyModel, cv_estimate, geometry, model_for, prior};
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, Step, setup};
+use super::{cv_estimate, geometry, model_for, prior};
+use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
-const PARAMS: &[(&str, &str)] = &[
-    (
-        "q",
-        "acceleration spectral density, m²/s³ (default motion.accel_std²)",
-    ),
-    ("h", "central-difference interval (default √3)"),
-];
+const PARAMS: &[(&str, &str)] = &[Q_PARAM, ("h", "central-difference interval (default √3)")];
 
 /// `icdkf`: additive form.
 pub const ICDKF: EstimatorInfo = EstimatorInfo {
@@ -47,10 +42,7 @@ fn build(
             "icdkf differences consecutive measurements of one sensor; the scenario must have exactly one",
         ));
     }
-    let q = p
-        .opt("q")
-        .or(sc.accel_q())
-        .ok_or_else(|| setup("scenario has no motion.accel_std; pass --param q=…"))?;
+    let q = p.q(sc)?;
     let (t, state) = prior::<4>(sc, super::cv_dims(4))?;
     let filter = IncrementalCdkf {
         cd: CentralDifference::new(p.get("h", 3f64.sqrt()))?,
@@ -74,7 +66,7 @@ struct Icdkf {
     t: f64,
     state: Gaussian<4>,
     /// Previous measurement and its model.
-    last: Option<(Vector2<f64>, AnyModel)>,
+    last: Option<(Vector2<f64>, SensorModel)>,
 }
 
 impl ReplayEstimator for Icdkf {
@@ -92,14 +84,14 @@ impl ReplayEstimator for Icdkf {
                             CentralDifference::default().predict(&self.motion, &self.state, dt)?;
                     }
                 }
-                (Some((zp, AnyModel::RangeBearing(prev))), AnyModel::RangeBearing(now)) => {
+                (Some((zp, SensorModel::RangeBearing(prev))), SensorModel::RangeBearing(now)) => {
                     let pred: Gaussian<8> = self.filter.predict(&self.motion, &self.state, dt)?;
                     let dz =
                         Vector2::new(z[0] - zp[0], harrier_core::linalg::wrap_angle(z[1] - zp[1]));
                     let post = self.filter.update::<_, 4, 8, 2>(now, prev, &pred, &dz)?;
                     self.state = current(&post.state);
                 }
-                (Some((zp, AnyModel::AzEl(prev))), AnyModel::AzEl(now)) => {
+                (Some((zp, SensorModel::AzEl(prev))), SensorModel::AzEl(now)) => {
                     let pred: Gaussian<8> = self.filter.predict(&self.motion, &self.state, dt)?;
                     let dz =
                         Vector2::new(harrier_core::linalg::wrap_angle(z[0] - zp[0]), z[1] - zp[1]);

@@ -21,18 +21,15 @@
 use harrier_core::Result;
 use harrier_core::filter::{Extended, Imm, ImmState, ModeModel};
 use harrier_core::fusion::{self, CiCriterion};
+use harrier_core::measurement::{Locate, MeasurementModel, SensorModel, WithSensor};
 use harrier_core::road::{RoadConstraint, RoadNetwork};
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::state::Gaussian;
-use nalgebra::{Vector2, Vector3};
+use nalgebra::Vector2;
 
-use super::{AnyModel, cv_estimate, geometry, model_for, prior};
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, Step, setup};
+use super::{cv_estimate, geometry, model_for, prior, reading};
+use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
-const Q_PARAM: (&str, &str) = (
-    "q",
-    "acceleration spectral density, m²/s³ (default motion.accel_std²)",
-);
 const SIGMA_V_PARAM: (&str, &str) = (
     "sigma_v",
     "std of the velocity component normal to the road, m/s (default: the road's sigma_m per \
@@ -113,7 +110,9 @@ struct Local<const R: usize> {
     state: ImmState<4, R>,
 }
 
-struct ImmTracker<const R: usize> {
+/// One target estimated by an IMM (or one IMM per UAV, fused) over the measurements of a
+/// scenario.
+struct SingleTargetImm<const R: usize> {
     imm: Imm<Extended, ModeModel, R>,
     sc: Scenario,
     roads: Option<(RoadNetwork, Option<f64>)>,
@@ -121,7 +120,7 @@ struct ImmTracker<const R: usize> {
     locals: Vec<Local<R>>,
 }
 
-impl<const R: usize> ImmTracker<R> {
+impl<const R: usize> SingleTargetImm<R> {
     fn new(
         sc: &Scenario,
         models: &[ModeModel],
@@ -185,17 +184,27 @@ impl<const R: usize> ImmTracker<R> {
         })
     }
 
-    /// IMM update with whichever measurement model `model` is.
-    fn update(&self, model: &AnyModel, s: &ImmState<4, R>, z: &[f64]) -> Result<ImmState<4, R>> {
-        let z2 = || Vector2::from_iterator(z.iter().copied());
-        let z3 = || Vector3::from_iterator(z.iter().copied());
-        match model {
-            AnyModel::Position2(h) => self.imm.update(h, s, &z2()),
-            AnyModel::Position3(h) => self.imm.update(h, s, &z3()),
-            AnyModel::RangeBearing(h) => self.imm.update(h, s, &z2()),
-            AnyModel::AzEl(h) => self.imm.update(h, s, &z2()),
-            AnyModel::BearingSize(h) => self.imm.update(h, s, &z3()),
+    /// IMM update with a measurement line whose model is known only at run time.
+    fn update(&self, model: &SensorModel, s: &ImmState<4, R>, z: &[f64]) -> Result<ImmState<4, R>> {
+        struct Visit<'a, const R: usize> {
+            imm: &'a Imm<Extended, ModeModel, R>,
+            state: &'a ImmState<4, R>,
+            z: &'a [f64],
         }
+        impl<const R: usize> WithSensor<4> for Visit<'_, R> {
+            type Output = Result<ImmState<4, R>>;
+            fn with<H, const M: usize>(self, model: &H) -> Self::Output
+            where
+                H: MeasurementModel<4, M> + Locate<M>,
+            {
+                self.imm.update_with(model, self.state, &reading(self.z)?)
+            }
+        }
+        model.apply(Visit {
+            imm: &self.imm,
+            state: s,
+            z,
+        })
     }
 
     /// Brings one local IMM to the step's time with its measurements and the road constraint.
@@ -234,8 +243,7 @@ impl<const R: usize> ImmTracker<R> {
 /// The road pseudo-measurement of [CIMM] §3.1 applied once in every mode filter of `s`, on the
 /// road of `net` nearest to the combined estimate, with normal-velocity std `sigma_v` (default
 /// the road's `sigma_m / dt`, `dt` the sensor period). Without a road, `s` is returned as is.
-/// Shared with the CIMM of `harrier guidance-sim`.
-pub fn road_update<const R: usize>(
+fn road_update<const R: usize>(
     imm: &Imm<Extended, ModeModel, R>,
     s: &ImmState<4, R>,
     net: &RoadNetwork,
@@ -252,7 +260,7 @@ pub fn road_update<const R: usize>(
     }
 }
 
-impl<const R: usize> ReplayEstimator for ImmTracker<R> {
+impl<const R: usize> ReplayEstimator for SingleTargetImm<R> {
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
         let locals = self
             .locals
@@ -286,10 +294,7 @@ fn build(
             "the IMM estimators support planar scenarios (dims = 2) only",
         ));
     }
-    let q = params
-        .opt("q")
-        .or(sc.accel_q())
-        .ok_or_else(|| setup("scenario.json has no motion.accel_std; pass --param q=<m²/s³>"))?;
+    let q = params.q(sc)?;
     let models = mode_models(sc, q)?;
     let roads = if variant == Variant::Imm {
         None
@@ -315,7 +320,9 @@ fn build(
         variant: Variant,
         roads: Option<(RoadNetwork, Option<f64>)>,
     ) -> Result<Box<dyn ReplayEstimator>, EngineError> {
-        Ok(Box::new(ImmTracker::<R>::new(sc, models, variant, roads)?))
+        Ok(Box::new(SingleTargetImm::<R>::new(
+            sc, models, variant, roads,
+        )?))
     }
     match models.len() {
         1 => boxed::<1>(sc, &models, variant, roads),

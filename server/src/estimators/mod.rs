@@ -1,5 +1,8 @@
-//! The estimators `harrier replay` can run, and the glue they share: building the prior and the
-//! measurement models from `scenario.json`, and writing estimate lines.
+//! The drivers: each turns scenario measurements into the calls of one estimator family's filters
+//! and declares its [`EstimatorInfo`](crate::engine::EstimatorInfo) entries; and the glue they
+//! share: the prior and the measurement models from `scenario.json`, updates with a run-time
+//! measurement kind, estimate lines. Drivers import [`crate::engine`] only; the registry
+//! ([`crate::registry`]) lists them.
 
 pub mod angles;
 pub mod bearings;
@@ -10,7 +13,11 @@ pub mod imm;
 pub mod obe;
 pub mod tracker;
 
-use harrier_core::measurement::{AzEl, BearingSize, Geometry, Position, RangeBearing, TargetSize};
+use harrier_core::EstimationError;
+use harrier_core::filter::NonlinearFilter;
+use harrier_core::measurement::{
+    Geometry, Locate, MeasurementModel, SensorModel, TargetSize, WithSensor,
+};
 use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector3};
@@ -65,60 +72,70 @@ pub fn prior<const N: usize>(
     Ok((p.t, g))
 }
 
-/// Noise standard deviations of a sensor as a fixed-size array.
-fn noise_std<const M: usize>(sc: &Scenario, sensor: &str) -> Result<[f64; M], EngineError> {
-    let s = sc
-        .sensor(sensor)
-        .ok_or_else(|| setup(format!("unknown sensor {sensor:?}")))?;
-    let std = s.noise.std();
-    std.try_into().map_err(|_| {
-        setup(format!(
-            "sensor {sensor:?}: noise does not have {M} components"
-        ))
-    })
-}
-
-/// A measurement model for one measurement line, of whichever kind it is.
-#[derive(Debug, Clone, Copy)]
-pub enum AnyModel {
-    /// `position`, 2 components.
-    Position2(Position<2>),
-    /// `position`, 3 components.
-    Position3(Position<3>),
-    /// `range_bearing`.
-    RangeBearing(RangeBearing),
-    /// `az_el`.
-    AzEl(AzEl),
-    /// `bearing_size`.
-    BearingSize(BearingSize),
-}
-
-/// Builds the measurement model of `m` (sensor noise from the scenario, sensor at the platform).
+/// The measurement model of one measurement line (sensor noise from the scenario, sensor at the
+/// platform): the run-time kind of the line as a [`SensorModel`], which [`SensorModel::apply`]
+/// turns back into the concrete model.
 pub fn model_for(
     sc: &Scenario,
     geo: Geometry,
     m: &Measurement,
     size: Option<TargetSize>,
-) -> Result<AnyModel, EngineError> {
-    let pos = Vector3::from(m.platform.pos);
-    Ok(match m.kind {
-        MeasKind::Position if m.z.len() == 2 => {
-            AnyModel::Position2(Position::new(geo, noise_std(sc, &m.sensor)?))
-        }
-        MeasKind::Position => AnyModel::Position3(Position::new(geo, noise_std(sc, &m.sensor)?)),
-        MeasKind::RangeBearing => {
-            AnyModel::RangeBearing(RangeBearing::new(geo, pos, noise_std(sc, &m.sensor)?))
-        }
-        MeasKind::AzEl => AnyModel::AzEl(AzEl::new(geo, pos, noise_std(sc, &m.sensor)?)),
-        MeasKind::BearingSize => {
-            let size = size
-                .or(sc.target.size_m.map(TargetSize::Known))
-                .ok_or_else(|| {
-                    setup("bearing_size measurements need target.size_m or a size state")
-                })?;
-            AnyModel::BearingSize(BearingSize::new(geo, pos, size, noise_std(sc, &m.sensor)?))
-        }
+) -> Result<SensorModel, EngineError> {
+    let sensor = sc
+        .sensor(&m.sensor)
+        .ok_or_else(|| setup(format!("unknown sensor {:?}", m.sensor)))?;
+    let size = size.or(sc.target.size_m.map(TargetSize::Known));
+    if m.kind == MeasKind::BearingSize && size.is_none() {
+        return Err(setup(
+            "bearing_size measurements need target.size_m or a size state",
+        ));
+    }
+    SensorModel::new(
+        m.kind,
+        geo,
+        Vector3::from(m.platform.pos),
+        &sensor.noise.std(),
+        size,
+    )
+    .map_err(|e| setup(format!("sensor {:?}: {e}", m.sensor)))
+}
+
+/// The components of a measurement line as the fixed-size vector of an M-component model.
+pub fn reading<const M: usize>(z: &[f64]) -> harrier_core::Result<SVector<f64, M>> {
+    <[f64; M]>::try_from(z).map(SVector::from).map_err(|_| {
+        EstimationError::InvalidParameter(format!(
+            "measurement has {} components, its sensor model {M}",
+            z.len()
+        ))
     })
+}
+
+/// One update of a Gaussian filter with a measurement line whose model is known only at run time
+/// (visited through [`SensorModel::apply`]).
+pub fn update<F: NonlinearFilter<N>, const N: usize>(
+    filter: &F,
+    model: &SensorModel,
+    state: &Gaussian<N>,
+    z: &[f64],
+) -> harrier_core::Result<Gaussian<N>> {
+    struct Visit<'a, F, const N: usize> {
+        filter: &'a F,
+        state: &'a Gaussian<N>,
+        z: &'a [f64],
+    }
+    impl<F: NonlinearFilter<N>, const N: usize> WithSensor<N> for Visit<'_, F, N> {
+        type Output = harrier_core::Result<Gaussian<N>>;
+        fn with<H, const M: usize>(self, model: &H) -> Self::Output
+        where
+            H: MeasurementModel<N, M> + Locate<M>,
+        {
+            Ok(self
+                .filter
+                .update_with(model, self.state, &reading(self.z)?)?
+                .state)
+        }
+    }
+    model.apply(Visit { filter, state, z })
 }
 
 /// An estimate line from an N-state CV-layout Gaussian (planar: z = plane_z, vz = 0).
