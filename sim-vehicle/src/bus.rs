@@ -3,8 +3,9 @@
 //! Keys and payloads are those of [`harrier_core::detection`] (documented in `DETECTIONS.md`):
 //! each vehicle's scans on `harrier/v1/vehicle/{id}/detections`, simulation truth on
 //! `harrier/v1/sim/truth`, JSON with encoding `application/json;harrier-detections/1` (resp.
-//! `…;harrier-truth/1`). The session runs in peer or client mode with explicit `--connect` /
-//! `--listen` endpoints; multicast scouting is off unless asked for, so nothing leaks onto the LAN.
+//! `…;harrier-truth/1`). The session comes from harrier-link's [`BusConfig`] (peer or client mode,
+//! explicit `--connect` / `--listen` endpoints, multicast scouting off unless asked for, so
+//! nothing leaks onto the LAN), as the ground station's does.
 
 use std::collections::HashMap;
 
@@ -15,74 +16,8 @@ use zenoh::Wait;
 use zenoh::bytes::Encoding;
 use zenoh::pubsub::Publisher;
 
-/// Zenoh session mode.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
-pub enum Mode {
-    /// Peer: talks directly to other peers (and routers).
-    #[default]
-    Peer,
-    /// Client: talks through the router(s) it connects to.
-    Client,
-}
-
-/// How to reach the Zenoh network.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
-pub struct BusConfig {
-    /// Session mode.
-    pub mode: Mode,
-    /// Endpoints to connect to, e.g. `tcp/127.0.0.1:7447`.
-    pub connect: Vec<String>,
-    /// Endpoints to listen on, e.g. `tcp/127.0.0.1:0` (port 0: any free port).
-    pub listen: Vec<String>,
-    /// Multicast scouting (off by default).
-    pub multicast_scouting: bool,
-}
-
-/// Errors from opening the Zenoh session or declaring publishers.
-#[derive(Debug, thiserror::Error)]
-pub enum BusError {
-    /// The configuration was refused (bad endpoint syntax, …).
-    #[error("zenoh configuration {key}: {message}")]
-    Config {
-        /// The configuration key.
-        key: &'static str,
-        /// Zenoh's message.
-        message: String,
-    },
-    /// The session could not be opened or a publisher declared.
-    #[error("zenoh: {0}")]
-    Session(String),
-}
-
-impl BusConfig {
-    /// The Zenoh configuration.
-    pub fn to_zenoh(&self) -> Result<zenoh::Config, BusError> {
-        let mut c = zenoh::Config::default();
-        let mut set = |key: &'static str, value: String| {
-            c.insert_json5(key, &value).map_err(|e| BusError::Config {
-                key,
-                message: e.to_string(),
-            })
-        };
-        let mode = match self.mode {
-            Mode::Peer => "peer",
-            Mode::Client => "client",
-        };
-        set("mode", format!("{mode:?}"))?;
-        set(
-            "scouting/multicast/enabled",
-            self.multicast_scouting.to_string(),
-        )?;
-        let list = |v: &[String]| serde_json::to_string(v).unwrap_or_default();
-        if !self.connect.is_empty() {
-            set("connect/endpoints", list(&self.connect))?;
-        }
-        if !self.listen.is_empty() {
-            set("listen/endpoints", list(&self.listen))?;
-        }
-        Ok(c)
-    }
-}
+/// The session configuration [`Bus::open`] takes, and its errors (harrier-link's).
+pub use harrier_link::bus::{BusConfig, BusError};
 
 /// Publication counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -107,9 +42,7 @@ pub struct Bus {
 impl Bus {
     /// Opens the session.
     pub fn open(config: &BusConfig) -> Result<Self, BusError> {
-        let session = zenoh::open(config.to_zenoh()?)
-            .wait()
-            .map_err(|e| BusError::Session(format!("cannot open a session: {e}")))?;
+        let session = config.open()?;
         let truth = session
             .declare_publisher(TRUTH_KEY)
             .encoding(Encoding::APPLICATION_JSON.with_schema(TRUTH_SCHEMA))
@@ -179,16 +112,6 @@ mod tests {
     use harrier_core::scenario::MeasKind;
     use std::time::Duration;
 
-    #[test]
-    fn bad_endpoints_are_reported() {
-        let config = BusConfig {
-            listen: vec!["nonsense".into()],
-            ..BusConfig::default()
-        };
-        let e = Bus::open(&config).expect_err("bad endpoint");
-        assert!(e.to_string().contains("listen/endpoints"), "{e}");
-    }
-
     /// A real session on loopback: a subscriber connected to the publisher's listener receives a
     /// scan that decodes to what was sent, with the documented encoding.
     #[test]
@@ -204,15 +127,11 @@ mod tests {
             ..BusConfig::default()
         })
         .expect("open publisher session");
-        let sub_session = zenoh::open(
-            BusConfig {
-                connect: vec![endpoint],
-                ..BusConfig::default()
-            }
-            .to_zenoh()
-            .expect("config"),
-        )
-        .wait()
+        let sub_session = BusConfig {
+            connect: vec![endpoint],
+            ..BusConfig::default()
+        }
+        .open()
         .expect("open subscriber session");
         let sub = sub_session
             .declare_subscriber(harrier_core::detection::DETECTIONS_KEY_ALL)

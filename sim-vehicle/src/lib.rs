@@ -1,10 +1,13 @@
 //! harrier-sim: simulated UAVs that MAVLink clients (pymavlink, MAVSDK, QGroundControl, Harrier's
 //! server) can fly as if they were PX4 SITL instances.
 //!
+//! What the ground station shares with the simulator — geodesy, the Zenoh session configuration,
+//! the PX4 mode codec, MAVLink commands and setpoints, the offboard sequence — lives in
+//! harrier-link, which both depend on.
+//!
 //! - [`bus`]: Zenoh session publishing detections and truth (keys and schema of
 //!   `harrier_core::detection`).
 //! - [`live`]: the live sensor loop: world, sensors of every vehicle, Zenoh publication.
-//! - [`geo`]: WGS-84 geodetic ↔ ECEF ↔ local ENU/NED.
 //! - [`vehicle`]: one vehicle — point-mass flight with harrier-core's kinematic limits, PX4 modes,
 //!   and the MAVLink 2 protocol (commands, parameters, offboard setpoints, telemetry streams),
 //!   independent of sockets and clock.
@@ -25,7 +28,6 @@
 //! ```
 
 pub mod bus;
-pub mod geo;
 pub mod live;
 pub mod net;
 pub mod record;

@@ -10,8 +10,9 @@
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use harrier_sim::bus::{Bus, BusConfig, Mode};
-use harrier_sim::geo::Geodetic;
+use harrier_link::bus::{BusConfig, Mode};
+use harrier_link::geo::Geodetic;
+use harrier_sim::bus::Bus;
 use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
 use harrier_sim::scenario::SimScenario;
@@ -21,6 +22,21 @@ use harrier_sim::vehicle::{Airframe, VehicleConfig};
 enum AirframeArg {
     Multirotor,
     FixedWing,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum ZenohModeArg {
+    Peer,
+    Client,
+}
+
+impl From<ZenohModeArg> for Mode {
+    fn from(m: ZenohModeArg) -> Self {
+        match m {
+            ZenohModeArg::Peer => Self::Peer,
+            ZenohModeArg::Client => Self::Client,
+        }
+    }
 }
 
 /// Simulated UAVs speaking MAVLink 2 with PX4 conventions (sysid = vehicle id, compid 1).
@@ -67,8 +83,8 @@ struct Args {
     #[arg(long)]
     no_zenoh: bool,
     /// Zenoh session mode.
-    #[arg(long, value_enum, default_value_t = Mode::Peer)]
-    zenoh_mode: Mode,
+    #[arg(long, value_enum, default_value_t = ZenohModeArg::Peer)]
+    zenoh_mode: ZenohModeArg,
     /// Zenoh endpoint to connect to (repeatable); retried in the background while absent.
     #[arg(long, default_values_t = ["tcp/127.0.0.1:7447".to_owned()])]
     zenoh_connect: Vec<String>,
@@ -178,7 +194,7 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         return Ok((sims, None));
     }
     let bus = Bus::open(&BusConfig {
-        mode: args.zenoh_mode,
+        mode: args.zenoh_mode.into(),
         connect: args.zenoh_connect.clone(),
         listen: args.zenoh_listen.clone(),
         multicast_scouting: args.zenoh_scouting,
@@ -193,8 +209,10 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
     let live = harrier_sim::live::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
         .map_err(|e| e.to_string())?;
     eprintln!(
-        "harrier-sim: publishing detections on harrier/v1/vehicle/{{id}}/detections (zenoh {:?}, connect {:?}, listen {:?})",
-        args.zenoh_mode, args.zenoh_connect, args.zenoh_listen
+        "harrier-sim: publishing detections on harrier/v1/vehicle/{{id}}/detections (zenoh {}, connect {:?}, listen {:?})",
+        Mode::from(args.zenoh_mode),
+        args.zenoh_connect,
+        args.zenoh_listen
     );
     Ok((sims, Some(live)))
 }

@@ -24,7 +24,9 @@ use mavlink::consts::MAX_FRAME_SIZE;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MAVLinkMessageRaw, MavHeader, MavlinkReader, Message};
 
-use crate::vehicle::{COMPONENT_ID, Vehicle, VehicleConfig};
+use harrier_link::px4::COMPONENT_ID;
+
+use crate::vehicle::{Vehicle, VehicleConfig};
 use crate::worker::Worker;
 
 /// Errors from setting up links.

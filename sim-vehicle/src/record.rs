@@ -4,11 +4,11 @@
 //! when there are several targets or clutter, so every simulated run can be replayed with
 //! `harrier replay` and scored with `score.py`.
 //!
-//! The vehicles are [`Vehicle`]s flown through their MAVLink interface like a client would:
-//! COMMAND_LONG arm and takeoff, then OFFBOARD with a SET_POSITION_TARGET_LOCAL_NED velocity
-//! setpoint every physics step, computed from the true target state by the scenario's
-//! [`Behaviour`] (LGVF standoff orbit, leader–follower offset, hold, cruise). Vehicle `k`
-//! (ids 1…K) launches `3 (k − 1)` s after the first, which also breaks the symmetry of several
+//! The vehicles are [`Vehicle`]s flown through their MAVLink interface like a client would, by
+//! harrier-link's [`OffboardSequence`]: COMMAND_LONG arm and takeoff, then OFFBOARD with a
+//! SET_POSITION_TARGET_LOCAL_NED velocity setpoint every physics step, computed from the true
+//! target state by the scenario's [`Behaviour`] (LGVF standoff orbit, leader–follower offset,
+//! hold, cruise). Vehicle `k` (ids 1…K) launches `3 (k − 1)` s after the first, which also breaks the symmetry of several
 //! vehicles orbiting one target (phase coordination then spreads them, [CIMM] §4.3). During the
 //! scenario's pre-roll the targets wait at their t = 0 state and nothing is recorded.
 //!
@@ -23,10 +23,8 @@ use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
 use harrier_core::scenario::{self as fmt, MeasKind};
-use mavlink::dialects::common::{
-    MavCmd, MavFrame, MavMessage, MavResult, PositionTargetTypemask,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
-};
+use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence};
+use harrier_link::px4::VehicleStatus;
 use nalgebra::{Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -37,7 +35,7 @@ use crate::scenario::{
     AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
 };
 use crate::sensors::{SensorSuite, platform_pose};
-use crate::vehicle::{Airframe, FlightMode, Vehicle, VehicleConfig, command_long};
+use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
 use crate::world::World;
 
 /// Rate of the simulation grid (Hz): physics, setpoints and the times sensors may scan at.
@@ -145,86 +143,39 @@ fn gcd(a: u64, b: u64) -> u64 {
 struct Pilot {
     vehicle: Vehicle,
     launch_at: f64,
-    launched: bool,
+    sequence: OffboardSequence,
     limits: Limits,
 }
 
-/// An ENU velocity as a LOCAL_NED velocity setpoint (position, acceleration and yaw ignored).
-fn velocity_setpoint(id: u8, v: &Vector3<f64>) -> MavMessage {
-    use PositionTargetTypemask as M;
-    let ignore = M::POSITION_TARGET_TYPEMASK_X_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_Y_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_Z_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_AX_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_AY_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_AZ_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_YAW_IGNORE
-        | M::POSITION_TARGET_TYPEMASK_YAW_RATE_IGNORE;
-    MavMessage::SET_POSITION_TARGET_LOCAL_NED(SET_POSITION_TARGET_LOCAL_NED_DATA {
-        vx: v.y as f32,
-        vy: v.x as f32,
-        vz: -v.z as f32,
-        type_mask: ignore,
-        target_system: id,
-        target_component: crate::vehicle::COMPONENT_ID,
-        coordinate_frame: MavFrame::MAV_FRAME_LOCAL_NED,
-        ..SET_POSITION_TARGET_LOCAL_NED_DATA::DEFAULT
-    })
-}
-
 impl Pilot {
-    fn send(&mut self, now: f64, msg: &MavMessage, what: &str) -> Result<(), RecordError> {
-        let id = self.vehicle.id();
-        let replies = self.vehicle.handle(now, msg);
-        match replies.first() {
-            Some(MavMessage::COMMAND_ACK(a)) if a.result == MavResult::MAV_RESULT_ACCEPTED => {
-                Ok(())
-            }
-            other => Err(RecordError::Vehicle {
-                vehicle: id,
-                message: format!("{what} refused: {other:?}"),
-            }),
-        }
-    }
-
-    /// Launch sequence and setpoint at vehicle time `now`, the behaviour's velocity `cmd`.
+    /// From `launch_at` on, the offboard sequence at vehicle time `now` with the behaviour's
+    /// velocity `cmd`, every message delivered at once and every reply fed back (so arming,
+    /// takeoff and the OFFBOARD switch may all happen within one step).
     fn fly(&mut self, now: f64, cmd: Option<Vector3<f64>>) -> Result<(), RecordError> {
+        if now < self.launch_at {
+            return Ok(());
+        }
         let id = self.vehicle.id();
-        if !self.launched {
-            if now < self.launch_at {
+        let refused = |e: OffboardError| RecordError::Vehicle {
+            vehicle: id,
+            message: e.to_string(),
+        };
+        loop {
+            let status = VehicleStatus {
+                armed: self.vehicle.armed(),
+                mode: Some(self.vehicle.mode()),
+                at: now,
+            };
+            let out = self.sequence.next(now, &status, cmd).map_err(refused)?;
+            if out.is_empty() {
                 return Ok(());
             }
-            let amsl = self.vehicle.config().origin.alt_m as f32 + TAKEOFF_HEIGHT_M;
-            let mut arm = [0.0; 7];
-            arm[0] = 1.0;
-            self.send(
-                now,
-                &command_long(id, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, arm),
-                "arm",
-            )?;
-            let mut takeoff = [f32::NAN; 7];
-            takeoff[6] = amsl;
-            self.send(
-                now,
-                &command_long(id, MavCmd::MAV_CMD_NAV_TAKEOFF, takeoff),
-                "takeoff",
-            )?;
-            self.launched = true;
+            for msg in &out {
+                for reply in self.vehicle.handle(now, msg) {
+                    self.sequence.handle(now, &reply).map_err(refused)?;
+                }
+            }
         }
-        let Some(v) = cmd.filter(|v| v.iter().all(|x| x.is_finite())) else {
-            return Ok(());
-        };
-        self.vehicle.handle(now, &velocity_setpoint(id, &v));
-        if self.vehicle.mode() != FlightMode::Offboard {
-            // DO_SET_MODE: custom mode enabled, PX4 main mode OFFBOARD (6).
-            let mode = [1.0, 6.0, 0.0, 0.0, 0.0, 0.0, 0.0];
-            self.send(
-                now,
-                &command_long(id, MavCmd::MAV_CMD_DO_SET_MODE, mode),
-                "OFFBOARD",
-            )?;
-        }
-        Ok(())
     }
 }
 
@@ -344,10 +295,11 @@ pub fn record(
             origin,
             speedup: 1.0,
         };
+        let takeoff_amsl = origin.alt_m as f32 + TAKEOFF_HEIGHT_M;
         pilots.push(Pilot {
             vehicle: Vehicle::new(config, 0.0),
             launch_at: f64::from(k) * LAUNCH_STAGGER_S,
-            launched: false,
+            sequence: OffboardSequence::new(id, OffboardConfig::new(Some(takeoff_amsl))),
             limits: airframe.limits(),
         });
         suites.push(SensorSuite::new(scenario, cfg.seed, id)?);

@@ -11,17 +11,18 @@ use mavlink::dialects::common::{
     ATTITUDE_DATA, AUTOPILOT_VERSION_DATA, BATTERY_STATUS_DATA, COMMAND_ACK_DATA,
     COMMAND_LONG_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
     GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavAutopilot,
-    MavBatteryFunction, MavBatteryType, MavCmd, MavFrame, MavLandedState, MavMessage, MavModeFlag,
-    MavParamType, MavProtocolCapability, MavResult, MavState, MavSysStatusSensor, MavType,
-    MavVtolState, PARAM_SET_DATA, PARAM_VALUE_DATA, PositionTargetTypemask,
-    SET_POSITION_TARGET_LOCAL_NED_DATA, SYS_STATUS_DATA,
+    MavBatteryFunction, MavBatteryType, MavCmd, MavLandedState, MavMessage, MavParamType,
+    MavProtocolCapability, MavResult, MavState, MavSysStatusSensor, MavType, MavVtolState,
+    PARAM_SET_DATA, PARAM_VALUE_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA, SYS_STATUS_DATA,
 };
 use nalgebra::{Vector2, Vector3};
 
-use crate::geo::{Geodetic, LocalFrame, enu_to_ned, ned_to_enu};
+use harrier_link::command::Setpoint;
+use harrier_link::geo::{Geodetic, LocalFrame, enu_to_ned};
+use harrier_link::px4::{COMPONENT_ID, SetModeError, base_mode};
 
-/// MAVLink component id of the autopilot.
-pub const COMPONENT_ID: u8 = 1;
+/// The flight modes the vehicle flies (harrier-link's PX4 codec).
+pub use harrier_link::px4::FlightMode;
 
 /// Airframe: which kinematic limits apply and which MAV_TYPE is reported.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -44,54 +45,6 @@ impl Airframe {
         match self {
             Self::Multirotor => MavType::MAV_TYPE_QUADROTOR,
             Self::FixedWing => MavType::MAV_TYPE_FIXED_WING,
-        }
-    }
-}
-
-/// PX4 main modes (`custom_mode` bits 16–23) and AUTO sub-modes (bits 24–31).
-const PX4_MAIN_POSCTL: u32 = 3;
-const PX4_MAIN_AUTO: u32 = 4;
-const PX4_MAIN_OFFBOARD: u32 = 6;
-const PX4_SUB_AUTO_TAKEOFF: u32 = 2;
-const PX4_SUB_AUTO_LOITER: u32 = 3;
-const PX4_SUB_AUTO_LAND: u32 = 6;
-
-/// The flight modes the simulator flies, with their PX4 encodings.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum FlightMode {
-    /// POSCTL: holds position (no RC in the simulator).
-    Position,
-    /// AUTO.LOITER ("Hold"): holds the position where it was entered (fixed wing: orbits it).
-    Hold,
-    /// AUTO.TAKEOFF: climbs to the takeoff altitude, then switches to Hold.
-    Takeoff,
-    /// AUTO.LAND: descends in place, disarms on touchdown.
-    Land,
-    /// OFFBOARD: flies SET_POSITION_TARGET_LOCAL_NED setpoints.
-    Offboard,
-}
-
-impl FlightMode {
-    /// PX4 `custom_mode`: main mode in bits 16–23, sub-mode in bits 24–31.
-    pub fn px4_custom_mode(self) -> u32 {
-        let (main, sub) = match self {
-            Self::Position => (PX4_MAIN_POSCTL, 0),
-            Self::Hold => (PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER),
-            Self::Takeoff => (PX4_MAIN_AUTO, PX4_SUB_AUTO_TAKEOFF),
-            Self::Land => (PX4_MAIN_AUTO, PX4_SUB_AUTO_LAND),
-            Self::Offboard => (PX4_MAIN_OFFBOARD, 0),
-        };
-        (main << 16) | (sub << 24)
-    }
-    /// The mode of a PX4 (main, sub) pair, if the simulator flies it.
-    pub fn from_px4(main: u32, sub: u32) -> Option<Self> {
-        match (main, sub) {
-            (PX4_MAIN_POSCTL, _) => Some(Self::Position),
-            (PX4_MAIN_OFFBOARD, _) => Some(Self::Offboard),
-            (PX4_MAIN_AUTO, PX4_SUB_AUTO_LOITER) => Some(Self::Hold),
-            (PX4_MAIN_AUTO, PX4_SUB_AUTO_TAKEOFF) => Some(Self::Takeoff),
-            (PX4_MAIN_AUTO, PX4_SUB_AUTO_LAND) => Some(Self::Land),
-            _ => None,
         }
     }
 }
@@ -167,13 +120,6 @@ struct Stream {
     /// Interval (s); `None` when disabled.
     interval: Option<f64>,
     next_due: f64,
-}
-
-/// An offboard setpoint, in ENU.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Setpoint {
-    Velocity(Vector3<f64>),
-    Position(Vector3<f64>),
 }
 
 /// Configuration of one vehicle.
@@ -547,34 +493,12 @@ impl Vehicle {
     }
 
     fn setpoint(&mut self, now: f64, s: &SET_POSITION_TARGET_LOCAL_NED_DATA) {
-        use PositionTargetTypemask as M;
-        let pos_ignored = M::POSITION_TARGET_TYPEMASK_X_IGNORE
-            | M::POSITION_TARGET_TYPEMASK_Y_IGNORE
-            | M::POSITION_TARGET_TYPEMASK_Z_IGNORE;
-        let vel_ignored = M::POSITION_TARGET_TYPEMASK_VX_IGNORE
-            | M::POSITION_TARGET_TYPEMASK_VY_IGNORE
-            | M::POSITION_TARGET_TYPEMASK_VZ_IGNORE;
-        let mask = s.type_mask;
-        let local = matches!(
-            s.coordinate_frame,
-            MavFrame::MAV_FRAME_LOCAL_NED | MavFrame::MAV_FRAME_LOCAL_OFFSET_NED
-        );
-        let sp = if !mask.intersects(pos_ignored) {
-            let ned = Vector3::new(f64::from(s.x), f64::from(s.y), f64::from(s.z));
-            Some(Setpoint::Position(ned_to_enu(&ned)))
-        } else if mask.contains(pos_ignored) && !mask.intersects(vel_ignored) {
-            let ned = Vector3::new(f64::from(s.vx), f64::from(s.vy), f64::from(s.vz));
-            Some(Setpoint::Velocity(ned_to_enu(&ned)))
-        } else {
-            None
-        };
-        let finite = |v: &Vector3<f64>| v.iter().all(|x| x.is_finite());
-        match sp {
-            Some(Setpoint::Position(p) | Setpoint::Velocity(p)) if local && finite(&p) => {
-                self.setpoint = sp;
+        match Setpoint::from_message(s) {
+            Some(sp) => {
+                self.setpoint = Some(sp);
                 self.last_setpoint = Some(now);
             }
-            _ => self.counters.rejected_setpoints += 1,
+            None => self.counters.rejected_setpoints += 1,
         }
     }
 
@@ -672,16 +596,12 @@ impl Vehicle {
     }
 
     fn do_set_mode(&mut self, now: f64, c: &COMMAND_LONG_DATA) -> MavResult {
-        let finite_int = |x: f32| (0.0..=255.0).contains(&x) && x.fract() == 0.0;
-        if !(finite_int(c.param1) && finite_int(c.param2) && finite_int(c.param3)) {
-            return MavResult::MAV_RESULT_DENIED;
-        }
-        let base = c.param1 as u8;
-        if base & MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits() == 0 {
-            return MavResult::MAV_RESULT_UNSUPPORTED;
-        }
-        let Some(mode) = FlightMode::from_px4(c.param2 as u32, c.param3 as u32) else {
-            return MavResult::MAV_RESULT_UNSUPPORTED;
+        let mode = match FlightMode::from_set_mode_params(c.param1, c.param2, c.param3) {
+            Ok(mode) => mode,
+            Err(SetModeError::Malformed) => return MavResult::MAV_RESULT_DENIED,
+            Err(SetModeError::NotCustom | SetModeError::Unknown) => {
+                return MavResult::MAV_RESULT_UNSUPPORTED;
+            }
         };
         match mode {
             FlightMode::Offboard if !self.setpoints_fresh(now) => MavResult::MAV_RESULT_DENIED,
@@ -757,24 +677,18 @@ impl Vehicle {
         let cms = |v: f64| (v * 100.0).round().clamp(-32768.0, 32767.0) as i16;
         let hdg_cdeg = (self.yaw.to_degrees().rem_euclid(360.0) * 100.0) as u16 % 36000;
         Some(match id {
-            HEARTBEAT_DATA::ID => {
-                let mut base = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED;
-                if self.armed {
-                    base |= MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED;
-                }
-                MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                    custom_mode: self.mode.px4_custom_mode(),
-                    mavtype: self.config.airframe.mav_type(),
-                    autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
-                    base_mode: base,
-                    system_status: if self.armed {
-                        MavState::MAV_STATE_ACTIVE
-                    } else {
-                        MavState::MAV_STATE_STANDBY
-                    },
-                    mavlink_version: 3,
-                })
-            }
+            HEARTBEAT_DATA::ID => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: self.mode.px4_custom_mode(),
+                mavtype: self.config.airframe.mav_type(),
+                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                base_mode: base_mode(self.armed),
+                system_status: if self.armed {
+                    MavState::MAV_STATE_ACTIVE
+                } else {
+                    MavState::MAV_STATE_STANDBY
+                },
+                mavlink_version: 3,
+            }),
             GLOBAL_POSITION_INT_DATA::ID => {
                 MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: self.time_boot_ms(),
@@ -917,27 +831,14 @@ impl Vehicle {
     }
 }
 
-/// A COMMAND_LONG to component 1 of vehicle `target` with parameters `p` (what a GCS sends).
-pub fn command_long(target: u8, command: MavCmd, p: [f32; 7]) -> MavMessage {
-    MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
-        param1: p[0],
-        param2: p[1],
-        param3: p[2],
-        param4: p[3],
-        param5: p[4],
-        param6: p[5],
-        param7: p[6],
-        command,
-        target_system: target,
-        target_component: COMPONENT_ID,
-        confirmation: 0,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mavlink::dialects::common::{PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA};
+    use harrier_link::command::command_long;
+    use mavlink::dialects::common::{
+        MavFrame, MavModeFlag, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA,
+        PositionTargetTypemask,
+    };
 
     fn cmd(command: MavCmd, p: [f32; 7]) -> MavMessage {
         command_long(1, command, p)
@@ -1001,24 +902,6 @@ mod tests {
         assert_eq!(v.mode(), FlightMode::Takeoff);
         run(&mut v, 0.0, 10.0);
         v
-    }
-
-    #[test]
-    fn px4_mode_encoding_round_trips() {
-        for m in [
-            FlightMode::Position,
-            FlightMode::Hold,
-            FlightMode::Takeoff,
-            FlightMode::Land,
-            FlightMode::Offboard,
-        ] {
-            let c = m.px4_custom_mode();
-            assert_eq!(FlightMode::from_px4((c >> 16) & 0xFF, c >> 24), Some(m));
-        }
-        // pymavlink's px4_map: LOITER = main 4, sub 3; OFFBOARD = main 6.
-        assert_eq!(FlightMode::Hold.px4_custom_mode(), (4 << 16) | (3 << 24));
-        assert_eq!(FlightMode::Offboard.px4_custom_mode(), 6 << 16);
-        assert_eq!(FlightMode::from_px4(4, 4), None); // MISSION is not simulated
     }
 
     #[test]

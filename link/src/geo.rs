@@ -3,7 +3,9 @@
 //! Conversions go through Earth-centred Earth-fixed (ECEF) coordinates, so they stay exact far from
 //! the origin (no flat-Earth approximation); ECEF → geodetic uses Bowring's initial value and
 //! a few fixed-point iterations, which converge to well below a millimetre at any altitude a UAV
-//! flies.
+//! flies. Harrier estimates in ENU; MAVLink's local frame is NED: [`enu_to_ned`] / [`ned_to_enu`]
+//! are the one place the axes are swapped. Two tangent planes at different origins are related by
+//! [`LocalFrame::enu_to_frame`] (points) and [`LocalFrame::rotation_to`] (directions).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -89,7 +91,37 @@ impl LocalFrame {
 
     /// The geodetic position of ENU coordinates (m).
     pub fn from_enu(&self, enu: &Vector3<f64>) -> Geodetic {
-        from_ecef(&(self.origin_ecef + self.ecef_to_enu.transpose() * enu))
+        from_ecef(&self.enu_to_ecef(enu))
+    }
+
+    /// ECEF coordinates (m) of ENU coordinates (m).
+    pub fn enu_to_ecef(&self, enu: &Vector3<f64>) -> Vector3<f64> {
+        self.origin_ecef + self.ecef_to_enu.transpose() * enu
+    }
+
+    /// ENU coordinates (m) of ECEF coordinates (m).
+    pub fn ecef_to_enu(&self, ecef: &Vector3<f64>) -> Vector3<f64> {
+        self.ecef_to_enu * (ecef - self.origin_ecef)
+    }
+
+    /// The point at `enu` of this frame in the ENU coordinates of `other`, exactly through ECEF
+    /// (unchanged when both frames have the same origin).
+    pub fn enu_to_frame(&self, other: &LocalFrame, enu: &Vector3<f64>) -> Vector3<f64> {
+        if self.origin == other.origin {
+            *enu
+        } else {
+            other.ecef_to_enu(&self.enu_to_ecef(enu))
+        }
+    }
+
+    /// The rotation taking a direction in this frame's ENU axes to `other`'s (the identity when
+    /// both frames have the same origin).
+    pub fn rotation_to(&self, other: &LocalFrame) -> Matrix3<f64> {
+        if self.origin == other.origin {
+            Matrix3::identity()
+        } else {
+            other.ecef_to_enu * self.ecef_to_enu.transpose()
+        }
     }
 
     /// NED coordinates (m) of a geodetic position.
@@ -159,6 +191,25 @@ mod tests {
             let ned = enu_to_ned(&enu);
             assert!((frame.to_ned(&frame.from_ned(&ned)) - ned).norm() < 1e-6);
         }
+    }
+
+    #[test]
+    fn frames_at_two_origins_agree_on_points_and_directions() {
+        let a = LocalFrame::new(Geodetic::new(47.397_742, 8.545_594, 488.0));
+        let b = LocalFrame::new(Geodetic::new(47.41, 8.52, 430.0));
+        let p = Vector3::new(1_200.0, -800.0, 150.0);
+        let in_b = a.enu_to_frame(&b, &p);
+        assert!((b.from_enu(&in_b).lat_deg - a.from_enu(&p).lat_deg).abs() < 1e-10);
+        assert!((b.to_enu(&a.from_enu(&p)) - in_b).norm() < 1e-6);
+        // A direction rotated into b is the difference of two converted points.
+        let d = Vector3::new(3.0, 4.0, -1.0);
+        let r = a.rotation_to(&b);
+        let moved = a.enu_to_frame(&b, &(p + d)) - in_b;
+        assert!((r * d - moved).norm() < 1e-6, "{:?} vs {moved:?}", r * d);
+        assert!((r.transpose() * r - Matrix3::identity()).norm() < 1e-12);
+        // Same origin: exactly the identity.
+        assert_eq!(a.rotation_to(&a), Matrix3::identity());
+        assert_eq!(a.enu_to_frame(&a, &p), p);
     }
 
     #[test]

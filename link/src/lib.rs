@@ -1,0 +1,35 @@
+//! harrier-link: what Harrier's ground station and its simulator both need to talk to vehicles
+//! and to each other, with no simulator inside (the live server depends on this crate, never on
+//! harrier-sim).
+//!
+//! - [`geo`]: WGS-84 geodetic ↔ ECEF ↔ local ENU/NED, and points and directions between two
+//!   local frames.
+//! - [`bus`]: the Zenoh session configuration ([`bus::BusConfig`]: peer/client, explicit
+//!   endpoints, multicast scouting off by default, TCP only).
+//! - [`px4`]: PX4 flight modes and their MAVLink encodings (HEARTBEAT `custom_mode`,
+//!   DO_SET_MODE parameters), [`px4::VehicleStatus`] from a HEARTBEAT.
+//! - [`command`]: COMMAND_LONG builders and offboard setpoints (SET_POSITION_TARGET_LOCAL_NED,
+//!   ENU in, NED on the wire), encoded and decoded.
+//! - [`offboard`]: arm → takeoff → setpoints → OFFBOARD as a pure state machine driven by the
+//!   caller's clock and transport.
+//!
+//! ```
+//! use harrier_link::offboard::{OffboardConfig, OffboardSequence};
+//! use harrier_link::px4::{FlightMode, VehicleStatus};
+//! use nalgebra::Vector3;
+//!
+//! let mut seq = OffboardSequence::new(1, OffboardConfig::new(None));
+//! let status = VehicleStatus { armed: false, mode: Some(FlightMode::Hold), at: 0.0 };
+//! let to_send = seq.next(0.0, &status, Some(Vector3::new(5.0, 0.0, 0.0)))?;
+//! assert_eq!(to_send.len(), 1); // the arm command; takeoff follows its COMMAND_ACK
+//! # Ok::<(), harrier_link::offboard::OffboardError>(())
+//! ```
+#![deny(missing_docs)]
+
+pub mod bus;
+pub mod command;
+pub mod geo;
+pub mod offboard;
+pub mod px4;
+
+pub use mavlink;
