@@ -16,7 +16,9 @@ use std::fmt;
 use std::path::Path;
 
 use harrier_core::detection::GeoPoint;
-use harrier_core::scenario::{Motion, MotionModelSpec, Road, Segment};
+use harrier_core::road::road_from_turn_legs;
+use harrier_core::scenario::{Motion, MotionModelSpec, Road};
+use nalgebra::Vector2;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer, Serialize};
 
@@ -805,68 +807,6 @@ fn unique<'a>(ids: impl Iterator<Item = &'a str>, what: &str) -> Result<(), Stri
     Ok(())
 }
 
-/// The road traced by a piecewise CV/CT trajectory: a line from `lead_m` before `start` along the
-/// initial velocity, then one line per straight segment and one arc (radius speed/|ω|) per turn —
-/// the road of [CIMM] §5.1 built from its trajectory. Consecutive straight pieces merge.
-pub fn road_from_trajectory(
-    start: [f64; 2],
-    velocity: [f64; 2],
-    segments: &[MotionSegment],
-    lead_m: f64,
-) -> Vec<Segment> {
-    let speed = velocity[0].hypot(velocity[1]);
-    let mut dir = [velocity[0] / speed, velocity[1] / speed];
-    let mut p = start;
-    let mut line_start = [start[0] - dir[0] * lead_m, start[1] - dir[1] * lead_m];
-    let mut out = Vec::new();
-    let mut in_line = true;
-    for s in segments {
-        if s.turn_rate == 0.0 {
-            if !in_line {
-                line_start = p;
-                in_line = true;
-            }
-            p = [
-                p[0] + dir[0] * speed * s.duration_s,
-                p[1] + dir[1] * speed * s.duration_s,
-            ];
-            continue;
-        }
-        if in_line && (p[0] - line_start[0]).hypot(p[1] - line_start[1]) > 0.0 {
-            out.push(Segment::Line {
-                start: line_start,
-                end: p,
-            });
-        }
-        in_line = false;
-        let radius = speed / s.turn_rate.abs();
-        let sign = s.turn_rate.signum();
-        // Centre on the inside of the turn: left normal for a left turn.
-        let center = [p[0] - sign * dir[1] * radius, p[1] + sign * dir[0] * radius];
-        let a0 = (p[1] - center[1]).atan2(p[0] - center[0]);
-        let sweep = s.turn_rate * s.duration_s;
-        let a1 = a0 + sweep;
-        let end = [center[0] + radius * a1.cos(), center[1] + radius * a1.sin()];
-        out.push(Segment::Arc {
-            center,
-            radius,
-            start: p,
-            end,
-            sweep_rad: sweep,
-        });
-        let (sn, cs) = sweep.sin_cos();
-        dir = [dir[0] * cs - dir[1] * sn, dir[0] * sn + dir[1] * cs];
-        p = end;
-    }
-    if in_line && (p[0] - line_start[0]).hypot(p[1] - line_start[1]) > 0.0 {
-        out.push(Segment::Line {
-            start: line_start,
-            end: p,
-        });
-    }
-    out
-}
-
 /// Hints for a single white-noise-acceleration CV model, scored from t = 5 s.
 fn cv_hints(accel_std: f64, prior_std: [f64; 4]) -> EstimatorHints {
     EstimatorHints {
@@ -890,31 +830,17 @@ fn model(name: &str, turn_rate: Option<f64>) -> MotionModelSpec {
     }
 }
 
-fn cimm_segments() -> Vec<MotionSegment> {
-    let seg = |mode: &str, turn_rate, duration_s| MotionSegment {
-        mode: mode.into(),
-        turn_rate,
-        duration_s,
-    };
-    vec![
-        seg("CV", 0.0, 140.0),
-        seg("right", -0.008, 220.0),
-        seg("left", 0.01, 340.0),
-    ]
-}
-
 /// [CIMM] §5.1: a ground vehicle at 10 m/s on a road, straight 140 s, right turn (−0.008 rad/s)
 /// 220 s, left turn (0.01 rad/s) 340 s; camera geolocation with 10 m noise at 1 Hz; fixed wings
 /// orbiting it at R = 300 m, 300 m above, 20 m/s (LGVF).
 fn cimm_road() -> SimScenario {
-    let x0 = [200.0, 300.0];
-    let v0 = [6.0, 8.0];
-    let road = Road {
-        id: "road1".into(),
-        width_m: Some(7.0),
-        sigma_m: Some(2.0),
-        segments: road_from_trajectory(x0, v0, &cimm_segments(), 100.0),
-    };
+    // The target starts at (200, 300) m with (6, 8) m/s: straight 140 s, right 220 s, left
+    // 340 s. The road begins 100 m (10 s) before it.
+    let v0 = Vector2::new(6.0, 8.0);
+    let start = Vector2::new(200.0, 300.0) - v0 * 10.0;
+    let legs = [(-10.0, 0.0), (140.0, -0.008), (360.0, 0.01)];
+    let road = road_from_turn_legs(start, v0, &legs, 700.0, "road1", Some(7.0), Some(2.0))
+        .expect("the CIMM road's legs are valid");
     SimScenario {
         name: "cimm-road".into(),
         description: "[CIMM] §5.1: ground vehicle on a road (straight, right turn, left turn), \
@@ -1163,6 +1089,7 @@ mod tests {
 
     #[test]
     fn cimm_road_matches_the_reference_geometry() {
+        use harrier_core::scenario::Segment;
         let s = cimm_road();
         let segs = &s.roads[0].segments;
         assert_eq!(segs.len(), 3);

@@ -6,8 +6,9 @@
 use std::f64::consts::TAU;
 
 use harrier_core::detection::TargetTruth;
+use harrier_core::motion::{ConstantTurn, TransitionModel};
 use harrier_core::road::{Road, RoadSegment};
-use nalgebra::Vector2;
+use nalgebra::{Vector2, Vector4};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
@@ -26,25 +27,18 @@ const WANDER_PERIODS: [f64; 2] = [47.0, 19.0];
 #[derive(Debug, Clone)]
 struct Piece {
     t0: f64,
-    p0: Vector2<f64>,
-    v0: Vector2<f64>,
-    omega: f64,
+    /// Start state `[x, y, vx, vy]`.
+    x0: Vector4<f64>,
+    /// harrier-core's constant turn at the piece's rate (0: straight).
+    motion: ConstantTurn<4>,
     mode: String,
 }
 
 impl Piece {
     /// Position and velocity `tau` seconds into the piece (exact CV / CT kinematics).
     fn at(&self, tau: f64) -> (Vector2<f64>, Vector2<f64>) {
-        let w = self.omega;
-        let (s, c) = (w * tau).sin_cos();
-        let v = Vector2::new(c * self.v0.x - s * self.v0.y, s * self.v0.x + c * self.v0.y);
-        if w.abs() < 1e-12 {
-            return (self.p0 + self.v0 * tau, self.v0);
-        }
-        let a = s / w;
-        let b = (1.0 - c) / w;
-        let dp = Vector2::new(a * self.v0.x - b * self.v0.y, b * self.v0.x + a * self.v0.y);
-        (self.p0 + dp, v)
+        let x = self.motion.function(&self.x0, tau);
+        (Vector2::new(x[0], x[1]), Vector2::new(x[2], x[3]))
     }
 }
 
@@ -127,28 +121,23 @@ fn road_at(road: &Road, s: f64) -> (Vector2<f64>, Vector2<f64>, f64) {
 }
 
 fn pieces(p0: Vector2<f64>, v0: Vector2<f64>, segments: &[MotionSegment]) -> Vec<Piece> {
+    let piece = |t0, x0, omega, mode: &str| Piece {
+        t0,
+        x0,
+        // Truth has no process noise.
+        motion: ConstantTurn::new(omega, 0.0),
+        mode: mode.to_owned(),
+    };
     let mut out = Vec::with_capacity(segments.len() + 1);
-    let (mut t0, mut p, mut v) = (0.0, p0, v0);
+    let (mut t0, mut x) = (0.0, Vector4::new(p0.x, p0.y, v0.x, v0.y));
     for s in segments {
-        let piece = Piece {
-            t0,
-            p0: p,
-            v0: v,
-            omega: s.turn_rate,
-            mode: s.mode.clone(),
-        };
-        (p, v) = piece.at(s.duration_s);
+        let pc = piece(t0, x, s.turn_rate, &s.mode);
+        x = pc.motion.function(&x, s.duration_s);
         t0 += s.duration_s;
-        out.push(piece);
+        out.push(pc);
     }
     // Straight on after the last segment.
-    out.push(Piece {
-        t0,
-        p0: p,
-        v0: v,
-        omega: 0.0,
-        mode: "CV".into(),
-    });
+    out.push(piece(t0, x, 0.0, "CV"));
     out
 }
 
