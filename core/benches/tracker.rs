@@ -1,5 +1,6 @@
 //! Cost of one multi-target tracker step: 20 confirmed tracks, a scan of 50 detections (20 from
-//! the targets, 30 clutter), KF with the planar CV model and a position sensor.
+//! the targets, 30 clutter), EKF (the KF on this linear sensor) with the planar CV model and a
+//! position sensor.
 //!
 //! Run with `cargo bench -p harrier-core --bench tracker`. Target: ≤ 100 µs per step.
 //!
@@ -10,13 +11,13 @@
 use std::hint::black_box;
 
 use criterion::{BatchSize, Criterion, criterion_group, criterion_main};
-use harrier_core::filter::Kalman;
+use harrier_core::filter::Extended;
 use harrier_core::measurement::{Geometry, Position};
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::tracker::{
     Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
 };
-use nalgebra::{Matrix2, Vector2};
+use nalgebra::Vector2;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -33,21 +34,21 @@ fn target(i: usize, k: u32) -> Vector2<f64> {
 
 fn tracker_step(c: &mut Criterion) {
     let filter = GaussianFilter {
-        filter: Kalman,
+        filter: Extended,
         motion: ConstantVelocity::<4>::new(0.25),
-        sensor: Position::new(Geometry::planar(0.0), [10.0, 10.0]),
     };
+    let sensor = Position::new(Geometry::planar(0.0), [10.0, 10.0]);
     let config = TrackerConfig {
         gater: Gater::chi2(0.999, 2).unwrap(),
         tentative_gater: Gater::chi2(0.99, 2).unwrap(),
         confirm: MOfN::new(2, 3).unwrap(),
         deleter: Deleter::new(3, 1e5, 2).unwrap(),
     };
-    let init = SinglePointInitiator::new(Matrix2::identity() * 100.0, 10.0).unwrap();
+    let init = SinglePointInitiator::new(10.0, 10.0).unwrap();
     let mut tracker = Tracker::new(filter, init, config);
     for k in 0..WARM_UP_SCANS {
         let scan: Vec<_> = (0..TARGETS).map(|i| target(i, k)).collect();
-        tracker.step(f64::from(k), &scan).unwrap();
+        tracker.step(f64::from(k), &sensor, &scan).unwrap();
     }
     assert_eq!(tracker.confirmed().len(), TARGETS);
     let mut rng = ChaCha8Rng::seed_from_u64(1);
@@ -66,7 +67,7 @@ fn tracker_step(c: &mut Criterion) {
             b.iter_batched(
                 || tracker.clone(),
                 |mut tr| {
-                    tr.step(black_box(t), black_box(&scan)).unwrap();
+                    tr.step(black_box(t), &sensor, black_box(&scan)).unwrap();
                     tr
                 },
                 BatchSize::SmallInput,

@@ -9,7 +9,9 @@
 //! North, and Up is `x[2]` in 3-D layouts or the constant `plane_z` in planar ones. This holds for
 //! every state layout of [`crate::motion`] and for augmented states that append extra components.
 
-use nalgebra::{Matrix1x3, Matrix2x3, Matrix3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{
+    Matrix1x3, Matrix2, Matrix2x3, Matrix3, Matrix3x2, SMatrix, SVector, Vector2, Vector3,
+};
 
 use crate::linalg::wrap_angle;
 
@@ -326,6 +328,227 @@ impl<const N: usize> MeasurementModel<N, 3> for BearingSize {
     }
 }
 
+/// Where one detection puts the target: a position (ENU, m) and its covariance, the measurement
+/// noise propagated to first order through the inverse of `h` (a "converted measurement"). Angle-only
+/// detections are inverted with the ground-plane constraint: the target is where the line of sight
+/// meets the plane `Up = plane_z` of the model's [`Geometry`] (for 3-D layouts, `plane_z` is the
+/// ground height assumed for initiation). Components the detection says nothing about (Up of a
+/// planar fix) have zero variance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionFix {
+    /// Target position (E, N, U), m.
+    pub pos: Vector3<f64>,
+    /// Covariance of `pos`, m².
+    pub cov: Matrix3<f64>,
+}
+
+/// Measurement models that a single detection can be inverted for: what a track initiator needs to
+/// start a track from any sensor kind. `None` when the detection does not fix a position (a line of
+/// sight that never meets the ground plane, a range shorter than the height difference, an
+/// estimated target size).
+pub trait Locate<const M: usize> {
+    /// The position fix of detection `z`.
+    fn locate(&self, z: &SVector<f64, M>) -> Option<PositionFix>;
+}
+
+/// `pos = sensor + (r sin az, r cos az, Δu)` for horizontal range `r` and height difference `Δu`,
+/// with `J = ∂pos/∂(r, az)`.
+fn horizontal_fix(
+    sensor: &Vector3<f64>,
+    r: f64,
+    az: f64,
+    du: f64,
+) -> (Vector3<f64>, Matrix3x2<f64>) {
+    let (s, c) = az.sin_cos();
+    let pos = sensor + Vector3::new(r * s, r * c, du);
+    let j = Matrix3x2::new(s, r * c, c, -r * s, 0.0, 0.0);
+    (pos, j)
+}
+
+/// The fix only when every entry is finite.
+fn finite_fix(pos: Vector3<f64>, cov: Matrix3<f64>) -> Option<PositionFix> {
+    (pos.iter().all(|v| v.is_finite()) && cov.iter().all(|v| v.is_finite())).then(|| PositionFix {
+        pos,
+        cov: crate::linalg::symmetrize(&cov),
+    })
+}
+
+impl<const M: usize> Locate<M> for Position<M> {
+    /// `pos = z` (Up = `plane_z` for 2-component fixes), `cov = R`.
+    fn locate(&self, z: &SVector<f64, M>) -> Option<PositionFix> {
+        let mut pos = Vector3::new(z[0], z[1], self.geometry.plane_z);
+        let mut cov = Matrix3::zeros();
+        for i in 0..M {
+            pos[i] = z[i];
+            for j in 0..M {
+                cov[(i, j)] = self.r[(i, j)];
+            }
+        }
+        finite_fix(pos, cov)
+    }
+}
+
+impl Locate<2> for RangeBearing {
+    /// Slant range ρ and azimuth to a target on the ground plane: horizontal range
+    /// `r = √(ρ² − Δu²)`, `∂r/∂ρ = ρ / r`.
+    fn locate(&self, z: &Vector2<f64>) -> Option<PositionFix> {
+        let du = self.geometry.plane_z - self.sensor.z;
+        let r2 = z[0] * z[0] - du * du;
+        if r2.is_nan() || r2 <= 0.0 {
+            return None;
+        }
+        let r = r2.sqrt();
+        let (pos, j) = horizontal_fix(&self.sensor, r, z[1], du);
+        // d(pos)/d(ρ, az) = J · diag(ρ / r, 1)
+        let jz = j * Matrix2::new(z[0] / r, 0.0, 0.0, 1.0);
+        finite_fix(pos, jz * self.r * jz.transpose())
+    }
+}
+
+impl Locate<2> for AzEl {
+    /// Line of sight meeting the ground plane: `r = Δu / tan(el)` (needs `r > 0`: looking down at a
+    /// plane below or up at one above), `∂r/∂el = −Δu / sin²(el)`.
+    fn locate(&self, z: &Vector2<f64>) -> Option<PositionFix> {
+        let du = self.geometry.plane_z - self.sensor.z;
+        let (s, c) = z[1].sin_cos();
+        let r = du * c / s;
+        if r.is_nan() || r <= 0.0 || s == 0.0 {
+            return None;
+        }
+        let (pos, j) = horizontal_fix(&self.sensor, r, z[0], du);
+        // d(pos)/d(az, el) = [∂pos/∂az, ∂pos/∂r · ∂r/∂el]
+        let jz = Matrix3x2::from_columns(&[j.column(1).into(), j.column(0) * (-du / (s * s))]);
+        finite_fix(pos, jz * self.r * jz.transpose())
+    }
+}
+
+impl Locate<3> for BearingSize {
+    /// Range from the subtended angle of a target of known size, `ρ = S / (2 tan(sub/2))`, along
+    /// the line of sight (az, el).
+    fn locate(&self, z: &Vector3<f64>) -> Option<PositionFix> {
+        let TargetSize::Known(size) = self.size else {
+            return None;
+        };
+        let half = 0.5 * z[2];
+        if !(half > 0.0 && half < std::f64::consts::FRAC_PI_2) {
+            return None;
+        }
+        let rho = size / (2.0 * half.tan());
+        let drho = -size / (4.0 * half.sin().powi(2)); // ∂ρ/∂sub
+        let (sa, ca) = z[0].sin_cos();
+        let (se, ce) = z[1].sin_cos();
+        let u = Vector3::new(ce * sa, ce * ca, se);
+        let pos = self.sensor + u * rho;
+        let j = Matrix3::from_columns(&[
+            Vector3::new(ce * ca, -ce * sa, 0.0) * rho,
+            Vector3::new(-se * sa, -se * ca, ce) * rho,
+            u * drho,
+        ]);
+        finite_fix(pos, j * self.r * j.transpose())
+    }
+}
+
+/// The measurement model of a sensor whose kind is known only at run time (a scenario's sensor, a
+/// detection scan's `kind`): one variant per kind of FORMAT.md §3. It is turned back into the
+/// concrete, const-sized model in one place, [`SensorModel::apply`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SensorModel {
+    /// `position`, 2 components.
+    Position2(Position<2>),
+    /// `position`, 3 components.
+    Position3(Position<3>),
+    /// `range_bearing`.
+    RangeBearing(RangeBearing),
+    /// `az_el`.
+    AzEl(AzEl),
+    /// `bearing_size`.
+    BearingSize(BearingSize),
+}
+
+/// Something done with a concrete measurement model: the visitor [`SensorModel::apply`] calls with
+/// the model's own type and dimension.
+pub trait WithSensor<const N: usize> {
+    /// What the visit returns.
+    type Output;
+    /// Called with the concrete model.
+    fn with<H, const M: usize>(self, model: &H) -> Self::Output
+    where
+        H: MeasurementModel<N, M> + Locate<M>;
+}
+
+impl SensorModel {
+    /// The model of kind `kind` for a sensor at `sensor` (ENU, m) with per-component noise
+    /// standard deviations `std` (`position`: 2 or 3 components, by the length of `std`); `size`
+    /// is the target size for `bearing_size`. Errors name what is wrong.
+    pub fn new(
+        kind: crate::scenario::MeasKind,
+        geometry: Geometry,
+        sensor: Vector3<f64>,
+        std: &[f64],
+        size: Option<TargetSize>,
+    ) -> Result<Self, String> {
+        use crate::scenario::MeasKind;
+        if let Some(bad) = std.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
+            return Err(format!("noise std must be finite and > 0, got {bad}"));
+        }
+        if !sensor.iter().all(|v| v.is_finite()) {
+            return Err("sensor position is not finite".into());
+        }
+        let wrong = |n: &str| {
+            Err(format!(
+                "{kind:?} takes {n} noise components, got {}",
+                std.len()
+            ))
+        };
+        Ok(match (kind, std) {
+            (MeasKind::Position, &[a, b]) => Self::Position2(Position::new(geometry, [a, b])),
+            (MeasKind::Position, &[a, b, c]) => Self::Position3(Position::new(geometry, [a, b, c])),
+            (MeasKind::Position, _) => return wrong("2 or 3"),
+            (MeasKind::RangeBearing, &[a, b]) => {
+                Self::RangeBearing(RangeBearing::new(geometry, sensor, [a, b]))
+            }
+            (MeasKind::AzEl, &[a, b]) => Self::AzEl(AzEl::new(geometry, sensor, [a, b])),
+            (MeasKind::BearingSize, &[a, b, c]) => {
+                let size = size.ok_or("bearing_size needs a target size")?;
+                Self::BearingSize(BearingSize::new(geometry, sensor, size, [a, b, c]))
+            }
+            (MeasKind::RangeBearing | MeasKind::AzEl, _) => return wrong("2"),
+            (MeasKind::BearingSize, _) => return wrong("3"),
+        })
+    }
+
+    /// The measurement kind.
+    pub fn kind(&self) -> crate::scenario::MeasKind {
+        use crate::scenario::MeasKind;
+        match self {
+            Self::Position2(_) | Self::Position3(_) => MeasKind::Position,
+            Self::RangeBearing(_) => MeasKind::RangeBearing,
+            Self::AzEl(_) => MeasKind::AzEl,
+            Self::BearingSize(_) => MeasKind::BearingSize,
+        }
+    }
+
+    /// Number of measurement components.
+    pub fn dim(&self) -> usize {
+        match self {
+            Self::Position2(_) | Self::RangeBearing(_) | Self::AzEl(_) => 2,
+            Self::Position3(_) | Self::BearingSize(_) => 3,
+        }
+    }
+
+    /// Calls `visit` with the concrete model: the one place where a run-time kind becomes a
+    /// const-sized model type.
+    pub fn apply<const N: usize, W: WithSensor<N>>(&self, visit: W) -> W::Output {
+        match self {
+            Self::Position2(h) => visit.with(h),
+            Self::Position3(h) => visit.with(h),
+            Self::RangeBearing(h) => visit.with(h),
+            Self::AzEl(h) => visit.with(h),
+            Self::BearingSize(h) => visit.with(h),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -397,5 +620,89 @@ mod tests {
             &Vector2::new(0.0, 3.1),
         );
         assert_relative_eq!(r[1], 2.0 * std::f64::consts::PI - 6.2, epsilon = 1e-12);
+    }
+
+    /// Central-difference Jacobian of a measurement's inverse (z → position), for the fix covariance.
+    fn fix_cov<const M: usize>(
+        locate: impl Fn(&SVector<f64, M>) -> Vector3<f64>,
+        z: &SVector<f64, M>,
+        r: &SMatrix<f64, M, M>,
+    ) -> Matrix3<f64> {
+        let mut j = SMatrix::<f64, 3, M>::zeros();
+        for c in 0..M {
+            let e = 1e-6 * (1.0 + z[c].abs());
+            let (mut zp, mut zm) = (*z, *z);
+            zp[c] += e;
+            zm[c] -= e;
+            j.set_column(c, &((locate(&zp) - locate(&zm)) / (2.0 * e)));
+        }
+        j * r * j.transpose()
+    }
+
+    #[test]
+    fn position_fixes_invert_every_kind() {
+        let ground = Geometry::planar(5.0);
+        let target = nalgebra::Vector4::new(420.0, -130.0, 3.0, 1.0);
+        let truth = Vector3::new(420.0, -130.0, 5.0);
+        let uav = Vector3::new(100.0, 50.0, 120.0);
+        let check = |fix: PositionFix, z_cov: Matrix3<f64>| {
+            assert_relative_eq!(fix.pos, truth, epsilon = 1e-6);
+            assert_relative_eq!(fix.cov, z_cov, epsilon = 1e-6, max_relative = 1e-5);
+        };
+        let p2 = Position::new(ground, [3.0, 4.0]);
+        let fix = p2
+            .locate(&MeasurementModel::<4, 2>::function(&p2, &target))
+            .unwrap();
+        check(fix, Matrix3::from_diagonal(&Vector3::new(9.0, 16.0, 0.0)));
+
+        let rb = RangeBearing::new(ground, uav, [2.0, 0.01]);
+        let z = MeasurementModel::<4, 2>::function(&rb, &target);
+        let inv = |z: &Vector2<f64>| rb.locate(z).unwrap().pos;
+        check(rb.locate(&z).unwrap(), fix_cov(inv, &z, &rb.r));
+
+        let ae = AzEl::new(ground, uav, [0.01, 0.02]);
+        let z = MeasurementModel::<4, 2>::function(&ae, &target);
+        let inv = |z: &Vector2<f64>| ae.locate(z).unwrap().pos;
+        check(ae.locate(&z).unwrap(), fix_cov(inv, &z, &ae.r));
+        // Looking up, the line of sight never meets the ground.
+        assert!(ae.locate(&Vector2::new(0.3, 0.1)).is_none());
+
+        let bs = BearingSize::new(ground, uav, TargetSize::Known(4.0), [0.01, 0.01, 1e-4]);
+        let z = MeasurementModel::<4, 3>::function(&bs, &target);
+        let inv = |z: &Vector3<f64>| bs.locate(z).unwrap().pos;
+        check(bs.locate(&z).unwrap(), fix_cov(inv, &z, &bs.r));
+        let unknown = BearingSize::new(ground, uav, TargetSize::State(6), [0.01; 3]);
+        assert!(unknown.locate(&z).is_none());
+    }
+
+    #[test]
+    fn sensor_models_are_built_by_kind_and_checked() {
+        use crate::scenario::MeasKind;
+        let g = Geometry::planar(0.0);
+        let at = Vector3::new(1.0, 2.0, 3.0);
+        let m = SensorModel::new(MeasKind::AzEl, g, at, &[0.01, 0.02], None).unwrap();
+        assert_eq!((m.kind(), m.dim()), (MeasKind::AzEl, 2));
+        assert_eq!(m, SensorModel::AzEl(AzEl::new(g, at, [0.01, 0.02])));
+        let m = SensorModel::new(MeasKind::Position, g, at, &[1.0, 1.0, 2.0], None).unwrap();
+        assert_eq!((m.kind(), m.dim()), (MeasKind::Position, 3));
+        for (kind, std, size) in [
+            (MeasKind::AzEl, &[0.01][..], None),
+            (MeasKind::RangeBearing, &[1.0, -0.01][..], None),
+            (MeasKind::Position, &[1.0, f64::NAN][..], None),
+            (MeasKind::BearingSize, &[0.01, 0.01, 0.01][..], None),
+        ] {
+            let e = SensorModel::new(kind, g, at, std, size).unwrap_err();
+            assert!(!e.is_empty());
+        }
+        assert!(
+            SensorModel::new(
+                MeasKind::AzEl,
+                g,
+                Vector3::new(f64::NAN, 0.0, 0.0),
+                &[0.1; 2],
+                None
+            )
+            .is_err()
+        );
     }
 }

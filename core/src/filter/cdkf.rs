@@ -29,7 +29,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{Predictor, Updater};
+use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
 use crate::linalg::{cholesky, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
@@ -207,6 +207,28 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
         )?;
         let nu = model.residual(z, &zhat);
         sigma_point_update(predicted, symmetrize(&(Pzz + model.covar())), &Pxz, nu)
+    }
+}
+
+impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredictor<H, N, M>
+    for CentralDifference
+{
+    type State = Gaussian<N>;
+    /// `ẑ = ȳ`, `S = Pzz + R` ([VdM04] eqs. (3.98)–(3.99) on h, then (3.100)).
+    fn predict_measurement(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+    ) -> Result<MeasurementPrediction<M>> {
+        let (zhat, Pzz, _) = self.moments(
+            &predicted.mean,
+            &predicted.cov,
+            |x| model.function(x),
+            |a, b| model.residual(a, b),
+        )?;
+        let cov = symmetrize(&(Pzz + model.covar()));
+        ensure_finite(&cov, "innovation covariance")?;
+        Ok(MeasurementPrediction { zhat, cov })
     }
 }
 

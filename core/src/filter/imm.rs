@@ -40,10 +40,11 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{Predictor, Updater};
+use super::{MeasurementPrediction, NonlinearFilter, Predictor, Updater};
 use crate::linalg::{ensure_finite, symmetrize};
+use crate::measurement::MeasurementModel;
 use crate::motion::{ConstantTurn, ConstantVelocity, LinearTransition, TransitionModel};
-use crate::state::Gaussian;
+use crate::state::{Gaussian, Posterior};
 use crate::{EstimationError, Result};
 
 /// Smallest mode probability kept after an update (guards against underflow, so that a mode
@@ -240,19 +241,83 @@ impl<F, T, const R: usize> Imm<F, T, R> {
     where
         F: Updater<H, N, M, State = Gaussian<N>>,
     {
-        let mut out = *predicted;
-        let mut log_w = [0.0; R];
-        for (j, lw) in log_w.iter_mut().enumerate() {
-            let post = self.filter.update(model, &predicted.modes[j], z)?;
-            *lw = predicted.probs[j].ln() + post.log_likelihood()?;
-            out.modes[j] = post.state;
-        }
-        out.probs = log_normalize(log_w)?;
-        for g in &out.modes {
-            ensure_finite(&g.mean, "IMM mode mean")?;
-        }
-        Ok(out)
+        update_modes(predicted, |g| self.filter.update(model, g, z))
     }
+
+    /// [`Imm::update`] for a mode filter that takes any measurement model (the tracker's case,
+    /// where each scan brings its own sensor).
+    pub fn update_with<H, const N: usize, const M: usize>(
+        &self,
+        model: &H,
+        predicted: &ImmState<N, R>,
+        z: &SVector<f64, M>,
+    ) -> Result<ImmState<N, R>>
+    where
+        F: NonlinearFilter<N>,
+        H: MeasurementModel<N, M>,
+    {
+        update_modes(predicted, |g| self.filter.update_with(model, g, z))
+    }
+
+    /// Predicted measurement of the mixture: each mode's `ẑ_j`, `S_j` moment-matched with the
+    /// mode probabilities, `ẑ = Σ μ_j ẑ_j`, `S = Σ μ_j [S_j + (ẑ_j ⊖ ẑ)(ẑ_j ⊖ ẑ)ᵀ]` ([BLK01]
+    /// §11.6.6 step 5 applied in measurement space), residuals through the model's `⊖`.
+    pub fn predict_measurement_with<H, const N: usize, const M: usize>(
+        &self,
+        model: &H,
+        predicted: &ImmState<N, R>,
+    ) -> Result<MeasurementPrediction<M>>
+    where
+        F: NonlinearFilter<N>,
+        H: MeasurementModel<N, M>,
+    {
+        let mut preds = [MeasurementPrediction {
+            zhat: SVector::zeros(),
+            cov: SMatrix::zeros(),
+        }; R];
+        for (p, g) in preds.iter_mut().zip(&predicted.modes) {
+            *p = self.filter.predict_measurement_with(model, g)?;
+        }
+        // Mean as an offset from the most probable mode's ẑ, so that wrapped angles average right.
+        let best = (0..R)
+            .max_by(|&a, &b| predicted.probs[a].total_cmp(&predicted.probs[b]))
+            .unwrap_or(0);
+        let base = preds[best].zhat;
+        let mut offset = SVector::<f64, M>::zeros();
+        for (p, w) in preds.iter().zip(&predicted.probs) {
+            offset.axpy(*w, &model.residual(&p.zhat, &base), 1.0);
+        }
+        let zhat = base + offset;
+        let mut cov = SMatrix::<f64, M, M>::zeros();
+        for (p, w) in preds.iter().zip(&predicted.probs) {
+            let d = model.residual(&p.zhat, &zhat);
+            cov += p.cov * *w;
+            cov.ger(*w, &d, &d, 1.0);
+        }
+        let cov = symmetrize(&cov);
+        ensure_finite(&cov, "IMM innovation covariance")?;
+        Ok(MeasurementPrediction { zhat, cov })
+    }
+}
+
+/// The mode-matched update and mode-probability update of [`Imm::update`], given each mode's
+/// update `up`.
+fn update_modes<const N: usize, const M: usize, const R: usize>(
+    predicted: &ImmState<N, R>,
+    up: impl Fn(&Gaussian<N>) -> Result<Posterior<Gaussian<N>, M>>,
+) -> Result<ImmState<N, R>> {
+    let mut out = *predicted;
+    let mut log_w = [0.0; R];
+    for (j, lw) in log_w.iter_mut().enumerate() {
+        let post = up(&predicted.modes[j])?;
+        *lw = predicted.probs[j].ln() + post.log_likelihood()?;
+        out.modes[j] = post.state;
+    }
+    out.probs = log_normalize(log_w)?;
+    for g in &out.modes {
+        ensure_finite(&g.mean, "IMM mode mean")?;
+    }
+    Ok(out)
 }
 
 /// `exp(l_j) / Σ_t exp(l_t)` by log-sum-exp, then floored at [`PROB_FLOOR`] and renormalised.

@@ -17,7 +17,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{Predictor, Updater};
+use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
 use crate::Result;
 use crate::linalg::{cholesky, ensure_finite, symmetrize};
 use crate::measurement::{LinearMeasurement, MeasurementModel};
@@ -128,6 +128,54 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
             predicted,
             nu,
             &model.jacobian(&predicted.mean),
+            &model.covar(),
+        )
+    }
+}
+
+/// `ẑ = h(x⁻)`, `S = H P⁻ Hᵀ + R` with `H` the model's matrix or Jacobian at `x⁻`
+/// ([BLK01] eq. (5.2.3-13), (5.2.3-15)), symmetrised and checked.
+fn linearised_prediction<const N: usize, const M: usize>(
+    zhat: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    predicted: &Gaussian<N>,
+    R: &SMatrix<f64, M, M>,
+) -> Result<MeasurementPrediction<M>> {
+    let cov = symmetrize(&(H * predicted.cov * H.transpose() + R));
+    ensure_finite(&zhat, "predicted measurement")?;
+    ensure_finite(&cov, "innovation covariance")?;
+    Ok(MeasurementPrediction { zhat, cov })
+}
+
+impl<H: LinearMeasurement<N, M>, const N: usize, const M: usize> MeasurementPredictor<H, N, M>
+    for Kalman
+{
+    type State = Gaussian<N>;
+    /// `ẑ = H x⁻`, `S = H P⁻ Hᵀ + R` ([BLK01] eq. (5.2.3-13), (5.2.3-15)).
+    fn predict_measurement(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+    ) -> Result<MeasurementPrediction<M>> {
+        let Hm = model.matrix();
+        linearised_prediction(Hm * predicted.mean, &Hm, predicted, &model.covar())
+    }
+}
+
+impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredictor<H, N, M>
+    for Extended
+{
+    type State = Gaussian<N>;
+    /// `ẑ = h(x⁻)`, `S = H P⁻ Hᵀ + R`, `H = ∂h/∂x(x⁻)` ([BLK01] §10.3.2).
+    fn predict_measurement(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+    ) -> Result<MeasurementPrediction<M>> {
+        linearised_prediction(
+            model.function(&predicted.mean),
+            &model.jacobian(&predicted.mean),
+            predicted,
             &model.covar(),
         )
     }

@@ -23,6 +23,7 @@ use nalgebra::SVector;
 use super::assign;
 use super::filter::TrackFilter;
 use crate::linalg::{cholesky, ln_det};
+use crate::measurement::MeasurementModel;
 use crate::metrics::chi2_quantile;
 use crate::{EstimationError, Result};
 
@@ -69,37 +70,30 @@ pub struct Hypothesis {
 pub struct TrackHypotheses {
     /// `ln det S` of the track's predicted measurement.
     pub ln_det_s: f64,
+    /// The gate γ of this track (its "missed" cost is `γ + ln det S`).
+    pub gate: f64,
     /// Detections inside the gate.
     pub gated: Vec<Hypothesis>,
 }
 
-/// Scores the detections not yet `taken` against one predicted track and keeps those in the gate
-/// (Stone Soup's `DistanceHypothesiser` + `DistanceGater`).
-pub fn hypothesise<F, const N: usize, const M: usize>(
+/// Scores every detection of a scan against one predicted track under the scan's sensor model and
+/// keeps those in the gate (Stone Soup's `DistanceHypothesiser` + `DistanceGater`).
+pub fn hypothesise<F, H, const N: usize, const M: usize>(
     filter: &F,
     predicted: &F::State,
+    sensor: &H,
     detections: &[SVector<f64, M>],
-    taken: &[bool],
     gater: &Gater,
 ) -> Result<TrackHypotheses>
 where
-    F: TrackFilter<N, M>,
+    F: TrackFilter<N>,
+    H: MeasurementModel<N, M>,
 {
-    let Some(probe) = detections
-        .iter()
-        .zip(taken)
-        .find_map(|(z, t)| (!t).then_some(z))
-    else {
-        return Ok(TrackHypotheses::default());
-    };
-    let mp = filter.predict_measurement(predicted, probe)?;
+    let mp = filter.predict_measurement(predicted, sensor)?;
     let chol = cholesky(&mp.cov, "innovation covariance")?;
     let mut gated = Vec::new();
     for (j, z) in detections.iter().enumerate() {
-        if taken[j] {
-            continue;
-        }
-        let nu = filter.residual(z, &mp.zhat);
+        let nu = sensor.residual(z, &mp.zhat);
         let d2 = nu.dot(&chol.solve(&nu));
         if gater.admits(d2) {
             gated.push(Hypothesis {
@@ -110,6 +104,7 @@ where
     }
     Ok(TrackHypotheses {
         ln_det_s: ln_det(&chol),
+        gate: gater.threshold(),
         gated,
     })
 }
@@ -118,12 +113,10 @@ where
 const FORBIDDEN: f64 = 1e12;
 
 /// Global nearest neighbour: the jointly most likely assignment of detections to tracks, each track
-/// getting at most one detection in its gate and each detection at most one track. Returns the
-/// detection of each track.
-pub fn global_nearest_neighbour(
-    hypotheses: &[TrackHypotheses],
-    gater: &Gater,
-) -> Result<Vec<Option<usize>>> {
+/// getting at most one detection in its gate and each detection at most one track. Tracks with
+/// different gates (confirmed and tentative) compete in the same assignment, each with its own
+/// missed cost. Returns the detection of each track.
+pub fn global_nearest_neighbour(hypotheses: &[TrackHypotheses]) -> Result<Vec<Option<usize>>> {
     let mut out = vec![None; hypotheses.len()];
     // Only tracks with a gated detection and detections in some gate take part.
     let rows: Vec<usize> = (0..hypotheses.len())
@@ -148,7 +141,7 @@ pub fn global_nearest_neighbour(
                 cost[r * m + c] = g.distance_sq + h.ln_det_s;
             }
         }
-        cost[r * m + cols.len() + r] = gater.threshold() + h.ln_det_s;
+        cost[r * m + cols.len() + r] = h.gate + h.ln_det_s;
     }
     let a = assign::solve(&cost, n, m)?;
     for (r, &i) in rows.iter().enumerate() {
@@ -162,7 +155,7 @@ pub fn global_nearest_neighbour(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::Kalman;
+    use crate::filter::Extended;
     use crate::measurement::{Geometry, Position};
     use crate::motion::ConstantVelocity;
     use crate::state::Gaussian;
@@ -172,6 +165,7 @@ mod tests {
     fn hyp(ln_det_s: f64, g: &[(usize, f64)]) -> TrackHypotheses {
         TrackHypotheses {
             ln_det_s,
+            gate: Gater::chi2(0.99, 2).unwrap().threshold(),
             gated: g
                 .iter()
                 .map(|&(detection, distance_sq)| Hypothesis {
@@ -195,10 +189,10 @@ mod tests {
     #[test]
     fn hypothesiser_gates_on_nis() {
         let f = GaussianFilter {
-            filter: Kalman,
+            filter: Extended,
             motion: ConstantVelocity::<4>::new(1.0),
-            sensor: Position::new(Geometry::planar(0.0), [1.0, 1.0]),
         };
+        let sensor = Position::new(Geometry::planar(0.0), [1.0, 1.0]);
         // Predicted position (0, 0) with unit variance: S = 2 I.
         let x = Gaussian::new(Vector4::zeros(), Matrix4::identity()).unwrap();
         let dets = [
@@ -207,8 +201,9 @@ mod tests {
             Vector2::new(0.0, -4.0), // d² = 8
         ];
         let gater = Gater::chi2(0.99, 2).unwrap();
-        let h = hypothesise(&f, &x, &dets, &[false; 3], &gater).unwrap();
+        let h = hypothesise(&f, &x, &sensor, &dets, &gater).unwrap();
         assert!((h.ln_det_s - 4f64.ln()).abs() < 1e-12);
+        assert_eq!(h.gate, gater.threshold());
         let got: Vec<_> = h
             .gated
             .iter()
@@ -219,27 +214,20 @@ mod tests {
         assert!((got[0].1 - 2.0).abs() < 1e-12);
         assert_eq!(got[1].0, 2);
         assert!((got[1].1 - 8.0).abs() < 1e-12);
-        // Taken detections are not scored again.
-        let h = hypothesise(&f, &x, &dets, &[true, false, false], &gater).unwrap();
-        assert_eq!(h.gated.len(), 1);
     }
 
     #[test]
     fn gnn_prefers_the_joint_optimum_over_greedy() {
-        let gater = Gater::chi2(0.99, 2).unwrap();
         // Greedy would give detection 0 to track 0 (1.0) and leave track 1 with a miss;
         // jointly, 0 → 1 and 1 → 0 is cheaper (2 + 2 < 1 + γ).
         let h = [hyp(0.0, &[(0, 1.0), (1, 2.0)]), hyp(0.0, &[(0, 2.0)])];
         assert_eq!(
-            global_nearest_neighbour(&h, &gater).unwrap(),
+            global_nearest_neighbour(&h).unwrap(),
             vec![Some(1), Some(0)]
         );
         // No gated detection: a miss; empty input.
         let h = [hyp(0.0, &[]), hyp(0.0, &[(3, 0.5)])];
-        assert_eq!(
-            global_nearest_neighbour(&h, &gater).unwrap(),
-            vec![None, Some(3)]
-        );
-        assert!(global_nearest_neighbour(&[], &gater).unwrap().is_empty());
+        assert_eq!(global_nearest_neighbour(&h).unwrap(), vec![None, Some(3)]);
+        assert!(global_nearest_neighbour(&[]).unwrap().is_empty());
     }
 }

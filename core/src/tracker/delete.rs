@@ -5,6 +5,19 @@
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
 
+/// Why a track was deleted.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum DeleteReason {
+    /// A confirmed track missed too many consecutive scans.
+    Misses,
+    /// A confirmed track's position uncertainty grew past the bound.
+    Covariance,
+    /// A tentative track can no longer meet the M-of-N rule.
+    Unconfirmed,
+    /// The track's filter failed to predict it (the message says why).
+    Failed(String),
+}
+
 /// Deletes a track after `max_misses` consecutive misses, or when the trace of its position
 /// covariance (the first `position_dims` state components) exceeds `max_position_var`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -31,11 +44,20 @@ impl Deleter {
             position_dims,
         })
     }
-    /// Whether a track with this many consecutive misses and this estimate should go.
-    pub fn should_delete<const N: usize>(&self, consecutive_misses: u32, g: &Gaussian<N>) -> bool {
+    /// Why a track with this many consecutive misses and this estimate should go, if it should.
+    pub fn judge<const N: usize>(
+        &self,
+        consecutive_misses: u32,
+        g: &Gaussian<N>,
+    ) -> Option<DeleteReason> {
         let trace: f64 = (0..self.position_dims.min(N)).map(|i| g.cov[(i, i)]).sum();
-        let bounded = trace <= self.max_position_var;
-        consecutive_misses >= self.max_misses || !bounded
+        if consecutive_misses >= self.max_misses {
+            Some(DeleteReason::Misses)
+        } else if trace.is_nan() || trace > self.max_position_var {
+            Some(DeleteReason::Covariance)
+        } else {
+            None
+        }
     }
 }
 
@@ -49,9 +71,9 @@ mod tests {
         let d = Deleter::new(3, 1000.0, 2).unwrap();
         let small = Gaussian::new(Vector4::zeros(), Matrix4::identity() * 100.0).unwrap();
         let big = Gaussian::new(Vector4::zeros(), Matrix4::identity() * 600.0).unwrap();
-        assert!(!d.should_delete(2, &small));
-        assert!(d.should_delete(3, &small));
-        assert!(d.should_delete(0, &big));
+        assert_eq!(d.judge(2, &small), None);
+        assert_eq!(d.judge(3, &small), Some(DeleteReason::Misses));
+        assert_eq!(d.judge(0, &big), Some(DeleteReason::Covariance));
         assert!(Deleter::new(0, 1.0, 2).is_err());
     }
 }

@@ -1,67 +1,63 @@
 //! The filter a track runs, behind one small trait ([`TrackFilter`]) so that the tracker does not
-//! care whether a track is a single Gaussian filter ([`GaussianFilter`]: KF, EKF, CDKF, …) or a
-//! mixture such as an IMM, which implements the trait on its own state type.
+//! care whether a track is a single Gaussian filter ([`GaussianFilter`]: EKF, CDKF) or a mixture
+//! ([`ImmFilter`]: IMM over EKF or CDKF mode filters; [`CimmFilter`]: the road-constrained IMM of
+//! [CIMM]). The sensor is not part of the filter: every
+//! call takes the measurement model of the scan at hand, so one track is updated by cameras on
+//! moving UAVs and by a ground radar alike.
 
-use nalgebra::{SMatrix, SVector};
+use nalgebra::SVector;
 
 use crate::Result;
-use crate::filter::{Predictor, Updater};
+use crate::filter::{Imm, ImmState, MeasurementPrediction, NonlinearFilter, Predictor};
 use crate::measurement::MeasurementModel;
+use crate::road::{RoadConstraint, RoadNetwork};
 use crate::state::Gaussian;
 
-/// Predicted measurement of a track: `ẑ` and the innovation covariance `S` (Stone Soup's
-/// `MeasurementPrediction`).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MeasurementPrediction<const M: usize> {
-    /// Predicted measurement `ẑ`.
-    pub zhat: SVector<f64, M>,
-    /// Innovation covariance `S`.
-    pub cov: SMatrix<f64, M, M>,
-}
-
-/// What the tracker needs from a track's filter: predict, predict the measurement (for gating and
-/// association), update, and a Gaussian summary for output and deletion.
-///
-/// Implement it for an IMM with `State` = the mode-conditioned mixture: `start` spreads a Gaussian
-/// over the modes, `predict_measurement` and `estimate` moment-match the mixture.
-pub trait TrackFilter<const N: usize, const M: usize> {
+/// What the tracker needs from a track's filter: predict, predict the measurement of a sensor (for
+/// gating and association; Stone Soup's `MeasurementPredictor`), update, and a Gaussian summary
+/// for output and deletion.
+pub trait TrackFilter<const N: usize> {
     /// Per-track filter state.
     type State: Clone + std::fmt::Debug;
     /// Filter state of a new track from the initiator's Gaussian.
     fn start(&self, initial: Gaussian<N>) -> Result<Self::State>;
     /// Predicts `state` forward by `dt` seconds.
     fn predict(&self, state: &Self::State, dt: f64) -> Result<Self::State>;
-    /// Predicted measurement of `predicted`. `probe` is one of the scan's detections; filters whose
-    /// `ẑ` and `S` do not depend on the measurement may use it to get them from an update.
-    fn predict_measurement(
+    /// Predicted measurement `ẑ`, `S` of `predicted` under the sensor model `sensor`.
+    fn predict_measurement<H: MeasurementModel<N, M>, const M: usize>(
         &self,
         predicted: &Self::State,
-        probe: &SVector<f64, M>,
+        sensor: &H,
     ) -> Result<MeasurementPrediction<M>>;
-    /// `z ⊖ ẑ` (angle components wrapped).
-    fn residual(&self, z: &SVector<f64, M>, zhat: &SVector<f64, M>) -> SVector<f64, M>;
-    /// Updates `predicted` with the detection `z`.
-    fn update(&self, predicted: &Self::State, z: &SVector<f64, M>) -> Result<Self::State>;
+    /// Updates `predicted` with the detection `z` of `sensor`.
+    fn update<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &Self::State,
+        sensor: &H,
+        z: &SVector<f64, M>,
+    ) -> Result<Self::State>;
     /// Gaussian summary of `state` (moment-matched for mixtures).
     fn estimate(&self, state: &Self::State) -> Gaussian<N>;
+    /// Mode probabilities of a mixture (empty for a single Gaussian).
+    fn mode_probabilities(&self, _state: &Self::State) -> Vec<f64> {
+        Vec::new()
+    }
 }
 
-/// Any Gaussian filter `F` (implementing Stone Soup's [`Predictor`] and [`Updater`] roles) with its
-/// transition model `T` and the sensor's measurement model `H`.
+/// Any Gaussian filter `F` that takes every measurement model ([`NonlinearFilter`]: `Extended`,
+/// `CentralDifference`) with its transition model `T`. On linear models (`position` sensors) the
+/// EKF is the KF.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GaussianFilter<F, T, H> {
-    /// The filter (`Kalman`, `Extended`, `CentralDifference`, …).
+pub struct GaussianFilter<F, T> {
+    /// The filter (`Extended`, `CentralDifference`).
     pub filter: F,
     /// Transition model.
     pub motion: T,
-    /// Measurement model of the sensor.
-    pub sensor: H,
 }
 
-impl<F, T, H, const N: usize, const M: usize> TrackFilter<N, M> for GaussianFilter<F, T, H>
+impl<F, T, const N: usize> TrackFilter<N> for GaussianFilter<F, T>
 where
-    F: Predictor<T, N, State = Gaussian<N>> + Updater<H, N, M, State = Gaussian<N>>,
-    H: MeasurementModel<N, M>,
+    F: Predictor<T, N, State = Gaussian<N>> + NonlinearFilter<N>,
 {
     type State = Gaussian<N>;
 
@@ -73,29 +69,149 @@ where
         self.filter.predict(&self.motion, state, dt)
     }
 
-    /// For the KF, EKF and sigma-point filters `ẑ` and `S` depend on the predicted state only, so
-    /// one update with the probe gives them: `S` from the posterior and `ẑ = z − ν`.
-    fn predict_measurement(
+    fn predict_measurement<H: MeasurementModel<N, M>, const M: usize>(
         &self,
         predicted: &Gaussian<N>,
-        probe: &SVector<f64, M>,
+        sensor: &H,
     ) -> Result<MeasurementPrediction<M>> {
-        let post = self.filter.update(&self.sensor, predicted, probe)?;
-        Ok(MeasurementPrediction {
-            zhat: probe - post.innovation,
-            cov: post.innovation_cov,
-        })
+        self.filter.predict_measurement_with(sensor, predicted)
     }
 
-    fn residual(&self, z: &SVector<f64, M>, zhat: &SVector<f64, M>) -> SVector<f64, M> {
-        self.sensor.residual(z, zhat)
-    }
-
-    fn update(&self, predicted: &Gaussian<N>, z: &SVector<f64, M>) -> Result<Gaussian<N>> {
-        Ok(self.filter.update(&self.sensor, predicted, z)?.state)
+    fn update<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &Gaussian<N>,
+        sensor: &H,
+        z: &SVector<f64, M>,
+    ) -> Result<Gaussian<N>> {
+        Ok(self.filter.update_with(sensor, predicted, z)?.state)
     }
 
     fn estimate(&self, state: &Gaussian<N>) -> Gaussian<N> {
         *state
+    }
+}
+
+/// An IMM track: the [`Imm`] estimator and the mode probabilities a new track starts with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ImmFilter<F, T, const R: usize> {
+    /// Mode filter, mode models and transition matrix.
+    pub imm: Imm<F, T, R>,
+    /// Mode probabilities of a new track.
+    pub initial_probs: [f64; R],
+}
+
+impl<F, T, const N: usize, const R: usize> TrackFilter<N> for ImmFilter<F, T, R>
+where
+    F: Predictor<T, N, State = Gaussian<N>> + NonlinearFilter<N>,
+{
+    type State = ImmState<N, R>;
+
+    /// Every mode starts from the initiator's Gaussian.
+    fn start(&self, initial: Gaussian<N>) -> Result<ImmState<N, R>> {
+        ImmState::new(initial, self.initial_probs)
+    }
+
+    fn predict(&self, state: &ImmState<N, R>, dt: f64) -> Result<ImmState<N, R>> {
+        self.imm.predict(state, dt)
+    }
+
+    fn predict_measurement<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+    ) -> Result<MeasurementPrediction<M>> {
+        self.imm.predict_measurement_with(sensor, predicted)
+    }
+
+    fn update<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+        z: &SVector<f64, M>,
+    ) -> Result<ImmState<N, R>> {
+        self.imm.update_with(sensor, predicted, z)
+    }
+
+    fn estimate(&self, state: &ImmState<N, R>) -> Gaussian<N> {
+        state.combined()
+    }
+
+    fn mode_probabilities(&self, state: &ImmState<N, R>) -> Vec<f64> {
+        state.probs.to_vec()
+    }
+}
+
+/// A road-constrained IMM track ([CIMM] §3.1–3.2): the [`ImmFilter`], and after every sensor
+/// update the road pseudo-measurement ([`RoadConstraint`]) applied in every mode filter on the
+/// road nearest to the combined estimate — when that road's centre line is within `max_offset_m`,
+/// so that a target off the network is tracked unconstrained.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CimmFilter<F, T, const R: usize> {
+    /// The IMM of the modes.
+    pub imm: ImmFilter<F, T, R>,
+    /// The road network.
+    pub roads: RoadNetwork,
+    /// Normal-velocity std of the constraint, m/s.
+    pub sigma_v: f64,
+    /// Largest distance from the nearest centre line at which the constraint applies, m.
+    pub max_offset_m: f64,
+}
+
+impl<F, T, const R: usize> CimmFilter<F, T, R> {
+    /// The road update of [CIMM] §3.1 on `s` (unchanged away from every road).
+    pub fn constrain<const N: usize>(&self, s: &ImmState<N, R>) -> Result<ImmState<N, R>>
+    where
+        F: NonlinearFilter<N>,
+    {
+        let c = s.combined().mean;
+        let p = nalgebra::Vector2::new(c[0], c[1]);
+        match self.roads.nearest(&p) {
+            Some(road) if road.project(&p).offset.abs() <= self.max_offset_m => {
+                let h = RoadConstraint::new(road, self.sigma_v);
+                self.imm.imm.update_with(&h, s, &RoadConstraint::z())
+            }
+            _ => Ok(*s),
+        }
+    }
+}
+
+impl<F, T, const N: usize, const R: usize> TrackFilter<N> for CimmFilter<F, T, R>
+where
+    F: Predictor<T, N, State = Gaussian<N>> + NonlinearFilter<N>,
+{
+    type State = ImmState<N, R>;
+
+    fn start(&self, initial: Gaussian<N>) -> Result<ImmState<N, R>> {
+        self.imm.start(initial)
+    }
+
+    fn predict(&self, state: &ImmState<N, R>, dt: f64) -> Result<ImmState<N, R>> {
+        self.imm.predict(state, dt)
+    }
+
+    fn predict_measurement<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+    ) -> Result<MeasurementPrediction<M>> {
+        self.imm.predict_measurement(predicted, sensor)
+    }
+
+    /// The sensor update of the IMM, then the road update.
+    fn update<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+        z: &SVector<f64, M>,
+    ) -> Result<ImmState<N, R>> {
+        self.constrain(&self.imm.update(predicted, sensor, z)?)
+    }
+
+    fn estimate(&self, state: &ImmState<N, R>) -> Gaussian<N> {
+        state.combined()
+    }
+
+    fn mode_probabilities(&self, state: &ImmState<N, R>) -> Vec<f64> {
+        state.probs.to_vec()
     }
 }

@@ -261,7 +261,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tracker::scenario::MultiScenario;
+    use crate::tracker::format::MultiScenario;
 
     #[test]
     fn seeded_and_readable() {

@@ -1,56 +1,66 @@
 //! Track initiation (Stone Soup's `Initiator`): a new tentative track from one unassociated
-//! detection, and the M-of-N rule that confirms or drops it.
+//! detection of any sensor kind, through the detection's position fix
+//! ([`Locate`](crate::measurement::Locate): direct for `position`, slant range for
+//! `range_bearing`, the ground-plane constraint for angle-only `az_el`, the known size for
+//! `bearing_size`), and the M-of-N rule that confirms or drops it.
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::measurement::PositionFix;
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
 
-/// Builds the initial Gaussian of a tentative track from one detection.
-pub trait Initiator<const N: usize, const M: usize> {
-    /// Initial state of a track started by detection `z`.
-    fn initiate(&self, z: &SVector<f64, M>) -> Result<Gaussian<N>>;
+/// Builds the initial Gaussian of a tentative track from one detection's position fix.
+pub trait Initiator<const N: usize> {
+    /// Initial state of a track started by a detection that fixes the target at `fix`.
+    fn initiate(&self, fix: &PositionFix) -> Result<Gaussian<N>>;
 }
 
-/// Single-point initiation for position detections and a constant-velocity layout
-/// (`N = 2M`, state `[p; v]`): `x₀ = [z; 0]`, `P₀ = diag(R, σ_v² I)`. The velocity prior
-/// `σ_v` should cover the target speeds (≈ v_max / 2), so that the second detection falls in the
-/// gate of the first prediction.
+/// Single-point initiation for constant-velocity layouts: planar `[x, y, vx, vy]` (N = 4) or 3-D
+/// `[x, y, z, vx, vy, vz]` (N = 6). `x₀ = [p; 0]`, `P₀ = diag(P_fix, σ_v² I)`; in 3-D an Up
+/// component the fix leaves open (zero variance: a 2-component position, a ground-plane fix) gets
+/// the prior `σ_up²`. The velocity prior `σ_v` should cover the target speeds (≈ v_max / 2), so
+/// that the second detection falls in the gate of the first prediction.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SinglePointInitiator<const M: usize> {
-    r: SMatrix<f64, M, M>,
+pub struct SinglePointInitiator {
     vel_std: f64,
+    up_std: f64,
 }
 
-impl<const M: usize> SinglePointInitiator<M> {
-    /// Initiator with measurement-noise covariance `r` and velocity prior std `vel_std` (m/s).
-    pub fn new(r: SMatrix<f64, M, M>, vel_std: f64) -> Result<Self> {
-        if !(vel_std.is_finite() && vel_std > 0.0) {
+impl SinglePointInitiator {
+    /// Initiator with velocity prior std `vel_std` (m/s) and height prior std `up_std` (m), both > 0.
+    pub fn new(vel_std: f64, up_std: f64) -> Result<Self> {
+        if !(vel_std.is_finite() && vel_std > 0.0 && up_std.is_finite() && up_std > 0.0) {
             return Err(EstimationError::InvalidParameter(format!(
-                "velocity prior std must be > 0, got {vel_std}"
+                "velocity and height prior std must be > 0, got {vel_std}, {up_std}"
             )));
         }
-        crate::linalg::cholesky(&r, "initiator measurement covariance")?;
-        Ok(Self { r, vel_std })
+        Ok(Self { vel_std, up_std })
     }
 }
 
-impl<const N: usize, const M: usize> Initiator<N, M> for SinglePointInitiator<M> {
-    fn initiate(&self, z: &SVector<f64, M>) -> Result<Gaussian<N>> {
-        if N != 2 * M {
-            return Err(EstimationError::InvalidParameter(format!(
-                "single-point initiation needs a [position; velocity] state of size {}, got {N}",
-                2 * M
-            )));
-        }
+impl<const N: usize> Initiator<N> for SinglePointInitiator {
+    fn initiate(&self, fix: &PositionFix) -> Result<Gaussian<N>> {
+        let d = match N {
+            4 => 2,
+            6 => 3,
+            _ => {
+                return Err(EstimationError::InvalidParameter(format!(
+                    "single-point initiation needs a planar or 3-D CV state (4 or 6), got {N}"
+                )));
+            }
+        };
         let mut mean = SVector::<f64, N>::zeros();
         let mut cov = SMatrix::<f64, N, N>::zeros();
-        for i in 0..M {
-            mean[i] = z[i];
-            for j in 0..M {
-                cov[(i, j)] = self.r[(i, j)];
+        for i in 0..d {
+            mean[i] = fix.pos[i];
+            for j in 0..d {
+                cov[(i, j)] = fix.cov[(i, j)];
             }
-            cov[(M + i, M + i)] = self.vel_std * self.vel_std;
+            cov[(d + i, d + i)] = self.vel_std * self.vel_std;
+        }
+        if d == 3 && fix.cov[(2, 2)] == 0.0 {
+            cov[(2, 2)] = self.up_std * self.up_std;
         }
         Gaussian::new(mean, cov)
     }
@@ -109,7 +119,7 @@ impl MOfN {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use nalgebra::{Matrix2, Vector2};
+    use nalgebra::{Matrix3, Vector3};
 
     #[test]
     fn m_of_n_verdicts() {
@@ -131,14 +141,22 @@ mod tests {
 
     #[test]
     fn single_point_initiation() {
-        let i = SinglePointInitiator::new(Matrix2::identity() * 25.0, 10.0).unwrap();
-        let g: Gaussian<4> = i.initiate(&Vector2::new(100.0, -50.0)).unwrap();
+        let i = SinglePointInitiator::new(10.0, 30.0).unwrap();
+        let fix = PositionFix {
+            pos: Vector3::new(100.0, -50.0, 0.0),
+            cov: Matrix3::from_diagonal(&Vector3::new(25.0, 25.0, 0.0)),
+        };
+        let g: Gaussian<4> = i.initiate(&fix).unwrap();
         assert_eq!(g.mean.as_slice(), &[100.0, -50.0, 0.0, 0.0]);
         assert_eq!(g.cov[(0, 0)], 25.0);
         assert_eq!(g.cov[(3, 3)], 100.0);
         assert_eq!(g.cov[(0, 2)], 0.0);
-        let wrong: Result<Gaussian<6>> = i.initiate(&Vector2::zeros());
+        let g: Gaussian<6> = i.initiate(&fix).unwrap();
+        assert_eq!(g.cov[(2, 2)], 900.0); // open Up: the height prior
+        assert_eq!(g.cov[(5, 5)], 100.0);
+        let wrong: Result<Gaussian<5>> = i.initiate(&fix);
         assert!(wrong.is_err());
-        assert!(SinglePointInitiator::new(Matrix2::identity(), 0.0).is_err());
+        assert!(SinglePointInitiator::new(0.0, 1.0).is_err());
+        assert!(SinglePointInitiator::new(1.0, f64::NAN).is_err());
     }
 }

@@ -1,13 +1,17 @@
 //! The multi-target tracker step (Stone Soup's `MultiTargetTracker`): predict every track to the
-//! scan time, associate (confirmed tracks first, then tentative ones), update or coast, confirm
-//! or delete, and initiate tentative tracks from the detections left over.
+//! scan time, associate every track with the scan's detections in one global-nearest-neighbour
+//! assignment, update or coast, confirm or delete, and initiate tentative tracks from the
+//! detections no track took. Each scan brings its own sensor model (kind, platform position,
+//! noise), so scans of cameras on moving UAVs and of a ground radar update the same tracks, and
+//! every step reports what happened as [`TrackEvent`]s.
 
 use nalgebra::SVector;
 
 use super::associate::{Gater, TrackHypotheses, global_nearest_neighbour, hypothesise};
-use super::delete::Deleter;
+use super::delete::{DeleteReason, Deleter};
 use super::filter::TrackFilter;
 use super::initiate::{Initiator, MOfN, Verdict};
+use crate::measurement::{Locate, MeasurementModel, SensorModel, WithSensor};
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
 
@@ -53,25 +57,81 @@ pub struct Track<S> {
     pub last_update: f64,
 }
 
-/// What the tracker reports for a confirmed track after a scan.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// What the tracker reports for a track after a scan.
+#[derive(Debug, Clone, PartialEq)]
 pub struct TrackSnapshot<const N: usize> {
     /// Track id.
     pub id: u64,
     /// Scan time (s).
     pub t: f64,
-    /// Gaussian estimate at `t`.
+    /// Gaussian estimate at `t` (moment-matched for mixtures).
     pub estimate: Gaussian<N>,
-    /// Whether a detection was associated in this scan (`false`: coasted).
+    /// Tentative or confirmed.
+    pub status: TrackStatus,
+    /// Whether a detection was associated in the last scan (`false`: coasted).
     pub updated: bool,
     /// Scans since initiation.
     pub age: u32,
+    /// Time of the last associated detection (s).
+    pub last_update: f64,
+    /// Mode probabilities of a mixture filter (IMM), empty otherwise.
+    pub mode_probabilities: Vec<f64>,
+}
+
+/// What happened to a track, or to a detection, in one scan.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrackEvent {
+    /// A tentative track was started from detection `detection` of the scan.
+    Born {
+        /// New track id.
+        id: u64,
+        /// Index of the detection in the scan.
+        detection: usize,
+    },
+    /// A tentative track met the M-of-N rule.
+    Confirmed {
+        /// Track id.
+        id: u64,
+    },
+    /// A track was updated with detection `detection`.
+    Updated {
+        /// Track id.
+        id: u64,
+        /// Index of the detection in the scan.
+        detection: usize,
+        /// Normalised innovation squared `d²` of the detection.
+        nis: f64,
+    },
+    /// A track had no detection in this scan.
+    Coasted {
+        /// Track id.
+        id: u64,
+        /// Consecutive misses, this scan included.
+        misses: u32,
+    },
+    /// A track was deleted.
+    Deleted {
+        /// Track id.
+        id: u64,
+        /// Why.
+        reason: DeleteReason,
+    },
+    /// Something of this scan could not be used: a track's measurement prediction or update
+    /// failed (it coasts), or a detection could not start a track.
+    Rejected {
+        /// The track concerned, if any.
+        id: Option<u64>,
+        /// The detection concerned, if any.
+        detection: Option<usize>,
+        /// Why.
+        reason: String,
+    },
 }
 
 /// Global-nearest-neighbour multi-target tracker over any [`TrackFilter`] `F` and [`Initiator`]
-/// `I`, for detections of dimension M from one sensor.
+/// `I`, on N-dimensional states.
 #[derive(Debug, Clone)]
-pub struct Tracker<F: TrackFilter<N, M>, I, const N: usize, const M: usize> {
+pub struct Tracker<F: TrackFilter<N>, I, const N: usize> {
     filter: F,
     initiator: I,
     config: TrackerConfig,
@@ -80,10 +140,10 @@ pub struct Tracker<F: TrackFilter<N, M>, I, const N: usize, const M: usize> {
     t: Option<f64>,
 }
 
-impl<F, I, const N: usize, const M: usize> Tracker<F, I, N, M>
+impl<F, I, const N: usize> Tracker<F, I, N>
 where
-    F: TrackFilter<N, M>,
-    I: Initiator<N, M>,
+    F: TrackFilter<N>,
+    I: Initiator<N>,
 {
     /// An empty tracker.
     pub fn new(filter: F, initiator: I, config: TrackerConfig) -> Self {
@@ -107,28 +167,54 @@ where
         &self.tracks
     }
 
-    /// The confirmed tracks after the last scan, in id order.
-    pub fn confirmed(&self) -> Vec<TrackSnapshot<N>> {
+    /// The track filter.
+    pub fn filter(&self) -> &F {
+        &self.filter
+    }
+
+    /// Every live track after the last scan, tentative and confirmed, in id order.
+    pub fn snapshot(&self) -> Vec<TrackSnapshot<N>> {
         let t = self.t.unwrap_or(0.0);
         self.tracks
             .iter()
-            .filter(|k| k.status == TrackStatus::Confirmed)
             .map(|k| TrackSnapshot {
                 id: k.id,
                 t,
                 estimate: self.filter.estimate(&k.state),
+                status: k.status,
                 updated: k.consecutive_misses == 0,
                 age: k.scans,
+                last_update: k.last_update,
+                mode_probabilities: self.filter.mode_probabilities(&k.state),
             })
             .collect()
     }
 
-    /// Processes one scan: all detections of the sensor at time `t`, clutter included.
+    /// The confirmed tracks after the last scan, in id order.
+    pub fn confirmed(&self) -> Vec<TrackSnapshot<N>> {
+        let mut all = self.snapshot();
+        all.retain(|k| k.status == TrackStatus::Confirmed);
+        all
+    }
+
+    /// Processes one scan of one sensor: all its detections at time `t`, clutter included, under
+    /// the sensor model `sensor` (which carries the platform position and the noise). Scans of
+    /// several sensors at the same `t` are processed one after the other with no prediction
+    /// between them. Every scan counts towards the M-of-N and miss counts of every track.
     ///
-    /// Fails, leaving the tracker untouched, when `t` is not finite or earlier than the last scan or
-    /// a detection is not finite. A numerical failure inside one track does not fail the scan: a
-    /// track whose prediction fails is deleted, one whose update fails coasts.
-    pub fn step(&mut self, t: f64, detections: &[SVector<f64, M>]) -> Result<()> {
+    /// Fails, leaving the tracker untouched, when `t` is not finite or earlier than the last scan,
+    /// or a detection is not finite. A numerical failure inside one track does not fail the scan:
+    /// it is reported as an event (a track whose prediction fails is deleted, one whose
+    /// measurement prediction or update fails coasts).
+    pub fn step<H, const M: usize>(
+        &mut self,
+        t: f64,
+        sensor: &H,
+        detections: &[SVector<f64, M>],
+    ) -> Result<Vec<TrackEvent>>
+    where
+        H: MeasurementModel<N, M> + Locate<M>,
+    {
         if !t.is_finite() || self.t.is_some_and(|t0| t < t0) {
             return Err(EstimationError::InvalidParameter(format!(
                 "scan time {t} is not finite or earlier than the last scan ({:?})",
@@ -139,14 +225,21 @@ where
             return Err(EstimationError::NonFinite("detection"));
         }
         let dt = self.t.map_or(0.0, |t0| t - t0);
+        let mut events = Vec::new();
 
-        // Predict; a track whose prediction fails is dropped.
+        // Predict; a track whose prediction fails is deleted.
         let mut tracks: Vec<Track<F::State>> = Vec::with_capacity(self.tracks.len());
         for k in &self.tracks {
             let state = if dt > 0.0 {
                 match self.filter.predict(&k.state, dt) {
                     Ok(s) => s,
-                    Err(_) => continue,
+                    Err(e) => {
+                        events.push(TrackEvent::Deleted {
+                            id: k.id,
+                            reason: DeleteReason::Failed(e.to_string()),
+                        });
+                        continue;
+                    }
                 }
             } else {
                 k.state.clone()
@@ -158,95 +251,113 @@ where
             });
         }
 
-        // Associate: confirmed tracks first, then tentative ones with what is left.
-        let mut taken = vec![false; detections.len()];
-        let mut near_confirmed = vec![false; detections.len()];
-        let mut assigned: Vec<Option<usize>> = vec![None; tracks.len()];
-        for stage in [TrackStatus::Confirmed, TrackStatus::Tentative] {
-            let idx: Vec<usize> = (0..tracks.len())
-                .filter(|&i| tracks[i].status == stage)
-                .collect();
-            let gater = match stage {
-                TrackStatus::Confirmed => self.config.gater,
-                TrackStatus::Tentative => self.config.tentative_gater,
-            };
-            // Tentative tracks may not take detections in a confirmed track's gate: a tentative
-            // duplicate of a confirmed track starves and is dropped.
-            let unavailable = match stage {
-                TrackStatus::Confirmed => &taken,
-                TrackStatus::Tentative => &near_confirmed,
-            };
-            let hyps: Vec<TrackHypotheses> = idx
-                .iter()
-                .map(|&i| {
-                    hypothesise(
-                        &self.filter,
-                        &tracks[i].state,
-                        detections,
-                        unavailable,
-                        &gater,
-                    )
-                    .unwrap_or_default()
+        // Associate: every track, confirmed or tentative (each with its own gate), competes for
+        // the detections in one assignment.
+        let hyps: Vec<TrackHypotheses> = tracks
+            .iter()
+            .map(|k| {
+                let gater = match k.status {
+                    TrackStatus::Confirmed => &self.config.gater,
+                    TrackStatus::Tentative => &self.config.tentative_gater,
+                };
+                hypothesise(&self.filter, &k.state, sensor, detections, gater).unwrap_or_else(|e| {
+                    events.push(TrackEvent::Rejected {
+                        id: Some(k.id),
+                        detection: None,
+                        reason: format!("measurement prediction: {e}"),
+                    });
+                    TrackHypotheses::default()
                 })
-                .collect();
-            if stage == TrackStatus::Confirmed {
-                for h in hyps.iter().flat_map(|h| &h.gated) {
-                    near_confirmed[h.detection] = true;
-                }
-            }
-            let a = global_nearest_neighbour(&hyps, &gater)?;
-            for (&i, d) in idx.iter().zip(a) {
-                if let Some(d) = d {
-                    taken[d] = true;
-                    assigned[i] = Some(d);
-                }
-            }
-        }
+            })
+            .collect();
+        let assigned = global_nearest_neighbour(&hyps)?;
+        let mut taken = vec![false; detections.len()];
 
         // Update or coast, then confirm / delete.
         let confirm = self.config.confirm;
         let deleter = self.config.deleter;
         let filter = &self.filter;
         let mut kept = Vec::with_capacity(tracks.len() + detections.len());
-        for (mut k, a) in tracks.into_iter().zip(assigned) {
-            let updated = a.and_then(|d| filter.update(&k.state, &detections[d]).ok());
-            if let Some(s) = updated {
-                k.state = s;
-                k.hits += 1;
-                k.consecutive_misses = 0;
-                k.last_update = t;
-            } else {
-                k.consecutive_misses += 1;
+        for ((mut k, a), h) in tracks.into_iter().zip(assigned).zip(&hyps) {
+            let mut updated = false;
+            if let Some(d) = a {
+                taken[d] = true;
+                match filter.update(&k.state, sensor, &detections[d]) {
+                    Ok(s) => {
+                        k.state = s;
+                        k.hits += 1;
+                        k.consecutive_misses = 0;
+                        k.last_update = t;
+                        updated = true;
+                        let nis = h
+                            .gated
+                            .iter()
+                            .find(|g| g.detection == d)
+                            .map_or(f64::NAN, |g| g.distance_sq);
+                        events.push(TrackEvent::Updated {
+                            id: k.id,
+                            detection: d,
+                            nis,
+                        });
+                    }
+                    Err(e) => events.push(TrackEvent::Rejected {
+                        id: Some(k.id),
+                        detection: Some(d),
+                        reason: format!("update: {e}"),
+                    }),
+                }
             }
-            let keep = match k.status {
+            if !updated {
+                k.consecutive_misses += 1;
+                events.push(TrackEvent::Coasted {
+                    id: k.id,
+                    misses: k.consecutive_misses,
+                });
+            }
+            let gone = match k.status {
                 TrackStatus::Tentative => match confirm.judge(k.hits, k.scans) {
                     Verdict::Confirm => {
                         k.status = TrackStatus::Confirmed;
-                        true
+                        events.push(TrackEvent::Confirmed { id: k.id });
+                        None
                     }
-                    Verdict::Pending => true,
-                    Verdict::Drop => false,
+                    Verdict::Pending => None,
+                    Verdict::Drop => Some(DeleteReason::Unconfirmed),
                 },
                 TrackStatus::Confirmed => {
-                    !deleter.should_delete(k.consecutive_misses, &filter.estimate(&k.state))
+                    deleter.judge(k.consecutive_misses, &filter.estimate(&k.state))
                 }
             };
-            if keep {
-                kept.push(k);
+            match gone {
+                Some(reason) => events.push(TrackEvent::Deleted { id: k.id, reason }),
+                None => kept.push(k),
             }
         }
 
-        // Initiate from detections that no track took and no confirmed track gated.
+        // Initiate from the detections no track took.
         for (j, z) in detections.iter().enumerate() {
-            if taken[j] || near_confirmed[j] {
+            if taken[j] {
                 continue;
             }
-            let Ok(state) = self
-                .initiator
-                .initiate(z)
-                .and_then(|g| self.filter.start(g))
-            else {
-                continue;
+            let started = sensor
+                .locate(z)
+                .ok_or_else(|| "the detection fixes no position".to_string())
+                .and_then(|fix| {
+                    self.initiator
+                        .initiate(&fix)
+                        .and_then(|g| self.filter.start(g))
+                        .map_err(|e| e.to_string())
+                });
+            let state = match started {
+                Ok(s) => s,
+                Err(reason) => {
+                    events.push(TrackEvent::Rejected {
+                        id: None,
+                        detection: Some(j),
+                        reason: format!("initiation: {reason}"),
+                    });
+                    continue;
+                }
             };
             let mut k = Track {
                 id: self.next_id,
@@ -258,36 +369,91 @@ where
                 last_update: t,
             };
             self.next_id += 1;
+            events.push(TrackEvent::Born {
+                id: k.id,
+                detection: j,
+            });
             if confirm.judge(1, 1) == Verdict::Confirm {
                 k.status = TrackStatus::Confirmed;
+                events.push(TrackEvent::Confirmed { id: k.id });
             }
             kept.push(k);
         }
+        kept.sort_by_key(|k| k.id);
         self.tracks = kept;
         self.t = Some(t);
-        Ok(())
+        Ok(events)
+    }
+
+    /// [`Tracker::step`] for a sensor whose kind is known only at run time: each detection is a
+    /// slice of [`SensorModel::dim`] components. Fails, leaving the tracker untouched, when a
+    /// detection has the wrong length.
+    pub fn step_any(
+        &mut self,
+        t: f64,
+        sensor: &SensorModel,
+        detections: &[&[f64]],
+    ) -> Result<Vec<TrackEvent>> {
+        sensor.apply(StepWith {
+            tracker: self,
+            t,
+            detections,
+        })
+    }
+}
+
+/// The visit of [`Tracker::step_any`]: the detections as const-sized vectors of the concrete model.
+struct StepWith<'a, 'd, F: TrackFilter<N>, I, const N: usize> {
+    tracker: &'a mut Tracker<F, I, N>,
+    t: f64,
+    detections: &'d [&'d [f64]],
+}
+
+impl<F, I, const N: usize> WithSensor<N> for StepWith<'_, '_, F, I, N>
+where
+    F: TrackFilter<N>,
+    I: Initiator<N>,
+{
+    type Output = Result<Vec<TrackEvent>>;
+    fn with<H, const M: usize>(self, model: &H) -> Self::Output
+    where
+        H: MeasurementModel<N, M> + Locate<M>,
+    {
+        let mut zs = Vec::with_capacity(self.detections.len());
+        for z in self.detections {
+            if z.len() != M {
+                return Err(EstimationError::InvalidParameter(format!(
+                    "a detection has {} components, the sensor measures {M}",
+                    z.len()
+                )));
+            }
+            zs.push(SVector::<f64, M>::from_column_slice(z));
+        }
+        self.tracker.step(self.t, model, &zs)
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::Kalman;
+    use crate::filter::Extended;
     use crate::measurement::{Geometry, Position};
     use crate::motion::ConstantVelocity;
     use crate::tracker::filter::GaussianFilter;
     use crate::tracker::initiate::SinglePointInitiator;
-    use nalgebra::{Matrix2, Vector2};
+    use nalgebra::Vector2;
 
-    type Kf = GaussianFilter<Kalman, ConstantVelocity<4>, Position<2>>;
+    type Kf = GaussianFilter<Extended, ConstantVelocity<4>>;
+    fn cam() -> Position<2> {
+        Position::new(Geometry::planar(0.0), [5.0, 5.0])
+    }
 
-    fn tracker(m: u32, n: u32) -> Tracker<Kf, SinglePointInitiator<2>, 4, 2> {
+    fn tracker(m: u32, n: u32) -> Tracker<Kf, SinglePointInitiator, 4> {
         let filter = GaussianFilter {
-            filter: Kalman,
+            filter: Extended,
             motion: ConstantVelocity::new(0.5),
-            sensor: Position::new(Geometry::planar(0.0), [5.0, 5.0]),
         };
-        let init = SinglePointInitiator::new(Matrix2::identity() * 25.0, 10.0).unwrap();
+        let init = SinglePointInitiator::new(10.0, 10.0).unwrap();
         let config = TrackerConfig {
             gater: Gater::chi2(0.999, 2).unwrap(),
             tentative_gater: Gater::chi2(0.99, 2).unwrap(),
@@ -301,28 +467,28 @@ mod tests {
     fn two_of_three_confirms_and_deletes() {
         let mut tr = tracker(2, 3);
         let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
-        tr.step(0.0, &[at(0.0)]).unwrap();
+        tr.step(0.0, &cam(), &[at(0.0)]).unwrap();
         assert_eq!(tr.tracks().len(), 1);
         assert!(tr.confirmed().is_empty());
-        tr.step(1.0, &[]).unwrap(); // miss: 1 of 2, still possible
+        tr.step(1.0, &cam(), &[]).unwrap(); // miss: 1 of 2, still possible
         assert_eq!(tr.tracks().len(), 1);
-        tr.step(2.0, &[at(2.0)]).unwrap(); // 2 of 3: confirmed
+        tr.step(2.0, &cam(), &[at(2.0)]).unwrap(); // 2 of 3: confirmed
         let c = tr.confirmed();
         assert_eq!((c.len(), c[0].id), (1, 1));
         for k in 3..6 {
-            tr.step(f64::from(k), &[at(f64::from(k))]).unwrap();
+            tr.step(f64::from(k), &cam(), &[at(f64::from(k))]).unwrap();
         }
         assert_eq!(tr.confirmed()[0].id, 1);
         assert!((tr.confirmed()[0].estimate.mean[2] - 10.0).abs() < 3.0);
         // Three misses delete it.
         for k in 6..9 {
-            tr.step(f64::from(k), &[]).unwrap();
+            tr.step(f64::from(k), &cam(), &[]).unwrap();
         }
         assert!(tr.tracks().is_empty());
         // A lone clutter point: hit, miss, miss → dropped.
-        tr.step(9.0, &[Vector2::new(500.0, 500.0)]).unwrap();
-        tr.step(10.0, &[]).unwrap();
-        tr.step(11.0, &[]).unwrap();
+        tr.step(9.0, &cam(), &[Vector2::new(500.0, 500.0)]).unwrap();
+        tr.step(10.0, &cam(), &[]).unwrap();
+        tr.step(11.0, &cam(), &[]).unwrap();
         assert!(tr.tracks().is_empty());
         assert_eq!(tr.next_id, 3);
     }
@@ -330,12 +496,142 @@ mod tests {
     #[test]
     fn rejects_bad_input_and_keeps_state() {
         let mut tr = tracker(2, 3);
-        tr.step(1.0, &[Vector2::new(0.0, 0.0)]).unwrap();
+        tr.step(1.0, &cam(), &[Vector2::new(0.0, 0.0)]).unwrap();
         let before = tr.tracks().to_vec();
-        assert!(tr.step(0.5, &[]).is_err());
-        assert!(tr.step(2.0, &[Vector2::new(f64::NAN, 0.0)]).is_err());
-        assert!(tr.step(f64::NAN, &[]).is_err());
+        assert!(tr.step(0.5, &cam(), &[]).is_err());
+        assert!(
+            tr.step(2.0, &cam(), &[Vector2::new(f64::NAN, 0.0)])
+                .is_err()
+        );
+        assert!(tr.step(f64::NAN, &cam(), &[]).is_err());
         assert_eq!(tr.tracks(), before.as_slice());
         assert_eq!(tr.time(), Some(1.0));
+    }
+
+    #[test]
+    fn events_tell_the_life_of_a_track() {
+        let mut tr = tracker(2, 3);
+        let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
+        let ev = tr.step(0.0, &cam(), &[at(0.0)]).unwrap();
+        assert_eq!(
+            ev,
+            vec![TrackEvent::Born {
+                id: 1,
+                detection: 0
+            }]
+        );
+        let ev = tr.step(1.0, &cam(), &[at(1.0)]).unwrap();
+        assert!(matches!(ev[0], TrackEvent::Updated { id: 1, detection: 0, nis } if nis >= 0.0));
+        assert_eq!(ev[1], TrackEvent::Confirmed { id: 1 });
+        let ev = tr.step(2.0, &cam(), &[]).unwrap();
+        assert_eq!(ev, vec![TrackEvent::Coasted { id: 1, misses: 1 }]);
+        tr.step(3.0, &cam(), &[]).unwrap();
+        let ev = tr.step(4.0, &cam(), &[]).unwrap();
+        assert_eq!(
+            ev,
+            vec![
+                TrackEvent::Coasted { id: 1, misses: 3 },
+                TrackEvent::Deleted {
+                    id: 1,
+                    reason: DeleteReason::Misses
+                }
+            ]
+        );
+        // A tentative track that cannot reach 2 of 3 is dropped as unconfirmed.
+        tr.step(5.0, &cam(), &[at(0.0)]).unwrap();
+        tr.step(6.0, &cam(), &[]).unwrap();
+        let ev = tr.step(7.0, &cam(), &[]).unwrap();
+        assert!(ev.contains(&TrackEvent::Deleted {
+            id: 2,
+            reason: DeleteReason::Unconfirmed
+        }));
+        // A camera looking up cannot start a track: rejected, with the reason.
+        let sky = crate::measurement::AzEl::new(
+            Geometry::planar(0.0),
+            nalgebra::Vector3::new(0.0, 0.0, 10.0),
+            [0.01, 0.01],
+        );
+        let ev = tr.step(8.0, &sky, &[Vector2::new(0.0, 0.5)]).unwrap();
+        assert!(matches!(
+            &ev[..],
+            [TrackEvent::Rejected { id: None, detection: Some(0), reason }] if reason.contains("initiation")
+        ));
+    }
+
+    #[test]
+    fn imm_tracks_through_any_sensor() {
+        use crate::filter::{Imm, ModeModel};
+        use crate::measurement::{RangeBearing, SensorModel};
+        use crate::scenario::MeasKind;
+        use crate::tracker::filter::ImmFilter;
+        let q = 0.05;
+        let imm = Imm::new(
+            Extended,
+            [ModeModel::Cv { q }, ModeModel::Ct { omega: 0.1, q }],
+            [[0.95, 0.05], [0.05, 0.95]],
+        )
+        .unwrap();
+        let filter = ImmFilter {
+            imm,
+            initial_probs: [0.9, 0.1],
+        };
+        let config = TrackerConfig {
+            gater: Gater::chi2(0.999, 2).unwrap(),
+            tentative_gater: Gater::chi2(0.99, 2).unwrap(),
+            confirm: MOfN::new(2, 3).unwrap(),
+            deleter: Deleter::new(3, 1e4, 2).unwrap(),
+        };
+        let mut tr = Tracker::new(
+            filter,
+            SinglePointInitiator::new(10.0, 10.0).unwrap(),
+            config,
+        );
+        let radar = RangeBearing::new(
+            Geometry::planar(0.0),
+            nalgebra::Vector3::new(0.0, 0.0, 20.0),
+            [2.0, 0.002],
+        );
+        let truth = |t: f64| nalgebra::Vector4::new(500.0 + 8.0 * t, 300.0, 8.0, 0.0);
+        for k in 0..20 {
+            let t = f64::from(k);
+            let z = MeasurementModel::<4, 2>::function(&radar, &truth(t));
+            // Every other scan comes through the run-time sensor model.
+            if k % 2 == 0 {
+                tr.step(t, &radar, &[z]).unwrap();
+            } else {
+                let any = SensorModel::new(
+                    MeasKind::RangeBearing,
+                    Geometry::planar(0.0),
+                    nalgebra::Vector3::new(0.0, 0.0, 20.0),
+                    &[2.0, 0.002],
+                    None,
+                )
+                .unwrap();
+                tr.step_any(t, &any, &[z.as_slice()]).unwrap();
+            }
+        }
+        let c = tr.confirmed();
+        assert_eq!(c.len(), 1);
+        assert!(
+            (c[0].estimate.mean - truth(19.0)).norm() < 3.0,
+            "{:?}",
+            c[0].estimate.mean
+        );
+        assert_eq!(c[0].mode_probabilities.len(), 2);
+        assert!(
+            c[0].mode_probabilities[0] > 0.5,
+            "{:?}",
+            c[0].mode_probabilities
+        );
+        let pos = SensorModel::new(
+            MeasKind::Position,
+            Geometry::planar(0.0),
+            nalgebra::Vector3::zeros(),
+            &[1.0; 3],
+            None,
+        )
+        .unwrap();
+        assert!(tr.step_any(20.0, &pos, &[&[1.0, 2.0][..]]).is_err());
+        assert_eq!(tr.time(), Some(19.0));
     }
 }

@@ -1,34 +1,36 @@
-//! `tracker`: the multi-target tracker of `harrier_core::tracker` (KF with the CV model, χ² gating,
-//! global nearest neighbour, single-point initiation with M-of-N confirmation, miss/covariance
-//! deletion) over a multi-target scenario (FORMAT-MULTI.md): one position sensor whose scans carry
-//! unlabeled detections, clutter included.
+//! `tracker`: the multi-target tracker of `harrier_core::tracker` (EKF with the CV model — the KF on
+//! `position` sensors — χ² gating, global nearest neighbour over confirmed and tentative tracks,
+//! single-point initiation from any detection kind with M-of-N confirmation, miss/covariance
+//! deletion) over a multi-target scenario (FORMAT-MULTI.md): any number of sensors of any kind
+//! whose scans carry unlabeled detections, clutter included. Each sensor's detections of one time
+//! are one scan, under that sensor's model at its platform pose.
 //!
 //! Each estimate line holds every confirmed track after the scan (`"state": null`, `"tracks"`):
 //! see FORMAT-MULTI.md §4.
 
-use harrier_core::filter::Kalman;
-use harrier_core::measurement::Position;
+use harrier_core::filter::Extended;
+use harrier_core::measurement::SensorModel;
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::scenario::{Estimate, MeasKind, Scenario};
 use harrier_core::tracker::{
     Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
 };
-use nalgebra::{SMatrix, SVector};
 use serde_json::{Value, json};
 
-use super::{cv_estimate, geometry};
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, Step, setup};
+use super::{cv_estimate, geometry, model_for};
+use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
 /// `tracker`: GNN multi-target tracker.
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
     name: "tracker",
-    summary: "multi-target GNN tracker (KF, CV, χ² gate, M-of-N): all confirmed tracks per scan (FORMAT-MULTI.md)",
+    summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
     params: &[
-        (
-            "q",
-            "acceleration spectral density, m²/s³ (default motion.accel_std²)",
-        ),
+        Q_PARAM,
         ("vel_std", "velocity prior of a new track, m/s (default 12)"),
+        (
+            "up_std",
+            "height prior of a new 3-D track when its first detection gives none, m (default 50)",
+        ),
         (
             "gate",
             "gate probability of confirmed tracks (default 0.999)",
@@ -41,7 +43,7 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
         ("n", "… within the first N scans (default 4)"),
         (
             "misses",
-            "consecutive misses that delete a confirmed track (default 5)",
+            "consecutive missed scans that delete a confirmed track (default 5 per sensor)",
         ),
         (
             "max_pos_var",
@@ -49,31 +51,36 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
         ),
     ],
     build: |sc, p| {
-        let s = match sc.sensors.as_slice() {
-            [s] if s.kind == MeasKind::Position => s,
-            _ => {
-                return Err(setup(
-                    "the tracker takes scenarios with exactly one position sensor",
-                ));
-            }
-        };
-        match (sc.dims, s.dim()) {
-            (2, 2) => Ok(Box::new(MultiTracker::<4, 2>::new(sc, p)?)),
-            (3, 3) => Ok(Box::new(MultiTracker::<6, 3>::new(sc, p)?)),
-            (d, m) => Err(setup(format!(
-                "the tracker needs a position sensor with ncomp = dims, got {m} components for dims {d}"
-            ))),
+        if sc.sensors.is_empty() {
+            return Err(setup("the tracker needs at least one sensor"));
+        }
+        if let Some(s) = sc
+            .sensors
+            .iter()
+            .find(|s| s.kind == MeasKind::BearingSize && sc.target.size_m.is_none())
+        {
+            return Err(setup(format!(
+                "sensor {:?}: bearing_size detections need target.size_m to start tracks",
+                s.id
+            )));
+        }
+        match sc.dims {
+            2 => Ok(Box::new(MultiTracker::<4>::new(sc, p)?)),
+            3 => Ok(Box::new(MultiTracker::<6>::new(sc, p)?)),
+            d => Err(setup(format!("the tracker needs dims 2 or 3, got {d}"))),
         }
     },
 };
 
-type Kf<const N: usize, const M: usize> = GaussianFilter<Kalman, ConstantVelocity<N>, Position<M>>;
+type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
-/// The tracker for an N-state CV layout and M-component position detections.
+/// The tracker for an N-state CV layout.
 #[derive(Debug)]
-struct MultiTracker<const N: usize, const M: usize> {
-    tracker: Tracker<Kf<N, M>, SinglePointInitiator<M>, N, M>,
+struct MultiTracker<const N: usize> {
+    tracker: Tracker<Ekf<N>, SinglePointInitiator, N>,
     sc: Scenario,
+    /// The model of the last scan, for the empty scans between measurement lines.
+    last_model: Option<SensorModel>,
 }
 
 /// An integer parameter ≥ 1.
@@ -85,56 +92,66 @@ fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
     Ok(v as u32)
 }
 
-impl<const N: usize, const M: usize> MultiTracker<N, M> {
+impl<const N: usize> MultiTracker<N> {
     fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
-        let q = p.opt("q").or(sc.accel_q()).ok_or_else(|| {
-            setup("scenario.json has no motion.accel_std; pass --param q=<m²/s³>")
-        })?;
-        let std: [f64; M] = sc.sensors[0]
-            .noise
-            .std()
-            .try_into()
-            .map_err(|_| setup("sensor noise does not match its components"))?;
         let filter = GaussianFilter {
-            filter: Kalman,
-            motion: ConstantVelocity::<N>::new(q),
-            sensor: Position::new(geometry(sc), std),
+            filter: Extended,
+            motion: ConstantVelocity::<N>::new(p.q(sc)?),
         };
-        let r = SMatrix::<f64, M, M>::from_diagonal(&SVector::from_fn(|i, _| std[i] * std[i]));
-        let init = SinglePointInitiator::new(r, p.get("vel_std", 12.0))?;
+        let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
+        // Every sensor's scan counts as a scan for M-of-N and misses.
+        let sensors = u32::try_from(sc.sensors.len()).unwrap_or(u32::MAX);
         let config = TrackerConfig {
-            gater: Gater::chi2(p.get("gate", 0.999), M)?,
-            tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), M)?,
+            gater: Gater::chi2(p.get("gate", 0.999), 2)?,
+            tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
             confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
-            deleter: Deleter::new(count(p, "misses", 5)?, p.get("max_pos_var", 1e5), M)?,
+            deleter: Deleter::new(
+                count(p, "misses", 5 * sensors)?,
+                p.get("max_pos_var", 1e5),
+                usize::from(sc.dims),
+            )?,
         };
         Ok(Self {
             tracker: Tracker::new(filter, init, config),
             sc: sc.clone(),
+            last_model: None,
         })
     }
 }
 
-impl<const N: usize, const M: usize> ReplayEstimator for MultiTracker<N, M> {
+impl<const N: usize> ReplayEstimator for MultiTracker<N> {
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
-        let dets: Vec<SVector<f64, M>> = step
-            .measurements
-            .iter()
-            .map(|m| SVector::from_iterator(m.z.iter().copied()))
-            .collect();
-        // Work on a copy so that a failed scan leaves the tracker as it was.
+        let geo = geometry(&self.sc);
+        // One scan per sensor (measurements come sorted by sensor id).
+        let mut scans: Vec<(SensorModel, Vec<&[f64]>)> = Vec::new();
+        let mut last_sensor: Option<&str> = None;
+        for m in step.measurements {
+            if last_sensor != Some(m.sensor.as_str()) {
+                scans.push((model_for(&self.sc, geo, m, None)?, Vec::new()));
+                last_sensor = Some(m.sensor.as_str());
+            }
+            if let Some((_, zs)) = scans.last_mut() {
+                zs.push(m.z.as_slice());
+            }
+        }
+        // Work on a copy so that a failed step leaves the tracker as it was.
         let mut tracker = self.tracker.clone();
         // Scans without any detection have no measurement line: run them as empty scans so that
         // the M-of-N and miss counts see them (scan times t0 + k·dt, FORMAT-MULTI.md §3).
-        if let Some(last) = tracker.time() {
+        if let (Some(last), Some(model)) = (tracker.time(), self.last_model.as_ref()) {
             let dt = self.sc.time.dt;
             let gap = ((step.t - last) / dt - 0.5).floor().clamp(0.0, 1e6) as u32;
             for k in 1..=gap {
-                tracker.step(last + f64::from(k) * dt, &[])?;
+                tracker.step_any(last + f64::from(k) * dt, model, &[])?;
             }
         }
-        tracker.step(step.t, &dets)?;
+        for (model, zs) in &scans {
+            tracker.step_any(step.t, model, zs)?;
+        }
         self.tracker = tracker;
+        if let Some((model, _)) = scans.last() {
+            self.last_model = Some(*model);
+        }
         let tracks: Vec<Value> = self
             .tracker
             .confirmed()
