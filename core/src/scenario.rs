@@ -463,6 +463,66 @@ fn default_primary() -> String {
     "state".into()
 }
 
+/// `frame` block: ENU metres about an optional geodetic origin (FORMAT.md §2).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+pub struct Frame {
+    /// Always `ENU`.
+    #[serde(rename = "type")]
+    pub kind: String,
+    /// Always `m`.
+    pub units: String,
+    /// WGS-84 origin of the frame, when it has one.
+    pub origin_geodetic: Option<crate::detection::GeoPoint>,
+}
+
+impl Frame {
+    /// The ENU frame (metres) at `origin`.
+    pub fn enu(origin: Option<crate::detection::GeoPoint>) -> Self {
+        Self {
+            kind: "ENU".into(),
+            units: "m".into(),
+            origin_geodetic: origin,
+        }
+    }
+}
+
+/// `generator` block: provenance of a generated scenario. Estimators never read it.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+pub struct Generator {
+    /// Which generator wrote the scenario.
+    pub family: String,
+    /// Its seed.
+    pub seed: u64,
+    /// Everything else needed to regenerate it.
+    pub params: serde_json::Value,
+}
+
+/// `scenario.json` as a generator writes it: the [`Scenario`] readers parse, plus the blocks they
+/// do not interpret — the `frame`, the keys of format extensions (FORMAT-MULTI.md's `targets` and
+/// `detection`) and the `generator`. [`Scenario::parse`] reads the result back.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ScenarioDocument {
+    /// What readers parse.
+    #[serde(flatten)]
+    pub scenario: Scenario,
+    /// The local frame.
+    pub frame: Frame,
+    /// Extension keys, written at the top level (must not repeat a [`Scenario`] key).
+    #[serde(flatten)]
+    pub extensions: serde_json::Map<String, serde_json::Value>,
+    /// Provenance.
+    pub generator: Generator,
+}
+
+impl ScenarioDocument {
+    /// Pretty JSON text of `scenario.json`, ending with a newline.
+    pub fn to_json(&self) -> Result<String, serde_json::Error> {
+        let mut text = serde_json::to_string_pretty(self)?;
+        text.push('\n');
+        Ok(text)
+    }
+}
+
 /// Platform pose in a measurement line.
 #[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 pub struct PlatformPose {
@@ -873,6 +933,32 @@ mod tests {
  "time":{"t0":0,"dt":1,"t_end":2},"target":{"id":"tgt"},
  "sensors":[{"id":"r","platform":"p","kind":"range_bearing","noise":{"type":"gaussian","std":[5,0.005]}}],
  "generator":{"whatever":1}}"#;
+
+    #[test]
+    fn documents_parse_back_and_keep_frame_extensions_and_generator() {
+        let scenario = Scenario::parse(SC).unwrap();
+        let mut extensions = serde_json::Map::new();
+        extensions.insert("detection".into(), serde_json::json!({"pd": 0.9}));
+        let origin = crate::detection::GeoPoint::new(47.0, 8.0, 400.0);
+        let doc = ScenarioDocument {
+            scenario: scenario.clone(),
+            frame: Frame::enu(Some(origin)),
+            extensions,
+            generator: Generator {
+                family: "test".into(),
+                seed: 3,
+                params: serde_json::json!({"k": 1}),
+            },
+        };
+        let text = doc.to_json().unwrap();
+        assert!(text.ends_with("}\n"));
+        assert_eq!(Scenario::parse(&text).unwrap(), scenario);
+        let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(v["frame"]["type"], "ENU");
+        assert_eq!(v["frame"]["origin_geodetic"]["lat_deg"], 47.0);
+        assert_eq!(v["detection"]["pd"], 0.9);
+        assert_eq!(v["generator"]["seed"], 3);
+    }
 
     #[test]
     fn parses_minimal_scenario_and_ignores_unknown_keys() {

@@ -429,7 +429,7 @@ pub fn record(
     })
 }
 
-/// `scenario.json` of a recording.
+/// `scenario.json` of a recording, through harrier-core's scenario types.
 fn scenario_json(
     s: &SimScenario,
     cfg: &RecordConfig,
@@ -437,54 +437,63 @@ fn scenario_json(
     truth_every: u64,
     multi: bool,
 ) -> Result<String, RecordError> {
-    let target_json = |i: usize| {
+    let serr =
+        |e: serde_json::Error| RecordError::Config(format!("cannot serialise scenario.json: {e}"));
+    let target = |i: usize| {
         let t = &s.targets[i];
         let on_ground = matches!(t.motion, TargetMotion::Road { .. }) || s.plane_z() == 0.0;
-        if t.size_known {
-            json!({"id": t.id, "size_m": t.size_m, "size_prior": null, "on_ground": on_ground})
-        } else {
-            json!({"id": t.id, "size_m": null,
-                   "size_prior": {"mean": 1.2 * t.size_m, "std": 0.3 * t.size_m},
-                   "on_ground": on_ground})
+        fmt::Target {
+            id: t.id.clone(),
+            size_m: t.size_known.then_some(t.size_m),
+            size_prior: (!t.size_known).then_some(fmt::SizePrior {
+                mean: 1.2 * t.size_m,
+                std: 0.3 * t.size_m,
+            }),
+            on_ground: Some(on_ground),
         }
+    };
+    let kind = match s.vehicles.airframe {
+        AirframeSpec::Multirotor => "multirotor",
+        AirframeSpec::FixedWing => "fixed_wing",
     };
     let mut sensors = Vec::new();
     let mut platforms = Vec::new();
     for id in 1..=cfg.count {
-        platforms.push(json!({
-            "id": format!("uav{id}"),
-            "kind": match s.vehicles.airframe {
-                AirframeSpec::Multirotor => "multirotor",
-                AirframeSpec::FixedWing => "fixed_wing",
-            },
-            "description": format!("harrier-sim vehicle {id}")
-        }));
+        platforms.push(fmt::Platform {
+            id: format!("uav{id}"),
+            kind: kind.into(),
+        });
         for spec in &s.sensors {
-            let mut j = json!({
-                "id": format!("{}{id}", spec.id),
-                "platform": format!("uav{id}"),
-                "kind": spec.kind(),
-                "rate_hz": spec.rate_hz,
-                "noise": {"type": "gaussian", "std": spec.noise_std},
+            let bias = matches!(spec.model, SensorModel::Radar { .. }).then(|| {
+                json!({"model": "unknown",
+                       "description": "z_i = (1 + s_i) h_i + o_i + v_i with unknown, possibly \
+                                       time-varying s, o (may be zero)"})
             });
-            if spec.kind() == MeasKind::Position {
-                j["ncomp"] = json!(2);
-            }
-            if let SensorModel::Radar { .. } = spec.model {
-                j["bias"] = json!({"model": "unknown",
-                    "description": "z_i = (1 + s_i) h_i + o_i + v_i with unknown, possibly \
-                                    time-varying s, o (may be zero)"});
-            }
-            sensors.push(j);
+            sensors.push(fmt::Sensor {
+                id: format!("{}{id}", spec.id),
+                platform: format!("uav{id}"),
+                kind: spec.kind(),
+                ncomp: (spec.kind() == MeasKind::Position).then_some(2),
+                rate_hz: Some(spec.rate_hz),
+                noise: fmt::Noise::Gaussian {
+                    std: spec.noise_std.clone(),
+                },
+                bias,
+            });
         }
     }
-    let motion = s.estimator.motion.clone().map_or_else(
-        || json!({"models": [{"name": "CV", "type": "CV"}], "accel_std": 1.0}),
-        |m| json!(m),
-    );
-    let prior = if multi {
-        serde_json::Value::Null
-    } else {
+    let motion = s.estimator.motion.clone().unwrap_or_else(|| fmt::Motion {
+        models: vec![fmt::MotionModelSpec {
+            name: "CV".into(),
+            kind: "CV".into(),
+            turn_rate: None,
+        }],
+        initial_probs: None,
+        transition_matrix: None,
+        accel_std: Some(1.0),
+        accel_bound: None,
+    });
+    let prior = (!multi).then(|| {
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         rng.set_stream(PRIOR_STREAM);
         let x = initial.first().map_or([0.0; 6], |t| t.state);
@@ -501,58 +510,84 @@ fn scenario_json(
                     .collect()
             })
             .collect();
-        json!({"t": 0.0, "state": state, "cov": cov, "cov_dims": [0, 1, 3, 4]})
-    };
-    let dt = truth_every as f64 / f64::from(GRID_HZ);
-    let o = s.origin;
-    let mut doc = json!({
-        "format": fmt::FORMAT_ID,
-        "name": format!("sim_{}_seed{}", s.name.replace('-', "_"), cfg.seed),
-        "description": format!("harrier-sim record of {}: {}", s.name, s.description),
-        "frame": {"type": "ENU", "units": "m",
-                  "origin_geodetic": {"lat_deg": o.lat_deg, "lon_deg": o.lon_deg, "alt_m": o.alt_m}},
-        "dims": 2,
-        "plane_z": s.plane_z(),
-        "time": {"t0": 0.0, "dt": dt, "t_end": cfg.duration_s},
-        "target": if multi { json!({"id": "multi", "description": "several targets, see targets"}) }
-                  else { target_json(0) },
-        "platforms": platforms,
-        "sensors": sensors,
-        "roads": s.roads,
-        "motion": motion,
-        "prior": prior,
-        "linear_system": null,
-        "hints": {},
-        "scoring": {"t_start": s.estimator.scoring_t_start, "primary": "state"},
-        "generator": {
-            "family": "harrier-sim",
-            "seed": cfg.seed,
-            "params": {
-                "scenario": s,
-                "count": cfg.count,
-                "duration": cfg.duration_s,
-                "grid_hz": GRID_HZ,
-                "launch_stagger_s": LAUNCH_STAGGER_S,
-                "version": env!("CARGO_PKG_VERSION"),
-            }
+        fmt::Prior {
+            t: 0.0,
+            state,
+            cov,
+            cov_dims: Some(vec![0, 1, 3, 4]),
         }
     });
+    let scenario = fmt::Scenario {
+        format: fmt::FORMAT_ID.into(),
+        name: format!("sim_{}_seed{}", s.name.replace('-', "_"), cfg.seed),
+        description: format!("harrier-sim record of {}: {}", s.name, s.description),
+        dims: 2,
+        plane_z: Some(s.plane_z()),
+        time: fmt::TimeSpec {
+            t0: 0.0,
+            dt: truth_every as f64 / f64::from(GRID_HZ),
+            t_end: cfg.duration_s,
+        },
+        target: if multi {
+            fmt::Target {
+                id: "multi".into(),
+                size_m: None,
+                size_prior: None,
+                on_ground: None,
+            }
+        } else {
+            target(0)
+        },
+        platforms,
+        sensors,
+        roads: s.roads.clone(),
+        motion: Some(motion),
+        prior,
+        linear_system: None,
+        hints: json!({}),
+        scoring: fmt::Scoring {
+            t_start: s.estimator.scoring_t_start,
+            primary: "state".into(),
+        },
+    };
+    let mut extensions = serde_json::Map::new();
     if multi {
-        doc["targets"] = json!((0..s.targets.len()).map(target_json).collect::<Vec<_>>());
+        let targets: Vec<fmt::Target> = (0..s.targets.len()).map(target).collect();
+        extensions.insert(
+            "targets".into(),
+            serde_json::to_value(targets).map_err(serr)?,
+        );
         let first = &s.sensors[0];
         if s.sensors
             .iter()
             .all(|x| x.pd == first.pd && x.clutter_rate == first.clutter_rate)
         {
-            doc["detection"] = json!({"pd": first.pd, "clutter_rate": first.clutter_rate});
+            extensions.insert(
+                "detection".into(),
+                json!({"pd": first.pd, "clutter_rate": first.clutter_rate}),
+            );
         }
     }
-    serde_json::to_string_pretty(&doc)
-        .map(|mut t| {
-            t.push('\n');
-            t
-        })
-        .map_err(|e| RecordError::Config(format!("cannot serialise scenario.json: {e}")))
+    let generator = fmt::Generator {
+        family: "harrier-sim".into(),
+        seed: cfg.seed,
+        params: json!({
+            "scenario": s,
+            "count": cfg.count,
+            "duration": cfg.duration_s,
+            "grid_hz": GRID_HZ,
+            "launch_stagger_s": LAUNCH_STAGGER_S,
+            "version": env!("CARGO_PKG_VERSION"),
+        }),
+    };
+    fmt::ScenarioDocument {
+        scenario,
+        frame: fmt::Frame::enu(Some(s.origin)),
+        extensions,
+        generator,
+    }
+    .to_json()
+    .map_err(serr)
 }
 
 /// Writes a recording into `out` atomically: the files go to a temporary directory beside it,
