@@ -5,7 +5,9 @@
 
 use harrier_core::scenario::Scenario;
 
-use crate::engine::{EngineError, EstimatorInfo, Params, ReplayEstimator, setup};
+use crate::engine::{
+    EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackEngineInfo, setup,
+};
 use crate::estimators::{angles, bearings, bias, gaussian, icdkf, imm, obe, tracker};
 
 /// Every estimator Harrier can run by name, in the order `harrier estimators` lists them.
@@ -41,6 +43,38 @@ pub fn find(name: &str) -> Result<&'static EstimatorInfo, EngineError> {
     })
 }
 
+/// Every track engine by the name of its per-track estimator: the live service's choice, and
+/// what `harrier replay -e tracker` runs (`ekf`).
+pub static TRACK_ENGINES: &[TrackEngineInfo] = &[
+    tracker::ENGINE_EKF,
+    tracker::ENGINE_CDKF,
+    tracker::ENGINE_IMM,
+    tracker::ENGINE_CIMM,
+];
+
+/// `name`'s parameters: an error naming the first one not in `known`.
+fn check_params(
+    what: &str,
+    name: &str,
+    known: &[(&str, &str)],
+    params: &Params,
+) -> Result<(), EngineError> {
+    match params.names().find(|p| !known.iter().any(|(n, _)| n == p)) {
+        None => Ok(()),
+        Some(bad) => {
+            let known: Vec<_> = known.iter().map(|(n, _)| *n).collect();
+            Err(setup(format!(
+                "{what} {name:?} has no parameter {bad:?}; it takes: {}",
+                if known.is_empty() {
+                    "none".to_string()
+                } else {
+                    known.join(", ")
+                }
+            )))
+        }
+    }
+}
+
 /// Looks up `name` and builds it for `sc`, rejecting unknown parameters.
 pub fn build(
     name: &str,
@@ -48,19 +82,27 @@ pub fn build(
     params: &Params,
 ) -> Result<Box<dyn ReplayEstimator>, EngineError> {
     let info = find(name)?;
-    if let Some(bad) = params
-        .names()
-        .find(|p| !info.params.iter().any(|(n, _)| n == p))
-    {
-        let known: Vec<_> = info.params.iter().map(|(n, _)| *n).collect();
-        return Err(setup(format!(
-            "estimator {name:?} has no parameter {bad:?}; it takes: {}",
-            if known.is_empty() {
-                "none".to_string()
-            } else {
-                known.join(", ")
-            }
-        )));
-    }
+    check_params("estimator", name, info.params, params)?;
+    (info.build)(sc, params)
+}
+
+/// Looks up the track engine `name` and builds it for the deployment `sc`, rejecting unknown
+/// parameters.
+pub fn build_track_engine(
+    name: &str,
+    sc: &Scenario,
+    params: &Params,
+) -> Result<Box<dyn TrackEngine>, EngineError> {
+    let info = TRACK_ENGINES
+        .iter()
+        .find(|e| e.name == name)
+        .ok_or_else(|| {
+            let names: Vec<_> = TRACK_ENGINES.iter().map(|e| e.name).collect();
+            setup(format!(
+                "unknown track estimator {name:?}; known: {}",
+                names.join(", ")
+            ))
+        })?;
+    check_params("track estimator", name, info.params, params)?;
     (info.build)(sc, params)
 }

@@ -78,7 +78,7 @@ enum Variant {
 }
 
 /// The mode models of `motion.models`.
-fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError> {
+pub(super) fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError> {
     let m = sc
         .motion
         .as_ref()
@@ -99,6 +99,48 @@ fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError> {
             ))),
         })
         .collect()
+}
+
+/// The IMM of `motion.models` (`models`, R of them) with `motion.transition_matrix` (default: stay
+/// with probability 0.98) and `motion.initial_probs` (default uniform), EKF mode filters.
+pub(super) fn imm_of<const R: usize>(
+    sc: &Scenario,
+    models: &[ModeModel],
+) -> Result<(Imm<Extended, ModeModel, R>, [f64; R]), EngineError> {
+    let motion = sc.motion.as_ref();
+    let models: [ModeModel; R] = models
+        .try_into()
+        .map_err(|_| setup("internal: mode count mismatch"))?;
+    let off = if R > 1 { 0.02 / (R - 1) as f64 } else { 0.0 };
+    let tpm: [[f64; R]; R] = match motion.and_then(|m| m.transition_matrix.as_ref()) {
+        Some(rows) => {
+            if rows.len() != R || rows.iter().any(|r| r.len() != R) {
+                return Err(setup(format!(
+                    "motion.transition_matrix must be {R} × {R} (one row per model)"
+                )));
+            }
+            std::array::from_fn(|i| std::array::from_fn(|j| rows[i][j]))
+        }
+        None => std::array::from_fn(|i| {
+            std::array::from_fn(|j| {
+                if i == j {
+                    1.0 - off * (R - 1) as f64
+                } else {
+                    off
+                }
+            })
+        }),
+    };
+    let probs: [f64; R] = match motion.and_then(|m| m.initial_probs.as_ref()) {
+        Some(p) => p
+            .as_slice()
+            .try_into()
+            .map_err(|_| setup(format!("motion.initial_probs must have {R} entries")))?,
+        None => [1.0 / R as f64; R],
+    };
+    let imm = Imm::new(Extended, models, tpm)
+        .map_err(|e| setup(format!("motion.transition_matrix: {e}")))?;
+    Ok((imm, probs))
 }
 
 /// One IMM over some of the measurements (all, or one platform's).
@@ -127,39 +169,7 @@ impl<const R: usize> SingleTargetImm<R> {
         variant: Variant,
         roads: Option<(RoadNetwork, Option<f64>)>,
     ) -> Result<Self, EngineError> {
-        let motion = sc.motion.as_ref();
-        let models: [ModeModel; R] = models
-            .try_into()
-            .map_err(|_| setup("internal: mode count mismatch"))?;
-        let off = if R > 1 { 0.02 / (R - 1) as f64 } else { 0.0 };
-        let tpm: [[f64; R]; R] = match motion.and_then(|m| m.transition_matrix.as_ref()) {
-            Some(rows) => {
-                if rows.len() != R || rows.iter().any(|r| r.len() != R) {
-                    return Err(setup(format!(
-                        "motion.transition_matrix must be {R} × {R} (one row per model)"
-                    )));
-                }
-                std::array::from_fn(|i| std::array::from_fn(|j| rows[i][j]))
-            }
-            None => std::array::from_fn(|i| {
-                std::array::from_fn(|j| {
-                    if i == j {
-                        1.0 - off * (R - 1) as f64
-                    } else {
-                        off
-                    }
-                })
-            }),
-        };
-        let probs: [f64; R] = match motion.and_then(|m| m.initial_probs.as_ref()) {
-            Some(p) => p
-                .as_slice()
-                .try_into()
-                .map_err(|_| setup(format!("motion.initial_probs must have {R} entries")))?,
-            None => [1.0 / R as f64; R],
-        };
-        let imm = Imm::new(Extended, models, tpm)
-            .map_err(|e| setup(format!("motion.transition_matrix: {e}")))?;
+        let (imm, probs) = imm_of::<R>(sc, models)?;
         let (t, g) = prior::<4>(sc, super::cv_dims(4))?;
         let state =
             ImmState::new(g, probs).map_err(|e| setup(format!("motion.initial_probs: {e}")))?;

@@ -8,48 +8,29 @@
 //! Each estimate line holds every confirmed track after the scan (`"state": null`, `"tracks"`):
 //! see FORMAT-MULTI.md §4.
 
-use harrier_core::filter::Extended;
+use harrier_core::filter::{CentralDifference, Extended, ModeModel};
 use harrier_core::measurement::SensorModel;
 use harrier_core::motion::ConstantVelocity;
+use harrier_core::road::RoadNetwork;
 use harrier_core::scenario::{Estimate, MeasKind, Scenario};
 use harrier_core::tracker::{
-    Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
+    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
+    TrackFilter, TrackStatus, Tracker, TrackerConfig,
 };
 use serde_json::{Value, json};
 
+use super::imm::{imm_of, mode_models};
 use super::{cv_estimate, geometry, model_for};
-use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
+use crate::engine::{
+    EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, SensorScan, Step, TrackEngine,
+    TrackEngineInfo, TrackView, setup,
+};
 
 /// `tracker`: GNN multi-target tracker.
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
     name: "tracker",
     summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
-    params: &[
-        Q_PARAM,
-        ("vel_std", "velocity prior of a new track, m/s (default 12)"),
-        (
-            "up_std",
-            "height prior of a new 3-D track when its first detection gives none, m (default 50)",
-        ),
-        (
-            "gate",
-            "gate probability of confirmed tracks (default 0.999)",
-        ),
-        (
-            "tentative_gate",
-            "gate probability of tentative tracks (default 0.95)",
-        ),
-        ("m", "confirmation: M hits … (default 2)"),
-        ("n", "… within the first N scans (default 4)"),
-        (
-            "misses",
-            "consecutive missed scans that delete a confirmed track (default 5 per sensor)",
-        ),
-        (
-            "max_pos_var",
-            "position-variance trace that deletes a track, m² (default 1e5)",
-        ),
-    ],
+    params: ENGINE_PARAMS,
     build: |sc, p| {
         if sc.sensors.is_empty() {
             return Err(setup("the tracker needs at least one sensor"));
@@ -64,23 +45,163 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
                 s.id
             )));
         }
-        match sc.dims {
-            2 => Ok(Box::new(MultiTracker::<4>::new(sc, p)?)),
-            3 => Ok(Box::new(MultiTracker::<6>::new(sc, p)?)),
-            d => Err(setup(format!("the tracker needs dims 2 or 3, got {d}"))),
-        }
+        Ok(Box::new(MultiTracker::new(sc, p)?))
     },
 };
 
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
-/// The tracker for an N-state CV layout.
+/// Tuning shared by every track engine.
+const ENGINE_PARAMS: &[(&str, &str)] = &[
+    Q_PARAM,
+    ("vel_std", "velocity prior of a new track, m/s (default 12)"),
+    (
+        "up_std",
+        "height prior of a new 3-D track when its first detection gives none, m (default 50)",
+    ),
+    (
+        "gate",
+        "gate probability of confirmed tracks (default 0.999)",
+    ),
+    (
+        "tentative_gate",
+        "gate probability of tentative tracks (default 0.95)",
+    ),
+    ("m", "confirmation: M hits … (default 2)"),
+    ("n", "… within the first N scans (default 4)"),
+    (
+        "misses",
+        "consecutive missed scans that delete a confirmed track (default 5 per sensor)",
+    ),
+    (
+        "max_pos_var",
+        "position-variance trace that deletes a track, m² (default 1e5)",
+    ),
+];
+
+/// `ekf`: tracks of EKFs (the KF on `position` sensors) with the CV model.
+pub const ENGINE_EKF: TrackEngineInfo = TrackEngineInfo {
+    name: "ekf",
+    summary: "EKF tracks, CV model (the KF on position sensors)",
+    params: ENGINE_PARAMS,
+    build: |sc, p| match sc.dims {
+        2 => engine::<4, _>(sc, p, ekf(sc, p)?),
+        _ => engine::<6, _>(sc, p, ekf(sc, p)?),
+    },
+};
+
+/// `cdkf`: tracks of central-difference filters with the CV model.
+pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
+    name: "cdkf",
+    summary: "central-difference Kalman filter tracks, CV model",
+    params: ENGINE_PARAMS,
+    build: |sc, p| {
+        let q = p.q(sc)?;
+        let filter = CentralDifference::default();
+        match sc.dims {
+            2 => engine::<4, _>(
+                sc,
+                p,
+                GaussianFilter {
+                    filter,
+                    motion: ConstantVelocity::<4>::new(q),
+                },
+            ),
+            _ => engine::<6, _>(
+                sc,
+                p,
+                GaussianFilter {
+                    filter,
+                    motion: ConstantVelocity::<6>::new(q),
+                },
+            ),
+        }
+    },
+};
+
+/// `imm`: IMM tracks over `motion.models` (planar).
+pub const ENGINE_IMM: TrackEngineInfo = TrackEngineInfo {
+    name: "imm",
+    summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
+    params: ENGINE_PARAMS,
+    build: |sc, p| imm_engine(sc, p, None),
+};
+
+/// `cimm`: road-constrained IMM tracks ([CIMM]) over `motion.models` and `roads` (planar).
+pub const ENGINE_CIMM: TrackEngineInfo = TrackEngineInfo {
+    name: "cimm",
+    summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
+    params: ENGINE_PARAMS,
+    build: |sc, p| {
+        let roads = RoadNetwork::from_scenario(&sc.roads)
+            .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
+        if roads.is_empty() {
+            return Err(setup("the cimm track engine needs roads"));
+        }
+        imm_engine(sc, p, Some(roads))
+    },
+};
+
+fn ekf<const N: usize>(sc: &Scenario, p: &Params) -> Result<Ekf<N>, EngineError> {
+    Ok(GaussianFilter {
+        filter: Extended,
+        motion: ConstantVelocity::<N>::new(p.q(sc)?),
+    })
+}
+
+/// The IMM (or, with roads, CIMM) engine for R = the number of `motion.models`.
+fn imm_engine(
+    sc: &Scenario,
+    p: &Params,
+    roads: Option<RoadNetwork>,
+) -> Result<Box<dyn TrackEngine>, EngineError> {
+    if sc.dims != 2 {
+        return Err(setup("the IMM track engines are planar (dims = 2)"));
+    }
+    let models = mode_models(sc, p.q(sc)?)?;
+    fn boxed<const R: usize>(
+        sc: &Scenario,
+        p: &Params,
+        models: &[ModeModel],
+        roads: Option<RoadNetwork>,
+    ) -> Result<Box<dyn TrackEngine>, EngineError> {
+        let (imm, initial_probs) = imm_of::<R>(sc, models)?;
+        let imm = ImmFilter { imm, initial_probs };
+        match roads {
+            None => engine::<4, _>(sc, p, imm),
+            Some(roads) => {
+                let sigma_m = roads
+                    .roads()
+                    .iter()
+                    .map(|r| r.sigma_m())
+                    .fold(0.0, f64::max);
+                let cimm = CimmFilter {
+                    imm,
+                    roads,
+                    sigma_v: sigma_m / sc.time.dt.max(1e-3),
+                    max_offset_m: 3.0 * sigma_m + 10.0,
+                };
+                engine::<4, _>(sc, p, cimm)
+            }
+        }
+    }
+    match models.len() {
+        1 => boxed::<1>(sc, p, &models, roads),
+        2 => boxed::<2>(sc, p, &models, roads),
+        3 => boxed::<3>(sc, p, &models, roads),
+        4 => boxed::<4>(sc, p, &models, roads),
+        5 => boxed::<5>(sc, p, &models, roads),
+        n => Err(setup(format!(
+            "motion.models has {n} models; the IMM track engines support 1 to 5"
+        ))),
+    }
+}
+
+/// A multi-target tracker over the track filter `F` on N-state CV-layout states.
 #[derive(Debug)]
-struct MultiTracker<const N: usize> {
-    tracker: Tracker<Ekf<N>, SinglePointInitiator, N>,
+struct Engine<F: TrackFilter<N>, const N: usize> {
+    tracker: Tracker<F, SinglePointInitiator, N>,
     sc: Scenario,
-    /// The model of the last scan, for the empty scans between measurement lines.
-    last_model: Option<SensorModel>,
 }
 
 /// An integer parameter ≥ 1.
@@ -92,77 +213,157 @@ fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
     Ok(v as u32)
 }
 
-impl<const N: usize> MultiTracker<N> {
+/// The engine over `filter` with the tracker tuning of `p`.
+fn engine<const N: usize, F>(
+    sc: &Scenario,
+    p: &Params,
+    filter: F,
+) -> Result<Box<dyn TrackEngine>, EngineError>
+where
+    F: TrackFilter<N> + Send + std::fmt::Debug + 'static,
+    F::State: Send,
+{
+    let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
+    // Every sensor's scan counts as a scan for M-of-N and misses.
+    let sensors = u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX);
+    let config = TrackerConfig {
+        gater: Gater::chi2(p.get("gate", 0.999), 2)?,
+        tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
+        confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
+        deleter: Deleter::new(
+            count(p, "misses", 5 * sensors)?,
+            p.get("max_pos_var", 1e5),
+            usize::from(sc.dims),
+        )?,
+    };
+    Ok(Box::new(Engine {
+        tracker: Tracker::new(filter, init, config),
+        sc: sc.clone(),
+    }))
+}
+
+impl<F, const N: usize> TrackEngine for Engine<F, N>
+where
+    F: TrackFilter<N> + Send + std::fmt::Debug,
+    F::State: Send,
+{
+    fn ingest(&mut self, scan: &SensorScan) -> Result<Vec<TrackEvent>, EngineError> {
+        let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
+        Ok(self.tracker.step_any(scan.t, &scan.sensor, &dets)?)
+    }
+
+    fn snapshot(&self) -> Vec<TrackView> {
+        self.tracker
+            .snapshot()
+            .into_iter()
+            .map(|k| {
+                let e = cv_estimate(&self.sc, k.t, &k.estimate);
+                TrackView {
+                    id: k.id,
+                    status: match k.status {
+                        TrackStatus::Tentative => "tentative",
+                        TrackStatus::Confirmed => "confirmed",
+                    },
+                    t: k.t,
+                    state: e.state.unwrap_or_default(),
+                    cov: e.cov.unwrap_or_default(),
+                    cov_dims: e.cov_dims.unwrap_or_default(),
+                    updated: k.updated,
+                    age: k.age,
+                    last_update: k.last_update,
+                    mode_probabilities: k.mode_probabilities,
+                }
+            })
+            .collect()
+    }
+
+    fn time(&self) -> Option<f64> {
+        self.tracker.time()
+    }
+}
+
+/// The replay estimator `tracker`: the `ekf` track engine fed one scan per sensor and time.
+#[derive(Debug)]
+struct MultiTracker {
+    engine: Box<dyn TrackEngine>,
+    sc: Scenario,
+    /// The model of the last scan, for the empty scans between measurement lines.
+    last_model: Option<SensorModel>,
+}
+
+impl MultiTracker {
     fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
-        let filter = GaussianFilter {
-            filter: Extended,
-            motion: ConstantVelocity::<N>::new(p.q(sc)?),
-        };
-        let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
-        // Every sensor's scan counts as a scan for M-of-N and misses.
-        let sensors = u32::try_from(sc.sensors.len()).unwrap_or(u32::MAX);
-        let config = TrackerConfig {
-            gater: Gater::chi2(p.get("gate", 0.999), 2)?,
-            tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
-            confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
-            deleter: Deleter::new(
-                count(p, "misses", 5 * sensors)?,
-                p.get("max_pos_var", 1e5),
-                usize::from(sc.dims),
-            )?,
-        };
         Ok(Self {
-            tracker: Tracker::new(filter, init, config),
+            engine: (ENGINE_EKF.build)(sc, p)?,
             sc: sc.clone(),
             last_model: None,
         })
     }
 }
 
-impl<const N: usize> ReplayEstimator for MultiTracker<N> {
+impl ReplayEstimator for MultiTracker {
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
         let geo = geometry(&self.sc);
         // One scan per sensor (measurements come sorted by sensor id).
-        let mut scans: Vec<(SensorModel, Vec<&[f64]>)> = Vec::new();
+        let mut scans: Vec<SensorScan> = Vec::new();
         let mut last_sensor: Option<&str> = None;
         for m in step.measurements {
             if last_sensor != Some(m.sensor.as_str()) {
-                scans.push((model_for(&self.sc, geo, m, None)?, Vec::new()));
+                scans.push(SensorScan {
+                    t: step.t,
+                    sensor: model_for(&self.sc, geo, m, None)?,
+                    detections: Vec::new(),
+                });
                 last_sensor = Some(m.sensor.as_str());
             }
-            if let Some((_, zs)) = scans.last_mut() {
-                zs.push(m.z.as_slice());
+            if let Some(scan) = scans.last_mut() {
+                scan.detections.push(m.z.clone());
             }
         }
-        // Work on a copy so that a failed step leaves the tracker as it was.
-        let mut tracker = self.tracker.clone();
         // Scans without any detection have no measurement line: run them as empty scans so that
         // the M-of-N and miss counts see them (scan times t0 + k·dt, FORMAT-MULTI.md §3).
-        if let (Some(last), Some(model)) = (tracker.time(), self.last_model.as_ref()) {
+        let mut all = Vec::new();
+        if let (Some(last), Some(model)) = (self.engine.time(), self.last_model) {
             let dt = self.sc.time.dt;
             let gap = ((step.t - last) / dt - 0.5).floor().clamp(0.0, 1e6) as u32;
-            for k in 1..=gap {
-                tracker.step_any(last + f64::from(k) * dt, model, &[])?;
+            all.extend((1..=gap).map(|k| SensorScan {
+                t: last + f64::from(k) * dt,
+                sensor: model,
+                detections: Vec::new(),
+            }));
+        }
+        // Check every scan before the first is ingested, so that a bad step changes nothing.
+        for scan in &scans {
+            if let Some(z) = scan
+                .detections
+                .iter()
+                .find(|z| z.len() != scan.sensor.dim())
+            {
+                return Err(setup(format!(
+                    "a measurement has {} components, its sensor {}",
+                    z.len(),
+                    scan.sensor.dim()
+                )));
             }
         }
-        for (model, zs) in &scans {
-            tracker.step_any(step.t, model, zs)?;
+        all.extend(scans);
+        for scan in &all {
+            self.engine.ingest(scan)?;
         }
-        self.tracker = tracker;
-        if let Some((model, _)) = scans.last() {
-            self.last_model = Some(*model);
+        if let Some(scan) = all.last() {
+            self.last_model = Some(scan.sensor);
         }
         let tracks: Vec<Value> = self
-            .tracker
-            .confirmed()
-            .iter()
+            .engine
+            .snapshot()
+            .into_iter()
+            .filter(|k| k.status == "confirmed")
             .map(|k| {
-                let e = cv_estimate(&self.sc, step.t, &k.estimate);
                 json!({
                     "id": k.id,
-                    "state": e.state,
-                    "cov": e.cov,
-                    "cov_dims": e.cov_dims,
+                    "state": k.state,
+                    "cov": k.cov,
+                    "cov_dims": k.cov_dims,
                     "updated": k.updated,
                 })
             })
