@@ -13,7 +13,7 @@
 //!   independent of sockets and clock.
 //! - [`net`]: UDP and TCP links from connection strings and [`net::spawn`], which runs a vehicle on its
 //!   own thread over real sockets (bind port 0 and read [`net::SimHandle::local_addrs`] in tests).
-//! - [`scenario`]: [`scenario::SimScenario`], the world, sensors and vehicle behaviour of a
+//! - [`setup`]: [`setup::SimScenario`], the world, sensors and vehicle behaviour of a
 //!   simulation — built-in presets by name or a JSON file.
 //! - [`world`]: seeded, deterministic targets (road vehicles, CV/CT segments, the [BOT] leader).
 //! - [`sensors`]: gimbal cameras and radars of one vehicle ([`sensors::SensorSuite`]) producing
@@ -31,8 +31,8 @@ pub mod bus;
 pub mod live;
 pub mod net;
 pub mod record;
-pub mod scenario;
 pub mod sensors;
+pub mod setup;
 pub mod vehicle;
 mod worker;
 pub mod world;

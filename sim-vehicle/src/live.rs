@@ -11,8 +11,8 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
 
 use crate::bus::{Bus, BusCounters};
-use crate::scenario::{ScenarioError, SimScenario};
 use crate::sensors::{SensorSuite, platform_pose};
+use crate::setup::{ScenarioError, SimScenario};
 use crate::vehicle::Vehicle;
 use crate::worker::Worker;
 use crate::world::World;

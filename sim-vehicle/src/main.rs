@@ -15,7 +15,7 @@ use harrier_link::geo::Geodetic;
 use harrier_sim::bus::Bus;
 use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
-use harrier_sim::scenario::SimScenario;
+use harrier_sim::setup::SimScenario;
 use harrier_sim::vehicle::{Airframe, VehicleConfig};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]

@@ -31,10 +31,10 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 use serde_json::json;
 
-use crate::scenario::{
+use crate::sensors::{SensorSuite, platform_pose};
+use crate::setup::{
     AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
 };
-use crate::sensors::{SensorSuite, platform_pose};
 use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
 use crate::world::World;
 
@@ -675,7 +675,7 @@ pub fn run(args: &RecordArgs) -> Result<RecordStats, RecordError> {
 mod tests {
     use super::*;
     use harrier_core::scenario::ScenarioData;
-    use harrier_core::tracker::scenario::MultiScenario;
+    use harrier_core::tracker::format::MultiScenario;
 
     fn rec(name: &str, seed: u64, duration_s: f64, count: u8) -> Recording {
         let s = SimScenario::preset(name).expect("preset");

@@ -33,7 +33,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 
-use crate::scenario::{
+use crate::setup::{
     BiasModel, Pointing, ScenarioError, SensorModel, SensorSpec, SimScenario, Source,
 };
 use crate::vehicle::Vehicle;
@@ -383,7 +383,7 @@ impl SensorState {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::{
+    use crate::setup::{
         AirframeSpec, Behaviour, CameraOutput, Jitter, MotionSegment, TargetMotion, TargetSpec,
         VehicleSpec,
     };

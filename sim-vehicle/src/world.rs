@@ -13,7 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-use crate::scenario::{MotionSegment, ScenarioError, SimScenario, Source, TargetMotion};
+use crate::setup::{MotionSegment, ScenarioError, SimScenario, Source, TargetMotion};
 
 /// ChaCha stream of the world's random draws (sensors use others, see [`crate::sensors`]).
 pub(crate) const WORLD_STREAM: u64 = 0;
@@ -390,7 +390,7 @@ fn invalid(s: &SimScenario, e: impl std::fmt::Display) -> ScenarioError {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::scenario::{Jitter, TargetSpec};
+    use crate::setup::{Jitter, TargetSpec};
 
     /// Heading (rad, clockwise from North) of a velocity.
     fn heading_of(vx: f64, vy: f64) -> f64 {

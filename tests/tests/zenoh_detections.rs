@@ -11,7 +11,7 @@ use std::time::Duration;
 use harrier_sim::bus::{Bus, BusConfig};
 use harrier_sim::live::{self, LiveConfig};
 use harrier_sim::net::{LinkConfig, SimHandle, spawn};
-use harrier_sim::scenario::SimScenario;
+use harrier_sim::setup::SimScenario;
 use harrier_sim::vehicle::VehicleConfig;
 use harrier_tests::{python_script, require_python_module, wait_with_deadline};
 

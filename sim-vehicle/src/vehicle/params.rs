@@ -1,0 +1,70 @@
+//! The vehicle's parameters (PARAM_REQUEST_LIST / _READ / PARAM_SET, all REAL32).
+
+use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA, PARAM_VALUE_DATA};
+
+use super::Vehicle;
+
+/// A tunable parameter (all REAL32).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Param {
+    /// Name (at most 16 characters).
+    pub name: &'static str,
+    /// Value.
+    pub value: f32,
+    /// Smallest accepted value.
+    pub min: f32,
+    /// Largest accepted value.
+    pub max: f32,
+}
+
+pub(super) fn default_params() -> Vec<Param> {
+    vec![
+        Param {
+            name: "MIS_TAKEOFF_ALT",
+            value: 2.5,
+            min: 0.5,
+            max: 500.0,
+        },
+        Param {
+            name: "COM_OF_LOSS_T",
+            value: 0.5,
+            min: 0.1,
+            max: 60.0,
+        },
+        Param {
+            name: "MPC_LAND_SPEED",
+            value: 0.7,
+            min: 0.1,
+            max: 5.0,
+        },
+    ]
+}
+
+impl Vehicle {
+    pub(super) fn param_value(&self, index: usize) -> MavMessage {
+        let p = self.params[index];
+        MavMessage::PARAM_VALUE(PARAM_VALUE_DATA {
+            param_value: p.value,
+            param_count: self.params.len() as u16,
+            param_index: index as u16,
+            param_id: p.name.into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        })
+    }
+
+    pub(super) fn param_set(&mut self, p: &PARAM_SET_DATA) -> Vec<MavMessage> {
+        let name = p.param_id.to_str().unwrap_or("");
+        let Some(i) = self.params.iter().position(|q| q.name == name) else {
+            self.counters.rejected_params += 1;
+            return Vec::new();
+        };
+        let q = &mut self.params[i];
+        if p.param_value.is_finite() && (q.min..=q.max).contains(&p.param_value) {
+            q.value = p.param_value;
+        } else {
+            self.counters.rejected_params += 1;
+        }
+        // PX4 answers with the value in force, changed or not.
+        vec![self.param_value(i)]
+    }
+}

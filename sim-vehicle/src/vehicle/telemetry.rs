@@ -1,0 +1,268 @@
+//! Telemetry: the streamed messages, their intervals (SET_MESSAGE_INTERVAL) and the current
+//! value of any message the vehicle can send (REQUEST_MESSAGE).
+
+use harrier_link::geo::enu_to_ned;
+use harrier_link::px4::base_mode;
+use mavlink::MessageData;
+use mavlink::dialects::common::{
+    ATTITUDE_DATA, AUTOPILOT_VERSION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA,
+    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA,
+    LOCAL_POSITION_NED_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavMessage,
+    MavProtocolCapability, MavResult, MavState, MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA,
+};
+
+use super::Vehicle;
+
+/// Telemetry streams and their default intervals (s).
+pub(super) const STREAMS: [(u32, f64); 9] = [
+    (HEARTBEAT_DATA::ID, 1.0),
+    (SYS_STATUS_DATA::ID, 1.0),
+    (EXTENDED_SYS_STATE_DATA::ID, 1.0),
+    (BATTERY_STATUS_DATA::ID, 1.0),
+    (HOME_POSITION_DATA::ID, 2.0),
+    (GPS_RAW_INT_DATA::ID, 0.2),
+    (GLOBAL_POSITION_INT_DATA::ID, 0.1),
+    (LOCAL_POSITION_NED_DATA::ID, 0.1),
+    (ATTITUDE_DATA::ID, 0.1),
+];
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Stream {
+    id: u32,
+    default_interval: f64,
+    /// Interval (s); `None` when disabled.
+    interval: Option<f64>,
+    next_due: f64,
+}
+
+/// The streams at their default intervals, all due at wall time `now`.
+pub(super) fn default_streams(now: f64) -> Vec<Stream> {
+    STREAMS
+        .iter()
+        .map(|&(id, dt)| Stream {
+            id,
+            default_interval: dt,
+            interval: Some(dt),
+            next_due: now,
+        })
+        .collect()
+}
+
+impl Vehicle {
+    pub(super) fn set_message_interval(
+        &mut self,
+        now: f64,
+        id: f32,
+        interval_us: f32,
+    ) -> MavResult {
+        if !(id.is_finite() && interval_us.is_finite() && id >= 0.0) {
+            return MavResult::MAV_RESULT_DENIED;
+        }
+        let Some(s) = self.streams.iter_mut().find(|s| s.id == id as u32) else {
+            return MavResult::MAV_RESULT_DENIED;
+        };
+        s.interval = if interval_us == -1.0 {
+            None
+        } else if interval_us == 0.0 {
+            Some(s.default_interval)
+        } else if interval_us >= 1_000.0 {
+            Some(f64::from(interval_us) * 1e-6)
+        } else {
+            return MavResult::MAV_RESULT_DENIED;
+        };
+        s.next_due = now;
+        MavResult::MAV_RESULT_ACCEPTED
+    }
+
+    /// Stream interval of a message id (s), `None` when disabled or not streamed.
+    pub fn stream_interval(&self, id: u32) -> Option<f64> {
+        self.streams
+            .iter()
+            .find(|s| s.id == id)
+            .and_then(|s| s.interval)
+    }
+
+    /// Telemetry due at wall time `now` (advances the flight first).
+    pub fn telemetry(&mut self, now: f64) -> Vec<MavMessage> {
+        self.advance(now);
+        let mut due = Vec::new();
+        for s in &mut self.streams {
+            if let Some(iv) = s.interval {
+                if now >= s.next_due {
+                    due.push(s.id);
+                    // Keep the cadence, but never burst after a stall.
+                    s.next_due = (s.next_due + iv).max(now);
+                }
+            }
+        }
+        due.into_iter().filter_map(|id| self.message(id)).collect()
+    }
+
+    fn time_boot_ms(&self) -> u32 {
+        (self.sim_time * 1000.0) as u32
+    }
+
+    /// The current value of a message the vehicle can send, by id.
+    pub fn message(&self, id: u32) -> Option<MavMessage> {
+        let ned = enu_to_ned(&self.state.position);
+        let vned = enu_to_ned(&self.state.velocity);
+        let g = self.position();
+        let home = self.config.origin;
+        let deg7 = |d: f64| (d * 1e7).round() as i32;
+        let mm = |m: f64| (m * 1000.0).round() as i32;
+        let cms = |v: f64| (v * 100.0).round().clamp(-32768.0, 32767.0) as i16;
+        let hdg_cdeg = (self.yaw.to_degrees().rem_euclid(360.0) * 100.0) as u16 % 36000;
+        Some(match id {
+            HEARTBEAT_DATA::ID => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: self.mode.px4_custom_mode(),
+                mavtype: self.config.airframe.mav_type(),
+                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+                base_mode: base_mode(self.armed),
+                system_status: if self.armed {
+                    MavState::MAV_STATE_ACTIVE
+                } else {
+                    MavState::MAV_STATE_STANDBY
+                },
+                mavlink_version: 3,
+            }),
+            GLOBAL_POSITION_INT_DATA::ID => {
+                MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+                    time_boot_ms: self.time_boot_ms(),
+                    lat: deg7(g.lat_deg),
+                    lon: deg7(g.lon_deg),
+                    alt: mm(g.alt_m),
+                    relative_alt: mm(self.state.position.z),
+                    vx: cms(vned.x),
+                    vy: cms(vned.y),
+                    vz: cms(vned.z),
+                    hdg: hdg_cdeg,
+                })
+            }
+            LOCAL_POSITION_NED_DATA::ID => {
+                MavMessage::LOCAL_POSITION_NED(LOCAL_POSITION_NED_DATA {
+                    time_boot_ms: self.time_boot_ms(),
+                    x: ned.x as f32,
+                    y: ned.y as f32,
+                    z: ned.z as f32,
+                    vx: vned.x as f32,
+                    vy: vned.y as f32,
+                    vz: vned.z as f32,
+                })
+            }
+            ATTITUDE_DATA::ID => {
+                let [roll, pitch, yaw] = self.attitude();
+                MavMessage::ATTITUDE(ATTITUDE_DATA {
+                    time_boot_ms: self.time_boot_ms(),
+                    roll: roll as f32,
+                    pitch: pitch as f32,
+                    yaw: yaw as f32,
+                    rollspeed: 0.0,
+                    pitchspeed: 0.0,
+                    yawspeed: 0.0,
+                })
+            }
+            SYS_STATUS_DATA::ID => {
+                use MavSysStatusSensor as S;
+                let sensors = S::MAV_SYS_STATUS_SENSOR_3D_GYRO
+                    | S::MAV_SYS_STATUS_SENSOR_3D_ACCEL
+                    | S::MAV_SYS_STATUS_SENSOR_3D_MAG
+                    | S::MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE
+                    | S::MAV_SYS_STATUS_SENSOR_GPS
+                    | S::MAV_SYS_STATUS_SENSOR_ANGULAR_RATE_CONTROL
+                    | S::MAV_SYS_STATUS_SENSOR_ATTITUDE_STABILIZATION
+                    | S::MAV_SYS_STATUS_SENSOR_YAW_POSITION
+                    | S::MAV_SYS_STATUS_SENSOR_Z_ALTITUDE_CONTROL
+                    | S::MAV_SYS_STATUS_SENSOR_XY_POSITION_CONTROL
+                    | S::MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS
+                    | S::MAV_SYS_STATUS_AHRS
+                    | S::MAV_SYS_STATUS_SENSOR_BATTERY
+                    | S::MAV_SYS_STATUS_PREARM_CHECK;
+                MavMessage::SYS_STATUS(SYS_STATUS_DATA {
+                    onboard_control_sensors_present: sensors,
+                    onboard_control_sensors_enabled: sensors,
+                    onboard_control_sensors_health: sensors,
+                    load: 100,
+                    voltage_battery: self.voltage_mv(),
+                    current_battery: if self.armed { 1000 } else { 50 },
+                    drop_rate_comm: 0,
+                    errors_comm: 0,
+                    errors_count1: 0,
+                    errors_count2: 0,
+                    errors_count3: 0,
+                    errors_count4: 0,
+                    battery_remaining: self.battery_percent(),
+                })
+            }
+            EXTENDED_SYS_STATE_DATA::ID => {
+                MavMessage::EXTENDED_SYS_STATE(EXTENDED_SYS_STATE_DATA {
+                    vtol_state: MavVtolState::MAV_VTOL_STATE_UNDEFINED,
+                    landed_state: self.landed_state(),
+                })
+            }
+            GPS_RAW_INT_DATA::ID => MavMessage::GPS_RAW_INT(GPS_RAW_INT_DATA {
+                time_usec: (self.sim_time * 1e6) as u64,
+                lat: deg7(g.lat_deg),
+                lon: deg7(g.lon_deg),
+                alt: mm(g.alt_m),
+                eph: 80,
+                epv: 120,
+                vel: (self.state.horizontal_velocity().norm() * 100.0).round() as u16,
+                cog: hdg_cdeg,
+                fix_type: GpsFixType::GPS_FIX_TYPE_3D_FIX,
+                satellites_visible: 12,
+            }),
+            HOME_POSITION_DATA::ID => MavMessage::HOME_POSITION(HOME_POSITION_DATA {
+                latitude: deg7(home.lat_deg),
+                longitude: deg7(home.lon_deg),
+                altitude: mm(home.alt_m),
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                q: [1.0, 0.0, 0.0, 0.0],
+                approach_x: 0.0,
+                approach_y: 0.0,
+                approach_z: 0.0,
+            }),
+            BATTERY_STATUS_DATA::ID => {
+                let mut voltages = [u16::MAX; 10];
+                voltages[0] = self.voltage_mv();
+                MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
+                    current_consumed: ((1.0 - self.battery) * 5000.0) as i32,
+                    energy_consumed: -1,
+                    temperature: i16::MAX,
+                    voltages,
+                    current_battery: if self.armed { 1000 } else { 50 },
+                    id: 0,
+                    battery_function: MavBatteryFunction::MAV_BATTERY_FUNCTION_ALL,
+                    mavtype: MavBatteryType::MAV_BATTERY_TYPE_LIPO,
+                    battery_remaining: self.battery_percent(),
+                })
+            }
+            AUTOPILOT_VERSION_DATA::ID => MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
+                capabilities: MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2
+                    | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
+                    | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED,
+                uid: u64::from(self.config.id),
+                // PX4 encoding: major.minor.patch.type (0xFF = release).
+                flight_sw_version: (1 << 24) | (15 << 16) | 0xFF,
+                middleware_sw_version: 0,
+                os_sw_version: 0,
+                board_version: 0,
+                vendor_id: 0,
+                product_id: 0,
+                flight_custom_version: [0; 8],
+                middleware_custom_version: [0; 8],
+                os_custom_version: [0; 8],
+            }),
+            _ => return None,
+        })
+    }
+
+    fn battery_percent(&self) -> i8 {
+        (self.battery * 100.0).round() as i8
+    }
+
+    fn voltage_mv(&self) -> u16 {
+        (14_800.0 + 2_000.0 * self.battery) as u16
+    }
+}
