@@ -12,6 +12,8 @@
 //!   ENU in, NED on the wire), encoded and decoded.
 //! - [`offboard`]: arm → takeoff → setpoints → OFFBOARD as a pure state machine driven by the
 //!   caller's clock and transport.
+//! - [`detections`]: a `DetectionScan` re-expressed in a consumer's ENU frame, and the
+//!   harrier-core measurement model for it.
 //!
 //! ```
 //! use harrier_link::offboard::{OffboardConfig, OffboardSequence};
@@ -28,6 +30,7 @@
 
 pub mod bus;
 pub mod command;
+pub mod detections;
 pub mod geo;
 pub mod offboard;
 pub mod px4;

@@ -22,7 +22,10 @@ use std::path::{Path, PathBuf};
 use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
+use harrier_core::measurement::Geometry;
 use harrier_core::scenario::{self as fmt, MeasKind};
+use harrier_link::detections::scan_in_frame;
+use harrier_link::geo::LocalFrame;
 use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence};
 use harrier_link::px4::VehicleStatus;
 use nalgebra::{Vector2, Vector3};
@@ -279,6 +282,8 @@ pub fn record(
     }
     let multi = scenario.is_multi();
     let origin = scenario.origin;
+    let frame = LocalFrame::new(origin);
+    let geometry = Geometry::planar(scenario.plane_z());
     let airframe = match scenario.vehicles.airframe {
         AirframeSpec::Multirotor => Airframe::Multirotor,
         AirframeSpec::FixedWing => Airframe::FixedWing,
@@ -356,8 +361,12 @@ pub fn record(
                 let pose = platform_pose(&p.vehicle);
                 for l in suite.scan_labelled(t, id, &pose, origin, &world) {
                     stats.scans += 1;
-                    let sensor = format!("{}{id}", l.scan.sensor);
-                    for (d, src) in l.scan.detections.iter().zip(&l.sources) {
+                    // The scenario's frame is the scans' own: this changes nothing, bit for bit.
+                    let local = scan_in_frame(&l.scan, &frame, geometry).map_err(|e| {
+                        RecordError::Config(format!("scan of {}: {e}", l.scan.sensor))
+                    })?;
+                    let sensor = format!("{}{id}", local.sensor);
+                    for (z, src) in local.detections.iter().zip(&l.sources) {
                         match src {
                             Some(_) => stats.detections += 1,
                             None if multi => stats.clutter += 1,
@@ -366,12 +375,12 @@ pub fn record(
                         let line = fmt::Measurement {
                             t,
                             sensor: sensor.clone(),
-                            kind: l.scan.kind,
+                            kind: local.kind,
                             platform: fmt::PlatformPose {
-                                pos: pose.pos,
-                                vel: pose.vel,
+                                pos: local.platform_pos.into(),
+                                vel: local.platform_vel.into(),
                             },
-                            z: d.z.clone(),
+                            z: z.clone(),
                         };
                         let text = serde_json::to_string(&line).map_err(|e| {
                             RecordError::Config(format!("cannot serialise a measurement: {e}"))
