@@ -213,12 +213,19 @@ fn confirmed_positions<F: TrackFilter<4>>(
         .collect()
 }
 
+/// One scan of generated position detections with the truth alive at its time.
+struct GroundScan {
+    t: f64,
+    dets: Vec<Vector2<f64>>,
+    truths: Vec<(usize, Vector2<f64>)>,
+}
+
 /// Targets on parallel roads along East, 30–45 m apart: the first is tracked from scan 0, the
 /// others appear 10–25 scans later level with it (±20 m), so that their first detections fall in
 /// the confirmed track's gate (γ = χ²₂(0.999) = 13.8 on S ≥ R = (10 m)² I: a radius of 37 m and
 /// more). Same speed ± 1.5 m/s, 10 m noise, Pd 0.9, 5 clutter detections
 /// per scan over 4 km × 4 km, 60 scans at 1 Hz.
-fn parallel_roads(seed: u64) -> Vec<(f64, Vec<Vector2<f64>>, Vec<(usize, Vector2<f64>)>)> {
+fn parallel_roads(seed: u64) -> Vec<GroundScan> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let noise = Normal::new(0.0, 10.0).unwrap();
     let clutter = Poisson::new(5.0).unwrap();
@@ -256,7 +263,7 @@ fn parallel_roads(seed: u64) -> Vec<(f64, Vec<Vector2<f64>>, Vec<(usize, Vector2
                     rng.random_range(-2000.0..2000.0),
                 ));
             }
-            (t, dets, truths)
+            GroundScan { t, dets, truths }
         })
         .collect()
 }
@@ -276,7 +283,7 @@ fn newcomer_next_to_a_confirmed_track_is_confirmed_at_once() {
         let mut tracker = live_tracker(filter, 5);
         let camera = Position::new(Geometry::planar(0.0), [10.0, 10.0]);
         let mut continuity = Continuity::new(C).unwrap();
-        for (t, dets, truths) in parallel_roads(seed) {
+        for GroundScan { t, dets, truths } in parallel_roads(seed) {
             tracker.step(t, &camera, &dets).unwrap();
             continuity
                 .add_scan(&truths, &confirmed_positions(&tracker))
@@ -570,4 +577,28 @@ fn track_engines_by_name_on_the_cimm_reference() {
     assert!(e.to_string().contains("ekf, cdkf, imm, cimm"), "{e}");
     let e = build_track_engine("imm", sc, &Params::parse(&["nope=1"]).unwrap()).unwrap_err();
     assert!(e.to_string().contains("nope"), "{e}");
+}
+
+/// `harrier gen-multi`'s writer and `harrier replay -e tracker` on what it wrote.
+#[test]
+fn replays_a_generated_scenario() {
+    let dir = tempfile::tempdir().unwrap();
+    harrier_server::estimators::tracker::write_generated(dir.path(), 5).unwrap();
+    let data = harrier_server::replay::load(dir.path()).unwrap();
+    let report =
+        harrier_server::replay::run(&data, "tracker", &harrier_server::engine::Params::default())
+            .unwrap();
+    assert!(report.rejected.is_empty());
+    let last = report.estimates.last().unwrap();
+    assert!(last.state.is_none());
+    let tracks = last.extra["tracks"].as_array().unwrap();
+    assert_eq!(tracks.len(), 6);
+    for k in tracks {
+        assert!(k["id"].as_u64().is_some());
+        assert_eq!(k["state"].as_array().unwrap().len(), 6);
+        assert_eq!(k["cov_dims"], serde_json::json!([0, 1, 3, 4]));
+    }
+    // A parameter out of range is a setup error.
+    let bad = harrier_server::engine::Params::parse(&["n=1.5"]).unwrap();
+    assert!(harrier_server::replay::run(&data, "tracker", &bad).is_err());
 }

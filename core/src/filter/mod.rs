@@ -112,38 +112,27 @@ pub trait NonlinearFilter<const N: usize> {
     ) -> Result<MeasurementPrediction<M>>;
 }
 
-impl<const N: usize> NonlinearFilter<N> for Extended {
-    fn update_with<H: MeasurementModel<N, M>, const M: usize>(
-        &self,
-        model: &H,
-        predicted: &Gaussian<N>,
-        z: &SVector<f64, M>,
-    ) -> Result<Posterior<Gaussian<N>, M>> {
-        self.update(model, predicted, z)
-    }
-    fn predict_measurement_with<H: MeasurementModel<N, M>, const M: usize>(
-        &self,
-        model: &H,
-        predicted: &Gaussian<N>,
-    ) -> Result<MeasurementPrediction<M>> {
-        self.predict_measurement(model, predicted)
-    }
+/// [`NonlinearFilter`] for filters whose [`Updater`] and [`MeasurementPredictor`] take every
+/// [`MeasurementModel`].
+macro_rules! nonlinear_filter {
+    ($($filter:ty),*) => {$(
+        impl<const N: usize> NonlinearFilter<N> for $filter {
+            fn update_with<H: MeasurementModel<N, M>, const M: usize>(
+                &self,
+                model: &H,
+                predicted: &Gaussian<N>,
+                z: &SVector<f64, M>,
+            ) -> Result<Posterior<Gaussian<N>, M>> {
+                self.update(model, predicted, z)
+            }
+            fn predict_measurement_with<H: MeasurementModel<N, M>, const M: usize>(
+                &self,
+                model: &H,
+                predicted: &Gaussian<N>,
+            ) -> Result<MeasurementPrediction<M>> {
+                self.predict_measurement(model, predicted)
+            }
+        }
+    )*};
 }
-
-impl<const N: usize> NonlinearFilter<N> for CentralDifference {
-    fn update_with<H: MeasurementModel<N, M>, const M: usize>(
-        &self,
-        model: &H,
-        predicted: &Gaussian<N>,
-        z: &SVector<f64, M>,
-    ) -> Result<Posterior<Gaussian<N>, M>> {
-        self.update(model, predicted, z)
-    }
-    fn predict_measurement_with<H: MeasurementModel<N, M>, const M: usize>(
-        &self,
-        model: &H,
-        predicted: &Gaussian<N>,
-    ) -> Result<MeasurementPrediction<M>> {
-        self.predict_measurement(model, predicted)
-    }
-}
+nonlinear_filter!(Extended, CentralDifference);

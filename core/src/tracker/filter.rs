@@ -208,10 +208,10 @@ where
     }
 
     fn estimate(&self, state: &ImmState<N, R>) -> Gaussian<N> {
-        state.combined()
+        self.imm.estimate(state)
     }
 
     fn mode_probabilities(&self, state: &ImmState<N, R>) -> Vec<f64> {
-        state.probs.to_vec()
+        self.imm.mode_probabilities(state)
     }
 }

@@ -13,6 +13,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 
+use super::format::{DetectionSpec, Region};
 use crate::{EstimationError, Result};
 
 /// What to generate.
@@ -209,47 +210,98 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         }
     }
 
-    let targets: Vec<_> = (0..lines.len())
-        .map(|i| serde_json::json!({"id": format!("T{i}")}))
-        .collect();
-    let scenario = serde_json::json!({
-        "format": crate::scenario::FORMAT_ID,
-        "name": format!("multi_crossing_seed{seed}"),
-        "description": "Targets crossing in pairs (same point, same scan), one planar position sensor, \
-                        Pd < 1, Poisson clutter (FORMAT-MULTI.md).",
-        "frame": {"type": "ENU", "units": "m", "origin_geodetic": null},
-        "dims": 2,
-        "plane_z": 0.0,
-        "time": {"t0": 0.0, "dt": cfg.dt, "t_end": horizon},
-        "target": {"id": "multi", "description": "several targets, see targets"},
-        "targets": targets,
-        "detection": {
-            "pd": cfg.pd,
-            "clutter_rate": cfg.clutter_rate,
-            "region": {"min": [-hw, -hw], "max": [hw, hw]}
+    use crate::scenario as fmt;
+    let target = |id: String| fmt::Target {
+        id,
+        size_m: None,
+        size_prior: None,
+        on_ground: None,
+    };
+    let targets: Vec<fmt::Target> = (0..lines.len()).map(|i| target(format!("T{i}"))).collect();
+    let detection = DetectionSpec {
+        pd: cfg.pd,
+        clutter_rate: cfg.clutter_rate,
+        region: Some(Region {
+            min: [-hw, -hw],
+            max: [hw, hw],
+        }),
+    };
+    let json_err =
+        |e: serde_json::Error| EstimationError::InvalidParameter(format!("scenario.json: {e}"));
+    let mut extensions = serde_json::Map::new();
+    extensions.insert(
+        "targets".into(),
+        serde_json::to_value(&targets).map_err(json_err)?,
+    );
+    extensions.insert(
+        "detection".into(),
+        serde_json::to_value(&detection).map_err(json_err)?,
+    );
+    let scenario = fmt::Scenario {
+        format: fmt::FORMAT_ID.into(),
+        name: format!("multi_crossing_seed{seed}"),
+        description: "Targets crossing in pairs (same point, same scan), one planar position \
+                      sensor, Pd < 1, Poisson clutter (FORMAT-MULTI.md)."
+            .into(),
+        dims: 2,
+        plane_z: Some(0.0),
+        time: fmt::TimeSpec {
+            t0: 0.0,
+            dt: cfg.dt,
+            t_end: horizon,
         },
-        "platforms": [{"id": "gcs", "kind": "ground"}],
-        "sensors": [{
-            "id": "radar", "platform": "gcs", "kind": "position", "ncomp": 2,
-            "rate_hz": 1.0 / cfg.dt,
-            "noise": {"type": "gaussian", "std": [cfg.noise_std, cfg.noise_std]}
+        target: target("multi".into()),
+        platforms: vec![fmt::Platform {
+            id: "gcs".into(),
+            kind: "ground".into(),
         }],
-        "roads": [],
-        "motion": {"models": [{"name": "CV", "type": "CV"}], "accel_std": cfg.accel_std_hint},
-        "prior": null,
-        "linear_system": null,
-        "scoring": {"t_start": 0.0, "primary": "state"},
-        "generator": {
-            "family": "harrier-multi-crossing",
-            "seed": seed,
-            "params": {
-                "targets": cfg.targets, "scans": cfg.scans, "crossings": crossings.len(),
-                "speed": [cfg.speed_min, cfg.speed_max], "min_angle_rad": cfg.min_angle
-            }
-        }
-    });
-    let scenario_json = serde_json::to_string_pretty(&scenario)
-        .map_err(|e| EstimationError::InvalidParameter(format!("scenario.json: {e}")))?;
+        sensors: vec![fmt::Sensor {
+            id: "radar".into(),
+            platform: "gcs".into(),
+            kind: fmt::MeasKind::Position,
+            ncomp: Some(2),
+            rate_hz: Some(1.0 / cfg.dt),
+            noise: fmt::Noise::Gaussian {
+                std: vec![cfg.noise_std, cfg.noise_std],
+            },
+            bias: None,
+        }],
+        roads: Vec::new(),
+        motion: Some(fmt::Motion {
+            models: vec![fmt::MotionModelSpec {
+                name: "CV".into(),
+                kind: "CV".into(),
+                turn_rate: None,
+            }],
+            initial_probs: None,
+            transition_matrix: None,
+            accel_std: Some(cfg.accel_std_hint),
+            accel_bound: None,
+        }),
+        prior: None,
+        linear_system: None,
+        hints: serde_json::Value::Object(serde_json::Map::new()),
+        scoring: fmt::Scoring {
+            t_start: 0.0,
+            primary: "state".into(),
+        },
+    };
+    let generator = fmt::Generator {
+        family: "harrier-multi-crossing".into(),
+        seed,
+        params: serde_json::json!({
+            "targets": cfg.targets, "scans": cfg.scans, "crossings": crossings.len(),
+            "speed": [cfg.speed_min, cfg.speed_max], "min_angle_rad": cfg.min_angle
+        }),
+    };
+    let scenario_json = fmt::ScenarioDocument {
+        scenario,
+        frame: fmt::Frame::enu(None),
+        extensions,
+        generator,
+    }
+    .to_json()
+    .map_err(json_err)?;
     Ok(Generated {
         scenario_json,
         measurements_jsonl: meas,

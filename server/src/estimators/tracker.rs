@@ -396,30 +396,3 @@ pub fn write_generated(dir: &std::path::Path, seed: u64) -> anyhow::Result<()> {
     }
     Ok(())
 }
-
-#[cfg(test)]
-mod tests {
-    use crate::engine::Params;
-    use crate::replay;
-
-    #[test]
-    fn replays_a_generated_scenario() {
-        let dir = tempfile::tempdir().unwrap();
-        super::write_generated(dir.path(), 5).unwrap();
-        let data = replay::load(dir.path()).unwrap();
-        let report = replay::run(&data, "tracker", &Params::default()).unwrap();
-        assert!(report.rejected.is_empty());
-        let last = report.estimates.last().unwrap();
-        assert!(last.state.is_none());
-        let tracks = last.extra["tracks"].as_array().unwrap();
-        assert_eq!(tracks.len(), 6);
-        for k in tracks {
-            assert!(k["id"].as_u64().is_some());
-            assert_eq!(k["state"].as_array().unwrap().len(), 6);
-            assert_eq!(k["cov_dims"], serde_json::json!([0, 1, 3, 4]));
-        }
-        // A parameter out of range is a setup error.
-        let bad = Params::parse(&["n=1.5"]).unwrap();
-        assert!(replay::run(&data, "tracker", &bad).is_err());
-    }
-}
