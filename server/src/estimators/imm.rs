@@ -27,7 +27,7 @@ use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::Vector2;
 
-use super::{cv_estimate, geometry, model_for, prior, reading};
+use super::{cv_estimate, geometry, imm_of, mode_models, model_for, prior, reading};
 use crate::engine::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
 const SIGMA_V_PARAM: (&str, &str) = (
@@ -75,72 +75,6 @@ enum Variant {
     Cimm,
     Fusion,
     Ci,
-}
-
-/// The mode models of `motion.models`.
-pub(super) fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError> {
-    let m = sc
-        .motion
-        .as_ref()
-        .filter(|m| !m.models.is_empty())
-        .ok_or_else(|| setup("scenario.json has no motion.models; the IMM estimators need them"))?;
-    m.models
-        .iter()
-        .map(|spec| match spec.kind.to_ascii_uppercase().as_str() {
-            "CV" => Ok(ModeModel::Cv { q }),
-            "CT" => spec
-                .turn_rate
-                .filter(|w| w.is_finite())
-                .map(|omega| ModeModel::Ct { omega, q })
-                .ok_or_else(|| setup(format!("motion model {:?}: CT needs turn_rate", spec.name))),
-            other => Err(setup(format!(
-                "motion model {:?}: type {other:?} is not supported (CV, CT)",
-                spec.name
-            ))),
-        })
-        .collect()
-}
-
-/// The IMM of `motion.models` (`models`, R of them) with `motion.transition_matrix` (default: stay
-/// with probability 0.98) and `motion.initial_probs` (default uniform), EKF mode filters.
-pub(super) fn imm_of<const R: usize>(
-    sc: &Scenario,
-    models: &[ModeModel],
-) -> Result<(Imm<Extended, ModeModel, R>, [f64; R]), EngineError> {
-    let motion = sc.motion.as_ref();
-    let models: [ModeModel; R] = models
-        .try_into()
-        .map_err(|_| setup("internal: mode count mismatch"))?;
-    let off = if R > 1 { 0.02 / (R - 1) as f64 } else { 0.0 };
-    let tpm: [[f64; R]; R] = match motion.and_then(|m| m.transition_matrix.as_ref()) {
-        Some(rows) => {
-            if rows.len() != R || rows.iter().any(|r| r.len() != R) {
-                return Err(setup(format!(
-                    "motion.transition_matrix must be {R} × {R} (one row per model)"
-                )));
-            }
-            std::array::from_fn(|i| std::array::from_fn(|j| rows[i][j]))
-        }
-        None => std::array::from_fn(|i| {
-            std::array::from_fn(|j| {
-                if i == j {
-                    1.0 - off * (R - 1) as f64
-                } else {
-                    off
-                }
-            })
-        }),
-    };
-    let probs: [f64; R] = match motion.and_then(|m| m.initial_probs.as_ref()) {
-        Some(p) => p
-            .as_slice()
-            .try_into()
-            .map_err(|_| setup(format!("motion.initial_probs must have {R} entries")))?,
-        None => [1.0 / R as f64; R],
-    };
-    let imm = Imm::new(Extended, models, tpm)
-        .map_err(|e| setup(format!("motion.transition_matrix: {e}")))?;
-    Ok((imm, probs))
 }
 
 /// One IMM over some of the measurements (all, or one platform's).

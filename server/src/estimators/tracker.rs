@@ -19,8 +19,7 @@ use harrier_core::tracker::{
 };
 use serde_json::{Value, json};
 
-use super::imm::{imm_of, mode_models};
-use super::{cv_estimate, geometry, model_for};
+use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::engine::{
     EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, SensorScan, Step, TrackEngine,
     TrackEngineInfo, TrackView, setup,
