@@ -80,6 +80,11 @@ pub struct DetectionScan {
     pub schema: String,
     /// Scan time (s since the simulation's epoch; a live vehicle's clock).
     pub t: f64,
+    /// The same instant as UNIX time (s since 1970-01-01 UTC) on the sender's clock, so that scans
+    /// from several processes and hosts can be put on one time line. Optional: older senders and
+    /// recordings leave it out.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_unix: Option<f64>,
     /// MAVLink system id of the vehicle.
     pub vehicle: u8,
     /// Scan counter of this sensor, +1 per scan (gaps reveal lost messages).
@@ -146,6 +151,16 @@ impl DetectionScan {
         check(self.t.is_finite(), W, || {
             format!("t = {} is not finite", self.t)
         })?;
+        check(
+            self.time_unix.is_none_or(|u| u.is_finite() && u > 0.0),
+            W,
+            || {
+                format!(
+                    "time_unix = {:?} is not a positive finite number",
+                    self.time_unix
+                )
+            },
+        )?;
         check(!self.sensor.is_empty(), W, || "sensor id is empty".into())?;
         let p = &self.platform;
         check(
@@ -282,6 +297,7 @@ mod tests {
 
     fn scan() -> DetectionScan {
         DetectionScan {
+            time_unix: Some(1.8e9),
             schema: DETECTIONS_SCHEMA.into(),
             t: 12.5,
             vehicle: 2,
@@ -322,8 +338,9 @@ mod tests {
     #[test]
     fn malformed_payloads_name_the_problem() {
         type Mutation = fn(&mut DetectionScan);
-        let cases: [(Mutation, &str); 8] = [
+        let cases: [(Mutation, &str); 9] = [
             (|s| s.schema = "x".into(), "schema"),
+            (|s| s.time_unix = Some(-1.0), "time_unix"),
             (|s| s.t = f64::NAN, "t = NaN"),
             (|s| s.detections[0].z = vec![0.1], "detections[0].z has 1"),
             (|s| s.detections[0].z[0] = 4.0, "azimuth"),
@@ -350,6 +367,12 @@ mod tests {
         pos.validate().expect("2-component position");
         pos.noise_std = vec![10.0; 4];
         assert!(pos.validate().is_err());
+        // `time_unix` is optional: a payload without it (an older sender) still reads.
+        let mut old: serde_json::Value = serde_json::from_str(&scan().to_json()).unwrap();
+        assert_eq!(old["time_unix"], 1.8e9);
+        old.as_object_mut().unwrap().remove("time_unix");
+        let back = DetectionScan::from_json(old.to_string().as_bytes()).unwrap();
+        assert_eq!(back.time_unix, None);
     }
 
     #[test]

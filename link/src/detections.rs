@@ -184,6 +184,7 @@ mod tests {
     fn scan(kind: MeasKind, pos: [f64; 3], z: Vec<f64>, noise_std: Vec<f64>) -> DetectionScan {
         let frame = LocalFrame::new(HOME);
         DetectionScan {
+            time_unix: None,
             schema: DETECTIONS_SCHEMA.into(),
             t: 2.0,
             vehicle: 1,

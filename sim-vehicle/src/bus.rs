@@ -138,6 +138,7 @@ mod tests {
             .wait()
             .expect("subscribe");
         let scan = DetectionScan {
+            time_unix: None,
             schema: DETECTIONS_SCHEMA.into(),
             t: 1.5,
             vehicle: 3,

@@ -6,7 +6,7 @@
 //! the vehicles fly whatever their MAVLink clients command, when the packets arrive.
 
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
 
@@ -97,13 +97,18 @@ pub fn spawn(
     let counters = Arc::new(Mutex::new(BusCounters::default()));
     let c = Arc::clone(&counters);
     let start = Instant::now();
+    // Scans carry `t` (simulated seconds since this start) and the same instant as UNIX time.
+    let start_unix = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
     let mut next_truth = 0.0;
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
         let t = start.elapsed().as_secs_f64() * speedup;
         world.advance(t);
         for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
             let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
-            for scan in suite.scan(t, *id, &pose, origin, &world) {
+            for mut scan in suite.scan(t, *id, &pose, origin, &world) {
+                scan.time_unix = Some(start_unix + t);
                 bus.publish_scan(&scan);
             }
         }

@@ -180,6 +180,7 @@ impl SensorSuite {
             let scan = DetectionScan {
                 schema: DETECTIONS_SCHEMA.into(),
                 t,
+                time_unix: None,
                 vehicle: vehicle_id,
                 seq: s.seq,
                 sensor: s.spec.id.clone(),

@@ -61,6 +61,10 @@ def check_scan(key, encoding, d):
         fail(f"seq {d.get('seq')!r}")
     if not finite(d.get("t")):
         fail(f"t {d.get('t')!r}")
+    # harrier-sim stamps the instant as UNIX time too: its start + t (speed-up 1 here).
+    unix = d.get("time_unix")
+    if not finite(unix) or abs(unix - time.time()) > 30.0:
+        fail(f"time_unix {unix!r} is not within 30 s of this host's clock ({time.time():.3f})")
     if not (isinstance(d.get("sensor"), str) and d["sensor"]):
         fail(f"sensor {d.get('sensor')!r}")
     kind = d.get("kind")
