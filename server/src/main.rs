@@ -2,6 +2,7 @@
 //!
 //! ```not_rust
 //! harrier estimators
+//! harrier serve --config harrier.toml --listen 127.0.0.1:8080
 //! harrier replay ../shared/scenarios/radar_bias_none --estimator cdkf --out estimates.jsonl
 //! ```
 
@@ -60,6 +61,8 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Run the live tracking service: detections from Zenoh in, tracks over HTTP (`/api/v1`).
+    Serve(ServeArgs),
     /// List the estimators, one line each.
     Estimators {
         /// Also list each estimator's `--param` names.
@@ -71,6 +74,13 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
+        Command::Serve(args) => match run_serve(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier serve: error: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Estimators { params } => {
             for e in ESTIMATORS {
                 out!("{:<14} {}", e.name, e.summary);
@@ -110,6 +120,79 @@ fn main() -> ExitCode {
             }
         },
     }
+}
+
+/// Arguments of `harrier serve`; each flag overrides its key in the configuration file.
+#[derive(Debug, clap::Args)]
+struct ServeArgs {
+    /// TOML configuration (see harrier.example.toml); without it, the defaults.
+    #[arg(long, short)]
+    config: Option<PathBuf>,
+    /// Address of the HTTP API (`api.listen`; default 127.0.0.1:8080, port 0: any free port).
+    #[arg(long)]
+    listen: Option<std::net::SocketAddr>,
+    /// Zenoh session mode, peer or client (`zenoh.mode`; default peer).
+    #[arg(long, value_name = "MODE")]
+    zenoh_mode: Option<String>,
+    /// Zenoh endpoint to listen on, e.g. tcp/127.0.0.1:7447 (repeatable; replaces
+    /// `zenoh.listen`, default tcp/127.0.0.1:7447).
+    #[arg(long, value_name = "ENDPOINT")]
+    zenoh_listen: Vec<String>,
+    /// Zenoh endpoint to connect to, e.g. a router's tcp/10.0.0.1:7447 (repeatable; replaces
+    /// `zenoh.connect`).
+    #[arg(long, value_name = "ENDPOINT")]
+    zenoh_connect: Vec<String>,
+    /// Track engine: ekf, cdkf, imm or cimm (`tracker.estimator`; default ekf).
+    #[arg(long, short)]
+    estimator: Option<String>,
+}
+
+fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
+    use harrier_server::live::{self, config::Config};
+    use tracing_subscriber::EnvFilter;
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info,zenoh=warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let mut config = match &a.config {
+        Some(path) => Config::load(path)?,
+        None => Config::default(),
+    };
+    if let Some(listen) = a.listen {
+        config.api.listen = listen;
+    }
+    if let Some(mode) = &a.zenoh_mode {
+        config.zenoh.mode.clone_from(mode);
+    }
+    if !a.zenoh_listen.is_empty() {
+        config.zenoh.listen.clone_from(&a.zenoh_listen);
+    }
+    if !a.zenoh_connect.is_empty() {
+        config.zenoh.connect.clone_from(&a.zenoh_connect);
+    }
+    if let Some(e) = &a.estimator {
+        config.tracker.estimator.clone_from(e);
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    runtime.block_on(async {
+        let server = live::start(&config).await?;
+        eprintln!(
+            "harrier serve: ready: http://{}/api/v1 (estimator {}, zenoh {} listen {:?} connect {:?})",
+            server.local_addr(),
+            config.tracker.estimator,
+            config.zenoh.mode,
+            config.zenoh.listen,
+            config.zenoh.connect
+        );
+        tokio::signal::ctrl_c().await?;
+        tracing::info!("interrupted: shutting down");
+        server.shutdown().await;
+        Ok(())
+    })
 }
 
 /// Arguments of `harrier guidance-sim`.

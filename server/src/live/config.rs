@@ -1,0 +1,284 @@
+//! The live service's configuration: a TOML file (`harrier.example.toml` in the repository root
+//! documents every key) whose values the command line may override.
+//!
+//! The deployment a track engine is built for (planar targets on a ground plane, motion models,
+//! roads) is described here and turned into an in-memory `gcs-scenario/1` [`Scenario`] by
+//! [`Config::scenario`], the form [`crate::registry::build_track_engine`] takes.
+
+use std::net::SocketAddr;
+use std::path::Path;
+
+use harrier_core::detection::GeoPoint;
+use harrier_core::scenario::{Motion, Road, Scenario};
+use harrier_link::bus::{BusConfig, Mode};
+use serde::Deserialize;
+
+use crate::engine::Params;
+
+/// The whole configuration.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// The server's ENU frame.
+    pub frame: FrameConfig,
+    /// The track engine and its input ordering.
+    pub tracker: TrackerConfig,
+    /// The HTTP API.
+    pub api: ApiConfig,
+    /// The Zenoh session.
+    pub zenoh: ZenohConfig,
+}
+
+/// The ENU frame tracks are expressed in.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FrameConfig {
+    /// WGS-84 origin of the frame.
+    pub origin: GeoPoint,
+    /// Up coordinate (m) of the ground plane the targets move on.
+    pub plane_z: f64,
+}
+
+/// The track engine.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackerConfig {
+    /// Track engine name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
+    pub estimator: String,
+    /// Engine parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
+    pub params: std::collections::BTreeMap<String, f64>,
+    /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
+    /// of order are processed in time order; older ones are dropped as late.
+    pub reorder_window_s: f64,
+    /// Nominal scan period (s): the scenario's `time.dt` (CIMM's road velocity noise).
+    pub scan_period_s: f64,
+    /// Motion models (`gcs-scenario/1` `motion` block: `accel_std`, `models`, …).
+    pub motion: Motion,
+    /// Road network (`gcs-scenario/1` `roads`), needed by `cimm`.
+    pub roads: Vec<Road>,
+    /// Bounded queue lengths between the actors (payloads, scans).
+    pub queue: usize,
+}
+
+/// The HTTP API.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ApiConfig {
+    /// Address to bind (port 0: any free port).
+    pub listen: SocketAddr,
+}
+
+/// The Zenoh session (harrier-link's [`BusConfig`]).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ZenohConfig {
+    /// `peer` or `client`.
+    pub mode: String,
+    /// Endpoints to listen on, e.g. `tcp/127.0.0.1:7447`.
+    pub listen: Vec<String>,
+    /// Endpoints to connect to (a router in client mode).
+    pub connect: Vec<String>,
+    /// Multicast scouting.
+    pub multicast_scouting: bool,
+}
+
+/// PX4 SITL's default home (Zurich), harrier-sim's default origin.
+pub const DEFAULT_ORIGIN: GeoPoint = GeoPoint {
+    lat_deg: 47.397_742,
+    lon_deg: 8.545_594,
+    alt_m: 488.0,
+};
+
+impl Default for FrameConfig {
+    fn default() -> Self {
+        Self {
+            origin: DEFAULT_ORIGIN,
+            plane_z: 0.0,
+        }
+    }
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            estimator: "ekf".into(),
+            params: Default::default(),
+            reorder_window_s: 0.1,
+            scan_period_s: 1.0,
+            motion: Motion {
+                models: vec![harrier_core::scenario::MotionModelSpec {
+                    name: "CV".into(),
+                    kind: "CV".into(),
+                    turn_rate: None,
+                }],
+                initial_probs: None,
+                transition_matrix: None,
+                accel_std: Some(1.0),
+                accel_bound: None,
+            },
+            roads: Vec::new(),
+            queue: 1024,
+        }
+    }
+}
+
+impl Default for ApiConfig {
+    fn default() -> Self {
+        Self {
+            listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
+        }
+    }
+}
+
+impl Default for ZenohConfig {
+    fn default() -> Self {
+        Self {
+            mode: "peer".into(),
+            listen: vec!["tcp/127.0.0.1:7447".into()],
+            connect: Vec::new(),
+            multicast_scouting: false,
+        }
+    }
+}
+
+/// A configuration that cannot be read or used.
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// The file cannot be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// The file.
+        path: String,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The file is not valid TOML or has unknown or mistyped keys.
+    #[error("{path}: {message}")]
+    Parse {
+        /// The file.
+        path: String,
+        /// toml's message (with line and column).
+        message: String,
+    },
+    /// A value is out of range or inconsistent.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Config {
+    /// Parses TOML text (`path` names it in errors).
+    pub fn parse(text: &str, path: &str) -> Result<Self, ConfigError> {
+        let c: Self = toml::from_str(text).map_err(|e| ConfigError::Parse {
+            path: path.into(),
+            message: e.to_string(),
+        })?;
+        c.check()?;
+        Ok(c)
+    }
+
+    /// Reads a TOML file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+
+    /// Checks the values a TOML parser cannot.
+    pub fn check(&self) -> Result<(), ConfigError> {
+        let bad = |m: String| Err(ConfigError::Invalid(m));
+        let o = self.frame.origin;
+        if !(o.lat_deg.abs() <= 90.0 && o.lon_deg.abs() <= 180.0 && o.alt_m.is_finite()) {
+            return bad(format!("frame.origin {o:?} is not a WGS-84 position"));
+        }
+        if !self.frame.plane_z.is_finite() {
+            return bad("frame.plane_z must be finite".into());
+        }
+        let t = &self.tracker;
+        if !(t.reorder_window_s.is_finite() && (0.0..=60.0).contains(&t.reorder_window_s)) {
+            return bad(format!(
+                "tracker.reorder_window_s must be in [0, 60] s, got {}",
+                t.reorder_window_s
+            ));
+        }
+        if !(t.scan_period_s.is_finite() && t.scan_period_s > 0.0) {
+            return bad(format!(
+                "tracker.scan_period_s must be > 0, got {}",
+                t.scan_period_s
+            ));
+        }
+        if t.queue == 0 {
+            return bad("tracker.queue must be ≥ 1".into());
+        }
+        self.bus()?;
+        Ok(())
+    }
+
+    /// The Zenoh session configuration.
+    pub fn bus(&self) -> Result<BusConfig, ConfigError> {
+        let mode: Mode = self.zenoh.mode.parse().map_err(ConfigError::Invalid)?;
+        Ok(BusConfig {
+            mode,
+            connect: self.zenoh.connect.clone(),
+            listen: self.zenoh.listen.clone(),
+            multicast_scouting: self.zenoh.multicast_scouting,
+        })
+    }
+
+    /// The engine parameters.
+    pub fn params(&self) -> Params {
+        self.tracker
+            .params
+            .iter()
+            .fold(Params::default(), |p, (k, v)| p.with(k, *v))
+    }
+
+    /// The deployment as a planar `gcs-scenario/1` scenario: dims 2 on the ground plane, the
+    /// motion models and roads of the configuration, no sensors (scans bring their own models).
+    pub fn scenario(&self) -> Result<Scenario, ConfigError> {
+        let doc = serde_json::json!({
+            "format": harrier_core::scenario::FORMAT_ID,
+            "name": "harrier serve",
+            "dims": 2,
+            "plane_z": self.frame.plane_z,
+            "time": {"t0": 0.0, "dt": self.tracker.scan_period_s, "t_end": 1e12},
+            "target": {"id": "targets", "on_ground": true},
+            "sensors": [],
+            "roads": self.tracker.roads,
+            "motion": self.tracker.motion,
+        });
+        Scenario::parse(&doc.to_string())
+            .map_err(|e| ConfigError::Invalid(format!("tracker deployment: {e}")))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_example_parses_and_builds_its_engine() {
+        let text = include_str!("../../../harrier.example.toml");
+        let c = Config::parse(text, "harrier.example.toml").expect("example config");
+        let sc = c.scenario().expect("scenario");
+        crate::registry::build_track_engine(&c.tracker.estimator, &sc, &c.params())
+            .expect("engine");
+    }
+
+    #[test]
+    fn defaults_build_and_bad_values_are_named() {
+        let c = Config::parse("", "empty").expect("defaults");
+        assert_eq!(c, Config::default());
+        let sc = c.scenario().expect("scenario");
+        crate::registry::build_track_engine("ekf", &sc, &c.params()).expect("engine");
+        let e = Config::parse("[tracker]\nreorder_window_s = -1\n", "f").unwrap_err();
+        assert!(e.to_string().contains("reorder_window_s"), "{e}");
+        let e = Config::parse("[zenoh]\nmode = \"router\"\n", "f").unwrap_err();
+        assert!(e.to_string().contains("router"), "{e}");
+        let e = Config::parse("[api]\nlisten = 3\n", "f").unwrap_err();
+        assert!(e.to_string().starts_with("f: "), "{e}");
+        let e = Config::parse("[nonsense]\n", "f").unwrap_err();
+        assert!(e.to_string().contains("nonsense"), "{e}");
+    }
+}

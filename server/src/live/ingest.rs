@@ -1,0 +1,264 @@
+//! The ingest actor: detection payloads from Zenoh → validated [`SensorScan`]s in the server's
+//! frame.
+//!
+//! The Zenoh subscriber's callback only copies each payload into a bounded queue (`try_send`:
+//! when the queue is full the payload is dropped and counted as `queue_full`, so Zenoh is never
+//! blocked). The ingest task decodes it with [`DetectionScan::from_json`], counts `seq` gaps,
+//! converts it with harrier-link's [`scan_in_frame`] and sends it on to the tracker. Every bad
+//! payload is counted per vehicle and reason, logged at most once per second per reason, and
+//! dropped: nothing from outside can panic the service.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use harrier_core::detection::DetectionScan;
+use harrier_core::measurement::Geometry;
+use harrier_link::detections::scan_in_frame;
+use harrier_link::geo::LocalFrame;
+use tokio::sync::mpsc;
+
+use super::metrics::{DropReason, Metrics, vehicle_label};
+use crate::engine::SensorScan;
+
+/// A payload as it arrived: the vehicle label of its key and its bytes.
+#[derive(Debug)]
+pub struct Payload {
+    /// Vehicle label (see [`vehicle_label`]).
+    pub vehicle: String,
+    /// The vehicle id in the key, if it is one.
+    pub key_id: Option<u8>,
+    /// The bytes.
+    pub bytes: Vec<u8>,
+}
+
+impl Payload {
+    /// A payload received on Zenoh key `key`.
+    pub fn new(key: &str, bytes: Vec<u8>) -> Self {
+        let segment = key.split('/').nth(3).unwrap_or("");
+        let vehicle = vehicle_label(segment);
+        Self {
+            key_id: vehicle.parse().ok(),
+            vehicle,
+            bytes,
+        }
+    }
+}
+
+/// A scan ready for the tracker, with the vehicle it came from.
+#[derive(Debug, Clone)]
+pub struct ReadyScan {
+    /// Vehicle label.
+    pub vehicle: String,
+    /// Sensor id on the vehicle (orders scans of equal time).
+    pub sensor: String,
+    /// The scan in the server's frame.
+    pub scan: SensorScan,
+}
+
+/// At most one log line per reason and interval; the lines in between are counted.
+#[derive(Debug)]
+struct LogLimiter {
+    every: Duration,
+    last: HashMap<DropReason, (Instant, u64)>,
+}
+
+impl LogLimiter {
+    fn log(&mut self, reason: DropReason, vehicle: &str, message: &dyn std::fmt::Display) {
+        let now = Instant::now();
+        match self.last.get_mut(&reason) {
+            Some((at, suppressed)) if now.duration_since(*at) < self.every => *suppressed += 1,
+            entry => {
+                let suppressed = entry.map_or(0, |(_, s)| *s);
+                tracing::warn!(
+                    vehicle,
+                    reason = reason.as_str(),
+                    suppressed,
+                    "dropped a detection payload: {message}"
+                );
+                self.last.insert(reason, (now, 0));
+            }
+        }
+    }
+}
+
+/// Most (vehicle, sensor) sequences followed for `seq` gaps.
+const MAX_SEQUENCES: usize = 4096;
+
+/// The ingest state: the frame, the `seq` of every sensor, the counters.
+#[derive(Debug)]
+pub struct Ingest {
+    frame: LocalFrame,
+    geometry: Geometry,
+    metrics: Arc<Metrics>,
+    last_seq: HashMap<(u8, String), u64>,
+    log: LogLimiter,
+}
+
+impl Ingest {
+    /// Ingest into the ENU frame `frame`, targets placed as `geometry` says.
+    pub fn new(frame: LocalFrame, geometry: Geometry, metrics: Arc<Metrics>) -> Self {
+        Self {
+            frame,
+            geometry,
+            metrics,
+            last_seq: HashMap::new(),
+            log: LogLimiter {
+                every: Duration::from_secs(1),
+                last: HashMap::new(),
+            },
+        }
+    }
+
+    fn drop(&mut self, vehicle: &str, reason: DropReason, message: &dyn std::fmt::Display) {
+        self.metrics.dropped(vehicle, reason);
+        self.log.log(reason, vehicle, message);
+    }
+
+    /// Decodes and converts one payload; `None` when it was dropped (and counted).
+    pub fn convert(&mut self, p: &Payload) -> Option<ReadyScan> {
+        let v = p.vehicle.as_str();
+        let scan = match DetectionScan::from_json(&p.bytes) {
+            Ok(s) => s,
+            Err(e) => {
+                // Valid JSON of the wrong shape or values is `invalid`; anything else `json`.
+                let reason = if serde_json::from_slice::<DetectionScan>(&p.bytes).is_ok() {
+                    DropReason::Invalid
+                } else {
+                    DropReason::Json
+                };
+                self.drop(v, reason, &e);
+                return None;
+            }
+        };
+        if p.key_id != Some(scan.vehicle) {
+            let m = format!("payload of vehicle {} on the key of {v}", scan.vehicle);
+            self.drop(v, DropReason::KeyMismatch, &m);
+            return None;
+        }
+        self.follow_seq(v, &scan);
+        let framed = match scan_in_frame(&scan, &self.frame, self.geometry) {
+            Ok(f) => f,
+            Err(e) => {
+                self.drop(v, DropReason::Frame, &e);
+                return None;
+            }
+        };
+        let sensor = match framed.sensor_model(None) {
+            Ok(m) => m,
+            Err(e) => {
+                self.drop(v, DropReason::Frame, &e);
+                return None;
+            }
+        };
+        Some(ReadyScan {
+            vehicle: p.vehicle.clone(),
+            sensor: scan.sensor,
+            scan: SensorScan {
+                t: framed.t,
+                sensor,
+                detections: framed.detections,
+            },
+        })
+    }
+
+    /// Counts the scans missing before `scan` in its sensor's `seq` sequence (a sequence that
+    /// goes back is taken as a restarted publisher).
+    fn follow_seq(&mut self, vehicle: &str, scan: &DetectionScan) {
+        let full = self.last_seq.len() >= MAX_SEQUENCES;
+        let key = (scan.vehicle, scan.sensor.clone());
+        match self.last_seq.get_mut(&key) {
+            Some(last) => {
+                if scan.seq > last.saturating_add(1) {
+                    self.metrics.seq_lost(vehicle, scan.seq - *last - 1);
+                }
+                *last = scan.seq;
+            }
+            None if !full => {
+                self.last_seq.insert(key, scan.seq);
+            }
+            None => {}
+        }
+    }
+
+    /// Runs until the payload queue closes or the tracker is gone.
+    pub async fn run(mut self, mut rx: mpsc::Receiver<Payload>, tx: mpsc::Sender<ReadyScan>) {
+        while let Some(p) = rx.recv().await {
+            if let Some(ready) = self.convert(&p) {
+                if tx.send(ready).await.is_err() {
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, PlatformPose};
+    use harrier_core::scenario::MeasKind;
+
+    use crate::live::config::DEFAULT_ORIGIN;
+
+    fn scan(seq: u64, z: Vec<f64>) -> DetectionScan {
+        DetectionScan {
+            time_unix: None,
+            schema: DETECTIONS_SCHEMA.into(),
+            t: seq as f64,
+            vehicle: 2,
+            seq,
+            sensor: "cam".into(),
+            kind: MeasKind::Position,
+            origin: DEFAULT_ORIGIN,
+            platform: PlatformPose {
+                pos: [0.0; 3],
+                vel: [0.0; 3],
+                attitude: [0.0; 3],
+                geodetic: DEFAULT_ORIGIN,
+            },
+            noise_std: vec![10.0, 10.0],
+            detections: vec![Detection { z }],
+        }
+    }
+
+    #[test]
+    fn bad_payloads_are_counted_by_reason_and_gaps_as_losses() {
+        let metrics = Arc::new(Metrics::default());
+        let mut ingest = Ingest::new(
+            LocalFrame::new(DEFAULT_ORIGIN),
+            Geometry::planar(0.0),
+            Arc::clone(&metrics),
+        );
+        let key = "harrier/v1/vehicle/2/detections";
+        let json = |s: &DetectionScan| s.to_json().into_bytes();
+        let ok = ingest.convert(&Payload::new(key, json(&scan(1, vec![5.0, 6.0]))));
+        assert_eq!(ok.expect("valid").scan.detections, vec![vec![5.0, 6.0]]);
+        assert!(
+            ingest
+                .convert(&Payload::new(key, b"{not json".to_vec()))
+                .is_none()
+        );
+        let mut bad = scan(2, vec![1.0, 2.0]);
+        bad.noise_std = vec![-1.0, 1.0];
+        assert!(ingest.convert(&Payload::new(key, json(&bad))).is_none());
+        let other = "harrier/v1/vehicle/3/detections";
+        assert!(
+            ingest
+                .convert(&Payload::new(other, json(&scan(3, vec![0.0, 0.0]))))
+                .is_none()
+        );
+        // seq 1 → 5: 3 lost.
+        assert!(
+            ingest
+                .convert(&Payload::new(key, json(&scan(5, vec![0.0, 0.0]))))
+                .is_some()
+        );
+        let c = metrics.vehicle_counters("2");
+        assert_eq!(c.dropped.get(&DropReason::Json), Some(&1));
+        assert_eq!(c.dropped.get(&DropReason::Invalid), Some(&1));
+        assert_eq!(c.seq_lost, 3);
+        let c3 = metrics.vehicle_counters("3");
+        assert_eq!(c3.dropped.get(&DropReason::KeyMismatch), Some(&1));
+    }
+}

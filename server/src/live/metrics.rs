@@ -1,0 +1,261 @@
+//! The live service's counters, shared by the actors and rendered in the Prometheus text format
+//! for `GET /api/v1/metrics`.
+//!
+//! Vehicle labels come from the Zenoh key (`harrier/v1/vehicle/{id}/detections`); anything that is
+//! not a MAVLink system id 1–255 is counted under `other`, so a sender cannot grow the label set
+//! without bound.
+
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::sync::{Mutex, PoisonError};
+
+/// Why a payload or scan was dropped (the `reason` label).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum DropReason {
+    /// Not JSON, or not a `DetectionScan` object.
+    Json,
+    /// A `DetectionScan` that fails validation (schema, non-finite numbers, lengths, ranges).
+    Invalid,
+    /// The key's vehicle id differs from the payload's `vehicle`.
+    KeyMismatch,
+    /// Cannot be expressed in the server's frame, or has no usable sensor model.
+    Frame,
+    /// The ingest queue was full (the tracker is behind).
+    QueueFull,
+    /// The track engine refused the scan.
+    Rejected,
+    /// Older than the last processed scan (arrived after the reorder window).
+    Late,
+}
+
+impl DropReason {
+    /// The label value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Json => "json",
+            Self::Invalid => "invalid",
+            Self::KeyMismatch => "key_mismatch",
+            Self::Frame => "frame",
+            Self::QueueFull => "queue_full",
+            Self::Rejected => "rejected",
+            Self::Late => "late",
+        }
+    }
+}
+
+/// Counters of one vehicle.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VehicleCounters {
+    /// Payloads received on its key.
+    pub received: u64,
+    /// Scans the track engine ingested.
+    pub ingested: u64,
+    /// Detections in those scans.
+    pub detections: u64,
+    /// Drops by reason.
+    pub dropped: BTreeMap<DropReason, u64>,
+    /// Scans missing from the `seq` sequences of its sensors.
+    pub seq_lost: u64,
+}
+
+/// Every counter of the service.
+#[derive(Debug, Default)]
+pub struct Metrics {
+    inner: Mutex<Inner>,
+}
+
+#[derive(Debug, Default)]
+struct Inner {
+    vehicles: BTreeMap<String, VehicleCounters>,
+    tracks_confirmed: usize,
+    tracks_tentative: usize,
+    last_scan_t: Option<f64>,
+}
+
+/// The label of a key's vehicle segment.
+pub fn vehicle_label(segment: &str) -> String {
+    match segment.parse::<u8>() {
+        Ok(id) if id >= 1 && segment == id.to_string() => segment.to_string(),
+        _ => "other".to_string(),
+    }
+}
+
+impl Metrics {
+    fn with<R>(&self, f: impl FnOnce(&mut Inner) -> R) -> R {
+        f(&mut self.inner.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    fn vehicle<R>(&self, vehicle: &str, f: impl FnOnce(&mut VehicleCounters) -> R) -> R {
+        self.with(|i| f(i.vehicles.entry(vehicle.to_string()).or_default()))
+    }
+
+    /// A payload arrived on `vehicle`'s key.
+    pub fn received(&self, vehicle: &str) {
+        self.vehicle(vehicle, |v| v.received += 1);
+    }
+
+    /// A payload or scan of `vehicle` was dropped.
+    pub fn dropped(&self, vehicle: &str, reason: DropReason) {
+        self.vehicle(vehicle, |v| *v.dropped.entry(reason).or_default() += 1);
+    }
+
+    /// `n` scans of `vehicle` are missing from a `seq` sequence.
+    pub fn seq_lost(&self, vehicle: &str, n: u64) {
+        self.vehicle(vehicle, |v| v.seq_lost += n);
+    }
+
+    /// The track engine ingested a scan of `vehicle` with `detections` detections at `t`; the
+    /// engine now holds these tracks.
+    pub fn ingested(&self, vehicle: &str, detections: usize, t: f64, confirmed: usize, all: usize) {
+        self.with(|i| {
+            let v = i.vehicles.entry(vehicle.to_string()).or_default();
+            v.ingested += 1;
+            v.detections += detections as u64;
+            i.last_scan_t = Some(t);
+            i.tracks_confirmed = confirmed;
+            i.tracks_tentative = all - confirmed;
+        });
+    }
+
+    /// The counters of `vehicle` (a label).
+    pub fn vehicle_counters(&self, vehicle: &str) -> VehicleCounters {
+        self.with(|i| i.vehicles.get(vehicle).cloned().unwrap_or_default())
+    }
+
+    /// Time of the last scan the track engine ingested.
+    pub fn last_scan_t(&self) -> Option<f64> {
+        self.with(|i| i.last_scan_t)
+    }
+
+    /// Scans ingested over every vehicle.
+    pub fn scans_ingested(&self) -> u64 {
+        self.with(|i| i.vehicles.values().map(|v| v.ingested).sum())
+    }
+
+    /// The Prometheus text exposition (format 0.0.4).
+    pub fn render(&self, uptime_s: f64) -> String {
+        self.with(|i| {
+            let mut out = String::new();
+            let mut family = |name: &str, kind: &str, help: &str, rows: Vec<(String, String)>| {
+                let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
+                for (labels, value) in rows {
+                    let _ = writeln!(out, "{name}{labels} {value}");
+                }
+            };
+            let per = |f: &dyn Fn(&VehicleCounters) -> u64| {
+                i.vehicles
+                    .iter()
+                    .map(|(id, v)| (format!("{{vehicle=\"{id}\"}}"), f(v).to_string()))
+                    .collect::<Vec<_>>()
+            };
+            family(
+                "harrier_payloads_received_total",
+                "counter",
+                "Detection payloads received per vehicle key.",
+                per(&|v| v.received),
+            );
+            family(
+                "harrier_scans_ingested_total",
+                "counter",
+                "Scans processed by the track engine.",
+                per(&|v| v.ingested),
+            );
+            family(
+                "harrier_detections_total",
+                "counter",
+                "Detections in the processed scans.",
+                per(&|v| v.detections),
+            );
+            let drops = i
+                .vehicles
+                .iter()
+                .flat_map(|(id, v)| {
+                    v.dropped.iter().map(move |(r, n)| {
+                        (
+                            format!("{{vehicle=\"{id}\",reason=\"{}\"}}", r.as_str()),
+                            n.to_string(),
+                        )
+                    })
+                })
+                .collect();
+            family(
+                "harrier_scans_dropped_total",
+                "counter",
+                "Payloads and scans dropped, by reason.",
+                drops,
+            );
+            family(
+                "harrier_scans_late_total",
+                "counter",
+                "Scans older than the last processed scan (dropped).",
+                per(&|v| v.dropped.get(&DropReason::Late).copied().unwrap_or(0)),
+            );
+            family(
+                "harrier_seq_lost_total",
+                "counter",
+                "Scans missing from the per-sensor seq sequences.",
+                per(&|v| v.seq_lost),
+            );
+            family(
+                "harrier_tracks",
+                "gauge",
+                "Live tracks by status.",
+                vec![
+                    (
+                        "{status=\"confirmed\"}".into(),
+                        i.tracks_confirmed.to_string(),
+                    ),
+                    (
+                        "{status=\"tentative\"}".into(),
+                        i.tracks_tentative.to_string(),
+                    ),
+                ],
+            );
+            if let Some(t) = i.last_scan_t {
+                family(
+                    "harrier_last_scan_time_seconds",
+                    "gauge",
+                    "Scan time of the last processed scan.",
+                    vec![(String::new(), t.to_string())],
+                );
+            }
+            family(
+                "harrier_uptime_seconds",
+                "gauge",
+                "Seconds since the service started.",
+                vec![(String::new(), format!("{uptime_s:.3}"))],
+            );
+            out
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn labels_are_bounded_and_rendered() {
+        assert_eq!(vehicle_label("7"), "7");
+        for bad in ["0", "256", "07", "x", ""] {
+            assert_eq!(vehicle_label(bad), "other", "{bad}");
+        }
+        let m = Metrics::default();
+        m.received("9");
+        m.dropped("9", DropReason::Json);
+        m.dropped("1", DropReason::Late);
+        m.seq_lost("1", 3);
+        m.ingested("1", 2, 4.5, 1, 3);
+        let text = m.render(1.0);
+        for line in [
+            "harrier_scans_dropped_total{vehicle=\"9\",reason=\"json\"} 1",
+            "harrier_scans_late_total{vehicle=\"1\"} 1",
+            "harrier_seq_lost_total{vehicle=\"1\"} 3",
+            "harrier_detections_total{vehicle=\"1\"} 2",
+            "harrier_tracks{status=\"tentative\"} 2",
+            "harrier_last_scan_time_seconds 4.5",
+        ] {
+            assert!(text.lines().any(|l| l == line), "{line} missing in\n{text}");
+        }
+    }
+}
