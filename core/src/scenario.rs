@@ -354,6 +354,24 @@ pub struct Motion {
     pub accel_bound: Option<f64>,
 }
 
+impl Motion {
+    /// The hints of a constant-velocity target: one `CV` model, white-noise acceleration std
+    /// `accel_std` (m/s²).
+    pub fn cv(accel_std: f64) -> Self {
+        Self {
+            models: vec![MotionModelSpec {
+                name: "CV".into(),
+                kind: "CV".into(),
+                turn_rate: None,
+            }],
+            initial_probs: None,
+            transition_matrix: None,
+            accel_std: Some(accel_std),
+            accel_bound: None,
+        }
+    }
+}
+
 /// One motion model of the hints.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 pub struct MotionModelSpec {

@@ -491,17 +491,11 @@ fn scenario_json(
             });
         }
     }
-    let motion = s.estimator.motion.clone().unwrap_or_else(|| fmt::Motion {
-        models: vec![fmt::MotionModelSpec {
-            name: "CV".into(),
-            kind: "CV".into(),
-            turn_rate: None,
-        }],
-        initial_probs: None,
-        transition_matrix: None,
-        accel_std: Some(1.0),
-        accel_bound: None,
-    });
+    let motion = s
+        .estimator
+        .motion
+        .clone()
+        .unwrap_or_else(|| fmt::Motion::cv(1.0));
     let prior = (!multi).then(|| {
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         rng.set_stream(PRIOR_STREAM);

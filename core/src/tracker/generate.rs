@@ -267,17 +267,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
             bias: None,
         }],
         roads: Vec::new(),
-        motion: Some(fmt::Motion {
-            models: vec![fmt::MotionModelSpec {
-                name: "CV".into(),
-                kind: "CV".into(),
-                turn_rate: None,
-            }],
-            initial_probs: None,
-            transition_matrix: None,
-            accel_std: Some(cfg.accel_std_hint),
-            accel_bound: None,
-        }),
+        motion: Some(fmt::Motion::cv(cfg.accel_std_hint)),
         prior: None,
         linear_system: None,
         hints: serde_json::Value::Object(serde_json::Map::new()),

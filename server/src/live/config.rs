@@ -105,17 +105,7 @@ impl Default for TrackerConfig {
             params: Default::default(),
             reorder_window_s: 0.1,
             scan_period_s: 1.0,
-            motion: Motion {
-                models: vec![harrier_core::scenario::MotionModelSpec {
-                    name: "CV".into(),
-                    kind: "CV".into(),
-                    turn_rate: None,
-                }],
-                initial_probs: None,
-                transition_matrix: None,
-                accel_std: Some(1.0),
-                accel_bound: None,
-            },
+            motion: Motion::cv(1.0),
             roads: Vec::new(),
             queue: 1024,
         }
