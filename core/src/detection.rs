@@ -259,6 +259,9 @@ pub struct TruthSample {
     pub schema: String,
     /// Time (s, the detections' clock).
     pub t: f64,
+    /// The same instant as UNIX time, as in [`DetectionScan::time_unix`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_unix: Option<f64>,
     /// Geodetic origin of the ENU frame.
     pub origin: GeoPoint,
     /// Every target.
@@ -380,6 +383,7 @@ mod tests {
         let t = TruthSample {
             schema: TRUTH_SCHEMA.into(),
             t: 1.0,
+            time_unix: Some(1.8e9 + 1.0),
             origin: scan().origin,
             targets: vec![TargetTruth {
                 id: "T0".into(),

@@ -116,6 +116,7 @@ pub fn spawn(
             bus.publish_truth(&TruthSample {
                 schema: TRUTH_SCHEMA.into(),
                 t,
+                time_unix: Some(start_unix + t),
                 origin,
                 targets: world.truth(),
             });

@@ -87,11 +87,13 @@ fn metric(text: &str, series: &str) -> f64 {
 }
 
 /// Position error of the track `k` against the truth sample nearest its time, extrapolated to it.
+/// The server tracks on UNIX time (harrier-sim stamps `time_unix` on scans and truth alike).
 fn error_m(k: &Value, truth: &[TruthSample]) -> f64 {
     let t = k["t"].as_f64().expect("t");
+    let at = |s: &TruthSample| s.time_unix.expect("truth carries time_unix");
     let s = truth
         .iter()
-        .min_by(|a, b| (a.t - t).abs().total_cmp(&(b.t - t).abs()))
+        .min_by(|a, b| (at(a) - t).abs().total_cmp(&(at(b) - t).abs()))
         .expect("a truth sample");
     let x = [
         k["state"][0].as_f64().expect("x"),
@@ -100,7 +102,7 @@ fn error_m(k: &Value, truth: &[TruthSample]) -> f64 {
     s.targets
         .iter()
         .map(|g| {
-            let dt = t - s.t;
+            let dt = t - at(s);
             let (tx, ty) = (g.state[0] + g.state[3] * dt, g.state[1] + g.state[4] * dt);
             (x[0] - tx).hypot(x[1] - ty)
         })

@@ -155,7 +155,8 @@ impl Ingest {
             vehicle: p.vehicle.clone(),
             sensor: scan.sensor,
             scan: SensorScan {
-                t: framed.t,
+                // One time line for every publisher: UNIX time when the scan carries it.
+                t: scan.time_unix.unwrap_or(framed.t),
                 sensor,
                 detections: framed.detections,
             },

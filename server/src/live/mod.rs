@@ -13,6 +13,9 @@
 //!   the server's ENU frame (harrier-link's `scan_in_frame`) as [`crate::engine::SensorScan`]s.
 //! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_engine`], fed in
 //!   time order through a short reorder buffer; snapshots to a `watch`, events to a `broadcast`.
+//!   Scans are put on one time line by their `time_unix` (UNIX time on the sender's clock) when
+//!   they carry it, else by their `t` — so publishers without `time_unix` are only fused with
+//!   others on the same clock.
 //! - [`api`]: axum routes under `/api/v1` (tracks, health, estimators, Prometheus metrics).
 //! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
 //!   it describes; [`metrics`]: the counters.
