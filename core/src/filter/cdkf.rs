@@ -186,6 +186,25 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for CentralDifferenc
     }
 }
 
+impl CentralDifference {
+    /// The measurement moments of `predicted` under `model`: `ẑ = z̄`, `S = Pzz + R` (symmetrised)
+    /// and `Pxz` ([VdM04] eqs. (3.98)–(3.102) on h, then (3.100)): what the update and the
+    /// measurement prediction share.
+    fn measurement_moments<H: MeasurementModel<N, M>, const N: usize, const M: usize>(
+        &self,
+        model: &H,
+        predicted: &Gaussian<N>,
+    ) -> Result<(SVector<f64, M>, SMatrix<f64, M, M>, SMatrix<f64, N, M>)> {
+        let (zhat, Pzz, Pxz) = self.moments(
+            &predicted.mean,
+            &predicted.cov,
+            |x| model.function(x),
+            |a, b| model.residual(a, b),
+        )?;
+        Ok((zhat, symmetrize(&(Pzz + model.covar())), Pxz))
+    }
+}
+
 impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
     for CentralDifference
 {
@@ -198,15 +217,9 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
         predicted: &Gaussian<N>,
         z: &SVector<f64, M>,
     ) -> Result<Posterior<Gaussian<N>, M>> {
-        let P = &predicted.cov;
-        let (zhat, Pzz, Pxz) = self.moments(
-            &predicted.mean,
-            P,
-            |x| model.function(x),
-            |a, b| model.residual(a, b),
-        )?;
+        let (zhat, S, Pxz) = self.measurement_moments(model, predicted)?;
         let nu = model.residual(z, &zhat);
-        sigma_point_update(predicted, symmetrize(&(Pzz + model.covar())), &Pxz, nu)
+        sigma_point_update(predicted, S, &Pxz, nu)
     }
 }
 
@@ -220,13 +233,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
         model: &H,
         predicted: &Gaussian<N>,
     ) -> Result<MeasurementPrediction<M>> {
-        let (zhat, Pzz, _) = self.moments(
-            &predicted.mean,
-            &predicted.cov,
-            |x| model.function(x),
-            |a, b| model.residual(a, b),
-        )?;
-        let cov = symmetrize(&(Pzz + model.covar()));
+        let (zhat, cov, _) = self.measurement_moments(model, predicted)?;
         ensure_finite(&cov, "innovation covariance")?;
         Ok(MeasurementPrediction { zhat, cov })
     }
