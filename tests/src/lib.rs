@@ -168,3 +168,51 @@ pub fn wait_with_deadline(child: &mut Child, timeout: Duration, what: &str) -> E
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// A free TCP port on loopback. Zenoh's stable API does not report the port it bound for port 0,
+/// so the Zenoh tests take one from the OS and pass it as an explicit listen endpoint.
+pub fn free_tcp_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("free port")
+        .port()
+}
+
+/// harrier-sim's world in this process, for the Zenoh tests: vehicles `ids` on real UDP sockets
+/// (`udpin` on free loopback ports) and the live sensor loop of `config` publishing their scans
+/// and the truth over a Zenoh session that listens on `endpoint`. Keep the vehicles alive while
+/// the loop runs.
+pub fn sim_world(
+    ids: &[u8],
+    config: &harrier_sim::live::LiveConfig,
+    endpoint: &str,
+) -> (
+    Vec<harrier_sim::net::SimHandle>,
+    harrier_sim::live::LiveHandle,
+) {
+    use harrier_sim::net::{LinkConfig, SimHandle, spawn};
+    let vehicles: Vec<SimHandle> = ids
+        .iter()
+        .map(|&id| {
+            spawn(
+                harrier_sim::vehicle::VehicleConfig::new(id),
+                &LinkConfig {
+                    endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+                },
+            )
+            .expect("start a vehicle")
+        })
+        .collect();
+    let bus = harrier_sim::bus::Bus::open(&harrier_sim::bus::BusConfig {
+        listen: vec![endpoint.to_owned()],
+        ..harrier_sim::bus::BusConfig::default()
+    })
+    .expect("open the simulator's Zenoh session");
+    let live = harrier_sim::live::spawn(
+        config,
+        vehicles.iter().map(SimHandle::shared).collect(),
+        bus,
+    )
+    .expect("start the sensor loop");
+    (vehicles, live)
+}

@@ -19,11 +19,10 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRUTH_KEY, TruthSample};
 use harrier_core::tracker::TrackEvent;
 use harrier_server::live::{self, config::Config};
-use harrier_sim::bus::{Bus, BusConfig};
+use harrier_sim::bus::BusConfig;
 use harrier_sim::live::LiveConfig;
-use harrier_sim::net::{LinkConfig, SimHandle, spawn};
 use harrier_sim::setup::SimScenario;
-use harrier_sim::vehicle::VehicleConfig;
+use harrier_tests::{free_tcp_port, sim_world};
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
 use serde_json::Value;
@@ -35,13 +34,6 @@ const SPEEDUP: f64 = 5.0;
 const MAX_ERROR_M: f64 = 10.0;
 /// Consecutive polls (each after a new scan) that must agree.
 const STABLE_POLLS: usize = 6;
-
-fn free_tcp_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("free port")
-        .port()
-}
 
 async fn within<T>(secs: u64, what: &str, f: impl IntoFuture<Output = T>) -> T {
     match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
@@ -173,18 +165,6 @@ impl Observer {
 #[test]
 fn the_live_server_tracks_the_simulated_road_target() {
     let started = Instant::now();
-    let vehicles: Vec<SimHandle> = [1u8, 2]
-        .iter()
-        .map(|&id| {
-            spawn(
-                VehicleConfig::new(id),
-                &LinkConfig {
-                    endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
-                },
-            )
-            .expect("start a vehicle")
-        })
-        .collect();
     let scenario = SimScenario::load("cimm-road").expect("preset");
     let mut config = Config::default();
     config.frame.origin = scenario.origin;
@@ -197,22 +177,16 @@ fn the_live_server_tracks_the_simulated_road_target() {
     let server_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     config.zenoh.listen = vec![server_endpoint.clone()];
     config.zenoh.connect = vec![sim_endpoint.clone()];
-    let bus = Bus::open(&BusConfig {
-        listen: vec![sim_endpoint.clone()],
-        ..BusConfig::default()
-    })
-    .expect("open the sim's Zenoh session");
-    let sim = harrier_sim::live::spawn(
+    let (_vehicles, sim) = sim_world(
+        &[1, 2],
         &LiveConfig {
             scenario,
             seed: 3,
             speedup: SPEEDUP,
             truth_hz: 10.0,
         },
-        vehicles.iter().map(SimHandle::shared).collect(),
-        bus,
-    )
-    .expect("start the sensor loop");
+        &sim_endpoint,
+    );
 
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

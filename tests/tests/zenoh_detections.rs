@@ -8,61 +8,34 @@
 use std::process::Stdio;
 use std::time::Duration;
 
-use harrier_sim::bus::{Bus, BusConfig};
-use harrier_sim::live::{self, LiveConfig};
-use harrier_sim::net::{LinkConfig, SimHandle, spawn};
+use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::SimScenario;
-use harrier_sim::vehicle::VehicleConfig;
-use harrier_tests::{python_script, require_python_module, wait_with_deadline};
+use harrier_tests::{
+    free_tcp_port, python_script, require_python_module, sim_world, wait_with_deadline,
+};
 
 const RATE_HZ: f64 = 20.0;
 const SCANS: usize = 60;
-
-fn free_tcp_port() -> u16 {
-    // Zenoh's stable API does not report the port it bound for port 0: take one from the OS.
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .expect("free port")
-        .port()
-}
 
 #[test]
 fn eclipse_zenoh_subscriber_decodes_the_detections() {
     require_python_module("zenoh", "eclipse-zenoh==1.10.2");
 
-    let vehicles: Vec<SimHandle> = [1u8, 2]
-        .iter()
-        .map(|&id| {
-            spawn(
-                VehicleConfig::new(id),
-                &LinkConfig {
-                    endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
-                },
-            )
-            .expect("start a vehicle")
-        })
-        .collect();
     let mut scenario = SimScenario::load("radar").expect("preset");
     for s in &mut scenario.sensors {
         s.rate_hz = RATE_HZ;
     }
     let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let bus = Bus::open(&BusConfig {
-        listen: vec![endpoint.clone()],
-        ..BusConfig::default()
-    })
-    .expect("open the Zenoh session");
-    let running = live::spawn(
+    let (_vehicles, running) = sim_world(
+        &[1, 2],
         &LiveConfig {
             scenario,
             seed: 7,
             speedup: 1.0,
             truth_hz: 5.0,
         },
-        vehicles.iter().map(SimHandle::shared).collect(),
-        bus,
-    )
-    .expect("start the sensor loop");
+        &endpoint,
+    );
 
     let mut child = python_script("zenoh_subscriber.py")
         .args(["--connect", &endpoint, "--vehicles", "1,2"])
