@@ -25,6 +25,10 @@ pub const TRUTH_SCHEMA: &str = "harrier-truth/1";
 pub const DETECTIONS_KEY_ALL: &str = "harrier/v1/vehicle/*/detections";
 /// Zenoh key of the simulation's ground truth.
 pub const TRUTH_KEY: &str = "harrier/v1/sim/truth";
+/// Zenoh key on which a ground station publishes its tracks (`harrier-tracks/1`, DETECTIONS.md).
+pub const TRACKS_KEY: &str = "harrier/v1/tracks";
+/// Schema of a ground station's track message.
+pub const TRACKS_SCHEMA: &str = "harrier-tracks/1";
 
 /// The Zenoh key on which vehicle `id` publishes its detections.
 pub fn detections_key(vehicle: u8) -> String {

@@ -15,9 +15,11 @@
 //! * Offline tools: [`replay`] (`harrier replay`) and [`guidance_sim`] (`harrier guidance-sim`),
 //!   both getting their estimators from the registry.
 
+pub mod demo;
 pub mod engine;
 pub mod estimators;
 pub mod guidance_sim;
 pub mod live;
 pub mod registry;
 pub mod replay;
+pub mod sessions;

@@ -63,6 +63,10 @@ enum Command {
     },
     /// Run the live tracking service: detections from Zenoh in, tracks over HTTP (`/api/v1`).
     Serve(ServeArgs),
+    /// Run the demo: the service, an in-process Zenoh peer and simulated UAVs, in one process.
+    Demo(harrier_server::demo::DemoArgs),
+    /// List recorded sessions, or export one as a gcs-scenario/1 directory.
+    Sessions(harrier_server::sessions::SessionsArgs),
     /// List the estimators, one line each.
     Estimators {
         /// Also list each estimator's `--param` names.
@@ -78,6 +82,20 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("harrier serve: error: {e}");
+                ExitCode::from(2)
+            }
+        },
+        Command::Demo(args) => match harrier_server::demo::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier demo: error: {e:#}");
+                ExitCode::from(2)
+            }
+        },
+        Command::Sessions(args) => match harrier_server::sessions::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier sessions: error: {e:#}");
                 ExitCode::from(2)
             }
         },

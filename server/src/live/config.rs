@@ -27,6 +27,8 @@ pub struct Config {
     pub api: ApiConfig,
     /// The Zenoh session.
     pub zenoh: ZenohConfig,
+    /// The SQLite session recording.
+    pub recorder: RecorderConfig,
 }
 
 /// The ENU frame tracks are expressed in.
@@ -58,14 +60,43 @@ pub struct TrackerConfig {
     pub roads: Vec<Road>,
     /// Bounded queue lengths between the actors (payloads, scans).
     pub queue: usize,
+    /// Sensor ids to track from (a scan's `sensor`); empty: every sensor.
+    pub sensors: Vec<String>,
 }
 
 /// The HTTP API.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ApiConfig {
     /// Address to bind (port 0: any free port).
     pub listen: SocketAddr,
+    /// Bearer token every mutating request must carry (`Authorization: Bearer …`). The
+    /// environment variable `HARRIER_TOKEN` overrides it; when both are empty a random token is
+    /// generated and printed at start.
+    pub token: String,
+    /// Require the token for reads too (GET routes and the WebSocket).
+    pub auth_reads: bool,
+    /// Origins other than the server's own allowed to call the API from a browser (CORS);
+    /// empty: same-origin only.
+    pub cors_origins: Vec<String>,
+    /// Directory of the web dashboard served at `/`; empty: the repository's `web/`.
+    pub web_dir: String,
+    /// Messages queued per WebSocket client before it is dropped to the latest state.
+    pub ws_queue: usize,
+}
+
+/// The SQLite recording of the session.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecorderConfig {
+    /// SQLite file (created if missing; one file holds many sessions); empty: no recording.
+    pub path: String,
+    /// Longest time (ms) between two commits: what a crash can lose.
+    pub flush_ms: u64,
+    /// Records queued for the writer before new ones are dropped (and counted).
+    pub queue: usize,
+    /// Also record the simulator's truth (`harrier/v1/sim/truth`) when it is published.
+    pub truth: bool,
 }
 
 /// The Zenoh session (harrier-link's [`BusConfig`]).
@@ -80,6 +111,10 @@ pub struct ZenohConfig {
     pub connect: Vec<String>,
     /// Multicast scouting.
     pub multicast_scouting: bool,
+    /// Key the confirmed tracks are published on (TRACKS.md); empty: not published.
+    pub tracks_key: String,
+    /// Rate (Hz) of the track publication.
+    pub tracks_hz: f64,
 }
 
 /// PX4 SITL's default home (Zurich), harrier-sim's default origin.
@@ -108,6 +143,7 @@ impl Default for TrackerConfig {
             motion: Motion::cv(1.0),
             roads: Vec::new(),
             queue: 1024,
+            sensors: Vec::new(),
         }
     }
 }
@@ -116,6 +152,22 @@ impl Default for ApiConfig {
     fn default() -> Self {
         Self {
             listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            token: String::new(),
+            auth_reads: false,
+            cors_origins: Vec::new(),
+            web_dir: String::new(),
+            ws_queue: 256,
+        }
+    }
+}
+
+impl Default for RecorderConfig {
+    fn default() -> Self {
+        Self {
+            path: String::new(),
+            flush_ms: 200,
+            queue: 16_384,
+            truth: true,
         }
     }
 }
@@ -127,6 +179,8 @@ impl Default for ZenohConfig {
             listen: vec!["tcp/127.0.0.1:7447".into()],
             connect: Vec::new(),
             multicast_scouting: false,
+            tracks_key: harrier_core::detection::TRACKS_KEY.into(),
+            tracks_hz: 10.0,
         }
     }
 }
@@ -200,6 +254,31 @@ impl Config {
         }
         if t.queue == 0 {
             return bad("tracker.queue must be ≥ 1".into());
+        }
+        if self.api.ws_queue == 0 {
+            return bad("api.ws_queue must be ≥ 1".into());
+        }
+        let r = &self.recorder;
+        if !(1..=1000).contains(&r.flush_ms) {
+            return bad(format!(
+                "recorder.flush_ms must be in [1, 1000] ms, got {}",
+                r.flush_ms
+            ));
+        }
+        if r.queue == 0 {
+            return bad("recorder.queue must be ≥ 1".into());
+        }
+        let z = &self.zenoh;
+        if !(z.tracks_hz.is_finite() && z.tracks_hz > 0.0 && z.tracks_hz <= 1000.0) {
+            return bad(format!(
+                "zenoh.tracks_hz must be in (0, 1000], got {}",
+                z.tracks_hz
+            ));
+        }
+        if !z.tracks_key.is_empty() {
+            if let Err(e) = zenoh::key_expr::KeyExpr::try_from(z.tracks_key.as_str()) {
+                return bad(format!("zenoh.tracks_key {:?}: {e}", z.tracks_key));
+            }
         }
         self.bus()?;
         Ok(())

@@ -29,6 +29,7 @@ pub mod api;
 pub mod config;
 pub mod ingest;
 pub mod metrics;
+pub mod recorder;
 pub mod tracker;
 
 use std::net::SocketAddr;
