@@ -14,6 +14,9 @@
 //!   caller's clock and transport.
 //! - [`detections`]: a `DetectionScan` re-expressed in a consumer's ENU frame, and the
 //!   harrier-core measurement model for it.
+//! - [`scenario_out`]: writing `gcs-scenario/1` directories from scans (sensor and platform ids,
+//!   measurement lines, truth rows, the atomic directory write), shared by harrier-sim's `record`
+//!   and the server's session export.
 //!
 //! ```
 //! use harrier_link::offboard::{OffboardConfig, OffboardSequence};
@@ -34,5 +37,6 @@ pub mod detections;
 pub mod geo;
 pub mod offboard;
 pub mod px4;
+pub mod scenario_out;
 
 pub use mavlink;

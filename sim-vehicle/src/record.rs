@@ -15,8 +15,6 @@
 //! Time runs on a 50 Hz grid; every sensor rate must divide 50 Hz, so scan times are exact
 //! (`k / rate`). `truth.csv` has a row (per target) at every scan time of any sensor.
 
-use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
 use harrier_core::guidance::lgvf::Lgvf;
@@ -28,6 +26,7 @@ use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence};
 use harrier_link::px4::VehicleStatus;
+use harrier_link::scenario_out;
 use nalgebra::{Vector2, Vector3};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -314,9 +313,9 @@ pub fn record(
     let n_run = (cfg.duration_s * hz + 1e-6).floor() as u64;
     let mut meas = String::new();
     let mut truth = String::from(if multi {
-        "t,target,x,y,z,vx,vy,vz,mode\n"
+        scenario_out::MULTI_TRUTH_HEADER
     } else {
-        "t,x,y,z,vx,vy,vz,mode\n"
+        scenario_out::TRUTH_HEADER
     });
     let mut stats = RecordStats {
         multi,
@@ -340,18 +339,8 @@ pub fn record(
             let m = n - n_pre;
             if m % truth_every == 0 {
                 for tr in &truths {
-                    let s = tr.state;
-                    let id = if multi {
-                        format!("{},", tr.id)
-                    } else {
-                        String::new()
-                    };
-                    // Writing to a String cannot fail.
-                    let _ = writeln!(
-                        truth,
-                        "{t:.6},{id}{:.6},{:.6},{:.6},{:.6},{:.6},{:.6},{}",
-                        s[0], s[1], s[2], s[3], s[4], s[5], tr.mode
-                    );
+                    let target = multi.then_some(tr.id.as_str());
+                    scenario_out::push_truth_row(&mut truth, t, target, &tr.state, &tr.mode);
                     stats.truth_rows += 1;
                 }
             }
@@ -365,23 +354,14 @@ pub fn record(
                     let local = scan_in_frame(&l.scan, &frame, geometry).map_err(|e| {
                         RecordError::Config(format!("scan of {}: {e}", l.scan.sensor))
                     })?;
-                    let sensor = format!("{}{id}", local.sensor);
+                    let sensor = scenario_out::sensor_id(&local.sensor, id);
                     for (z, src) in local.detections.iter().zip(&l.sources) {
                         match src {
                             Some(_) => stats.detections += 1,
                             None if multi => stats.clutter += 1,
                             None => continue,
                         }
-                        let line = fmt::Measurement {
-                            t,
-                            sensor: sensor.clone(),
-                            kind: local.kind,
-                            platform: fmt::PlatformPose {
-                                pos: local.platform_pos.into(),
-                                vel: local.platform_vel.into(),
-                            },
-                            z: z.clone(),
-                        };
+                        let line = scenario_out::measurement(&local, t, &sensor, z.clone());
                         let text = serde_json::to_string(&line).map_err(|e| {
                             RecordError::Config(format!("cannot serialise a measurement: {e}"))
                         })?;
@@ -469,7 +449,7 @@ fn scenario_json(
     let mut platforms = Vec::new();
     for id in 1..=cfg.count {
         platforms.push(fmt::Platform {
-            id: format!("uav{id}"),
+            id: scenario_out::platform_id(id),
             kind: kind.into(),
         });
         for spec in &s.sensors {
@@ -479,8 +459,8 @@ fn scenario_json(
                                        time-varying s, o (may be zero)"})
             });
             sensors.push(fmt::Sensor {
-                id: format!("{}{id}", spec.id),
-                platform: format!("uav{id}"),
+                id: scenario_out::sensor_id(&spec.id, id),
+                platform: scenario_out::platform_id(id),
                 kind: spec.kind(),
                 ncomp: (spec.kind() == MeasKind::Position).then_some(2),
                 rate_hz: Some(spec.rate_hz),
@@ -593,58 +573,19 @@ fn scenario_json(
     .map_err(serr)
 }
 
-/// Writes a recording into `out` atomically: the files go to a temporary directory beside it,
-/// which is then renamed. `out` must not exist or be an empty directory.
+/// Writes a recording into `out` atomically (harrier-link's [`scenario_out::write_dir`]): the
+/// files go to a temporary directory beside it, which is then renamed. `out` must not exist or be
+/// an empty directory.
 pub fn write_dir(rec: &Recording, out: &Path) -> Result<(), RecordError> {
-    let werr = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| RecordError::Write { path, source }
-    };
-    if out.exists() {
-        let empty = out.is_dir() && std::fs::read_dir(out).map_err(werr(out))?.next().is_none();
-        if !empty {
-            return Err(RecordError::Write {
-                path: out.to_path_buf(),
-                source: std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    "already exists and is not an empty directory",
-                ),
-            });
-        }
-    }
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(werr(parent))?;
-    let name = out
-        .file_name()
-        .map(|f| f.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "scenario".into());
-    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        if tmp.exists() {
-            std::fs::remove_dir_all(&tmp)?;
-        }
-        std::fs::create_dir(&tmp)?;
-        for (file, text) in [
-            ("scenario.json", &rec.scenario_json),
-            ("measurements.jsonl", &rec.measurements_jsonl),
-            ("truth.csv", &rec.truth_csv),
-        ] {
-            let mut f = std::fs::File::create(tmp.join(file))?;
-            f.write_all(text.as_bytes())?;
-            f.sync_all()?;
-        }
-        if out.exists() {
-            std::fs::remove_dir(out)?;
-        }
-        std::fs::rename(&tmp, out)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&tmp);
-    }
-    result.map_err(werr(out))
+    let files = [
+        ("scenario.json", rec.scenario_json.as_str()),
+        ("measurements.jsonl", rec.measurements_jsonl.as_str()),
+        ("truth.csv", rec.truth_csv.as_str()),
+    ];
+    scenario_out::write_dir(out, &files).map_err(|e| RecordError::Write {
+        path: e.path,
+        source: e.source,
+    })
 }
 
 /// The `record` command: load, run with progress on stderr, write. Returns the counts.
