@@ -210,6 +210,16 @@ pub enum MeasKind {
 }
 
 impl MeasKind {
+    /// The name used in files and messages (`position`, `range_bearing`, `az_el`,
+    /// `bearing_size`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Position => "position",
+            Self::RangeBearing => "range_bearing",
+            Self::AzEl => "az_el",
+            Self::BearingSize => "bearing_size",
+        }
+    }
     /// Number of components (`ncomp` for position sensors).
     pub fn len(self, ncomp: Option<usize>) -> usize {
         match self {
@@ -983,6 +993,14 @@ mod tests {
         let sc = Scenario::parse(SC).unwrap();
         assert_eq!(sc.sensors[0].kind, MeasKind::RangeBearing);
         assert_eq!(sc.active_dims(), &[0, 1, 3, 4]);
+        for k in [
+            MeasKind::Position,
+            MeasKind::RangeBearing,
+            MeasKind::AzEl,
+            MeasKind::BearingSize,
+        ] {
+            assert_eq!(serde_json::to_value(k).unwrap(), k.as_str());
+        }
     }
 
     #[test]

@@ -144,11 +144,12 @@ pub struct SensorScan {
 
 /// What a track engine reports of one track: the estimate in the canonical state layout of an
 /// estimate line (`[x, y, z, vx, vy, vz]`, FORMAT.md §5) with its covariance over `cov_dims`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
 pub struct TrackView {
     /// Stable track id.
     pub id: u64,
     /// `"tentative"` or `"confirmed"`.
+    #[schema(value_type = String)]
     pub status: &'static str,
     /// Time of the estimate (s).
     pub t: f64,
@@ -182,6 +183,25 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     fn snapshot(&self) -> Vec<TrackView>;
     /// Time of the last scan.
     fn time(&self) -> Option<f64>;
+    /// The live tracks in a form any engine of the same deployment can [`adopt`](Self::adopt).
+    fn handover(&self) -> Handover;
+    /// Replaces this engine's tracks with `h`'s (a change of estimator at run time): ids, status
+    /// and hit/miss records are kept, each estimate starts this engine's filter. On error
+    /// nothing changes.
+    fn adopt(&mut self, h: &Handover) -> Result<(), EngineError>;
+}
+
+/// Tracks passed from one track engine to another: each track's record and its Gaussian estimate
+/// in the engine's state layout (`dim` = 4 planar `[x, y, vx, vy]`, 6 in 3-D), covariance
+/// row-major.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Handover {
+    /// Time of the last scan.
+    pub t: Option<f64>,
+    /// State dimension of every estimate.
+    pub dim: usize,
+    /// Record, mean and covariance of each track.
+    pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
 }
 
 /// Builds a track engine for a deployment described as a scenario (`dims`, ground plane,

@@ -206,6 +206,12 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
             config.zenoh.listen,
             config.zenoh.connect
         );
+        match server.token() {
+            (token, live::TokenSource::Generated) => eprintln!(
+                "harrier serve: API token (mutating requests need `Authorization: Bearer <token>`): {token}"
+            ),
+            (_, source) => eprintln!("harrier serve: API token from {source:?}"),
+        }
         tokio::signal::ctrl_c().await?;
         tracing::info!("interrupted: shutting down");
         server.shutdown().await;

@@ -385,6 +385,66 @@ where
         Ok(events)
     }
 
+    /// Takes over tracks from another tracker (a change of track filter at run time): each keeps
+    /// its id, status and hit/miss record, and its Gaussian estimate becomes the state of this
+    /// tracker's filter ([`TrackFilter::start`]: a mixture starts every mode from it with the
+    /// initial mode probabilities). The tracker's time becomes `t`; new ids continue after the
+    /// largest one seen. Replaces the tracks held; fails, changing nothing, when `t` is not
+    /// finite, an id repeats or a filter cannot start from an estimate.
+    pub fn adopt(&mut self, t: f64, tracks: &[(Track<()>, Gaussian<N>)]) -> Result<()> {
+        if !t.is_finite() {
+            return Err(EstimationError::InvalidParameter(format!(
+                "adopt at t = {t}: not finite"
+            )));
+        }
+        let mut adopted = Vec::with_capacity(tracks.len());
+        for (k, g) in tracks {
+            if adopted.iter().any(|a: &Track<F::State>| a.id == k.id) {
+                return Err(EstimationError::InvalidParameter(format!(
+                    "adopt: track id {} given twice",
+                    k.id
+                )));
+            }
+            adopted.push(Track {
+                id: k.id,
+                state: self.filter.start(*g)?,
+                status: k.status,
+                scans: k.scans,
+                hits: k.hits,
+                consecutive_misses: k.consecutive_misses,
+                last_update: k.last_update,
+            });
+        }
+        adopted.sort_by_key(|k| k.id);
+        let top = adopted.iter().map(|k| k.id + 1).max().unwrap_or(1);
+        self.next_id = self.next_id.max(top);
+        self.tracks = adopted;
+        self.t = Some(t);
+        Ok(())
+    }
+
+    /// The hit/miss record of every live track, without its state (what [`Tracker::adopt`]
+    /// takes), in id order.
+    pub fn records(&self) -> Vec<Track<()>> {
+        self.tracks
+            .iter()
+            .map(|k| Track {
+                id: k.id,
+                state: (),
+                status: k.status,
+                scans: k.scans,
+                hits: k.hits,
+                consecutive_misses: k.consecutive_misses,
+                last_update: k.last_update,
+            })
+            .collect()
+    }
+
+    /// The next id a new track gets.
+    pub fn next_id(&self) -> u64 {
+        self.next_id
+    }
+
     /// [`Tracker::step`] for a sensor whose kind is known only at run time: each detection is a
     /// slice of [`SensorModel::dim`] components. Fails, leaving the tracker untouched, when a
     /// detection has the wrong length.
@@ -461,6 +521,43 @@ mod tests {
             deleter: Deleter::new(3, 1e4, 2).unwrap(),
         };
         Tracker::new(filter, init, config)
+    }
+
+    #[test]
+    fn adopted_tracks_keep_ids_and_records_and_go_on() {
+        let mut a = tracker(2, 3);
+        let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
+        for k in 0..3 {
+            a.step(f64::from(k), &cam(), &[at(f64::from(k))]).unwrap();
+        }
+        let taken: Vec<_> = a
+            .records()
+            .into_iter()
+            .zip(a.snapshot())
+            .map(|(r, s)| (r, s.estimate))
+            .collect();
+        assert_eq!(taken.len(), 1);
+        let mut b = tracker(2, 3);
+        b.adopt(2.0, &taken).unwrap();
+        assert_eq!(b.records(), a.records());
+        assert_eq!(b.next_id(), 2);
+        let ev = b.step(3.0, &cam(), &[at(3.0), at(30.0)]).unwrap();
+        assert!(ev.contains(&TrackEvent::Updated {
+            id: 1,
+            detection: 0,
+            nis: match ev.iter().find_map(|e| match e {
+                TrackEvent::Updated { nis, .. } => Some(*nis),
+                _ => None,
+            }) {
+                Some(n) => n,
+                None => panic!("no update in {ev:?}"),
+            },
+        }));
+        assert!(ev.contains(&TrackEvent::Born { id: 2, detection: 1 }), "{ev:?}");
+        let twice = vec![taken[0].clone(), taken[0].clone()];
+        assert!(b.adopt(4.0, &twice).is_err());
+        assert!(b.adopt(f64::NAN, &taken).is_err());
+        assert_eq!(b.time(), Some(3.0));
     }
 
     #[test]

@@ -21,9 +21,11 @@ use serde_json::{Value, json};
 
 use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::engine::{
-    EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, SensorScan, Step, TrackEngine,
-    TrackEngineInfo, TrackView, setup,
+    EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan, Step,
+    TrackEngine, TrackEngineInfo, TrackView, setup,
 };
+use harrier_core::state::Gaussian;
+use nalgebra::{SMatrix, SVector};
 
 /// `tracker`: GNN multi-target tracker.
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
@@ -278,6 +280,47 @@ where
 
     fn time(&self) -> Option<f64> {
         self.tracker.time()
+    }
+
+    fn handover(&self) -> Handover {
+        Handover {
+            t: self.tracker.time(),
+            dim: N,
+            tracks: self
+                .tracker
+                .records()
+                .into_iter()
+                .zip(self.tracker.snapshot())
+                .map(|(r, s)| {
+                    let cov = s.estimate.cov.transpose().as_slice().to_vec();
+                    (r, s.estimate.mean.as_slice().to_vec(), cov)
+                })
+                .collect(),
+        }
+    }
+
+    fn adopt(&mut self, h: &Handover) -> Result<(), EngineError> {
+        if h.dim != N {
+            return Err(setup(format!(
+                "cannot adopt {}-state tracks into a {N}-state engine",
+                h.dim
+            )));
+        }
+        let Some(t) = h.t else {
+            return Ok(());
+        };
+        let mut tracks = Vec::with_capacity(h.tracks.len());
+        for (record, mean, cov) in &h.tracks {
+            if mean.len() != N || cov.len() != N * N {
+                return Err(setup(format!("track {}: estimate of the wrong size", record.id)));
+            }
+            let g = Gaussian::new(
+                SVector::<f64, N>::from_column_slice(mean),
+                SMatrix::<f64, N, N>::from_row_slice(cov),
+            )?;
+            tracks.push((record.clone(), g));
+        }
+        Ok(self.tracker.adopt(t, &tracks)?)
     }
 }
 

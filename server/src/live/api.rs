@@ -1,30 +1,45 @@
-//! The HTTP API (axum), under `/api/v1`:
+//! The HTTP API (axum). Routes under `/api/v1`; the OpenAPI 3 document generated from this code
+//! (utoipa) at `/api/openapi.json`; the web dashboard (`api.web_dir`) at `/`.
 //!
 //! | route | |
 //! |---|---|
-//! | `GET /tracks[?all=true]` | `{"t": …, "tracks": [TrackView…]}`: confirmed tracks (all with `all=true`) |
-//! | `GET /tracks/{id}` | one track, or 404 |
-//! | `GET /health` | status, uptime, engine, last scan time, scans ingested |
-//! | `GET /estimators` | the track engines (name, summary, parameters) |
+//! | `GET /tracks[?all=true]` | confirmed tracks (all with `all=true`) |
+//! | `GET /tracks/{id}` | one track: state, covariance, 95 % ellipse / ellipsoid, history |
+//! | `GET /detections[?since=seq]` | the scans processed recently (after `since`) |
+//! | `GET /vehicles` | the vehicles as seen in their detections |
+//! | `GET /estimator`, `PUT /estimator` | the running track estimator; change it (tracks kept) |
+//! | `GET /estimators` | the track estimators (name, summary, parameters) |
+//! | `GET /health` | status, uptime, estimator, last scan time, scans ingested |
 //! | `GET /metrics` | Prometheus text format ([`super::metrics`]) |
+//! | `GET /ws` | the WebSocket stream ([`super::ws`]) |
 //!
-//! Every error is JSON `{"error": "…"}` with its status. [`app`] builds the router from an
-//! [`ApiState`], so tests can serve it on any listener.
+//! Every error is JSON `{"error": "…"}` with its status: a body that is not JSON 400, JSON of
+//! the wrong shape 422 (naming the field), no or a wrong token 401, an unknown id or route 404.
+//! Every mutating request needs `Authorization: Bearer <token>`; reads need it too with
+//! `api.auth_reads` (the WebSocket, which browsers cannot give headers, also takes `?token=`).
+//! CORS is same-origin unless `api.cors_origins` lists origins. [`app`] builds the router from
+//! an [`ApiState`], so tests can serve it on any listener.
 
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
 use axum::Json;
 use axum::Router;
-use axum::extract::{Path, Query, State};
-use axum::http::{StatusCode, header};
+use axum::extract::rejection::{JsonRejection, QueryRejection};
+use axum::extract::{Path, Query, Request, State};
+use axum::http::{HeaderValue, Method, StatusCode, header};
+use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
-use serde_json::{Value, json};
-use tokio::sync::watch;
+use nalgebra::{Matrix2, Matrix3, SymmetricEigen};
+use serde::{Deserialize, Serialize};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use utoipa::{OpenApi, ToSchema};
 
 use super::metrics::Metrics;
-use super::tracker::Snapshot;
+use super::tracker::{Command, EstimatorState, Recent, ScanEvents, Snapshot, VehicleView};
+use crate::engine::TrackView;
 use crate::registry::TRACK_ENGINES;
 
 /// What the handlers read.
@@ -32,65 +47,332 @@ use crate::registry::TRACK_ENGINES;
 pub struct ApiState {
     /// The tracker's latest snapshot.
     pub snapshot: watch::Receiver<Arc<Snapshot>>,
+    /// Every processed scan (the WebSocket's source).
+    pub events: broadcast::Sender<Arc<ScanEvents>>,
+    /// Recent scans and track histories.
+    pub recent: Arc<Recent>,
+    /// Requests to the tracker.
+    pub commands: mpsc::Sender<Command>,
     /// The counters.
     pub metrics: Arc<Metrics>,
-    /// Name of the track engine.
-    pub engine: String,
+    /// The bearer token and whether reads need it.
+    pub auth: Arc<Auth>,
     /// When the service started.
     pub started: Instant,
+    /// Becomes `true` when the service stops (ends the WebSocket streams).
+    pub stop: watch::Receiver<bool>,
+}
+
+/// The API's access rule.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Auth {
+    /// The bearer token of mutating requests.
+    pub token: String,
+    /// Reads need it too.
+    pub reads: bool,
+}
+
+impl Auth {
+    /// Whether `req` carries the token (header, or `token=` in the query of a WebSocket
+    /// upgrade). Compared in constant time.
+    fn accepts(&self, req: &Request) -> bool {
+        let header = req
+            .headers()
+            .get(header::AUTHORIZATION)
+            .and_then(|v| v.to_str().ok())
+            .and_then(|v| v.strip_prefix("Bearer "));
+        let query = req.uri().query().and_then(|q| {
+            q.split('&')
+                .find_map(|kv| kv.strip_prefix("token="))
+                .filter(|_| req.uri().path().ends_with("/ws"))
+        });
+        header
+            .or(query)
+            .is_some_and(|given| constant_time_eq(given.as_bytes(), self.token.as_bytes()))
+    }
+}
+
+fn constant_time_eq(a: &[u8], b: &[u8]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// The body of every error response.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ErrorBody {
+    /// What went wrong.
+    pub error: String,
 }
 
 /// A JSON error response.
 fn error(status: StatusCode, message: impl Into<String>) -> Response {
-    (status, Json(json!({"error": message.into()}))).into_response()
+    (
+        status,
+        Json(ErrorBody {
+            error: message.into(),
+        }),
+    )
+        .into_response()
 }
 
-/// The router, every route under `/api/v1`.
-pub fn app(state: ApiState) -> Router {
+/// The OpenAPI document.
+#[derive(Debug, OpenApi)]
+#[openapi(
+    info(
+        title = "Harrier ground station API",
+        description = "Live multi-target tracks from UAV detections. Mutating requests need `Authorization: Bearer <token>` (printed at start when not configured).",
+    ),
+    paths(
+        tracks,
+        track,
+        detections,
+        vehicles,
+        get_estimator,
+        put_estimator,
+        estimators,
+        health,
+        metrics,
+        super::ws::ws
+    ),
+    modifiers(&BearerAuth),
+    tags(
+        (name = "tracks", description = "Live tracks and what they are made of"),
+        (name = "control", description = "The running estimator"),
+        (name = "service", description = "Health and metrics"),
+        (name = "stream", description = "The WebSocket stream"),
+    )
+)]
+pub struct ApiDoc;
+
+/// Declares the bearer-token scheme.
+struct BearerAuth;
+
+impl utoipa::Modify for BearerAuth {
+    fn modify(&self, openapi: &mut utoipa::openapi::OpenApi) {
+        use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+        let components = openapi.components.get_or_insert_with(Default::default);
+        components.add_security_scheme(
+            "bearer",
+            SecurityScheme::Http(HttpBuilder::new().scheme(HttpAuthScheme::Bearer).build()),
+        );
+    }
+}
+
+/// The router: the API under `/api/v1`, the OpenAPI document, the dashboard from `web_dir`
+/// (when given) at `/`, CORS for `cors_origins`.
+pub fn app(state: ApiState, web_dir: Option<&std::path::Path>, cors_origins: &[String]) -> Router {
     let api = Router::new()
         .route("/tracks", get(tracks))
         .route("/tracks/{id}", get(track))
-        .route("/health", get(health))
+        .route("/detections", get(detections))
+        .route("/vehicles", get(vehicles))
+        .route("/estimator", get(get_estimator).put(put_estimator))
         .route("/estimators", get(estimators))
-        .route("/metrics", get(metrics));
-    Router::new()
+        .route("/health", get(health))
+        .route("/metrics", get(metrics))
+        .route("/ws", get(super::ws::ws))
+        .fallback(|State(s): State<ApiState>| async move {
+            s.metrics.http_refused("not_found", 404);
+            error(StatusCode::NOT_FOUND, "no such route")
+        })
+        .layer(middleware::from_fn_with_state(state.clone(), guard));
+    let mut router = Router::new()
         .nest("/api/v1", api)
-        .fallback(|| async { error(StatusCode::NOT_FOUND, "no such route") })
-        .with_state(state)
+        .route("/api/openapi.json", get(openapi));
+    router = match web_dir {
+        Some(dir) => router.fallback_service(
+            tower_http::services::ServeDir::new(dir).append_index_html_on_directories(true),
+        ),
+        None => router.fallback(|| async { error(StatusCode::NOT_FOUND, "no such route") }),
+    };
+    let router = router.with_state(state);
+    if cors_origins.is_empty() {
+        return router;
+    }
+    let origins: Vec<HeaderValue> = cors_origins
+        .iter()
+        .filter_map(|o| HeaderValue::from_str(o).ok())
+        .collect();
+    router.layer(
+        tower_http::cors::CorsLayer::new()
+            .allow_origin(origins)
+            .allow_methods([Method::GET, Method::PUT, Method::POST, Method::DELETE])
+            .allow_headers([header::AUTHORIZATION, header::CONTENT_TYPE]),
+    )
+}
+
+/// Refuses requests without the token where it is needed, and counts refusals.
+async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response {
+    let mutating = !matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
+    if (mutating || s.auth.reads) && !s.auth.accepts(&req) {
+        s.metrics.http_refused("auth", 401);
+        let mut r = error(
+            StatusCode::UNAUTHORIZED,
+            "this request needs the API token: Authorization: Bearer <token>",
+        );
+        r.headers_mut()
+            .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+        return r;
+    }
+    next.run(req).await
+}
+
+async fn openapi() -> Json<utoipa::openapi::OpenApi> {
+    Json(ApiDoc::openapi())
 }
 
 /// `?all=…`.
-#[derive(Debug, serde::Deserialize)]
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
 struct TracksQuery {
-    all: Option<String>,
+    /// `true`: tentative tracks too.
+    all: Option<bool>,
 }
 
+/// The track list.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct TracksBody {
+    /// Time of the last processed scan (the tracker's time line: UNIX s when scans carry it).
+    t: Option<f64>,
+    /// Scans processed so far.
+    seq: u64,
+    /// The tracks, in id order.
+    tracks: Vec<TrackView>,
+}
+
+/// A refused query string.
+fn bad_query(s: &ApiState, e: &QueryRejection) -> Response {
+    s.metrics.http_refused("query", 400);
+    error(StatusCode::BAD_REQUEST, e.body_text())
+}
+
+/// The live tracks.
+#[utoipa::path(get, path = "/api/v1/tracks", tag = "tracks", params(TracksQuery),
+    responses(
+        (status = 200, body = TracksBody),
+        (status = 400, description = "Bad query", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
 async fn tracks(
     State(s): State<ApiState>,
-    q: Result<Query<TracksQuery>, axum::extract::rejection::QueryRejection>,
+    q: Result<Query<TracksQuery>, QueryRejection>,
 ) -> Response {
-    let all = match q.as_ref().map(|q| q.all.as_deref()) {
-        Ok(None | Some("false" | "0")) => false,
-        Ok(Some("true" | "1" | "")) => true,
-        Ok(Some(other)) => {
-            return error(
-                StatusCode::BAD_REQUEST,
-                format!("all={other:?}: expected true or false"),
-            );
-        }
-        Err(e) => return error(StatusCode::BAD_REQUEST, e.body_text()),
+    let all = match q {
+        Ok(q) => q.all.unwrap_or(false),
+        Err(e) => return bad_query(&s, &e),
     };
     let snap = Arc::clone(&s.snapshot.borrow());
-    let tracks: Vec<_> = snap
+    let tracks = snap
         .tracks
         .iter()
         .filter(|k| all || k.status == "confirmed")
+        .cloned()
         .collect();
-    Json(json!({"t": snap.t, "tracks": tracks})).into_response()
+    Json(TracksBody {
+        t: snap.t,
+        seq: snap.seq,
+        tracks,
+    })
+    .into_response()
 }
 
+/// The 95 % confidence ellipse of a planar position.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Ellipse {
+    /// Semi-axes (m), major first.
+    semi_axes: [f64; 2],
+    /// Direction of the major axis (rad, counter-clockwise from East).
+    angle_rad: f64,
+}
+
+/// The 95 % confidence ellipsoid of a 3-D position.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Ellipsoid {
+    /// Semi-axes (m), largest first.
+    semi_axes: [f64; 3],
+    /// Unit axis directions (ENU), in the order of `semi_axes`.
+    axes: [[f64; 3]; 3],
+}
+
+/// One track in full.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct TrackDetail {
+    /// The estimate.
+    #[serde(flatten)]
+    track: TrackView,
+    /// 95 % position ellipse (x, y).
+    ellipse_95: Option<Ellipse>,
+    /// 95 % position ellipsoid (3-D tracks).
+    ellipsoid_95: Option<Ellipsoid>,
+    /// `[t, x, y, z]` after each update, oldest first (the last 200).
+    history: Vec<[f64; 4]>,
+}
+
+/// χ² quantiles of 0.95 for 2 and 3 degrees of freedom.
+const CHI2_95_2: f64 = 5.991_464_547_107_979;
+const CHI2_95_3: f64 = 7.814_727_903_251_178;
+
+/// The position block of `k`'s covariance over the state indices `dims` (`None` when absent).
+fn position_cov(k: &TrackView, dims: &[usize]) -> Option<Vec<Vec<f64>>> {
+    let at: Option<Vec<usize>> = dims
+        .iter()
+        .map(|d| k.cov_dims.iter().position(|c| c == d))
+        .collect();
+    let at = at?;
+    Some(
+        at.iter()
+            .map(|&i| at.iter().map(|&j| k.cov[i][j]).collect())
+            .collect(),
+    )
+}
+
+fn ellipse(k: &TrackView) -> Option<Ellipse> {
+    let c = position_cov(k, &[0, 1])?;
+    let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
+    let e = SymmetricEigen::new(0.5 * (m + m.transpose()));
+    let (major, minor) = if e.eigenvalues[0] >= e.eigenvalues[1] {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    let v = e.eigenvectors.column(major);
+    Some(Ellipse {
+        semi_axes: [
+            (CHI2_95_2 * e.eigenvalues[major].max(0.0)).sqrt(),
+            (CHI2_95_2 * e.eigenvalues[minor].max(0.0)).sqrt(),
+        ],
+        angle_rad: v[1].atan2(v[0]),
+    })
+}
+
+fn ellipsoid(k: &TrackView) -> Option<Ellipsoid> {
+    let c = position_cov(k, &[0, 1, 2])?;
+    let m = Matrix3::from_fn(|i, j| c[i][j]);
+    let e = SymmetricEigen::new(0.5 * (m + m.transpose()));
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
+    let axis = |i: usize| {
+        let v = e.eigenvectors.column(i);
+        [v[0], v[1], v[2]]
+    };
+    Some(Ellipsoid {
+        semi_axes: order.map(|i| (CHI2_95_3 * e.eigenvalues[i].max(0.0)).sqrt()),
+        axes: order.map(axis),
+    })
+}
+
+/// One track: estimate, confidence regions, history.
+#[utoipa::path(get, path = "/api/v1/tracks/{id}", tag = "tracks",
+    params(("id" = u64, Path, description = "Track id")),
+    responses(
+        (status = 200, body = TrackDetail),
+        (status = 400, description = "The id is not a number", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+        (status = 404, description = "No such track (never was, or deleted)", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
 async fn track(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
     let Ok(id) = id.parse::<u64>() else {
+        s.metrics.http_refused("path", 400);
         return error(
             StatusCode::BAD_REQUEST,
             format!("track id {id:?} is not a number"),
@@ -98,36 +380,273 @@ async fn track(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
     };
     let snap = Arc::clone(&s.snapshot.borrow());
     match snap.tracks.iter().find(|k| k.id == id) {
-        Some(k) => Json(k).into_response(),
-        None => error(StatusCode::NOT_FOUND, format!("no track {id}")),
+        Some(k) => Json(TrackDetail {
+            ellipse_95: ellipse(k),
+            ellipsoid_95: ellipsoid(k),
+            history: s.recent.history(id),
+            track: k.clone(),
+        })
+        .into_response(),
+        None => {
+            s.metrics.http_refused("not_found", 404);
+            error(StatusCode::NOT_FOUND, format!("no track {id}"))
+        }
     }
 }
 
-async fn health(State(s): State<ApiState>) -> Json<Value> {
-    Json(json!({
-        "status": "ok",
-        "uptime_s": s.started.elapsed().as_secs_f64(),
-        "estimator": s.engine,
-        "last_scan_t": s.metrics.last_scan_t(),
-        "scans_ingested": s.metrics.scans_ingested(),
-    }))
+/// `?since=…`.
+#[derive(Debug, Deserialize, utoipa::IntoParams)]
+struct DetectionsQuery {
+    /// Only scans with a larger `seq`.
+    since: Option<u64>,
 }
 
-async fn estimators() -> Json<Value> {
-    let list: Vec<_> = TRACK_ENGINES
+/// One processed scan.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ScanView {
+    /// Processed-scan counter.
+    seq: u64,
+    /// Scan time.
+    t: f64,
+    /// Vehicle label.
+    vehicle: String,
+    /// Sensor id.
+    sensor: String,
+    /// Measurement kind (`position`, `range_bearing`, `az_el`, `bearing_size`).
+    kind: String,
+    /// Sensor position (ENU, m).
+    platform: [f64; 3],
+    /// The detections (FORMAT.md §3 layout of `kind`, server frame).
+    detections: Vec<Vec<f64>>,
+}
+
+/// The recent scans.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct DetectionsBody {
+    /// Oldest first, at most 512.
+    scans: Vec<ScanView>,
+}
+
+/// The scans processed recently, with their detections.
+#[utoipa::path(get, path = "/api/v1/detections", tag = "tracks", params(DetectionsQuery),
+    responses(
+        (status = 200, body = DetectionsBody),
+        (status = 400, description = "Bad query", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn detections(
+    State(s): State<ApiState>,
+    q: Result<Query<DetectionsQuery>, QueryRejection>,
+) -> Response {
+    let since = match q {
+        Ok(q) => q.since.unwrap_or(0),
+        Err(e) => return bad_query(&s, &e),
+    };
+    let scans = s
+        .recent
+        .scans_after(since)
         .iter()
-        .map(|e| {
-            let params: Vec<_> = e
-                .params
-                .iter()
-                .map(|(n, d)| json!({"name": n, "description": d}))
-                .collect();
-            json!({"name": e.name, "summary": e.summary, "params": params})
+        .map(|e| ScanView {
+            seq: e.seq,
+            t: e.t,
+            vehicle: e.vehicle.clone(),
+            sensor: e.sensor.clone(),
+            kind: e.kind.as_str().to_string(),
+            platform: e.platform,
+            detections: e.detections.clone(),
         })
         .collect();
-    Json(json!({"estimators": list}))
+    Json(DetectionsBody { scans }).into_response()
 }
 
+/// The vehicles.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct VehiclesBody {
+    /// By label.
+    vehicles: Vec<VehicleView>,
+}
+
+/// The vehicles as seen in their detections.
+#[utoipa::path(get, path = "/api/v1/vehicles", tag = "tracks",
+    responses(
+        (status = 200, body = VehiclesBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn vehicles(State(s): State<ApiState>) -> Json<VehiclesBody> {
+    let snap = Arc::clone(&s.snapshot.borrow());
+    Json(VehiclesBody {
+        vehicles: snap.vehicles.to_vec(),
+    })
+}
+
+/// The running estimator.
+#[utoipa::path(get, path = "/api/v1/estimator", tag = "control",
+    responses(
+        (status = 200, body = EstimatorState),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn get_estimator(State(s): State<ApiState>) -> Json<EstimatorState> {
+    Json((*s.snapshot.borrow().estimator).clone())
+}
+
+/// A change of estimator.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct EstimatorChange {
+    /// Track estimator name (`GET /api/v1/estimators`).
+    name: String,
+    /// Parameters, name → value (the others default).
+    #[serde(default)]
+    params: BTreeMap<String, f64>,
+}
+
+/// Changes the estimator; the live tracks are handed over (ids, status and estimates kept).
+#[utoipa::path(put, path = "/api/v1/estimator", tag = "control", request_body = EstimatorChange,
+    responses(
+        (status = 200, description = "Now running", body = EstimatorState),
+        (status = 400, description = "The body is not JSON", body = ErrorBody),
+        (status = 401, description = "No or a wrong token", body = ErrorBody),
+        (status = 409, description = "The tracks cannot be handed over to this estimator", body = ErrorBody),
+        (status = 415, description = "Not `Content-Type: application/json`", body = ErrorBody),
+        (status = 422, description = "Unknown estimator or parameter, or a field of the wrong type", body = ErrorBody),
+        (status = 503, description = "The tracker is not running", body = ErrorBody),
+    ),
+    security(("bearer" = [])))]
+async fn put_estimator(
+    State(s): State<ApiState>,
+    body: Result<Json<EstimatorChange>, JsonRejection>,
+) -> Response {
+    let change = match body {
+        Ok(Json(c)) => c,
+        Err(e) => {
+            let status = e.status();
+            s.metrics.http_refused("json", status.as_u16());
+            return error(status, e.body_text());
+        }
+    };
+    let (reply, answer) = oneshot::channel();
+    let to = EstimatorState {
+        name: change.name,
+        params: change.params,
+    };
+    let gone = || error(StatusCode::SERVICE_UNAVAILABLE, "the tracker is not running");
+    if s
+        .commands
+        .send(Command::SetEstimator { to, reply })
+        .await
+        .is_err()
+    {
+        return gone();
+    }
+    match answer.await {
+        Ok(Ok(now)) => Json(now).into_response(),
+        Ok(Err(SetError::Invalid(m))) => {
+            s.metrics.http_refused("estimator", 422);
+            error(StatusCode::UNPROCESSABLE_ENTITY, m)
+        }
+        Ok(Err(SetError::Handover(m))) => {
+            s.metrics.http_refused("estimator", 409);
+            error(StatusCode::CONFLICT, m)
+        }
+        Err(_) => gone(),
+    }
+}
+
+pub use super::tracker::SetError;
+
+/// A track estimator parameter.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct ParamInfo {
+    /// Name.
+    name: &'static str,
+    /// Meaning and default.
+    description: &'static str,
+}
+
+/// A track estimator.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EstimatorInfoBody {
+    /// Name.
+    name: &'static str,
+    /// One line.
+    summary: &'static str,
+    /// Its parameters.
+    params: Vec<ParamInfo>,
+}
+
+/// The estimator list.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct EstimatorsBody {
+    /// Every track estimator.
+    estimators: Vec<EstimatorInfoBody>,
+}
+
+/// The track estimators that can run live.
+#[utoipa::path(get, path = "/api/v1/estimators", tag = "control",
+    responses(
+        (status = 200, body = EstimatorsBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn estimators() -> Json<EstimatorsBody> {
+    Json(EstimatorsBody {
+        estimators: TRACK_ENGINES
+            .iter()
+            .map(|e| EstimatorInfoBody {
+                name: e.name,
+                summary: e.summary,
+                params: e
+                    .params
+                    .iter()
+                    .map(|&(name, description)| ParamInfo { name, description })
+                    .collect(),
+            })
+            .collect(),
+    })
+}
+
+/// Service health.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct HealthBody {
+    /// `ok`.
+    status: &'static str,
+    /// Seconds since start.
+    uptime_s: f64,
+    /// The running track estimator.
+    estimator: String,
+    /// Time of the last processed scan.
+    last_scan_t: Option<f64>,
+    /// Scans processed.
+    scans_ingested: u64,
+}
+
+/// Health.
+#[utoipa::path(get, path = "/api/v1/health", tag = "service",
+    responses(
+        (status = 200, body = HealthBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn health(State(s): State<ApiState>) -> Json<HealthBody> {
+    Json(HealthBody {
+        status: "ok",
+        uptime_s: s.started.elapsed().as_secs_f64(),
+        estimator: s.snapshot.borrow().estimator.name.clone(),
+        last_scan_t: s.metrics.last_scan_t(),
+        scans_ingested: s.metrics.scans_ingested(),
+    })
+}
+
+/// Prometheus metrics.
+#[utoipa::path(get, path = "/api/v1/metrics", tag = "service",
+    responses(
+        (status = 200, description = "Prometheus text exposition format 0.0.4", content_type = "text/plain", body = String),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
 async fn metrics(State(s): State<ApiState>) -> Response {
     (
         [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],

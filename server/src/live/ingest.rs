@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use harrier_core::detection::DetectionScan;
+use harrier_core::detection::{DetectionScan, GeoPoint};
 use harrier_core::measurement::Geometry;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
@@ -54,6 +54,10 @@ pub struct ReadyScan {
     pub sensor: String,
     /// The scan in the server's frame.
     pub scan: SensorScan,
+    /// Platform position at the scan (ENU, server frame).
+    pub platform: [f64; 3],
+    /// Platform position at the scan (WGS-84).
+    pub geodetic: GeoPoint,
 }
 
 /// At most one log line per reason and interval; the lines in between are counted.
@@ -93,6 +97,7 @@ pub struct Ingest {
     metrics: Arc<Metrics>,
     last_seq: HashMap<(u8, String), u64>,
     log: LogLimiter,
+    sensors: Vec<String>,
 }
 
 impl Ingest {
@@ -107,7 +112,15 @@ impl Ingest {
                 every: Duration::from_secs(1),
                 last: HashMap::new(),
             },
+            sensors: Vec::new(),
         }
+    }
+
+    /// Only scans of these sensor ids are tracked (the others are counted as `sensor_filtered`
+    /// drops); empty: every sensor.
+    pub fn with_sensors(mut self, sensors: Vec<String>) -> Self {
+        self.sensors = sensors;
+        self
     }
 
     fn drop(&mut self, vehicle: &str, reason: DropReason, message: &dyn std::fmt::Display) {
@@ -137,6 +150,10 @@ impl Ingest {
             return None;
         }
         self.follow_seq(v, &scan);
+        if !self.sensors.is_empty() && !self.sensors.contains(&scan.sensor) {
+            self.metrics.dropped(v, DropReason::SensorFiltered);
+            return None;
+        }
         let framed = match scan_in_frame(&scan, &self.frame, self.geometry) {
             Ok(f) => f,
             Err(e) => {
@@ -153,6 +170,8 @@ impl Ingest {
         };
         Some(ReadyScan {
             vehicle: p.vehicle.clone(),
+            platform: framed.platform_pos.into(),
+            geodetic: scan.platform.geodetic,
             sensor: scan.sensor,
             scan: SensorScan {
                 // One time line for every publisher: UNIX time when the scan carries it.

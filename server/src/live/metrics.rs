@@ -26,6 +26,8 @@ pub enum DropReason {
     Rejected,
     /// Older than the last processed scan (arrived after the reorder window).
     Late,
+    /// From a sensor not in `tracker.sensors`.
+    SensorFiltered,
 }
 
 impl DropReason {
@@ -39,6 +41,7 @@ impl DropReason {
             Self::QueueFull => "queue_full",
             Self::Rejected => "rejected",
             Self::Late => "late",
+            Self::SensorFiltered => "sensor_filtered",
         }
     }
 }
@@ -68,6 +71,10 @@ pub struct Metrics {
 struct Inner {
     vehicles: BTreeMap<String, VehicleCounters>,
     tracks_confirmed: usize,
+    ws_clients: i64,
+    ws_sent: u64,
+    ws_dropped: u64,
+    http_refused: BTreeMap<(&'static str, u16), u64>,
     tracks_tentative: usize,
     last_scan_t: Option<f64>,
 }
@@ -115,6 +122,26 @@ impl Metrics {
             i.tracks_confirmed = confirmed;
             i.tracks_tentative = all - confirmed;
         });
+    }
+
+    /// WebSocket clients connected (`+1`) or gone (`-1`).
+    pub fn ws_clients(&self, delta: i64) {
+        self.with(|i| i.ws_clients += delta);
+    }
+
+    /// Scan messages sent to WebSocket clients.
+    pub fn ws_sent(&self, n: u64) {
+        self.with(|i| i.ws_sent += n);
+    }
+
+    /// Scan messages a slow WebSocket client missed (it got a snapshot instead).
+    pub fn ws_dropped(&self, n: u64) {
+        self.with(|i| i.ws_dropped += n);
+    }
+
+    /// An API request refused with `status` (`reason`: `json`, `auth`, `not_found`, …).
+    pub fn http_refused(&self, reason: &'static str, status: u16) {
+        self.with(|i| *i.http_refused.entry((reason, status)).or_default() += 1);
     }
 
     /// The counters of `vehicle` (a label).
@@ -219,6 +246,33 @@ impl Metrics {
                     vec![(String::new(), t.to_string())],
                 );
             }
+            family(
+                "harrier_ws_clients",
+                "gauge",
+                "WebSocket clients connected.",
+                vec![(String::new(), i.ws_clients.to_string())],
+            );
+            family(
+                "harrier_ws_messages_sent_total",
+                "counter",
+                "Scan messages sent to WebSocket clients.",
+                vec![(String::new(), i.ws_sent.to_string())],
+            );
+            family(
+                "harrier_ws_dropped_total",
+                "counter",
+                "Scan messages slow WebSocket clients missed (each got a snapshot instead).",
+                vec![(String::new(), i.ws_dropped.to_string())],
+            );
+            family(
+                "harrier_http_refused_total",
+                "counter",
+                "API requests refused, by reason and status.",
+                i.http_refused
+                    .iter()
+                    .map(|((r, st), n)| (format!("{{reason=\"{r}\",status=\"{st}\"}}"), n.to_string()))
+                    .collect(),
+            );
             family(
                 "harrier_uptime_seconds",
                 "gauge",

@@ -1,51 +1,60 @@
 //! The live ground-station service (`harrier serve`): detections from Zenoh in, tracks out over
-//! HTTP.
+//! HTTP, WebSocket and Zenoh.
 //!
-//! Three actors (tokio tasks) joined by bounded channels, data flowing one way:
+//! An actor (tokio task) per concern, joined by bounded channels, data flowing one way:
 //!
 //! ```text
-//! Zenoh subscriber ─try_send─▶ [ingest] ─send─▶ [tracker] ─watch (latest snapshot)──▶ [API]
-//!   (callback, drops when full)  decode, frame   reorder,    └broadcast (track events)─▶ subscribers
+//! Zenoh subscriber ─try_send─▶ [ingest] ─send─▶ [tracker] ─watch (latest snapshot)──▶ [API], [publisher] ─▶ Zenoh
+//!   (callback, drops when full)  decode, frame   reorder,    ├broadcast (each scan)──▶ WebSocket clients
+//!                                                 estimator   └sinks (try_send)──────▶ [recorder] ─▶ SQLite
+//!                                                   ▲ commands (change estimator) ◀─ [API]
 //! ```
 //!
 //! - [`ingest`]: payloads of `harrier/v1/vehicle/*/detections` decoded and validated
 //!   ([`harrier_core::detection::DetectionScan::from_json`]), `seq` gaps counted, converted into
 //!   the server's ENU frame (harrier-link's `scan_in_frame`) as [`crate::engine::SensorScan`]s.
 //! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_engine`], fed in
-//!   time order through a short reorder buffer; snapshots to a `watch`, events to a `broadcast`.
-//!   Scans are put on one time line by their `time_unix` (UNIX time on the sender's clock) when
-//!   they carry it, else by their `t` — so publishers without `time_unix` are only fused with
-//!   others on the same clock.
-//! - [`api`]: axum routes under `/api/v1` (tracks, health, estimators, Prometheus metrics).
+//!   time order through a short reorder buffer; snapshots to a `watch`, each processed scan to a
+//!   bounded `broadcast`. Scans are put on one time line by their `time_unix` (UNIX time on the
+//!   sender's clock) when they carry it, else by their `t` — so publishers without `time_unix`
+//!   are only fused with others on the same clock. The estimator can be changed at run time; the
+//!   live tracks are handed over.
+//! - [`api`]: axum routes under `/api/v1`, the OpenAPI document, the dashboard; [`ws`]: the
+//!   WebSocket stream; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
 //! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
 //!   it describes; [`metrics`]: the counters.
 //!
 //! Nothing from the network can panic the service: bad payloads are counted per vehicle and
 //! reason, logged at a bounded rate and dropped. A slow consumer never stalls tracking: the
-//! Zenoh callback never blocks (a full queue drops), the snapshot is a `watch` and events a
-//! bounded `broadcast` (lagging receivers lose events).
+//! Zenoh callback never blocks (a full queue drops), the snapshot is a `watch`, scans go to a
+//! bounded `broadcast` (a lagging WebSocket client is dropped to the latest snapshot) and to the
+//! recorder by `try_send`.
 
 pub mod api;
 pub mod config;
 pub mod ingest;
 pub mod metrics;
+pub mod publish;
 pub mod recorder;
 pub mod tracker;
+pub mod ws;
 
 use std::net::SocketAddr;
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
 use harrier_core::detection::DETECTIONS_KEY_ALL;
 use harrier_core::measurement::Geometry;
 use harrier_link::geo::LocalFrame;
-use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
+use self::api::{ApiState, Auth};
 use self::config::{Config, ConfigError};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
-use self::tracker::{ScanEvents, Snapshot, TrackerActor};
+use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
 use crate::engine::EngineError;
 
 /// Why the service could not start.
@@ -70,19 +79,53 @@ pub enum LiveError {
     Zenoh(String),
 }
 
-/// Capacity of the track-event broadcast (scans; a receiver further behind loses events).
-const EVENTS_CAPACITY: usize = 256;
+/// Where the API token came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TokenSource {
+    /// `api.token` of the configuration.
+    Config,
+    /// The `HARRIER_TOKEN` environment variable.
+    Env,
+    /// Generated at start (print it for the operator).
+    Generated,
+}
+
+/// The API token: `HARRIER_TOKEN`, else `api.token`, else 32 random hex digits.
+fn token(config: &Config) -> (String, TokenSource) {
+    match std::env::var("HARRIER_TOKEN") {
+        Ok(t) if !t.is_empty() => (t, TokenSource::Env),
+        _ if !config.api.token.is_empty() => (config.api.token.clone(), TokenSource::Config),
+        _ => {
+            use rand::Rng as _;
+            let mut rng = rand::rng();
+            let t = (0..16).map(|_| format!("{:02x}", rng.random::<u8>())).collect();
+            (t, TokenSource::Generated)
+        }
+    }
+}
+
+/// The directory of the dashboard: `api.web_dir`, else the repository's `web/` when it exists.
+fn web_dir(config: &Config) -> Option<PathBuf> {
+    if !config.api.web_dir.is_empty() {
+        return Some(PathBuf::from(&config.api.web_dir));
+    }
+    let repo = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../web"));
+    repo.is_dir().then_some(repo)
+}
 
 /// The running service. Stop it with [`LiveServer::shutdown`].
 #[derive(Debug)]
 pub struct LiveServer {
     addr: SocketAddr,
+    token: (String, TokenSource),
     metrics: Arc<Metrics>,
     snapshot: watch::Receiver<Arc<Snapshot>>,
     events: broadcast::Sender<Arc<ScanEvents>>,
-    stop_api: oneshot::Sender<()>,
-    tasks: Vec<JoinHandle<()>>,
-    subscriber: zenoh::pubsub::Subscriber<()>,
+    stop: watch::Sender<bool>,
+    pipeline: Vec<JoinHandle<()>>,
+    outputs: Vec<JoinHandle<()>>,
+    api: JoinHandle<()>,
+    subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     session: zenoh::Session,
 }
 
@@ -90,6 +133,10 @@ impl LiveServer {
     /// The address the API listens on.
     pub fn local_addr(&self) -> SocketAddr {
         self.addr
+    }
+    /// The API token mutating requests need, and where it came from.
+    pub fn token(&self) -> (&str, TokenSource) {
+        (&self.token.0, self.token.1)
     }
     /// The counters.
     pub fn metrics(&self) -> &Metrics {
@@ -99,24 +146,34 @@ impl LiveServer {
     pub fn snapshot(&self) -> watch::Receiver<Arc<Snapshot>> {
         self.snapshot.clone()
     }
-    /// The track events of every scan processed from now on.
+    /// Every scan processed from now on, with its track events.
     pub fn subscribe_events(&self) -> broadcast::Receiver<Arc<ScanEvents>> {
         self.events.subscribe()
     }
+    /// The Zenoh session of the service (for an in-process peer, e.g. `harrier demo`).
+    pub fn session(&self) -> &zenoh::Session {
+        &self.session
+    }
 
-    /// Stops the subscription, lets the actors finish what they hold, stops the API.
+    /// Stops the subscriptions, lets the actors finish what they hold (the recorder commits),
+    /// then stops the API and closes the Zenoh session.
     pub async fn shutdown(self) {
-        if let Err(e) = self.subscriber.undeclare().await {
-            tracing::warn!("zenoh: undeclare the subscriber: {e}");
+        for s in self.subscribers {
+            if let Err(e) = s.undeclare().await {
+                tracing::warn!("zenoh: undeclare a subscriber: {e}");
+            }
         }
-        if let Err(e) = self.session.close().await {
-            tracing::warn!("zenoh: close the session: {e}");
-        }
-        let _ = self.stop_api.send(());
-        for t in self.tasks {
+        for t in self.pipeline.into_iter().chain(self.outputs) {
             if let Err(e) = t.await {
                 tracing::warn!("a live actor ended abnormally: {e}");
             }
+        }
+        let _ = self.stop.send(true);
+        if let Err(e) = self.api.await {
+            tracing::warn!("the API ended abnormally: {e}");
+        }
+        if let Err(e) = self.session.close().await {
+            tracing::warn!("zenoh: close the session: {e}");
         }
     }
 }
@@ -125,9 +182,13 @@ impl LiveServer {
 /// Returns once all of it is up (the API accepts connections).
 pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     config.check()?;
-    let scenario = config.scenario()?;
-    let engine_name = config.tracker.estimator.clone();
-    let engine = crate::registry::build_track_engine(&engine_name, &scenario, &config.params())?;
+    let deployment = config.scenario()?;
+    let estimator = EstimatorState {
+        name: config.tracker.estimator.clone(),
+        params: config.tracker.params.clone(),
+    };
+    let engine =
+        crate::registry::build_track_engine(&estimator.name, &deployment, &config.params())?;
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
 
@@ -145,8 +206,10 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let queue = config.tracker.queue;
     let (payload_tx, payload_rx) = mpsc::channel::<Payload>(queue);
     let (scan_tx, scan_rx) = mpsc::channel(queue);
+    let (command_tx, command_rx) = mpsc::channel(16);
     let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
-    let (events_tx, _) = broadcast::channel(EVENTS_CAPACITY);
+    let (events_tx, _) = broadcast::channel(config.api.ws_queue);
+    let (stop_tx, stop_rx) = watch::channel(false);
 
     let zenoh_config = config
         .bus()?
@@ -170,30 +233,63 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         })
         .await
         .map_err(|e| LiveError::Zenoh(format!("subscribe {DETECTIONS_KEY_ALL}: {e}")))?;
+    let mut outputs = Vec::new();
+    if !config.zenoh.tracks_key.is_empty() {
+        let publisher = session
+            .declare_publisher(config.zenoh.tracks_key.clone())
+            .await
+            .map_err(|e| {
+                LiveError::Zenoh(format!("publish on {}: {e}", config.zenoh.tracks_key))
+            })?;
+        outputs.push(tokio::spawn(publish::run(
+            publisher,
+            snap_rx.clone(),
+            config.zenoh.tracks_hz,
+            config.frame.origin,
+            config.frame.plane_z,
+        )));
+    }
 
     let frame = LocalFrame::new(config.frame.origin);
     let ingest = Ingest::new(
         frame,
         Geometry::planar(config.frame.plane_z),
         Arc::clone(&metrics),
-    );
+    )
+    .with_sensors(config.tracker.sensors.clone());
+    let recent = Arc::new(Recent::default());
     let actor = TrackerActor::new(
         engine,
+        deployment,
+        estimator.clone(),
         config.tracker.reorder_window_s,
         Arc::clone(&metrics),
+        Arc::clone(&recent),
         snap_tx,
         events_tx.clone(),
     );
-    let app = api::app(api::ApiState {
-        snapshot: snap_rx.clone(),
-        metrics: Arc::clone(&metrics),
-        engine: engine_name,
-        started,
-    });
-    let (stop_api, stop_rx) = oneshot::channel::<()>();
+    let token = token(config);
+    let app = api::app(
+        ApiState {
+            snapshot: snap_rx.clone(),
+            events: events_tx.clone(),
+            recent,
+            commands: command_tx,
+            metrics: Arc::clone(&metrics),
+            auth: Arc::new(Auth {
+                token: token.0.clone(),
+                reads: config.api.auth_reads,
+            }),
+            started,
+            stop: stop_rx.clone(),
+        },
+        web_dir(config).as_deref(),
+        &config.api.cors_origins,
+    );
+    let mut stop_api = stop_rx;
     let serve = async move {
         let shutdown = async move {
-            let _ = stop_rx.await;
+            let _ = stop_api.wait_for(|s| *s).await;
         };
         if let Err(e) = axum::serve(listener, app)
             .with_graceful_shutdown(shutdown)
@@ -202,20 +298,23 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             tracing::error!("api: {e}");
         }
     };
-    let tasks = vec![
+    let pipeline = vec![
         tokio::spawn(ingest.run(payload_rx, scan_tx)),
-        tokio::spawn(actor.run(scan_rx)),
-        tokio::spawn(serve),
+        tokio::spawn(actor.run(scan_rx, command_rx)),
     ];
-    tracing::info!(%addr, "live service started");
+    let api = tokio::spawn(serve);
+    tracing::info!(%addr, estimator = estimator.name, "live service started");
     Ok(LiveServer {
         addr,
+        token,
         metrics,
         snapshot: snap_rx,
         events: events_tx,
-        stop_api,
-        tasks,
-        subscriber,
+        stop: stop_tx,
+        pipeline,
+        outputs,
+        api,
+        subscribers: vec![subscriber],
         session,
     })
 }

@@ -7,64 +7,260 @@
 //! latest state, never blocking) and the scan's track events on a bounded `broadcast` channel (a
 //! slow subscriber loses events, tracking never waits for it).
 
-use std::sync::Arc;
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::Duration;
 
-use harrier_core::tracker::TrackEvent;
-use tokio::sync::{broadcast, mpsc, watch};
+use harrier_core::detection::GeoPoint;
+use harrier_core::scenario::{MeasKind, Scenario};
+use harrier_core::tracker::{DeleteReason, TrackEvent};
+use serde::Serialize;
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use crate::engine::{TrackEngine, TrackView};
+use crate::engine::{Params, TrackEngine, TrackView};
+
+/// Scans kept for `GET /api/v1/detections`.
+pub const RECENT_SCANS: usize = 512;
+/// Positions kept per track for its history.
+pub const HISTORY_LEN: usize = 200;
+
+/// The estimator the engine runs, and its parameters.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct EstimatorState {
+    /// Track engine name (`GET /api/v1/estimators`).
+    pub name: String,
+    /// Parameters given (the others have their defaults).
+    pub params: BTreeMap<String, f64>,
+}
+
+/// A vehicle as seen in its detections.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct VehicleView {
+    /// Vehicle label (MAVLink system id).
+    pub vehicle: String,
+    /// Time of its last processed scan (the tracker's time line).
+    pub last_t: f64,
+    /// Scans of it processed.
+    pub scans: u64,
+    /// Its sensors seen so far.
+    pub sensors: Vec<String>,
+    /// Platform position at its last scan (ENU, m, in the server's frame).
+    pub position: [f64; 3],
+    /// Platform position at its last scan (WGS-84: `lat_deg`, `lon_deg`, `alt_m`).
+    #[schema(value_type = Object)]
+    pub geodetic: GeoPoint,
+}
 
 /// The engine's state after a scan.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Snapshot {
     /// Time of the last processed scan.
     pub t: Option<f64>,
+    /// Scans processed so far (the `seq` of the last [`ScanEvents`]).
+    pub seq: u64,
     /// Every live track, in id order.
-    pub tracks: Vec<TrackView>,
+    pub tracks: Arc<Vec<TrackView>>,
+    /// Every vehicle seen, by label.
+    pub vehicles: Arc<Vec<VehicleView>>,
+    /// The estimator running.
+    pub estimator: Arc<EstimatorState>,
 }
 
-/// The track events of one processed scan.
-#[derive(Debug, Clone, PartialEq)]
+/// One processed scan: what it held and what it did to the tracks.
+#[derive(Debug)]
 pub struct ScanEvents {
+    /// Processed-scan counter, from 1 (a subscriber that sees a gap lost messages).
+    pub seq: u64,
     /// Scan time.
     pub t: f64,
     /// The vehicle label of the scan.
     pub vehicle: String,
+    /// Sensor id on the vehicle.
+    pub sensor: String,
+    /// Measurement kind.
+    pub kind: MeasKind,
+    /// Sensor (platform) position, ENU.
+    pub platform: [f64; 3],
+    /// The detections, in the server's frame (FORMAT.md §3 layout of `kind`).
+    pub detections: Vec<Vec<f64>>,
     /// What happened.
     pub events: Vec<TrackEvent>,
+    /// Every live track after the scan.
+    pub tracks: Arc<Vec<TrackView>>,
+    /// The WebSocket message, serialised once for every client.
+    json: OnceLock<String>,
+}
+
+impl ScanEvents {
+    /// The WebSocket `scan` message (WEBSOCKET in `live::ws`).
+    pub fn message(&self) -> &str {
+        self.json.get_or_init(|| {
+            serde_json::json!({
+                "type": "scan",
+                "seq": self.seq,
+                "t": self.t,
+                "vehicle": self.vehicle,
+                "sensor": self.sensor,
+                "kind": self.kind,
+                "platform": self.platform,
+                "detections": self.detections,
+                "events": self.events.iter().map(event_json).collect::<Vec<_>>(),
+                "tracks": *self.tracks,
+            })
+            .to_string()
+        })
+    }
+}
+
+/// A track event as JSON: `{"type": "born" | "confirmed" | "updated" | "coasted" | "deleted" |
+/// "rejected", …}`.
+pub fn event_json(e: &TrackEvent) -> serde_json::Value {
+    use serde_json::json;
+    match e {
+        TrackEvent::Born { id, detection } => {
+            json!({"type": "born", "id": id, "detection": detection})
+        }
+        TrackEvent::Confirmed { id } => json!({"type": "confirmed", "id": id}),
+        TrackEvent::Updated { id, detection, nis } => {
+            json!({"type": "updated", "id": id, "detection": detection, "nis": nis})
+        }
+        TrackEvent::Coasted { id, misses } => {
+            json!({"type": "coasted", "id": id, "misses": misses})
+        }
+        TrackEvent::Deleted { id, reason } => {
+            let (reason, message) = match reason {
+                DeleteReason::Misses => ("misses", None),
+                DeleteReason::Covariance => ("covariance", None),
+                DeleteReason::Unconfirmed => ("unconfirmed", None),
+                DeleteReason::Failed(m) => ("failed", Some(m)),
+            };
+            json!({"type": "deleted", "id": id, "reason": reason, "message": message})
+        }
+        TrackEvent::Rejected {
+            id,
+            detection,
+            reason,
+        } => json!({"type": "rejected", "id": id, "detection": detection, "reason": reason}),
+    }
+}
+
+/// What the API asks of the tracker.
+#[derive(Debug)]
+pub enum Command {
+    /// Change the estimator; live tracks are handed over (ids kept).
+    SetEstimator {
+        /// The new estimator.
+        to: EstimatorState,
+        /// The result: the estimator now running, or why the change was refused.
+        reply: oneshot::Sender<Result<EstimatorState, SetError>>,
+    },
+}
+
+/// Why a change of estimator was refused (nothing changed).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SetError {
+    /// Unknown estimator or parameter, or a parameter out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The live tracks cannot be handed over to the new estimator.
+    #[error("{0}")]
+    Handover(String),
+}
+
+/// Shared read access to the recent scans and track histories.
+#[derive(Debug, Default)]
+pub struct Recent {
+    scans: Mutex<VecDeque<Arc<ScanEvents>>>,
+    history: Mutex<HashMap<u64, VecDeque<[f64; 4]>>>,
+}
+
+impl Recent {
+    /// The scans processed after `seq` (at most [`RECENT_SCANS`]), oldest first.
+    pub fn scans_after(&self, seq: u64) -> Vec<Arc<ScanEvents>> {
+        let q = self.scans.lock().unwrap_or_else(PoisonError::into_inner);
+        q.iter().filter(|s| s.seq > seq).cloned().collect()
+    }
+    /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
+    pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
+        let h = self.history.lock().unwrap_or_else(PoisonError::into_inner);
+        h.get(&id).map(|q| q.iter().copied().collect()).unwrap_or_default()
+    }
 }
 
 /// The tracker actor.
 #[derive(Debug)]
 pub struct TrackerActor {
     engine: Box<dyn TrackEngine>,
+    deployment: Scenario,
+    estimator: Arc<EstimatorState>,
     window: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
+    seq: u64,
+    vehicles: BTreeMap<String, VehicleView>,
+    recent: Arc<Recent>,
     snapshot: watch::Sender<Arc<Snapshot>>,
     events: broadcast::Sender<Arc<ScanEvents>>,
+    /// Called with every processed scan (the recorder, the Zenoh publisher): must not block.
+    sinks: Sinks,
+}
+
+/// A consumer of every processed scan.
+pub type Sink = Box<dyn Fn(&Arc<ScanEvents>) + Send>;
+
+/// The consumers of every processed scan.
+#[derive(Default)]
+struct Sinks(Vec<Sink>);
+
+impl std::fmt::Debug for Sinks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} sinks", self.0.len())
+    }
 }
 
 impl TrackerActor {
-    /// An actor over `engine` holding scans `window` seconds of scan time.
+    /// An actor over `engine` (built as `estimator` for `deployment`) holding scans `window`
+    /// seconds of scan time.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         engine: Box<dyn TrackEngine>,
+        deployment: Scenario,
+        estimator: EstimatorState,
         window: f64,
         metrics: Arc<Metrics>,
+        recent: Arc<Recent>,
         snapshot: watch::Sender<Arc<Snapshot>>,
         events: broadcast::Sender<Arc<ScanEvents>>,
     ) -> Self {
+        let estimator = Arc::new(estimator);
+        snapshot.send_modify(|s| {
+            *s = Arc::new(Snapshot {
+                estimator: Arc::clone(&estimator),
+                ..Snapshot::default()
+            });
+        });
         Self {
             engine,
+            deployment,
+            estimator,
             window,
             metrics,
             pending: Vec::new(),
+            seq: 0,
+            vehicles: BTreeMap::new(),
+            recent,
             snapshot,
             events,
+            sinks: Sinks::default(),
         }
+    }
+
+    /// Adds a consumer of every processed scan; it runs on the tracker's task, so it must only
+    /// hand the scan on (`try_send`).
+    pub fn add_sink(&mut self, sink: Sink) {
+        self.sinks.0.push(sink);
     }
 
     /// Takes one scan into the reorder buffer, then processes what the window releases.
@@ -101,43 +297,156 @@ impl TrackerActor {
     }
 
     fn process(&mut self, s: ReadyScan) {
-        match self.engine.ingest(&s.scan) {
-            Ok(events) => {
-                let tracks = self.engine.snapshot();
-                let confirmed = tracks.iter().filter(|k| k.status == "confirmed").count();
-                self.metrics.ingested(
-                    &s.vehicle,
-                    s.scan.detections.len(),
-                    s.scan.t,
-                    confirmed,
-                    tracks.len(),
-                );
-                self.snapshot.send_replace(Arc::new(Snapshot {
-                    t: Some(s.scan.t),
-                    tracks,
-                }));
-                // No subscriber is not an error.
-                let _ = self.events.send(Arc::new(ScanEvents {
-                    t: s.scan.t,
-                    vehicle: s.vehicle,
-                    events,
-                }));
-            }
+        let events = match self.engine.ingest(&s.scan) {
+            Ok(events) => events,
             Err(e) => {
                 self.metrics.dropped(&s.vehicle, DropReason::Rejected);
                 tracing::warn!(vehicle = s.vehicle, t = s.scan.t, "scan rejected: {e}");
+                return;
+            }
+        };
+        let tracks = Arc::new(self.engine.snapshot());
+        let confirmed = tracks.iter().filter(|k| k.status == "confirmed").count();
+        self.metrics.ingested(
+            &s.vehicle,
+            s.scan.detections.len(),
+            s.scan.t,
+            confirmed,
+            tracks.len(),
+        );
+        self.seq += 1;
+        let v = self
+            .vehicles
+            .entry(s.vehicle.clone())
+            .or_insert_with(|| VehicleView {
+                vehicle: s.vehicle.clone(),
+                last_t: s.scan.t,
+                scans: 0,
+                sensors: Vec::new(),
+                position: s.platform,
+                geodetic: s.geodetic,
+            });
+        v.last_t = s.scan.t;
+        v.scans += 1;
+        v.position = s.platform;
+        v.geodetic = s.geodetic;
+        if !v.sensors.contains(&s.sensor) {
+            v.sensors.push(s.sensor.clone());
+            v.sensors.sort();
+        }
+        self.remember(&events, &tracks);
+        let scan = Arc::new(ScanEvents {
+            seq: self.seq,
+            t: s.scan.t,
+            kind: s.scan.sensor.kind(),
+            vehicle: s.vehicle,
+            sensor: s.sensor,
+            platform: s.platform,
+            detections: s.scan.detections,
+            events,
+            tracks: Arc::clone(&tracks),
+            json: OnceLock::new(),
+        });
+        self.publish(Some(s.scan.t), tracks);
+        {
+            let mut q = self
+                .recent
+                .scans
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            if q.len() >= RECENT_SCANS {
+                q.pop_front();
+            }
+            q.push_back(Arc::clone(&scan));
+        }
+        for sink in &self.sinks.0 {
+            sink(&scan);
+        }
+        // No subscriber is not an error.
+        let _ = self.events.send(scan);
+    }
+
+    /// Appends updated tracks to their histories, forgets deleted ones.
+    fn remember(&self, events: &[TrackEvent], tracks: &[TrackView]) {
+        let mut h = self
+            .recent
+            .history
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        for e in events {
+            match e {
+                TrackEvent::Updated { id, .. } | TrackEvent::Born { id, .. } => {
+                    if let Some(k) = tracks.iter().find(|k| k.id == *id) {
+                        let q = h.entry(*id).or_default();
+                        if q.len() >= HISTORY_LEN {
+                            q.pop_front();
+                        }
+                        q.push_back([k.t, k.state[0], k.state[1], k.state[2]]);
+                    }
+                }
+                TrackEvent::Deleted { id, .. } => {
+                    h.remove(id);
+                }
+                _ => {}
+            }
+        }
+    }
+
+    fn publish(&self, t: Option<f64>, tracks: Arc<Vec<TrackView>>) {
+        self.snapshot.send_replace(Arc::new(Snapshot {
+            t,
+            seq: self.seq,
+            tracks,
+            vehicles: Arc::new(self.vehicles.values().cloned().collect()),
+            estimator: Arc::clone(&self.estimator),
+        }));
+    }
+
+    /// Builds `to` for the deployment and hands the live tracks over to it.
+    fn set_estimator(&mut self, to: EstimatorState) -> Result<EstimatorState, SetError> {
+        let params = to
+            .params
+            .iter()
+            .fold(Params::default(), |p, (k, v)| p.with(k, *v));
+        let mut engine = crate::registry::build_track_engine(&to.name, &self.deployment, &params)
+            .map_err(|e| SetError::Invalid(e.to_string()))?;
+        engine
+            .adopt(&self.engine.handover())
+            .map_err(|e| SetError::Handover(format!("handing the tracks over to {}: {e}", to.name)))?;
+        tracing::info!(from = self.estimator.name, to = to.name, "estimator changed");
+        self.engine = engine;
+        self.estimator = Arc::new(to.clone());
+        let t = self.engine.time();
+        self.publish(t, Arc::new(self.engine.snapshot()));
+        Ok(to)
+    }
+
+    fn command(&mut self, c: Command) {
+        match c {
+            Command::SetEstimator { to, reply } => {
+                // Scans already received are processed by the engine they arrived under.
+                self.release(f64::INFINITY);
+                let _ = reply.send(self.set_estimator(to));
             }
         }
     }
 
     /// Runs until the scan queue closes, then processes what is left.
-    pub async fn run(mut self, mut rx: mpsc::Receiver<ReadyScan>) {
+    pub async fn run(
+        mut self,
+        mut rx: mpsc::Receiver<ReadyScan>,
+        mut commands: mpsc::Receiver<Command>,
+    ) {
         let idle = Duration::from_secs_f64(self.window).max(Duration::from_millis(20));
         loop {
-            match tokio::time::timeout(idle, rx.recv()).await {
-                Ok(Some(s)) => self.push(s),
-                Ok(None) => break,
-                Err(_) => self.release(f64::INFINITY),
+            tokio::select! {
+                biased;
+                Some(c) = commands.recv() => self.command(c),
+                r = tokio::time::timeout(idle, rx.recv()) => match r {
+                    Ok(Some(s)) => self.push(s),
+                    Ok(None) => break,
+                    Err(_) => self.release(f64::INFINITY),
+                },
             }
         }
         self.release(f64::INFINITY);
@@ -148,9 +457,8 @@ impl TrackerActor {
 mod tests {
     use super::*;
     use crate::engine::SensorScan;
-    use crate::live::config::Config;
+    use crate::live::config::{Config, DEFAULT_ORIGIN};
     use harrier_core::measurement::{Geometry, SensorModel};
-    use harrier_core::scenario::MeasKind;
     use nalgebra::Vector3;
 
     fn scan(t: f64, vehicle: &str) -> ReadyScan {
@@ -170,33 +478,108 @@ mod tests {
                 sensor,
                 detections: vec![vec![100.0 + t, 50.0]],
             },
+            platform: [0.0; 3],
+            geodetic: DEFAULT_ORIGIN,
         }
+    }
+
+    type Parts = (
+        TrackerActor,
+        Arc<Metrics>,
+        watch::Receiver<Arc<Snapshot>>,
+        broadcast::Receiver<Arc<ScanEvents>>,
+    );
+
+    fn actor(window: f64) -> Parts {
+        let c = Config::default();
+        let sc = c.scenario().expect("sc");
+        let engine = crate::registry::build_track_engine("ekf", &sc, &c.params()).expect("engine");
+        let metrics = Arc::new(Metrics::default());
+        let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
+        let (ev_tx, ev_rx) = broadcast::channel(16);
+        let a = TrackerActor::new(
+            engine,
+            sc,
+            EstimatorState {
+                name: "ekf".into(),
+                params: BTreeMap::new(),
+            },
+            window,
+            Arc::clone(&metrics),
+            Arc::new(Recent::default()),
+            snap_tx,
+            ev_tx,
+        );
+        (a, metrics, snap_rx, ev_rx)
     }
 
     #[test]
     fn scans_are_reordered_within_the_window_and_late_ones_dropped() {
-        let c = Config::default();
-        let engine =
-            crate::registry::build_track_engine("ekf", &c.scenario().expect("sc"), &c.params())
-                .expect("engine");
-        let metrics = Arc::new(Metrics::default());
-        let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
-        let (ev_tx, mut ev_rx) = broadcast::channel(16);
-        let mut a = TrackerActor::new(engine, 0.5, Arc::clone(&metrics), snap_tx, ev_tx);
+        let (mut a, metrics, snap_rx, mut ev_rx) = actor(0.5);
         a.push(scan(1.0, "1"));
         a.push(scan(0.8, "2")); // out of order, inside the window: processed first
         assert_eq!(snap_rx.borrow().t, None);
         a.push(scan(1.6, "1")); // releases 0.8 and 1.0
         assert_eq!(snap_rx.borrow().t, Some(1.0));
-        assert_eq!(ev_rx.try_recv().expect("events").t, 0.8);
+        let first = ev_rx.try_recv().expect("events");
+        assert_eq!((first.t, first.seq), (0.8, 1));
+        assert!(first.message().starts_with(r#"{"detections":"#), "{}", first.message());
         a.push(scan(0.9, "2")); // older than the last processed: late
         a.release(f64::INFINITY);
         assert_eq!(snap_rx.borrow().t, Some(1.6));
+        assert_eq!(snap_rx.borrow().seq, 3);
         assert_eq!(
             metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
             Some(&1)
         );
         assert_eq!(metrics.scans_ingested(), 3);
         assert!(!snap_rx.borrow().tracks.is_empty());
+        let vehicles: Vec<_> = snap_rx
+            .borrow()
+            .vehicles
+            .iter()
+            .map(|v| (v.vehicle.clone(), v.scans))
+            .collect();
+        assert_eq!(vehicles, [("1".to_string(), 2), ("2".to_string(), 1)]);
+        assert_eq!(a.recent.scans_after(1).len(), 2);
+        assert_eq!(a.recent.history(1).len(), 3);
+    }
+
+    #[test]
+    fn a_change_of_estimator_keeps_the_tracks() {
+        let (mut a, _, snap_rx, _) = actor(0.0);
+        for k in 0..4 {
+            a.push(scan(f64::from(k), "1"));
+        }
+        a.release(f64::INFINITY);
+        let before = snap_rx.borrow().tracks.clone();
+        assert_eq!(before.len(), 1);
+        let bad = a.set_estimator(EstimatorState {
+            name: "nonesuch".into(),
+            params: BTreeMap::new(),
+        });
+        assert!(matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")), "{bad:?}");
+        let bad = a.set_estimator(EstimatorState {
+            name: "cdkf".into(),
+            params: BTreeMap::from([("m".to_string(), 0.5)]),
+        });
+        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
+        assert_eq!(snap_rx.borrow().estimator.name, "ekf");
+        let now = a
+            .set_estimator(EstimatorState {
+                name: "cdkf".into(),
+                params: BTreeMap::new(),
+            })
+            .expect("cdkf");
+        assert_eq!(now.name, "cdkf");
+        let after = snap_rx.borrow().tracks.clone();
+        assert_eq!(snap_rx.borrow().estimator.name, "cdkf");
+        assert_eq!(after.len(), 1);
+        assert_eq!((after[0].id, after[0].status), (before[0].id, before[0].status));
+        assert_eq!(after[0].state, before[0].state);
+        a.push(scan(4.0, "1"));
+        a.release(f64::INFINITY);
+        let k = &snap_rx.borrow().tracks[0];
+        assert_eq!((k.id, k.updated), (before[0].id, true));
     }
 }
