@@ -104,7 +104,7 @@ pub struct ErrorBody {
 }
 
 /// A JSON error response.
-fn error(status: StatusCode, message: impl Into<String>) -> Response {
+pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
     (
         status,
         Json(ErrorBody {
@@ -497,10 +497,20 @@ async fn get_estimator(State(s): State<ApiState>) -> Json<EstimatorState> {
 #[serde(deny_unknown_fields)]
 pub struct EstimatorChange {
     /// Track estimator name (`GET /api/v1/estimators`).
+    #[schema(schema_with = estimator_names)]
     name: String,
     /// Parameters, name → value (the others default).
     #[serde(default)]
     params: BTreeMap<String, f64>,
+}
+
+/// The schema of an estimator name: one of [`TRACK_ENGINES`].
+fn estimator_names() -> utoipa::openapi::Object {
+    utoipa::openapi::ObjectBuilder::new()
+        .schema_type(utoipa::openapi::schema::Type::String)
+        .enum_values(Some(TRACK_ENGINES.iter().map(|e| e.name)))
+        .description(Some("Track estimator name (`GET /api/v1/estimators`)"))
+        .build()
 }
 
 /// Changes the estimator; the live tracks are handed over (ids, status and estimates kept).
@@ -532,9 +542,13 @@ async fn put_estimator(
         name: change.name,
         params: change.params,
     };
-    let gone = || error(StatusCode::SERVICE_UNAVAILABLE, "the tracker is not running");
-    if s
-        .commands
+    let gone = || {
+        error(
+            StatusCode::SERVICE_UNAVAILABLE,
+            "the tracker is not running",
+        )
+    };
+    if s.commands
         .send(Command::SetEstimator { to, reply })
         .await
         .is_err()

@@ -22,7 +22,9 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use axum::extract::State;
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
+use axum::http::StatusCode;
 use axum::response::Response;
 use tokio::sync::broadcast::error::RecvError;
 
@@ -53,12 +55,21 @@ pub fn snapshot_message(s: &Snapshot, dropped: u64) -> String {
     tag = "stream",
     responses(
         (status = 101, description = "Switching to the WebSocket protocol: `snapshot` and `scan` JSON messages (see the live::ws module docs)"),
-        (status = 400, description = "Not a WebSocket upgrade request", body = super::api::ErrorBody),
+        (status = 400, description = "Not a WebSocket upgrade request (or an unsupported WebSocket version)", body = super::api::ErrorBody),
         (status = 401, description = "Reads need the token (`api.auth_reads`) and it is missing or wrong", body = super::api::ErrorBody),
     )
 )]
-pub async fn ws(ws: WebSocketUpgrade, State(s): State<ApiState>) -> Response {
-    ws.on_upgrade(move |socket| client(socket, s))
+pub async fn ws(
+    State(s): State<ApiState>,
+    ws: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
+) -> Response {
+    match ws {
+        Ok(ws) => ws.on_upgrade(move |socket| client(socket, s)),
+        Err(e) => {
+            s.metrics.http_refused("websocket", 400);
+            super::api::error(StatusCode::BAD_REQUEST, e.body_text())
+        }
+    }
 }
 
 /// Sends one text message, within [`SEND_TIMEOUT`]; `false` when the client is gone.
