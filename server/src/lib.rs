@@ -15,6 +15,7 @@
 //! * Offline tools: [`replay`] (`harrier replay`) and [`guidance_sim`] (`harrier guidance-sim`),
 //!   both getting their estimators from the registry.
 
+pub mod bench;
 pub mod demo;
 pub mod engine;
 pub mod estimators;

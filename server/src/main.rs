@@ -67,6 +67,9 @@ enum Command {
     Demo(harrier_server::demo::DemoArgs),
     /// List recorded sessions, or export one as a gcs-scenario/1 directory.
     Sessions(harrier_server::sessions::SessionsArgs),
+    /// Load-test the live service: simulated vehicles' detections in, WebSocket and REST clients
+    /// out; prints rates, latencies and memory (BENCHMARKS.md).
+    Bench(harrier_server::bench::BenchArgs),
     /// List the estimators, one line each.
     Estimators {
         /// Also list each estimator's `--param` names.
@@ -89,6 +92,13 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("harrier demo: error: {e:#}");
+                ExitCode::from(2)
+            }
+        },
+        Command::Bench(args) => match harrier_server::bench::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier bench: error: {e:#}");
                 ExitCode::from(2)
             }
         },
