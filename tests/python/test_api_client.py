@@ -107,3 +107,82 @@ def test_the_websocket_streams_a_snapshot_then_every_scan():
             print(f"20 scan messages in {elapsed:.2f} s ({20 / elapsed:.1f} Hz), seq {seqs[0]}..{seqs[-1]}")
 
     asyncio.run(watch())
+
+
+def zenoh_session():
+    """A peer session to the server's Zenoh endpoint (HARRIER_ZENOH), as a second consumer would open."""
+    import zenoh
+
+    conf = zenoh.Config()
+    conf.insert_json5("mode", '"peer"')
+    conf.insert_json5("scouting/multicast/enabled", "false")
+    conf.insert_json5("connect/endpoints", json.dumps([os.environ["HARRIER_ZENOH"]]))
+    conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+    return zenoh.open(conf)
+
+
+def test_tracks_are_published_on_zenoh():
+    got = []
+    with zenoh_session() as session:
+        sub = session.declare_subscriber("harrier/v1/tracks")
+        deadline = time.monotonic() + 30
+        while len(got) < 3 and time.monotonic() < deadline:
+            sample = sub.try_recv()
+            if sample is None:
+                time.sleep(0.05)
+                continue
+            assert str(sample.key_expr) == "harrier/v1/tracks"
+            got.append(json.loads(sample.payload.to_bytes()))
+    assert len(got) >= 3, f"{len(got)} track messages in 30 s"
+    for m in got:
+        assert m["schema"] == "harrier-tracks/1"
+        assert {"time_unix", "t", "seq", "estimator", "frame", "tracks"} <= m.keys()
+        assert all(k["status"] == "confirmed" and len(k["state"]) == 6 for k in m["tracks"])
+    assert [m["seq"] for m in got] == sorted(m["seq"] for m in got)
+    assert any(m["tracks"] for m in got)
+
+
+def metric(api, series):
+    for line in api.get("/api/v1/metrics").text.splitlines():
+        if line.startswith(series + " "):
+            return float(line.split()[-1])
+    return 0.0
+
+
+def test_bad_payloads_are_refused_counted_and_tracking_goes_on(api):
+    scan = json.loads(json.dumps(api.get("/api/v1/detections").json()["scans"][-1]))
+    good = {
+        "schema": "harrier-detections/1", "t": 1.0, "vehicle": 7, "seq": 1, "sensor": "cam",
+        "kind": "position", "noise_std": [5.0, 5.0],
+        "origin": {"lat_deg": 47.397742, "lon_deg": 8.545594, "alt_m": 488.0},
+        "platform": {"pos": [0, 0, 0], "vel": [0, 0, 0], "attitude": [0, 0, 0],
+                     "geodetic": {"lat_deg": 47.397742, "lon_deg": 8.545594, "alt_m": 488.0}},
+        "detections": [{"z": [10.0, 20.0]}],
+    }
+    nan = dict(good, detections=[{"z": [float("nan"), 20.0]}])  # json.dumps writes NaN
+    negative = dict(good, noise_std=[-1.0, 5.0])
+    short = dict(good, detections=[{"z": [1.0]}])
+    ingested = sum(metric(api, f'harrier_scans_ingested_total{{vehicle="{v}"}}') for v in ("1", "2"))
+    series = lambda r: f'harrier_scans_dropped_total{{vehicle="7",reason="{r}"}}'
+    with zenoh_session() as session:
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            session.put("harrier/v1/vehicle/7/detections", b"\x00\xffnot json")
+            session.put("harrier/v1/vehicle/7/detections", json.dumps(nan))
+            session.put("harrier/v1/vehicle/7/detections", json.dumps(negative))
+            session.put("harrier/v1/vehicle/7/detections", json.dumps(short))
+            if metric(api, series("json")) >= 2 and metric(api, series("invalid")) >= 2:
+                break
+            time.sleep(0.2)
+    assert metric(api, series("json")) >= 2, "garbage and NaN payloads not counted as json"
+    assert metric(api, series("invalid")) >= 2, "negative noise and short z not counted as invalid"
+    assert metric(api, 'harrier_scans_ingested_total{vehicle="7"}') == 0
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        now = sum(metric(api, f'harrier_scans_ingested_total{{vehicle="{v}"}}') for v in ("1", "2"))
+        if now > ingested:
+            break
+        time.sleep(0.2)
+    assert now > ingested, "tracking stopped after the bad payloads"
+    assert api.get("/api/v1/health").json()["status"] == "ok"
+    assert scan["seq"] > 0

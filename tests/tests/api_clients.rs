@@ -4,7 +4,9 @@
 //! - `tests/python/test_api_client.py` (pytest + httpx + websockets), a user's script: lists
 //!   tracks, reads one, changes the estimator (401 without or with a wrong token, 400 on a body
 //!   that is not JSON, 422 naming the field or the unknown estimator, 200 with the token and the
-//!   tracks kept), watches the WebSocket (a snapshot, then scan messages with consecutive `seq`);
+//!   tracks kept), watches the WebSocket (a snapshot, then scan messages with consecutive `seq`),
+//!   subscribes to the tracks on Zenoh with eclipse-zenoh, and publishes bad payloads (garbage,
+//!   NaN, negative noise, a short `z`) that `/metrics` must count by reason while tracking goes on;
 //! - schemathesis against `/api/openapi.json`, every check but two (see the test): no 5xx, every
 //!   status, content type, header and body as documented;
 //! - afterwards `/metrics` counts the refused requests, and tracking went on.
@@ -85,6 +87,7 @@ fn metric_sum(text: &str, name: &str, label: &str) -> f64 {
 #[test]
 fn python_clients_and_schemathesis_use_the_live_api() {
     for (module, pip) in [
+        ("zenoh", "eclipse-zenoh==1.10.2"),
         ("httpx", "httpx==0.28.1"),
         ("websockets", "websockets==17.4"),
         ("pytest", "pytest==9.2.0"),
@@ -102,7 +105,8 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.token = TOKEN.into();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+    let server_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    config.zenoh.listen = vec![server_endpoint.clone()];
     config.zenoh.connect = vec![sim_endpoint.clone()];
     let mut world = WorldConfig::new(LiveConfig {
         scenario,
@@ -134,7 +138,8 @@ fn python_clients_and_schemathesis_use_the_live_api() {
         .args(["-m", "pytest", "-q", "-s", "-p", "no:cacheprovider"])
         .arg(tests_dir.join("python/test_api_client.py"))
         .env("HARRIER_URL", &url)
-        .env("HARRIER_TOKEN", TOKEN);
+        .env("HARRIER_TOKEN", TOKEN)
+        .env("HARRIER_ZENOH", &server_endpoint);
     let out = run_client(
         pytest,
         Duration::from_secs(120),
