@@ -173,6 +173,9 @@ struct ServeArgs {
     /// Track engine: ekf, cdkf, imm or cimm (`tracker.estimator`; default ekf).
     #[arg(long, short)]
     estimator: Option<String>,
+    /// Record the session into this SQLite file (`recorder.path`; see RECORDING.md).
+    #[arg(long, value_name = "FILE")]
+    record: Option<PathBuf>,
 }
 
 fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
@@ -202,6 +205,9 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
     }
     if let Some(e) = &a.estimator {
         config.tracker.estimator.clone_from(e);
+    }
+    if let Some(path) = &a.record {
+        config.recorder.path = path.display().to_string();
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

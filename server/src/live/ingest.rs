@@ -30,6 +30,8 @@ pub struct Payload {
     pub key_id: Option<u8>,
     /// The bytes.
     pub bytes: Vec<u8>,
+    /// When it arrived.
+    pub received: Instant,
 }
 
 impl Payload {
@@ -41,6 +43,7 @@ impl Payload {
             key_id: vehicle.parse().ok(),
             vehicle,
             bytes,
+            received: Instant::now(),
         }
     }
 }
@@ -58,6 +61,8 @@ pub struct ReadyScan {
     pub platform: [f64; 3],
     /// Platform position at the scan (WGS-84).
     pub geodetic: GeoPoint,
+    /// When its payload arrived from Zenoh.
+    pub received: Instant,
 }
 
 /// At most one log line per reason and interval; the lines in between are counted.
@@ -172,6 +177,7 @@ impl Ingest {
             vehicle: p.vehicle.clone(),
             platform: framed.platform_pos.into(),
             geodetic: scan.platform.geodetic,
+            received: p.received,
             sensor: scan.sensor,
             scan: SensorScan {
                 // One time line for every publisher: UNIX time when the scan carries it.

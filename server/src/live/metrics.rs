@@ -72,11 +72,48 @@ struct Inner {
     vehicles: BTreeMap<String, VehicleCounters>,
     tracks_confirmed: usize,
     ws_clients: i64,
+    latency: Histogram,
     ws_sent: u64,
     ws_dropped: u64,
     http_refused: BTreeMap<(&'static str, u16), u64>,
     tracks_tentative: usize,
     last_scan_t: Option<f64>,
+}
+
+/// Upper bounds (s) of the latency histogram's buckets.
+const LATENCY_BUCKETS: [f64; 12] = [
+    0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 5.0,
+];
+
+/// A Prometheus histogram over [`LATENCY_BUCKETS`].
+#[derive(Debug, Default)]
+struct Histogram {
+    counts: [u64; LATENCY_BUCKETS.len()],
+    count: u64,
+    sum: f64,
+}
+
+impl Histogram {
+    fn observe(&mut self, v: f64) {
+        if let Some(i) = LATENCY_BUCKETS.iter().position(|&b| v <= b) {
+            self.counts[i] += 1;
+        }
+        self.count += 1;
+        self.sum += v;
+    }
+
+    /// `name_bucket{le=…}` (cumulative), `name_sum`, `name_count`.
+    fn render(&self, out: &mut String, name: &str, help: &str) {
+        let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} histogram");
+        let mut cumulative = 0;
+        for (b, n) in LATENCY_BUCKETS.iter().zip(self.counts) {
+            cumulative += n;
+            let _ = writeln!(out, "{name}_bucket{{le=\"{b}\"}} {cumulative}");
+        }
+        let _ = writeln!(out, "{name}_bucket{{le=\"+Inf\"}} {}", self.count);
+        let _ = writeln!(out, "{name}_sum {}", self.sum);
+        let _ = writeln!(out, "{name}_count {}", self.count);
+    }
 }
 
 /// The label of a key's vehicle segment.
@@ -122,6 +159,12 @@ impl Metrics {
             i.tracks_confirmed = confirmed;
             i.tracks_tentative = all - confirmed;
         });
+    }
+
+    /// A scan was processed `seconds` after its payload arrived (decoding, the reorder buffer
+    /// and the track engine).
+    pub fn latency(&self, seconds: f64) {
+        self.with(|i| i.latency.observe(seconds));
     }
 
     /// WebSocket clients connected (`+1`) or gone (`-1`).
@@ -270,9 +313,22 @@ impl Metrics {
                 "API requests refused, by reason and status.",
                 i.http_refused
                     .iter()
-                    .map(|((r, st), n)| (format!("{{reason=\"{r}\",status=\"{st}\"}}"), n.to_string()))
+                    .map(|((r, st), n)| {
+                        (format!("{{reason=\"{r}\",status=\"{st}\"}}"), n.to_string())
+                    })
                     .collect(),
             );
+            i.latency.render(
+                &mut out,
+                "harrier_scan_latency_seconds",
+                "From a payload's arrival to its scan processed by the track engine.",
+            );
+            let mut family = |name: &str, kind: &str, help: &str, rows: Vec<(String, String)>| {
+                let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
+                for (labels, value) in rows {
+                    let _ = writeln!(out, "{name}{labels} {value}");
+                }
+            };
             family(
                 "harrier_uptime_seconds",
                 "gauge",
@@ -300,6 +356,8 @@ mod tests {
         m.dropped("1", DropReason::Late);
         m.seq_lost("1", 3);
         m.ingested("1", 2, 4.5, 1, 3);
+        m.latency(0.003);
+        m.latency(0.03);
         let text = m.render(1.0);
         for line in [
             "harrier_scans_dropped_total{vehicle=\"9\",reason=\"json\"} 1",
@@ -308,6 +366,11 @@ mod tests {
             "harrier_detections_total{vehicle=\"1\"} 2",
             "harrier_tracks{status=\"tentative\"} 2",
             "harrier_last_scan_time_seconds 4.5",
+            "harrier_scan_latency_seconds_bucket{le=\"0.002\"} 0",
+            "harrier_scan_latency_seconds_bucket{le=\"0.005\"} 1",
+            "harrier_scan_latency_seconds_bucket{le=\"0.05\"} 2",
+            "harrier_scan_latency_seconds_bucket{le=\"+Inf\"} 2",
+            "harrier_scan_latency_seconds_count 2",
         ] {
             assert!(text.lines().any(|l| l == line), "{line} missing in\n{text}");
         }

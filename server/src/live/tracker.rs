@@ -1,9 +1,12 @@
 //! The tracker actor: owns the `Box<dyn TrackEngine>` and feeds it scans in time order.
 //!
-//! Scans wait in a short reorder buffer: a scan is processed once a scan at least
-//! `reorder_window_s` (scan time) newer has arrived, or when nothing has arrived for that long in
-//! wall time (at least 20 ms). A scan older than the last processed one is late: counted and
-//! dropped. After each scan the actor publishes the engine's snapshot on a `watch` channel (the
+//! Scans wait in a short reorder buffer until no older scan can still come: a scan is processed
+//! once every active source (vehicle and sensor) has delivered a scan at least as new — a source
+//! is active while its newest scan is within `reorder_window_s` (scan time) of the newest scan of
+//! all — or once a scan `reorder_window_s` newer has arrived, or when nothing has arrived for that
+//! long in wall time (at least 20 ms). So a scan waits for the slowest active source, never longer
+//! than the window; a lone source is not delayed at all. A scan older than the last processed one
+//! is late: counted and dropped (the first scan of a new source can be). After each scan the actor publishes the engine's snapshot on a `watch` channel (the
 //! latest state, never blocking) and the scan's track events on a bounded `broadcast` channel (a
 //! slow subscriber loses events, tracking never waits for it).
 
@@ -185,7 +188,9 @@ impl Recent {
     /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
     pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
         let h = self.history.lock().unwrap_or_else(PoisonError::into_inner);
-        h.get(&id).map(|q| q.iter().copied().collect()).unwrap_or_default()
+        h.get(&id)
+            .map(|q| q.iter().copied().collect())
+            .unwrap_or_default()
     }
 }
 
@@ -198,6 +203,8 @@ pub struct TrackerActor {
     window: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
+    /// Newest scan time of each source (`vehicle/sensor`).
+    sources: HashMap<String, f64>,
     seq: u64,
     vehicles: BTreeMap<String, VehicleView>,
     recent: Arc<Recent>,
@@ -248,6 +255,7 @@ impl TrackerActor {
             window,
             metrics,
             pending: Vec::new(),
+            sources: HashMap::new(),
             seq: 0,
             vehicles: BTreeMap::new(),
             recent,
@@ -270,13 +278,17 @@ impl TrackerActor {
             tracing::debug!(vehicle = s.vehicle, t = s.scan.t, "late scan dropped");
             return;
         }
-        let newest = self
-            .pending
-            .iter()
-            .map(|p| p.scan.t)
-            .fold(s.scan.t, f64::max);
+        let source = format!("{}/{}", s.vehicle, s.sensor);
+        let t = s.scan.t;
+        let newest_of_source = self.sources.entry(source).or_insert(t);
+        *newest_of_source = newest_of_source.max(t);
+        let newest = self.sources.values().copied().fold(t, f64::max);
+        let floor = newest - self.window;
+        // Sources silent for longer than the window are forgotten: they no longer hold scans back.
+        self.sources.retain(|_, &mut last| last >= floor);
+        let all_caught_up = self.sources.values().copied().fold(newest, f64::min);
         self.pending.push(s);
-        self.release(newest - self.window);
+        self.release(all_caught_up.max(floor));
     }
 
     /// Processes every buffered scan with time ≤ `until`, oldest first (equal times by vehicle
@@ -306,6 +318,7 @@ impl TrackerActor {
             }
         };
         let tracks = Arc::new(self.engine.snapshot());
+        self.metrics.latency(s.received.elapsed().as_secs_f64());
         let confirmed = tracks.iter().filter(|k| k.status == "confirmed").count();
         self.metrics.ingested(
             &s.vehicle,
@@ -410,10 +423,14 @@ impl TrackerActor {
             .fold(Params::default(), |p, (k, v)| p.with(k, *v));
         let mut engine = crate::registry::build_track_engine(&to.name, &self.deployment, &params)
             .map_err(|e| SetError::Invalid(e.to_string()))?;
-        engine
-            .adopt(&self.engine.handover())
-            .map_err(|e| SetError::Handover(format!("handing the tracks over to {}: {e}", to.name)))?;
-        tracing::info!(from = self.estimator.name, to = to.name, "estimator changed");
+        engine.adopt(&self.engine.handover()).map_err(|e| {
+            SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
+        })?;
+        tracing::info!(
+            from = self.estimator.name,
+            to = to.name,
+            "estimator changed"
+        );
         self.engine = engine;
         self.estimator = Arc::new(to.clone());
         let t = self.engine.time();
@@ -480,6 +497,7 @@ mod tests {
             },
             platform: [0.0; 3],
             geodetic: DEFAULT_ORIGIN,
+            received: std::time::Instant::now(),
         }
     }
 
@@ -515,24 +533,33 @@ mod tests {
 
     #[test]
     fn scans_are_reordered_within_the_window_and_late_ones_dropped() {
-        let (mut a, metrics, snap_rx, mut ev_rx) = actor(0.5);
-        a.push(scan(1.0, "1"));
-        a.push(scan(0.8, "2")); // out of order, inside the window: processed first
-        assert_eq!(snap_rx.borrow().t, None);
-        a.push(scan(1.6, "1")); // releases 0.8 and 1.0
+        let (mut a, metrics, snap_rx, mut ev_rx) = actor(2.0);
+        a.push(scan(0.0, "1")); // a lone source: processed at once
+        assert_eq!(snap_rx.borrow().t, Some(0.0));
+        a.push(scan(0.0, "2")); // a second source, same time: in order
+        assert_eq!(snap_rx.borrow().seq, 2);
+        a.push(scan(1.0, "1")); // waits for source 2 …
+        assert_eq!(snap_rx.borrow().t, Some(0.0));
+        a.push(scan(0.8, "2")); // … which is behind: 0.8 first, 1.0 still waits
+        assert_eq!(snap_rx.borrow().t, Some(0.8));
+        a.push(scan(1.1, "2")); // source 2 caught up: 1.0 goes
         assert_eq!(snap_rx.borrow().t, Some(1.0));
-        let first = ev_rx.try_recv().expect("events");
-        assert_eq!((first.t, first.seq), (0.8, 1));
-        assert!(first.message().starts_with(r#"{"detections":"#), "{}", first.message());
-        a.push(scan(0.9, "2")); // older than the last processed: late
-        a.release(f64::INFINITY);
-        assert_eq!(snap_rx.borrow().t, Some(1.6));
-        assert_eq!(snap_rx.borrow().seq, 3);
+        let seqs: Vec<_> = std::iter::from_fn(|| ev_rx.try_recv().ok())
+            .map(|e| (e.seq, e.t))
+            .collect();
+        assert_eq!(seqs, [(1, 0.0), (2, 0.0), (3, 0.8), (4, 1.0)]);
+        a.push(scan(2.0, "1")); // 1.1 goes, 2.0 waits for source 2
+        assert_eq!(snap_rx.borrow().t, Some(1.1));
+        a.push(scan(3.5, "1")); // source 2 silent for > 2 s: forgotten, nothing waits for it
+        assert_eq!(snap_rx.borrow().t, Some(3.5));
+        a.push(scan(3.0, "2")); // older than the last processed: late
         assert_eq!(
             metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
             Some(&1)
         );
-        assert_eq!(metrics.scans_ingested(), 3);
+        a.release(f64::INFINITY);
+        assert_eq!(snap_rx.borrow().seq, 7);
+        assert_eq!(metrics.scans_ingested(), 7);
         assert!(!snap_rx.borrow().tracks.is_empty());
         let vehicles: Vec<_> = snap_rx
             .borrow()
@@ -540,9 +567,10 @@ mod tests {
             .iter()
             .map(|v| (v.vehicle.clone(), v.scans))
             .collect();
-        assert_eq!(vehicles, [("1".to_string(), 2), ("2".to_string(), 1)]);
-        assert_eq!(a.recent.scans_after(1).len(), 2);
-        assert_eq!(a.recent.history(1).len(), 3);
+        assert_eq!(vehicles, [("1".to_string(), 4), ("2".to_string(), 3)]);
+        assert_eq!(a.recent.scans_after(4).len(), 3);
+        let first = a.recent.scans_after(0)[0].message().to_owned();
+        assert!(first.contains(r#""type":"scan""#), "{first}");
     }
 
     #[test]
@@ -558,7 +586,10 @@ mod tests {
             name: "nonesuch".into(),
             params: BTreeMap::new(),
         });
-        assert!(matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")), "{bad:?}");
+        assert!(
+            matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")),
+            "{bad:?}"
+        );
         let bad = a.set_estimator(EstimatorState {
             name: "cdkf".into(),
             params: BTreeMap::from([("m".to_string(), 0.5)]),
@@ -575,7 +606,10 @@ mod tests {
         let after = snap_rx.borrow().tracks.clone();
         assert_eq!(snap_rx.borrow().estimator.name, "cdkf");
         assert_eq!(after.len(), 1);
-        assert_eq!((after[0].id, after[0].status), (before[0].id, before[0].status));
+        assert_eq!(
+            (after[0].id, after[0].status),
+            (before[0].id, before[0].status)
+        );
         assert_eq!(after[0].state, before[0].state);
         a.push(scan(4.0, "1"));
         a.release(f64::INFINITY);
