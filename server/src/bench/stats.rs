@@ -1,0 +1,344 @@
+//! What `harrier bench` measures with: a lock-free latency histogram, the process's resident
+//! memory, the wall clock as UNIX time, the machine, and the server's Prometheus counters.
+
+use std::collections::BTreeMap;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+
+use serde::Serialize;
+
+/// Sub-buckets per power of two: a recorded value is known to within 1/128 (0.8 %).
+const SUB_BITS: u32 = 7;
+const SUB: u64 = 1 << SUB_BITS;
+/// Largest value kept (ns, ≈ 18 min); larger ones count as this.
+const MAX_NS: u64 = (1 << 40) - 1;
+/// Buckets: exact below `SUB`, then `SUB` per power of two up to `MAX_NS`.
+const BUCKETS: usize = ((40 - SUB_BITS as usize) + 1) * SUB as usize;
+
+/// A log-linear histogram of durations (ns), shared by many recorders without a lock: a fixed
+/// array of counters allocated once, so recording neither allocates nor grows memory.
+#[derive(Debug)]
+pub(super) struct Histogram {
+    buckets: Vec<AtomicU64>,
+    max_ns: AtomicU64,
+    sum_ns: AtomicU64,
+}
+
+impl Default for Histogram {
+    fn default() -> Self {
+        Self {
+            buckets: (0..BUCKETS).map(|_| AtomicU64::new(0)).collect(),
+            max_ns: AtomicU64::new(0),
+            sum_ns: AtomicU64::new(0),
+        }
+    }
+}
+
+fn bucket_of(ns: u64) -> usize {
+    if ns < SUB {
+        return ns as usize;
+    }
+    let shift = (63 - ns.leading_zeros()) - SUB_BITS;
+    let mantissa = ns >> shift;
+    ((shift as u64 + 1) * SUB + (mantissa - SUB)) as usize
+}
+
+/// The midpoint (ns) of bucket `i`.
+fn value_of(i: usize) -> f64 {
+    let i = i as u64;
+    if i < SUB {
+        return i as f64;
+    }
+    let shift = i / SUB - 1;
+    let low = (SUB + i % SUB) << shift;
+    low as f64 + ((1u64 << shift) as f64 - 1.0) / 2.0
+}
+
+/// Percentiles of a histogram, in milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct Percentiles {
+    /// Values recorded.
+    pub count: u64,
+    /// Mean.
+    pub mean: f64,
+    /// Median.
+    pub p50: f64,
+    /// 90th percentile.
+    pub p90: f64,
+    /// 99th percentile.
+    pub p99: f64,
+    /// 99.9th percentile.
+    pub p999: f64,
+    /// Largest value (exact).
+    pub max: f64,
+}
+
+impl Histogram {
+    /// Records one duration in seconds (negative values count as 0).
+    pub(super) fn record_s(&self, seconds: f64) {
+        let ns = (seconds.max(0.0) * 1e9).min(MAX_NS as f64) as u64;
+        self.buckets[bucket_of(ns)].fetch_add(1, Relaxed);
+        self.max_ns.fetch_max(ns, Relaxed);
+        self.sum_ns.fetch_add(ns, Relaxed);
+    }
+
+    /// The value (ms) below which a fraction `q` of the recorded values lie, to the bucket's
+    /// midpoint; 0 when empty.
+    fn quantile_ms(&self, counts: &[u64], total: u64, q: f64) -> f64 {
+        if total == 0 {
+            return 0.0;
+        }
+        let rank = ((q * total as f64).ceil() as u64).clamp(1, total);
+        let mut seen = 0;
+        for (i, c) in counts.iter().enumerate() {
+            seen += c;
+            if seen >= rank {
+                return value_of(i) / 1e6;
+            }
+        }
+        self.max_ns.load(Relaxed) as f64 / 1e6
+    }
+
+    /// The percentiles so far (ms). A quantile is at most the exact maximum.
+    pub(super) fn percentiles(&self) -> Percentiles {
+        let counts: Vec<u64> = self.buckets.iter().map(|b| b.load(Relaxed)).collect();
+        let total: u64 = counts.iter().sum();
+        let max = self.max_ns.load(Relaxed) as f64 / 1e6;
+        let q = |q| self.quantile_ms(&counts, total, q).min(max);
+        Percentiles {
+            count: total,
+            mean: if total == 0 {
+                0.0
+            } else {
+                self.sum_ns.load(Relaxed) as f64 / total as f64 / 1e6
+            },
+            p50: q(0.5),
+            p90: q(0.9),
+            p99: q(0.99),
+            p999: q(0.999),
+            max,
+        }
+    }
+}
+
+/// Wall-clock time as UNIX seconds (the time line of `time_unix`).
+pub(super) fn now_unix() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
+
+/// Resident memory (KiB) of process `pid` (`None`: this process), from `/proc/PID/status`.
+pub(super) fn rss_kib(pid: Option<u32>) -> Option<u64> {
+    let path = pid.map_or_else(
+        || "/proc/self/status".to_string(),
+        |p| format!("/proc/{p}/status"),
+    );
+    let text = std::fs::read_to_string(path).ok()?;
+    text.lines()
+        .find_map(|l| l.strip_prefix("VmRSS:"))?
+        .trim()
+        .strip_suffix("kB")?
+        .trim()
+        .parse()
+        .ok()
+}
+
+/// The machine the figures come from.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    /// Logical CPUs available to this process.
+    pub cpus: usize,
+    /// `model name` of `/proc/cpuinfo`.
+    pub cpu_model: String,
+    /// `MemTotal` of `/proc/meminfo` (MiB).
+    pub mem_total_mib: u64,
+    /// 1-minute load average when the run started.
+    pub load_start: f64,
+    /// 1-minute load average when the run ended.
+    pub load_end: f64,
+}
+
+impl Machine {
+    /// What `/proc` says now (unknown values empty or 0).
+    pub(super) fn now() -> Self {
+        let read = |p: &str| std::fs::read_to_string(p).unwrap_or_default();
+        let field = |text: &str, name: &str| {
+            text.lines()
+                .find_map(|l| l.strip_prefix(name))
+                .and_then(|rest| rest.trim_start().strip_prefix(':'))
+                .map(|v| v.trim().to_string())
+        };
+        let meminfo = read("/proc/meminfo");
+        Self {
+            cpus: std::thread::available_parallelism().map_or(0, usize::from),
+            cpu_model: field(&read("/proc/cpuinfo"), "model name").unwrap_or_default(),
+            mem_total_mib: field(&meminfo, "MemTotal")
+                .and_then(|v| v.strip_suffix("kB").and_then(|k| k.trim().parse().ok()))
+                .map_or(0, |k: u64| k / 1024),
+            load_start: load_1m(),
+            load_end: 0.0,
+        }
+    }
+}
+
+/// The 1-minute load average (0 when unknown).
+pub(super) fn load_1m() -> f64 {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|t| t.split_whitespace().next()?.parse().ok())
+        .unwrap_or(0.0)
+}
+
+/// The server's counters of a set of vehicles, from `GET /api/v1/metrics`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct Counters {
+    /// Payloads received on the vehicles' keys.
+    pub received: u64,
+    /// Scans the track engine processed.
+    pub ingested: u64,
+    /// Detections in them.
+    pub detections: u64,
+    /// Drops by reason.
+    pub dropped: BTreeMap<String, u64>,
+    /// Scans missing from the `seq` sequences.
+    pub seq_lost: u64,
+    /// Scan messages slow WebSocket clients missed (over every client).
+    pub ws_dropped: u64,
+    /// Scan time of the last processed scan (UNIX s), if any.
+    #[serde(skip)]
+    pub last_scan_t: Option<f64>,
+}
+
+/// Splits a sample line into name, labels and value.
+fn sample(line: &str) -> Option<(&str, BTreeMap<&str, &str>, f64)> {
+    let (series, value) = line.rsplit_once(' ')?;
+    let value = value.parse().ok()?;
+    let (name, labels) = match series.split_once('{') {
+        Some((name, rest)) => {
+            let labels = rest
+                .strip_suffix('}')?
+                .split(',')
+                .filter_map(|kv| {
+                    let (k, v) = kv.split_once('=')?;
+                    Some((k, v.trim_matches('"')))
+                })
+                .collect();
+            (name, labels)
+        }
+        None => (series, BTreeMap::new()),
+    };
+    Some((name, labels, value))
+}
+
+impl Counters {
+    /// The counters of the vehicles `ours` accepts in a Prometheus text exposition.
+    pub(super) fn parse(text: &str, ours: &dyn Fn(&str) -> bool) -> Self {
+        let mut c = Self::default();
+        for line in text.lines().filter(|l| !l.starts_with('#')) {
+            let Some((name, labels, value)) = sample(line) else {
+                continue;
+            };
+            if name == "harrier_last_scan_time_seconds" {
+                c.last_scan_t = Some(value);
+                continue;
+            }
+            if name == "harrier_ws_dropped_total" {
+                c.ws_dropped = value as u64;
+                continue;
+            }
+            if !labels.get("vehicle").is_some_and(|v| ours(v)) {
+                continue;
+            }
+            let n = value as u64;
+            match name {
+                "harrier_payloads_received_total" => c.received += n,
+                "harrier_scans_ingested_total" => c.ingested += n,
+                "harrier_detections_total" => c.detections += n,
+                "harrier_seq_lost_total" => c.seq_lost += n,
+                "harrier_scans_dropped_total" => {
+                    let reason = labels.get("reason").copied().unwrap_or("unknown");
+                    *c.dropped.entry(reason.to_string()).or_default() += n;
+                }
+                _ => {}
+            }
+        }
+        c
+    }
+
+    /// Payloads dropped for any reason.
+    pub fn dropped_total(&self) -> u64 {
+        self.dropped.values().sum()
+    }
+
+    /// What was counted since `base` (counters of an external server that ran before).
+    pub(super) fn since(&self, base: &Self) -> Self {
+        let mut dropped = self.dropped.clone();
+        for (r, n) in &base.dropped {
+            if let Some(v) = dropped.get_mut(r) {
+                *v = v.saturating_sub(*n);
+            }
+        }
+        dropped.retain(|_, n| *n > 0);
+        Self {
+            received: self.received.saturating_sub(base.received),
+            ingested: self.ingested.saturating_sub(base.ingested),
+            detections: self.detections.saturating_sub(base.detections),
+            dropped,
+            seq_lost: self.seq_lost.saturating_sub(base.seq_lost),
+            ws_dropped: self.ws_dropped.saturating_sub(base.ws_dropped),
+            last_scan_t: self.last_scan_t,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn buckets_round_trip_within_their_precision() {
+        for ns in [0, 1, 127, 128, 129, 1_000, 123_456, 20_000_000, MAX_NS] {
+            let v = value_of(bucket_of(ns));
+            assert!(
+                (v - ns as f64).abs() <= ns as f64 / SUB as f64 + 0.5,
+                "{ns} → {v}"
+            );
+        }
+        assert!(bucket_of(MAX_NS) < BUCKETS);
+        let h = Histogram::default();
+        for ms in 1..=1000 {
+            h.record_s(f64::from(ms) * 1e-3);
+        }
+        let p = h.percentiles();
+        assert_eq!(p.count, 1000);
+        assert!((p.p50 - 500.0).abs() < 4.0, "{p:?}");
+        assert!((p.p99 - 990.0).abs() < 8.0, "{p:?}");
+        assert!((p.max - 1000.0).abs() < 1e-9, "{p:?}");
+        assert!((p.mean - 500.5).abs() < 1e-6, "{p:?}");
+    }
+
+    #[test]
+    fn counters_of_our_vehicles_are_summed() {
+        let text = "# HELP x\n\
+            harrier_payloads_received_total{vehicle=\"1\"} 10\n\
+            harrier_payloads_received_total{vehicle=\"2\"} 5\n\
+            harrier_payloads_received_total{vehicle=\"9\"} 99\n\
+            harrier_scans_ingested_total{vehicle=\"1\"} 9\n\
+            harrier_scans_dropped_total{vehicle=\"2\",reason=\"queue_full\"} 2\n\
+            harrier_scans_dropped_total{vehicle=\"9\",reason=\"json\"} 7\n\
+            harrier_seq_lost_total{vehicle=\"1\"} 1\n\
+            harrier_last_scan_time_seconds 1795430412.25\n\
+            harrier_ws_dropped_total 3\n";
+        let c = Counters::parse(text, &|v| v == "1" || v == "2");
+        assert_eq!((c.received, c.ingested, c.seq_lost), (15, 9, 1));
+        assert_eq!(c.dropped_total(), 2);
+        assert_eq!(c.last_scan_t, Some(1_795_430_412.25));
+        assert_eq!(c.ws_dropped, 3);
+        let d = c.since(&Counters {
+            received: 5,
+            dropped: BTreeMap::from([("queue_full".to_string(), 2)]),
+            ..Counters::default()
+        });
+        assert_eq!((d.received, d.dropped_total()), (10, 0));
+    }
+}
