@@ -186,3 +186,30 @@ def test_bad_payloads_are_refused_counted_and_tracking_goes_on(api):
     assert now > ingested, "tracking stopped after the bad payloads"
     assert api.get("/api/v1/health").json()["status"] == "ok"
     assert scan["seq"] > 0
+
+
+def test_the_session_is_recorded_and_exports_as_a_scenario(api):
+    body = api.get("/api/v1/sessions").json()
+    assert body["file"] and body["current"] is not None
+    current = body["current"]
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline:
+        info = api.get(f"/api/v1/sessions/{current}").json()
+        # The estimator changes of the test above are actions, committed within flush_ms.
+        if info["scans"] > 0 and info["track_rows"] > 0 and info["actions"] >= 2:
+            break
+        time.sleep(0.2)
+    assert info["scans"] > 0 and info["detections"] > 0 and info["track_rows"] > 0, info
+    assert info["actions"] >= 2, info
+    assert info["ended_unix"] is None
+    assert api.get("/api/v1/sessions/999999").status_code == 404
+    assert api.get("/api/v1/sessions/x").status_code == 400
+    e = api.get(f"/api/v1/sessions/{current}/export")
+    assert e.status_code == 200, e.text
+    e = e.json()
+    scenario = json.loads(e["scenario_json"])
+    assert scenario["format"] == "gcs-scenario/1"
+    lines = [json.loads(line) for line in e["measurements_jsonl"].splitlines()]
+    assert len(lines) == e["lines"] > 0
+    assert all(l["sensor"] in e["sensors"] for l in lines)
+    assert e["truth_csv"], "the sim's truth was recorded"

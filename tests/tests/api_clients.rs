@@ -6,7 +6,9 @@
 //!   that is not JSON, 422 naming the field or the unknown estimator, 200 with the token and the
 //!   tracks kept), watches the WebSocket (a snapshot, then scan messages with consecutive `seq`),
 //!   subscribes to the tracks on Zenoh with eclipse-zenoh, and publishes bad payloads (garbage,
-//!   NaN, negative noise, a short `z`) that `/metrics` must count by reason while tracking goes on;
+//!   NaN, negative noise, a short `z`) that `/metrics` must count by reason while tracking goes on,
+//!   and reads the session being recorded (its scans, tracks and the API actions) and its export
+//!   as `gcs-scenario/1`;
 //! - schemathesis against `/api/openapi.json`, every check but two (see the test): no 5xx, every
 //!   status, content type, header and body as documented;
 //! - afterwards `/metrics` counts the refused requests, and tracking went on.
@@ -104,6 +106,12 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     config.tracker.motion = scenario.estimator.motion.clone().expect("motion hints");
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.token = TOKEN.into();
+    let recording = tempfile::tempdir().expect("tempdir");
+    config.recorder.path = recording
+        .path()
+        .join("session.sqlite")
+        .display()
+        .to_string();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     let server_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     config.zenoh.listen = vec![server_endpoint.clone()];

@@ -12,6 +12,7 @@
 //! | `GET /health` | status, uptime, estimator, last scan time, scans ingested |
 //! | `GET /metrics` | Prometheus text format ([`super::metrics`]) |
 //! | `GET /ws` | the WebSocket stream ([`super::ws`]) |
+//! | `GET /sessions`, `/sessions/{id}`, `/sessions/{id}/export` | the recorded sessions; one exported as `gcs-scenario/1` |
 //!
 //! Every error is JSON `{"error": "…"}` with its status: a body that is not JSON 400, JSON of
 //! the wrong shape 422 (naming the field), no or a wrong token 401, an unknown id or route 404.
@@ -38,9 +39,11 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::{OpenApi, ToSchema};
 
 use super::metrics::Metrics;
+use super::recorder::{Record, Recorder, RecorderStats};
 use super::tracker::{Command, EstimatorState, Recent, ScanEvents, Snapshot, VehicleView};
 use crate::engine::TrackView;
 use crate::registry::TRACK_ENGINES;
+use crate::sessions::{self, Exported, SessionError, SessionInfo};
 
 /// What the handlers read.
 #[derive(Debug, Clone)]
@@ -61,6 +64,8 @@ pub struct ApiState {
     pub started: Instant,
     /// Becomes `true` when the service stops (ends the WebSocket streams).
     pub stop: watch::Receiver<bool>,
+    /// The session recorder (records the API actions; its file serves `/sessions`).
+    pub recorder: Option<Recorder>,
 }
 
 /// The API's access rule.
@@ -131,6 +136,9 @@ pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
         estimators,
         health,
         metrics,
+        list_sessions,
+        session,
+        export_session,
         super::ws::ws
     ),
     modifiers(&BearerAuth),
@@ -138,6 +146,7 @@ pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
         (name = "tracks", description = "Live tracks and what they are made of"),
         (name = "control", description = "The running estimator"),
         (name = "service", description = "Health and metrics"),
+        (name = "sessions", description = "Recorded sessions (SQLite, RECORDING.md)"),
         (name = "stream", description = "The WebSocket stream"),
     )
 )]
@@ -170,6 +179,9 @@ pub fn app(state: ApiState, web_dir: Option<&std::path::Path>, cors_origins: &[S
         .route("/health", get(health))
         .route("/metrics", get(metrics))
         .route("/ws", get(super::ws::ws))
+        .route("/sessions", get(list_sessions))
+        .route("/sessions/{id}", get(session))
+        .route("/sessions/{id}/export", get(export_session))
         .fallback(|State(s): State<ApiState>| async move {
             s.metrics.http_refused("not_found", 404);
             error(StatusCode::NOT_FOUND, "no such route")
@@ -200,20 +212,64 @@ pub fn app(state: ApiState, web_dir: Option<&std::path::Path>, cors_origins: &[S
     )
 }
 
-/// Refuses requests without the token where it is needed, and counts refusals.
+/// Largest request body read (mutating routes take small JSON objects).
+const MAX_BODY: usize = 64 * 1024;
+
+/// Refuses requests without the token where it is needed and counts refusals; records every
+/// mutating request (method, path, body, status), refused or not, when recording.
 async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response {
     let mutating = !matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
-    if (mutating || s.auth.reads) && !s.auth.accepts(&req) {
-        s.metrics.http_refused("auth", 401);
-        let mut r = error(
-            StatusCode::UNAUTHORIZED,
-            "this request needs the API token: Authorization: Bearer <token>",
-        );
-        r.headers_mut()
-            .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
-        return r;
-    }
-    next.run(req).await
+    let allowed = !(mutating || s.auth.reads) || s.auth.accepts(&req);
+    let Some(recorder) = s.recorder.as_ref().filter(|_| mutating) else {
+        return if allowed {
+            next.run(req).await
+        } else {
+            unauthorized(&s)
+        };
+    };
+    let method = req.method().to_string();
+    let path = req.uri().path().to_string();
+    let (parts, body) = req.into_parts();
+    let (response, body) = match axum::body::to_bytes(body, MAX_BODY).await {
+        Err(_) => {
+            s.metrics.http_refused("too_large", 413);
+            let r = error(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!("request bodies are limited to {MAX_BODY} bytes"),
+            );
+            (r, String::new())
+        }
+        Ok(bytes) => {
+            let text = String::from_utf8_lossy(&bytes).into_owned();
+            let r = if allowed {
+                next.run(Request::from_parts(parts, axum::body::Body::from(bytes)))
+                    .await
+            } else {
+                unauthorized(&s)
+            };
+            (r, text)
+        }
+    };
+    recorder.record(Record::Action {
+        time_unix: super::ingest::unix_now(),
+        method,
+        path,
+        body,
+        status: response.status().as_u16(),
+    });
+    response
+}
+
+/// 401 with `WWW-Authenticate: Bearer`, counted.
+fn unauthorized(s: &ApiState) -> Response {
+    s.metrics.http_refused("auth", 401);
+    let mut r = error(
+        StatusCode::UNAUTHORIZED,
+        "this request needs the API token: Authorization: Bearer <token>",
+    );
+    r.headers_mut()
+        .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
+    r
 }
 
 async fn openapi() -> Json<utoipa::openapi::OpenApi> {
@@ -662,9 +718,172 @@ async fn health(State(s): State<ApiState>) -> Json<HealthBody> {
     ),
     security((), ("bearer" = [])))]
 async fn metrics(State(s): State<ApiState>) -> Response {
-    (
-        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
-        s.metrics.render(s.started.elapsed().as_secs_f64()),
-    )
-        .into_response()
+    let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
+    if let Some(r) = &s.recorder {
+        render_recorder(&mut text, &r.stats());
+    }
+    ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
+}
+
+/// The recorder's counters in the Prometheus text format.
+fn render_recorder(out: &mut String, st: &RecorderStats) {
+    use std::fmt::Write as _;
+    let _ = writeln!(
+        out,
+        "# HELP harrier_recorder_rows_total Rows committed to the session file, by table.\n\
+         # TYPE harrier_recorder_rows_total counter"
+    );
+    for (table, n) in [
+        ("scans", st.scans),
+        ("detections", st.detections),
+        ("tracks", st.track_rows),
+        ("truth", st.truth_rows),
+        ("actions", st.actions),
+    ] {
+        let _ = writeln!(out, "harrier_recorder_rows_total{{table=\"{table}\"}} {n}");
+    }
+    for (name, help, v) in [
+        (
+            "harrier_recorder_dropped_total",
+            "Records dropped because the writer's queue was full.",
+            st.dropped,
+        ),
+        (
+            "harrier_recorder_errors_total",
+            "Failed writes to the session file.",
+            st.errors,
+        ),
+        (
+            "harrier_recorder_commits_total",
+            "Transactions committed.",
+            st.commits,
+        ),
+    ] {
+        let _ = writeln!(
+            out,
+            "# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}"
+        );
+    }
+}
+
+/// The sessions of the recording file.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct SessionsBody {
+    /// The recording file; `null` when recording is off.
+    file: Option<String>,
+    /// The id of this server's session.
+    current: Option<i64>,
+    /// Every session in the file, oldest first.
+    sessions: Vec<SessionInfo>,
+}
+
+/// Runs a read of the recording file off the async threads; maps its errors to responses.
+async fn with_file<T: Send + 'static>(
+    s: &ApiState,
+    read: impl FnOnce(&std::path::Path) -> Result<T, SessionError> + Send + 'static,
+) -> Result<T, Response> {
+    let Some(r) = &s.recorder else {
+        s.metrics.http_refused("not_found", 404);
+        return Err(error(
+            StatusCode::NOT_FOUND,
+            "recording is off (set recorder.path or --record)",
+        ));
+    };
+    let path = r.path().to_path_buf();
+    match tokio::task::spawn_blocking(move || read(&path)).await {
+        Ok(Ok(v)) => Ok(v),
+        Ok(Err(e @ SessionError::NotFound { .. })) => {
+            s.metrics.http_refused("not_found", 404);
+            Err(error(StatusCode::NOT_FOUND, e.to_string()))
+        }
+        Ok(Err(e @ SessionError::Export { .. })) => {
+            s.metrics.http_refused("export", 409);
+            Err(error(StatusCode::CONFLICT, e.to_string()))
+        }
+        Ok(Err(e)) => Err(error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
+        Err(e) => Err(error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
+    }
+}
+
+/// A session id from the path.
+fn session_id(s: &ApiState, id: &str) -> Result<i64, Response> {
+    id.parse::<i64>().map_err(|_| {
+        s.metrics.http_refused("path", 400);
+        error(
+            StatusCode::BAD_REQUEST,
+            format!("session id {id:?} is not a number"),
+        )
+    })
+}
+
+/// The recorded sessions (this server's recording file).
+#[utoipa::path(get, path = "/api/v1/sessions", tag = "sessions",
+    responses(
+        (status = 200, body = SessionsBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn list_sessions(State(s): State<ApiState>) -> Response {
+    let Some(r) = &s.recorder else {
+        return Json(SessionsBody {
+            file: None,
+            current: None,
+            sessions: Vec::new(),
+        })
+        .into_response();
+    };
+    let (file, current) = (r.path().display().to_string(), r.session_id());
+    match with_file(&s, |p| sessions::list(p)).await {
+        Ok(list) => Json(SessionsBody {
+            file: Some(file),
+            current: Some(current),
+            sessions: list,
+        })
+        .into_response(),
+        Err(r) => r,
+    }
+}
+
+/// One recorded session's summary.
+#[utoipa::path(get, path = "/api/v1/sessions/{id}", tag = "sessions",
+    params(("id" = i64, Path, description = "Session id")),
+    responses(
+        (status = 200, body = SessionInfo),
+        (status = 400, description = "The id is not a number", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+        (status = 404, description = "No such session, or recording is off", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn session(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
+    let id = match session_id(&s, &id) {
+        Ok(id) => id,
+        Err(r) => return r,
+    };
+    match with_file(&s, move |p| sessions::info(p, id)).await {
+        Ok(info) => Json(info).into_response(),
+        Err(r) => r,
+    }
+}
+
+/// A recorded session exported as a `gcs-scenario/1` directory's files (`harrier replay` and
+/// `score.py` read them once written out; `harrier sessions export` writes them).
+#[utoipa::path(get, path = "/api/v1/sessions/{id}/export", tag = "sessions",
+    params(("id" = i64, Path, description = "Session id")),
+    responses(
+        (status = 200, body = Exported),
+        (status = 400, description = "The id is not a number", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+        (status = 404, description = "No such session, or recording is off", body = ErrorBody),
+        (status = 409, description = "The session cannot be exported (e.g. no scans yet)", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn export_session(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
+    let id = match session_id(&s, &id) {
+        Ok(id) => id,
+        Err(r) => return r,
+    };
+    match with_file(&s, move |p| sessions::export(p, id)).await {
+        Ok(e) => Json(e).into_response(),
+        Err(r) => r,
+    }
 }

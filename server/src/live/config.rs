@@ -11,12 +11,12 @@ use std::path::Path;
 use harrier_core::detection::GeoPoint;
 use harrier_core::scenario::{Motion, Road, Scenario};
 use harrier_link::bus::{BusConfig, Mode};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 
 use crate::engine::Params;
 
 /// The whole configuration.
-#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct Config {
     /// The server's ENU frame.
@@ -32,7 +32,7 @@ pub struct Config {
 }
 
 /// The ENU frame tracks are expressed in.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct FrameConfig {
     /// WGS-84 origin of the frame.
@@ -42,7 +42,7 @@ pub struct FrameConfig {
 }
 
 /// The track engine.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerConfig {
     /// Track engine name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
@@ -65,14 +65,15 @@ pub struct TrackerConfig {
 }
 
 /// The HTTP API.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ApiConfig {
     /// Address to bind (port 0: any free port).
     pub listen: SocketAddr,
     /// Bearer token every mutating request must carry (`Authorization: Bearer …`). The
     /// environment variable `HARRIER_TOKEN` overrides it; when both are empty a random token is
-    /// generated and printed at start.
+    /// generated and printed at start. Never recorded.
+    #[serde(skip_serializing)]
     pub token: String,
     /// Require the token for reads too (GET routes and the WebSocket).
     pub auth_reads: bool,
@@ -86,7 +87,7 @@ pub struct ApiConfig {
 }
 
 /// The SQLite recording of the session.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RecorderConfig {
     /// SQLite file (created if missing; one file holds many sessions); empty: no recording.
@@ -100,7 +101,7 @@ pub struct RecorderConfig {
 }
 
 /// The Zenoh session (harrier-link's [`BusConfig`]).
-#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ZenohConfig {
     /// `peer` or `client`.

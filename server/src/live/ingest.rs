@@ -19,7 +19,15 @@ use harrier_link::geo::LocalFrame;
 use tokio::sync::mpsc;
 
 use super::metrics::{DropReason, Metrics, vehicle_label};
+use super::recorder::{Record, Recorder};
 use crate::engine::SensorScan;
+
+/// Now as UNIX time (s).
+pub fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
+}
 
 /// A payload as it arrived: the vehicle label of its key and its bytes.
 #[derive(Debug)]
@@ -103,6 +111,7 @@ pub struct Ingest {
     last_seq: HashMap<(u8, String), u64>,
     log: LogLimiter,
     sensors: Vec<String>,
+    recorder: Option<Recorder>,
 }
 
 impl Ingest {
@@ -118,7 +127,14 @@ impl Ingest {
                 last: HashMap::new(),
             },
             sensors: Vec::new(),
+            recorder: None,
         }
+    }
+
+    /// Records every valid scan (as received) into `recorder`.
+    pub fn with_recorder(mut self, recorder: Option<Recorder>) -> Self {
+        self.recorder = recorder;
+        self
     }
 
     /// Only scans of these sensor ids are tracked (the others are counted as `sensor_filtered`
@@ -155,6 +171,12 @@ impl Ingest {
             return None;
         }
         self.follow_seq(v, &scan);
+        if let Some(r) = &self.recorder {
+            r.record(Record::Scan {
+                received_unix: unix_now(),
+                scan: scan.clone(),
+            });
+        }
         if !self.sensors.is_empty() && !self.sensors.contains(&scan.sensor) {
             self.metrics.dropped(v, DropReason::SensorFiltered);
             return None;

@@ -44,7 +44,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
 
-use harrier_core::detection::DETECTIONS_KEY_ALL;
+use harrier_core::detection::{DETECTIONS_KEY_ALL, TRUTH_KEY, TruthSample};
 use harrier_core::measurement::Geometry;
 use harrier_link::geo::LocalFrame;
 use tokio::sync::{broadcast, mpsc, watch};
@@ -54,8 +54,9 @@ use self::api::{ApiState, Auth};
 use self::config::{Config, ConfigError};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
+use self::recorder::{Recorder, SessionMeta};
 use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
-use crate::engine::EngineError;
+use crate::engine::{EngineError, TrackView};
 
 /// Why the service could not start.
 #[derive(Debug, thiserror::Error)]
@@ -77,6 +78,9 @@ pub enum LiveError {
     /// The Zenoh session or subscriber cannot be opened.
     #[error("zenoh: {0}")]
     Zenoh(String),
+    /// The recording file cannot be opened.
+    #[error("recorder: {0}")]
+    Recorder(#[from] recorder::RecorderError),
 }
 
 /// Where the API token came from.
@@ -98,7 +102,9 @@ fn token(config: &Config) -> (String, TokenSource) {
         _ => {
             use rand::Rng as _;
             let mut rng = rand::rng();
-            let t = (0..16).map(|_| format!("{:02x}", rng.random::<u8>())).collect();
+            let t = (0..16)
+                .map(|_| format!("{:02x}", rng.random::<u8>()))
+                .collect();
             (t, TokenSource::Generated)
         }
     }
@@ -127,6 +133,7 @@ pub struct LiveServer {
     api: JoinHandle<()>,
     subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     session: zenoh::Session,
+    recorder: Option<Recorder>,
 }
 
 impl LiveServer {
@@ -150,6 +157,10 @@ impl LiveServer {
     pub fn subscribe_events(&self) -> broadcast::Receiver<Arc<ScanEvents>> {
         self.events.subscribe()
     }
+    /// The session recorder, when `recorder.path` is set.
+    pub fn recorder(&self) -> Option<&Recorder> {
+        self.recorder.as_ref()
+    }
     /// The Zenoh session of the service (for an in-process peer, e.g. `harrier demo`).
     pub fn session(&self) -> &zenoh::Session {
         &self.session
@@ -166,6 +177,13 @@ impl LiveServer {
         for t in self.pipeline.into_iter().chain(self.outputs) {
             if let Err(e) = t.await {
                 tracing::warn!("a live actor ended abnormally: {e}");
+            }
+        }
+        if let Some(r) = self.recorder {
+            match tokio::task::spawn_blocking(move || r.close()).await {
+                Ok(Ok(stats)) => tracing::info!(?stats, "recording closed"),
+                Ok(Err(e)) => tracing::warn!("closing the recording: {e}"),
+                Err(e) => tracing::warn!("closing the recording: {e}"),
             }
         }
         let _ = self.stop.send(true);
@@ -203,6 +221,27 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         source,
     })?;
 
+    let recorder = match config.recorder.path.as_str() {
+        "" => None,
+        path => {
+            let meta = SessionMeta {
+                started_unix: ingest::unix_now(),
+                origin: config.frame.origin,
+                plane_z: config.frame.plane_z,
+                estimator: estimator.name.clone(),
+                config_json: serde_json::to_string(config).unwrap_or_default(),
+            };
+            let r = Recorder::open(
+                std::path::Path::new(path),
+                &meta,
+                std::time::Duration::from_millis(config.recorder.flush_ms),
+                config.recorder.queue,
+            )?;
+            tracing::info!(path, session = r.session_id(), "recording");
+            Some(r)
+        }
+    };
+
     let queue = config.tracker.queue;
     let (payload_tx, payload_rx) = mpsc::channel::<Payload>(queue);
     let (scan_tx, scan_rx) = mpsc::channel(queue);
@@ -233,6 +272,21 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         })
         .await
         .map_err(|e| LiveError::Zenoh(format!("subscribe {DETECTIONS_KEY_ALL}: {e}")))?;
+    let mut subscribers = vec![subscriber];
+    if let Some(r) = recorder.as_ref().filter(|_| config.recorder.truth) {
+        let r = r.clone();
+        let truth = session
+            .declare_subscriber(TRUTH_KEY)
+            .callback(
+                move |sample| match TruthSample::from_json(&sample.payload().to_bytes()) {
+                    Ok(t) => r.record(recorder::Record::Truth(t)),
+                    Err(e) => tracing::debug!("truth sample not recorded: {e}"),
+                },
+            )
+            .await
+            .map_err(|e| LiveError::Zenoh(format!("subscribe {TRUTH_KEY}: {e}")))?;
+        subscribers.push(truth);
+    }
     let mut outputs = Vec::new();
     if !config.zenoh.tracks_key.is_empty() {
         let publisher = session
@@ -256,9 +310,10 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         Geometry::planar(config.frame.plane_z),
         Arc::clone(&metrics),
     )
-    .with_sensors(config.tracker.sensors.clone());
+    .with_sensors(config.tracker.sensors.clone())
+    .with_recorder(recorder.clone());
     let recent = Arc::new(Recent::default());
-    let actor = TrackerActor::new(
+    let mut actor = TrackerActor::new(
         engine,
         deployment,
         estimator.clone(),
@@ -268,6 +323,23 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         snap_tx,
         events_tx.clone(),
     );
+    if let Some(r) = &recorder {
+        let r = r.clone();
+        actor.add_sink(Box::new(move |scan| {
+            let changed: Vec<TrackView> = scan
+                .tracks
+                .iter()
+                .filter(|k| scan.events.iter().any(|e| tracker::changes(e, k.id)))
+                .cloned()
+                .collect();
+            if !changed.is_empty() {
+                r.record(recorder::Record::Tracks {
+                    t: scan.t,
+                    tracks: changed,
+                });
+            }
+        }));
+    }
     let token = token(config);
     let app = api::app(
         ApiState {
@@ -282,6 +354,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             }),
             started,
             stop: stop_rx.clone(),
+            recorder: recorder.clone(),
         },
         web_dir(config).as_deref(),
         &config.api.cors_origins,
@@ -314,7 +387,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         pipeline,
         outputs,
         api,
-        subscribers: vec![subscriber],
+        subscribers,
         session,
+        recorder,
     })
 }

@@ -7,7 +7,7 @@
 //! [TrackView…]}`, tracks in the server's ENU frame.
 
 use std::sync::Arc;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::Duration;
 
 use harrier_core::detection::{GeoPoint, TRACKS_SCHEMA};
 use tokio::sync::watch;
@@ -16,9 +16,7 @@ use super::tracker::Snapshot;
 
 /// The message for `snap`.
 pub fn tracks_message(snap: &Snapshot, origin: GeoPoint, plane_z: f64) -> String {
-    let now = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
+    let now = super::ingest::unix_now();
     let confirmed: Vec<_> = snap
         .tracks
         .iter()
@@ -58,10 +56,7 @@ pub async fn run(
             continue;
         }
         last_seq = snap.seq;
-        if let Err(e) = publisher
-            .put(tracks_message(&snap, origin, plane_z))
-            .await
-        {
+        if let Err(e) = publisher.put(tracks_message(&snap, origin, plane_z)).await {
             failures += 1;
             if failures.is_power_of_two() {
                 tracing::warn!(failures, "zenoh: publishing the tracks: {e}");

@@ -149,6 +149,14 @@ pub fn event_json(e: &TrackEvent) -> serde_json::Value {
     }
 }
 
+/// Whether `e` changed track `id`'s estimate or status (born, confirmed, updated).
+pub fn changes(e: &TrackEvent, id: u64) -> bool {
+    matches!(e,
+        TrackEvent::Born { id: k, .. }
+        | TrackEvent::Confirmed { id: k }
+        | TrackEvent::Updated { id: k, .. } if *k == id)
+}
+
 /// What the API asks of the tracker.
 #[derive(Debug)]
 pub enum Command {
