@@ -805,15 +805,13 @@ async fn with_file<T: Send + 'static>(
     }
 }
 
-/// A session id from the path.
-fn session_id(s: &ApiState, id: &str) -> Result<i64, Response> {
-    id.parse::<i64>().map_err(|_| {
-        s.metrics.http_refused("path", 400);
-        error(
-            StatusCode::BAD_REQUEST,
-            format!("session id {id:?} is not a number"),
-        )
-    })
+/// The 400 of a session id that is not a number.
+fn bad_session_id(s: &ApiState, id: &str) -> Response {
+    s.metrics.http_refused("path", 400);
+    error(
+        StatusCode::BAD_REQUEST,
+        format!("session id {id:?} is not a number"),
+    )
 }
 
 /// The recorded sessions (this server's recording file).
@@ -833,7 +831,7 @@ async fn list_sessions(State(s): State<ApiState>) -> Response {
         .into_response();
     };
     let (file, current) = (r.path().display().to_string(), r.session_id());
-    match with_file(&s, |p| sessions::list(p)).await {
+    match with_file(&s, sessions::list).await {
         Ok(list) => Json(SessionsBody {
             file: Some(file),
             current: Some(current),
@@ -855,9 +853,8 @@ async fn list_sessions(State(s): State<ApiState>) -> Response {
     ),
     security((), ("bearer" = [])))]
 async fn session(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
-    let id = match session_id(&s, &id) {
-        Ok(id) => id,
-        Err(r) => return r,
+    let Ok(id) = id.parse::<i64>() else {
+        return bad_session_id(&s, &id);
     };
     match with_file(&s, move |p| sessions::info(p, id)).await {
         Ok(info) => Json(info).into_response(),
@@ -878,9 +875,8 @@ async fn session(State(s): State<ApiState>, Path(id): Path<String>) -> Response 
     ),
     security((), ("bearer" = [])))]
 async fn export_session(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
-    let id = match session_id(&s, &id) {
-        Ok(id) => id,
-        Err(r) => return r,
+    let Ok(id) = id.parse::<i64>() else {
+        return bad_session_id(&s, &id);
     };
     match with_file(&s, move |p| sessions::export(p, id)).await {
         Ok(e) => Json(e).into_response(),
