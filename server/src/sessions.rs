@@ -359,6 +359,65 @@ impl<'a> Db<'a> {
         }
         Ok(out)
     }
+
+    /// The scans of session `id` in `frame`, one measurement line per detection (time on `line`,
+    /// no sensor id yet), and each (vehicle, sensor)'s kind, noise and scan times.
+    fn framed(
+        &self,
+        id: i64,
+        scans: &[(i64, DetectionScan)],
+        line: TimeLine,
+        frame: &LocalFrame,
+        geometry: Geometry,
+    ) -> Result<Framed, SessionError> {
+        let mut sensors: BTreeMap<(u8, String), SensorEntry> = BTreeMap::new();
+        let mut lines = Vec::new();
+        let mut several = false;
+        let mut times = Vec::with_capacity(scans.len());
+        for (row, scan) in scans {
+            let t = micros(line.relative(scan.t, scan.time_unix).unwrap_or(scan.t));
+            times.push(t);
+            let local = scan_in_frame(scan, frame, geometry)
+                .map_err(|e| self.malformed(id, format!("scans row {row}: {e}")))?;
+            let key = (scan.vehicle, scan.sensor.clone());
+            let entry = sensors.entry(key.clone()).or_insert_with(|| SensorEntry {
+                kind: scan.kind,
+                noise_std: scan.noise_std.clone(),
+                times: Vec::new(),
+            });
+            if entry.kind != scan.kind || entry.noise_std.len() != scan.noise_std.len() {
+                return Err(self.export_error(
+                    id,
+                    format!(
+                        "sensor {} of vehicle {} changes from {:?} ({} components) to {:?} ({}) \
+                         at seq {}",
+                        scan.sensor,
+                        scan.vehicle,
+                        entry.kind,
+                        entry.noise_std.len(),
+                        scan.kind,
+                        scan.noise_std.len(),
+                        scan.seq
+                    ),
+                ));
+            }
+            entry.times.push(t);
+            several |= local.detections.len() > 1;
+            for z in local.detections.iter() {
+                lines.push(Line {
+                    t,
+                    sensor: key.clone(),
+                    m: scenario_out::measurement(&local, t, "", z.clone()),
+                });
+            }
+        }
+        Ok(Framed {
+            sensors,
+            lines,
+            times,
+            several,
+        })
+    }
 }
 
 /// Every session in `db`, in id order. Opens the file read-only.
@@ -379,6 +438,19 @@ struct SensorEntry {
     noise_std: Vec<f64>,
     /// Scan times (relative).
     times: Vec<f64>,
+}
+
+/// A session's scans in its frame ([`Db::framed`]).
+#[derive(Debug)]
+struct Framed {
+    /// Each (vehicle, sensor).
+    sensors: BTreeMap<(u8, String), SensorEntry>,
+    /// A line per detection, in scan order.
+    lines: Vec<Line>,
+    /// Each scan's relative time, in scan order.
+    times: Vec<f64>,
+    /// Whether a scan holds several detections.
+    several: bool,
 }
 
 /// One measurement line before sorting.
@@ -479,6 +551,164 @@ fn grid(times: &[f64], fallback: f64) -> Result<f64, String> {
     Ok(dt)
 }
 
+/// The time line of an export: UNIX time when every scan of the session carries it (what the
+/// tracker used), else the senders' `t`; relative to `epoch`, the first scan.
+#[derive(Debug, Clone, Copy)]
+struct TimeLine {
+    unix: bool,
+    epoch: f64,
+}
+
+impl TimeLine {
+    fn new(scans: &[(i64, DetectionScan)]) -> Self {
+        let unix = scans.iter().all(|s| s.1.time_unix.is_some());
+        let mut line = Self { unix, epoch: 0.0 };
+        line.epoch = scans
+            .iter()
+            .filter_map(|s| line.absolute(s.1.t, s.1.time_unix))
+            .fold(f64::INFINITY, f64::min);
+        line
+    }
+    /// A message's time on this line (`None`: it lacks `time_unix`).
+    fn absolute(self, t: f64, time_unix: Option<f64>) -> Option<f64> {
+        if self.unix { time_unix } else { Some(t) }
+    }
+    /// A message's time relative to the epoch.
+    fn relative(self, t: f64, time_unix: Option<f64>) -> Option<f64> {
+        Some(self.absolute(t, time_unix)? - self.epoch)
+    }
+    fn name(self) -> &'static str {
+        if self.unix { "time_unix" } else { "t" }
+    }
+}
+
+/// Samples of one target: relative time, canonical state in the session's frame, mode.
+type TargetTruth = Vec<(f64, [f64; 6], String)>;
+
+/// The truth samples per target id, in `frame`, on `line`, sorted by time (samples without a
+/// time on the line are left out).
+fn truth_by_target(
+    truth: &[(i64, TruthSample)],
+    frame: &LocalFrame,
+    line: TimeLine,
+) -> BTreeMap<String, TargetTruth> {
+    let mut targets: BTreeMap<String, TargetTruth> = BTreeMap::new();
+    for (_, s) in truth {
+        let Some(t) = line.relative(s.t, s.time_unix) else {
+            continue;
+        };
+        let from = LocalFrame::new(s.origin);
+        let rot = from.rotation_to(frame);
+        for g in &s.targets {
+            let p = from.enu_to_frame(frame, &Vector3::new(g.state[0], g.state[1], g.state[2]));
+            let v = rot * Vector3::new(g.state[3], g.state[4], g.state[5]);
+            let state = [p.x, p.y, p.z, v.x, v.y, v.z];
+            targets
+                .entry(g.id.clone())
+                .or_default()
+                .push((t, state, g.mode.clone()));
+        }
+    }
+    for samples in targets.values_mut() {
+        samples.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    targets
+}
+
+/// `truth.csv` at `times` (FORMAT-MULTI.md's with a target column when `multi`) and its rows.
+fn truth_csv(targets: &BTreeMap<String, TargetTruth>, times: &[f64], multi: bool) -> (String, u64) {
+    let mut csv = String::from(if multi {
+        scenario_out::MULTI_TRUTH_HEADER
+    } else {
+        scenario_out::TRUTH_HEADER
+    });
+    let mut rows = 0;
+    for &t in times {
+        for (id, samples) in targets {
+            if let Some((s, mode)) = truth_at(samples, t) {
+                scenario_out::push_truth_row(&mut csv, t, multi.then_some(id.as_str()), &s, mode);
+                rows += 1;
+            }
+        }
+    }
+    (csv, rows)
+}
+
+/// The prior of a single-target export: the first detection of `lines` (sorted) that fixes a
+/// position, at its time, its position covariance inflated, velocity 0 ± [`PRIOR_VEL_STD_MPS`].
+fn first_fix_prior(
+    lines: &[Line],
+    sensors: &BTreeMap<(u8, String), SensorEntry>,
+    geometry: Geometry,
+) -> Option<fmt::Prior> {
+    lines.iter().find_map(|l| {
+        let e = sensors.get(&l.sensor)?;
+        let pos = Vector3::from(l.m.platform.pos);
+        let model = SensorModel::new(e.kind, geometry, pos, &e.noise_std, None).ok()?;
+        let fix = model.apply(LocateWith(&l.m.z))?;
+        let (pv, vv) = (PRIOR_POS_INFLATION, PRIOR_VEL_STD_MPS * PRIOR_VEL_STD_MPS);
+        let c = fix.cov;
+        Some(fmt::Prior {
+            t: l.m.t,
+            state: [fix.pos.x, fix.pos.y, geometry.plane_z, 0.0, 0.0, 0.0],
+            cov: vec![
+                vec![pv * c[(0, 0)], pv * c[(0, 1)], 0.0, 0.0],
+                vec![pv * c[(1, 0)], pv * c[(1, 1)], 0.0, 0.0],
+                vec![0.0, 0.0, vv, 0.0],
+                vec![0.0, 0.0, 0.0, vv],
+            ],
+            cov_dims: Some(vec![0, 1, 3, 4]),
+        })
+    })
+}
+
+/// Scenario sensor ids of the (vehicle, sensor) pairs: `cam1`, or `cam@1` for every sensor when
+/// that naming is ambiguous (`cam1` of vehicle 1 and `cam` of vehicle 11).
+fn sensor_ids(sensors: &BTreeMap<(u8, String), SensorEntry>) -> BTreeMap<(u8, String), String> {
+    let plain: BTreeSet<String> = sensors
+        .keys()
+        .map(|(v, s)| scenario_out::sensor_id(s, *v))
+        .collect();
+    let ambiguous = plain.len() < sensors.len();
+    sensors
+        .keys()
+        .map(|k| {
+            let id = if ambiguous {
+                format!("{}@{}", k.1, k.0)
+            } else {
+                scenario_out::sensor_id(&k.1, k.0)
+            };
+            (k.clone(), id)
+        })
+        .collect()
+}
+
+/// The scenario's sensor entry for `e` with id `id` on vehicle `vehicle`'s platform.
+fn scenario_sensor(id: &str, vehicle: u8, e: &SensorEntry) -> fmt::Sensor {
+    let span = e.times.last().copied().unwrap_or(0.0) - e.times.first().copied().unwrap_or(0.0);
+    fmt::Sensor {
+        id: id.into(),
+        platform: scenario_out::platform_id(vehicle),
+        kind: e.kind,
+        ncomp: (e.kind == MeasKind::Position).then_some(e.noise_std.len()),
+        rate_hz: (e.times.len() > 1 && span > 0.0).then(|| (e.times.len() - 1) as f64 / span),
+        noise: fmt::Noise::Gaussian {
+            std: e.noise_std.clone(),
+        },
+        bias: None,
+    }
+}
+
+/// A ground target of unknown size.
+fn ground_target(id: &str) -> fmt::Target {
+    fmt::Target {
+        id: id.into(),
+        size_m: None,
+        size_prior: None,
+        on_ground: Some(true),
+    }
+}
+
 /// Exports session `id` of `db` as a `gcs-scenario/1` scenario, in memory.
 pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
     let d = Db::open(db)?;
@@ -499,95 +729,20 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         return Err(d.export_error(id, "it has no scans"));
     }
 
-    // One time line: UNIX time when every scan has it (what the tracker used), else `t`.
-    let unix = scans.iter().all(|s| s.1.time_unix.is_some());
-    let time_of = |t: f64, u: Option<f64>| if unix { u } else { Some(t) };
-    let scan_time = |s: &DetectionScan| time_of(s.t, s.time_unix).unwrap_or(s.t);
-    let epoch = scans
-        .iter()
-        .map(|s| scan_time(&s.1))
-        .fold(f64::INFINITY, f64::min);
+    let line = TimeLine::new(&scans);
     let origin = GeoPoint::new(info.origin_lat_deg, info.origin_lon_deg, info.origin_alt_m);
     let frame = LocalFrame::new(origin);
     let geometry = Geometry::planar(info.plane_z);
 
-    let mut sensors: BTreeMap<(u8, String), SensorEntry> = BTreeMap::new();
-    let mut lines = Vec::new();
-    let mut multi = false;
-    let mut times = Vec::with_capacity(scans.len());
-    for (row, scan) in &scans {
-        let t = micros(scan_time(scan) - epoch);
-        times.push(t);
-        let local = scan_in_frame(scan, &frame, geometry)
-            .map_err(|e| d.malformed(id, format!("scans row {row}: {e}")))?;
-        let key = (scan.vehicle, scan.sensor.clone());
-        let entry = sensors.entry(key.clone()).or_insert_with(|| SensorEntry {
-            kind: scan.kind,
-            noise_std: scan.noise_std.clone(),
-            times: Vec::new(),
-        });
-        if entry.kind != scan.kind || entry.noise_std.len() != scan.noise_std.len() {
-            return Err(d.export_error(
-                id,
-                format!(
-                    "sensor {} of vehicle {} changes from {:?} ({} components) to {:?} ({}) \
-                     at seq {}",
-                    scan.sensor,
-                    scan.vehicle,
-                    entry.kind,
-                    entry.noise_std.len(),
-                    scan.kind,
-                    scan.noise_std.len(),
-                    scan.seq
-                ),
-            ));
-        }
-        entry.times.push(t);
-        multi |= local.detections.len() > 1;
-        for z in local.detections.iter() {
-            lines.push(Line {
-                t,
-                sensor: key.clone(),
-                m: scenario_out::measurement(&local, t, "", z.clone()),
-            });
-        }
-    }
-
-    // Scenario sensor ids: `cam1`, or `cam@1` for all when that naming is ambiguous.
-    let plain: BTreeSet<String> = sensors
-        .keys()
-        .map(|(v, s)| scenario_out::sensor_id(s, *v))
-        .collect();
-    let ambiguous = plain.len() < sensors.len();
-    let sid = |v: u8, s: &str| {
-        if ambiguous {
-            format!("{s}@{v}")
-        } else {
-            scenario_out::sensor_id(s, v)
-        }
-    };
-
-    // Truth in the session's frame, per target, on the time line.
-    let mut targets: BTreeMap<String, Vec<(f64, [f64; 6], String)>> = BTreeMap::new();
-    for (_, s) in &truth {
-        let Some(t) = time_of(s.t, s.time_unix) else {
-            continue;
-        };
-        let from = LocalFrame::new(s.origin);
-        let rot = from.rotation_to(&frame);
-        for g in &s.targets {
-            let p = from.enu_to_frame(&frame, &Vector3::new(g.state[0], g.state[1], g.state[2]));
-            let v = rot * Vector3::new(g.state[3], g.state[4], g.state[5]);
-            targets.entry(g.id.clone()).or_default().push((
-                t - epoch,
-                [p.x, p.y, p.z, v.x, v.y, v.z],
-                g.mode.clone(),
-            ));
-        }
-    }
-    for samples in targets.values_mut() {
-        samples.sort_by(|a, b| a.0.total_cmp(&b.0));
-    }
+    let Framed {
+        sensors,
+        mut lines,
+        times,
+        several,
+    } = d.framed(id, &scans, line, &frame, geometry)?;
+    let mut multi = several;
+    let ids = sensor_ids(&sensors);
+    let targets = truth_by_target(&truth, &frame, line);
     multi |= targets.len() > 1;
 
     // Scan times: the distinct times (single target), or the grid (multi-target).
@@ -612,7 +767,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
     // measurements.jsonl: sorted by time, then sensor id (a scan's detections keep their order).
     for l in &mut lines {
         l.m.t = snap(l.t);
-        l.m.sensor = sid(l.sensor.0, &l.sensor.1);
+        l.m.sensor.clone_from(&ids[&l.sensor]);
     }
     lines.sort_by(|a, b| {
         a.m.t
@@ -627,49 +782,14 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         measurements_jsonl.push('\n');
     }
 
-    // truth.csv
-    let mut truth_rows = 0;
-    let truth_csv = (!targets.is_empty()).then(|| {
-        let mut csv = String::from(if multi {
-            scenario_out::MULTI_TRUTH_HEADER
-        } else {
-            scenario_out::TRUTH_HEADER
-        });
-        for &t in &truth_times {
-            for (tid, samples) in &targets {
-                if let Some((s, mode)) = truth_at(samples, t) {
-                    let target = multi.then_some(tid.as_str());
-                    scenario_out::push_truth_row(&mut csv, t, target, &s, mode);
-                    truth_rows += 1;
-                }
-            }
-        }
-        csv
-    });
-
-    // Prior (single target): the first detection that fixes a position, at its time.
+    let (truth_csv, truth_rows) = if targets.is_empty() {
+        (None, 0)
+    } else {
+        let (csv, rows) = truth_csv(&targets, &truth_times, multi);
+        (Some(csv), rows)
+    };
     let prior = (!multi)
-        .then(|| {
-            lines.iter().find_map(|l| {
-                let e = &sensors[&l.sensor];
-                let pos = Vector3::from(l.m.platform.pos);
-                let model = SensorModel::new(e.kind, geometry, pos, &e.noise_std, None).ok()?;
-                let fix = model.apply(LocateWith(&l.m.z))?;
-                let (pv, vv) = (PRIOR_POS_INFLATION, PRIOR_VEL_STD_MPS * PRIOR_VEL_STD_MPS);
-                let c = fix.cov;
-                Some(fmt::Prior {
-                    t: l.m.t,
-                    state: [fix.pos.x, fix.pos.y, info.plane_z, 0.0, 0.0, 0.0],
-                    cov: vec![
-                        vec![pv * c[(0, 0)], pv * c[(0, 1)], 0.0, 0.0],
-                        vec![pv * c[(1, 0)], pv * c[(1, 1)], 0.0, 0.0],
-                        vec![0.0, 0.0, vv, 0.0],
-                        vec![0.0, 0.0, 0.0, vv],
-                    ],
-                    cov_dims: Some(vec![0, 1, 3, 4]),
-                })
-            })
-        })
+        .then(|| first_fix_prior(&lines, &sensors, geometry))
         .flatten();
 
     // scenario.json
@@ -681,43 +801,20 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
             kind: "uav".into(),
         })
         .collect();
-    let mut sensor_ids = Vec::new();
-    let sensor_list = sensors
+    let sensor_list: Vec<fmt::Sensor> = sensors
         .iter()
-        .map(|((v, s), e)| {
-            let id = sid(*v, s);
-            sensor_ids.push(id.clone());
-            let span = e.times.last().copied().unwrap_or(0.0) - e.times[0];
-            fmt::Sensor {
-                id,
-                platform: scenario_out::platform_id(*v),
-                kind: e.kind,
-                ncomp: (e.kind == MeasKind::Position).then_some(e.noise_std.len()),
-                rate_hz: (e.times.len() > 1 && span > 0.0)
-                    .then(|| (e.times.len() - 1) as f64 / span),
-                noise: fmt::Noise::Gaussian {
-                    std: e.noise_std.clone(),
-                },
-                bias: None,
-            }
-        })
+        .map(|(k, e)| scenario_sensor(&ids[k], k.0, e))
         .collect();
-    let target = |tid: &str| fmt::Target {
-        id: tid.into(),
-        size_m: None,
-        size_prior: None,
-        on_ground: Some(true),
-    };
     let mut extensions = serde_json::Map::new();
     if multi {
-        let ids: Vec<fmt::Target> = if targets.is_empty() {
-            vec![target("unknown")]
+        let all: Vec<fmt::Target> = if targets.is_empty() {
+            vec![ground_target("unknown")]
         } else {
-            targets.keys().map(|k| target(k)).collect()
+            targets.keys().map(|k| ground_target(k)).collect()
         };
-        extensions.insert("targets".into(), json!(ids));
+        extensions.insert("targets".into(), json!(all));
     }
-    let time_line = if unix { "time_unix" } else { "t" };
+    let (epoch, time_line) = (line.epoch, line.name());
     let scenario = fmt::Scenario {
         format: fmt::FORMAT_ID.into(),
         name: format!("session_{id}"),
@@ -731,11 +828,11 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         dims: 2,
         plane_z: Some(info.plane_z),
         time: fmt::TimeSpec { t0: 0.0, dt, t_end },
-        target: if multi {
-            target("multi")
+        target: ground_target(if multi {
+            "multi"
         } else {
-            target(targets.keys().next().map_or("tgt", String::as_str))
-        },
+            targets.keys().next().map_or("tgt", String::as_str)
+        }),
         platforms,
         sensors: sensor_list,
         roads,
@@ -777,7 +874,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         scans: scans.len() as u64,
         lines: lines.len() as u64,
         truth_rows,
-        sensors: sensor_ids,
+        sensors: ids.into_values().collect(),
     })
 }
 

@@ -413,7 +413,6 @@ impl Recorder {
             .name("harrier-recorder".into())
             .spawn(move || writer.run(&rx))
             .map_err(io)?;
-        tracing::info!(path = %path.display(), session, "recording");
         Ok(Recorder {
             inner: Arc::new(Inner {
                 path: path.to_path_buf(),
@@ -483,7 +482,6 @@ impl Recorder {
                 Ok(Err(source)) => return Err(RecorderError::Sqlite { path, source }),
                 Err(_) => return Err(RecorderError::Panicked { path }),
             }
-            tracing::info!(path = %self.inner.path.display(), stats = ?self.stats(), "recording closed");
         }
         Ok(self.stats())
     }
