@@ -14,6 +14,12 @@
 //! - afterwards `/metrics` counts the refused requests, and tracking went on.
 //!
 //! The clients are installed by `.ci/run` (httpx, websockets, pytest, schemathesis).
+//!
+//! `a_slow_websocket_client_is_dropped_to_the_latest_snapshot`: two WebSocket clients (Rust,
+//! tokio-tungstenite) on a server fed scans over Zenoh by the test itself; one stops reading.
+//! Once its socket buffers are full it falls behind the server's bounded per-client queue: it is
+//! counted in `harrier_ws_dropped_total` and, when it reads again, gets a `snapshot` with the
+//! number it missed, then consecutive scans again — while the other client saw every scan.
 
 use std::net::SocketAddr;
 use std::process::{Command, Stdio};
@@ -203,4 +209,198 @@ fn python_clients_and_schemathesis_use_the_live_api() {
             .expect("shutdown within 20 s");
     });
     world.stop();
+}
+
+/// A position scan of vehicle 1 at `t` (UNIX s) with `n` detections on a line.
+fn scan_json(seq: u64, t: f64, n: usize) -> String {
+    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose};
+    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
+    DetectionScan {
+        schema: DETECTIONS_SCHEMA.into(),
+        t,
+        time_unix: Some(t),
+        vehicle: 1,
+        seq,
+        sensor: "cam".into(),
+        kind: harrier_core::scenario::MeasKind::Position,
+        origin,
+        platform: PlatformPose {
+            pos: [0.0; 3],
+            vel: [0.0; 3],
+            attitude: [0.0; 3],
+            geodetic: origin,
+        },
+        noise_std: vec![5.0, 5.0],
+        detections: (0..n)
+            .map(|i| Detection {
+                z: vec![100.0 * i as f64, 10.0 * (t % 100.0)],
+            })
+            .collect(),
+    }
+    .to_json()
+}
+
+#[test]
+fn a_slow_websocket_client_is_dropped_to_the_latest_snapshot() {
+    use futures_util::StreamExt as _;
+    use serde_json::Value;
+    use tokio_tungstenite::tungstenite::Message;
+
+    let mut config = Config::default();
+    config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+    config.api.ws_queue = 512;
+    config.zenoh.tracks_key = String::new();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    config.zenoh.listen = vec![endpoint.clone()];
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    runtime.block_on(async {
+        let within = |secs| Duration::from_secs(secs);
+        let server = tokio::time::timeout(within(10), live::start(&config))
+            .await
+            .expect("start within 10 s")
+            .expect("start the live server");
+        let url = format!("ws://{}/api/v1/ws", server.local_addr());
+        let connect = || async {
+            let (ws, _) = tokio::time::timeout(within(10), tokio_tungstenite::connect_async(&url))
+                .await
+                .expect("connect within 10 s")
+                .expect("WebSocket handshake");
+            ws
+        };
+        let next = |m: Option<Result<Message, _>>| -> Value {
+            match m {
+                Some(Ok(Message::Text(t))) => serde_json::from_str(&t).expect("JSON message"),
+                other => panic!("expected a text message, got {other:?}"),
+            }
+        };
+        // The fast client: every message, in order.
+        let mut fast = connect().await;
+        let first = next(fast.next().await);
+        assert_eq!(first["type"], "snapshot");
+        let (stop_tx, mut stop_rx) = tokio::sync::watch::channel(false);
+        let fast_task = tokio::spawn(async move {
+            let (mut last, mut gaps, mut n) = (first["seq"].as_u64().expect("seq"), 0, 0u64);
+            loop {
+                tokio::select! {
+                    m = fast.next() => {
+                        let m = next(m);
+                        assert_eq!(m["type"], "scan", "the fast client was dropped: {m}");
+                        let seq = m["seq"].as_u64().expect("seq");
+                        gaps += u64::from(seq != last + 1);
+                        last = seq;
+                        n += 1;
+                    }
+                    _ = stop_rx.changed() => break,
+                }
+            }
+            (n, gaps, last)
+        });
+        // The slow client: reads a message every 10 ms (100 Hz) while scans come at 1 kHz.
+        let mut slow = connect().await;
+        assert_eq!(next(slow.next().await)["type"], "snapshot");
+        let slow_task = tokio::spawn(async move {
+            let (mut missed, mut after, mut last) = (None, 0, 0);
+            while after < 20 {
+                tokio::time::sleep(Duration::from_millis(10)).await;
+                let m = next(slow.next().await);
+                let s = m["seq"].as_u64().expect("seq");
+                match (m["type"].as_str(), missed) {
+                    (Some("snapshot"), _) => {
+                        missed = Some(m["dropped"].as_u64().expect("dropped"));
+                    }
+                    (_, Some(_)) => {
+                        assert_eq!(s, last + 1, "a gap after the snapshot");
+                        after += 1;
+                    }
+                    _ => {}
+                }
+                last = s;
+            }
+            (missed.unwrap_or(0), last, slow)
+        });
+
+        let session = tokio::time::timeout(
+            within(10),
+            zenoh::open(
+                harrier_sim::bus::BusConfig {
+                    connect: vec![endpoint],
+                    listen: vec!["tcp/127.0.0.1:0".into()],
+                    ..harrier_sim::bus::BusConfig::default()
+                }
+                .to_zenoh()
+                .expect("config"),
+            ),
+        )
+        .await
+        .expect("open within 10 s")
+        .expect("open the publisher's session");
+        let key = harrier_core::detection::detections_key(1);
+        let t0 = 1.0e9;
+        let (mut seq, deadline) = (0u64, Instant::now() + within(90));
+        // Publish (about 1 kHz, 4 detections a scan) until the slow client was dropped to a
+        // snapshot and caught up.
+        while !slow_task.is_finished() {
+            for _ in 0..50 {
+                seq += 1;
+                session
+                    .put(&key, scan_json(seq, t0 + seq as f64 * 1e-3, 4))
+                    .await
+                    .expect("publish");
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+            assert!(
+                Instant::now() < deadline,
+                "the slow client was never dropped"
+            );
+        }
+        let (missed, slow_last, slow) = slow_task.await.expect("slow client");
+        // Let the tracker finish what was published, then stop the fast client.
+        let processed = loop {
+            let now = server.snapshot().borrow().seq;
+            if now >= seq {
+                break now;
+            }
+            assert!(
+                Instant::now() < deadline,
+                "the tracker processed {now} of {seq} scans"
+            );
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        };
+        let m = tokio::task::spawn_blocking({
+            let addr = server.local_addr();
+            move || metrics(addr)
+        })
+        .await
+        .expect("metrics");
+        let dropped = metric_sum(&m, "harrier_ws_dropped_total", "");
+        let fast_done = Instant::now() + within(10);
+        while server.metrics().scans_ingested() < processed && Instant::now() < fast_done {
+            tokio::time::sleep(Duration::from_millis(20)).await;
+        }
+        tokio::time::sleep(Duration::from_millis(200)).await;
+        let _ = stop_tx.send(true);
+        let (n, gaps, last) = fast_task.await.expect("fast client");
+        assert_eq!((gaps, last), (0, processed), "the fast client missed scans");
+        assert!(
+            missed > 0 && dropped >= missed as f64,
+            "missed {missed}, counted {dropped}"
+        );
+        eprintln!(
+            "{seq} scans published and processed; the fast client got all {n}; the slow one missed \
+             {missed} (server counted {dropped}), then read 20 consecutive scans up to seq \
+             {slow_last}"
+        );
+        drop(slow);
+        tokio::time::timeout(within(10), session.close())
+            .await
+            .expect("close within 10 s")
+            .expect("close");
+        tokio::time::timeout(within(20), server.shutdown())
+            .await
+            .expect("shutdown within 20 s");
+    });
 }

@@ -326,12 +326,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     if let Some(r) = &recorder {
         let r = r.clone();
         actor.add_sink(Box::new(move |scan| {
-            let changed: Vec<TrackView> = scan
-                .tracks
-                .iter()
-                .filter(|k| scan.events.iter().any(|e| tracker::changes(e, k.id)))
-                .cloned()
-                .collect();
+            let changed: Vec<TrackView> = scan.changed_tracks().cloned().collect();
             if !changed.is_empty() {
                 r.record(recorder::Record::Tracks {
                     t: scan.t,

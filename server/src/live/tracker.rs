@@ -97,7 +97,14 @@ pub struct ScanEvents {
 }
 
 impl ScanEvents {
-    /// The WebSocket `scan` message (WEBSOCKET in `live::ws`).
+    /// The tracks this scan started, confirmed or updated, after the scan.
+    pub fn changed_tracks(&self) -> impl Iterator<Item = &TrackView> {
+        self.tracks
+            .iter()
+            .filter(|k| self.events.iter().any(|e| changes(e, k.id)))
+    }
+
+    /// The WebSocket `scan` message (see `live::ws`).
     pub fn message(&self) -> &str {
         self.json.get_or_init(|| {
             serde_json::json!({
@@ -110,7 +117,7 @@ impl ScanEvents {
                 "platform": self.platform,
                 "detections": self.detections,
                 "events": self.events.iter().map(event_json).collect::<Vec<_>>(),
-                "tracks": *self.tracks,
+                "tracks": self.changed_tracks().collect::<Vec<_>>(),
             })
             .to_string()
         })

@@ -9,7 +9,8 @@
 //! - `scan`: one per scan the tracker processed, in order: `{"type": "scan", "seq", "t",
 //!   "vehicle", "sensor", "kind", "platform": [x, y, z], "detections": [z…], "events": [{"type":
 //!   "born" | "confirmed" | "updated" | "coasted" | "deleted" | "rejected", "id", …}], "tracks":
-//!   [TrackView…]}` (every live track after the scan). `seq` counts processed scans: a client
+//!   [TrackView…]}` (the tracks the scan started, confirmed or updated; a deleted track has a
+//!   `deleted` event, a coasted one keeps its last state). `seq` counts processed scans: a client
 //!   sees consecutive values unless it was dropped to a snapshot.
 //!
 //! Each client has a bounded queue (`api.ws_queue` messages, the tracker's broadcast ring): the
