@@ -62,6 +62,9 @@ pub struct TrackerConfig {
     pub queue: usize,
     /// Sensor ids to track from (a scan's `sensor`); empty: every sensor.
     pub sensors: Vec<String>,
+    /// Characteristic size of the targets (m), which `bearing_size` detections need (their
+    /// subtended angle gives the range); unset: `bearing_size` scans are dropped as `frame`.
+    pub target_size_m: Option<f64>,
 }
 
 /// The HTTP API.
@@ -145,6 +148,7 @@ impl Default for TrackerConfig {
             roads: Vec::new(),
             queue: 1024,
             sensors: Vec::new(),
+            target_size_m: None,
         }
     }
 }
@@ -255,6 +259,11 @@ impl Config {
         }
         if t.queue == 0 {
             return bad("tracker.queue must be ≥ 1".into());
+        }
+        if let Some(size) = t.target_size_m
+            && !(size.is_finite() && size > 0.0)
+        {
+            return bad(format!("tracker.target_size_m must be > 0, got {size}"));
         }
         if self.api.ws_queue == 0 {
             return bad("api.ws_queue must be ≥ 1".into());

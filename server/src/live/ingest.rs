@@ -13,7 +13,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{DetectionScan, GeoPoint};
-use harrier_core::measurement::Geometry;
+use harrier_core::measurement::{Geometry, TargetSize};
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use tokio::sync::mpsc;
@@ -111,6 +111,7 @@ pub struct Ingest {
     last_seq: HashMap<(u8, String), u64>,
     log: LogLimiter,
     sensors: Vec<String>,
+    target_size: Option<TargetSize>,
     recorder: Option<Recorder>,
 }
 
@@ -127,8 +128,15 @@ impl Ingest {
                 last: HashMap::new(),
             },
             sensors: Vec::new(),
+            target_size: None,
             recorder: None,
         }
+    }
+
+    /// The targets' size (m), for `bearing_size` detections.
+    pub fn with_target_size(mut self, size_m: Option<f64>) -> Self {
+        self.target_size = size_m.map(TargetSize::Known);
+        self
     }
 
     /// Records every valid scan (as received) into `recorder`.
@@ -188,7 +196,7 @@ impl Ingest {
                 return None;
             }
         };
-        let sensor = match framed.sensor_model(None) {
+        let sensor = match framed.sensor_model(self.target_size) {
             Ok(m) => m,
             Err(e) => {
                 self.drop(v, DropReason::Frame, &e);
@@ -308,5 +316,33 @@ mod tests {
         assert_eq!(c.seq_lost, 3);
         let c3 = metrics.vehicle_counters("3");
         assert_eq!(c3.dropped.get(&DropReason::KeyMismatch), Some(&1));
+    }
+
+    #[test]
+    fn bearing_size_scans_need_the_target_size() {
+        let metrics = Arc::new(Metrics::default());
+        let ingest = |size| {
+            Ingest::new(
+                LocalFrame::new(DEFAULT_ORIGIN),
+                Geometry::planar(0.0),
+                Arc::clone(&metrics),
+            )
+            .with_target_size(size)
+        };
+        let mut s = scan(1, vec![0.3, -0.2, 0.01]);
+        s.kind = MeasKind::BearingSize;
+        s.platform.pos = [0.0, 0.0, 100.0];
+        s.noise_std = vec![0.01, 0.01, 0.001];
+        let p = Payload::new("harrier/v1/vehicle/2/detections", s.to_json().into_bytes());
+        assert!(ingest(None).convert(&p).is_none());
+        assert_eq!(
+            metrics
+                .vehicle_counters("2")
+                .dropped
+                .get(&DropReason::Frame),
+            Some(&1)
+        );
+        let ready = ingest(Some(12.0)).convert(&p).expect("with a size");
+        assert_eq!(ready.scan.sensor.kind(), MeasKind::BearingSize);
     }
 }

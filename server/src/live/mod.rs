@@ -311,6 +311,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         Arc::clone(&metrics),
     )
     .with_sensors(config.tracker.sensors.clone())
+    .with_target_size(config.tracker.target_size_m)
     .with_recorder(recorder.clone());
     let recent = Arc::new(Recent::default());
     let mut actor = TrackerActor::new(
