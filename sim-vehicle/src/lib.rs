@@ -7,6 +7,8 @@
 //!
 //! - [`bus`]: Zenoh session publishing detections and truth (keys and schema of
 //!   `harrier_core::detection`).
+//! - [`embedded`]: [`embedded::SimWorld`], the whole simulated world (vehicles on real MAVLink
+//!   sockets, sensor loop on Zenoh, launches to stations) started inside another process.
 //! - [`live`]: the live sensor loop: world, sensors of every vehicle, Zenoh publication.
 //! - [`vehicle`]: one vehicle — point-mass flight with harrier-core's kinematic limits, PX4 modes,
 //!   and the MAVLink 2 protocol (commands, parameters, offboard setpoints, telemetry streams),
@@ -28,6 +30,7 @@
 //! ```
 
 pub mod bus;
+pub mod embedded;
 pub mod live;
 pub mod net;
 pub mod record;
