@@ -140,6 +140,8 @@ pub struct Exported {
     pub epoch: f64,
     /// The time line: `time_unix` (every scan carried it) or `t`.
     pub time_line: String,
+    /// Largest shift of a scan's time onto the multi-target scan grid (s; 0 for single target).
+    pub max_time_shift_s: f64,
     /// Scans read.
     pub scans: u64,
     /// Measurement lines written (one per detection).
@@ -524,31 +526,88 @@ fn truth_at(samples: &[(f64, [f64; 6], String)], t: f64) -> Option<([f64; 6], &s
     Some((s, &before.2))
 }
 
-/// The scan grid of a multi-target export: `dt` such that every time is `k·dt` (±1 µs), from
-/// the smallest gap refined over the whole span.
-fn grid(times: &[f64], fallback: f64) -> Result<f64, String> {
-    let span = times.last().copied().unwrap_or(0.0);
-    let gap = times
-        .windows(2)
-        .map(|w| w[1] - w[0])
-        .fold(f64::INFINITY, f64::min);
-    if !gap.is_finite() {
-        return Ok(fallback);
-    }
-    let dt = span / (span / gap).round();
-    if span / dt > 1e7 {
-        return Err(format!("{} scans of {dt} s are too many", span / dt));
-    }
-    for t in times {
-        let off = t - (t / dt).round() * dt;
-        if off.abs() > TIME_TOL_S {
+/// The scan grid `origin + k·dt` of a multi-target export (FORMAT-MULTI.md puts every scan on
+/// one), fitted to scan times that a live source stamps with some jitter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Grid {
+    /// Scan period (s).
+    dt: f64,
+    /// Time of grid point 0 (s, on the export's time line before the shift).
+    origin: f64,
+    /// Largest distance of a scan from its grid point (s).
+    max_shift: f64,
+}
+
+impl Grid {
+    /// Fits the grid: `dt` first from the shortest median period of any sensor, then each
+    /// distinct scan time gets its grid index from its gap to the previous one (so no error
+    /// accumulates), and `origin` and `dt` are the least-squares line through (index, time).
+    /// Refused when a scan is more than a quarter period off its point. With fewer than two
+    /// scans of any sensor the grid is `fallback` from the first scan.
+    fn fit(sensors: &BTreeMap<(u8, String), SensorEntry>, fallback: f64) -> Result<Self, String> {
+        let median_period = |times: &[f64]| {
+            let mut gaps: Vec<f64> = times
+                .windows(2)
+                .map(|w| w[1] - w[0])
+                .filter(|g| *g > TIME_TOL_S)
+                .collect();
+            gaps.sort_by(f64::total_cmp);
+            gaps.get(gaps.len() / 2).copied()
+        };
+        let mut times: Vec<f64> = sensors.values().flat_map(|e| e.times.clone()).collect();
+        times.sort_by(f64::total_cmp);
+        let first = times.first().copied().unwrap_or(0.0);
+        let Some(dt0) = sensors
+            .values()
+            .filter_map(|e| median_period(&e.times))
+            .min_by(f64::total_cmp)
+        else {
+            return Ok(Self {
+                dt: fallback,
+                origin: first,
+                max_shift: 0.0,
+            });
+        };
+        let mut k = 0.0;
+        let mut points = vec![(0.0, first)];
+        for w in times.windows(2) {
+            k += ((w[1] - w[0]) / dt0).round();
+            points.push((k, w[1]));
+        }
+        let n = points.len() as f64;
+        let (sk, st) = points
+            .iter()
+            .fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+        let (mk, mt) = (sk / n, st / n);
+        let (skk, skt) = points.iter().fold((0.0, 0.0), |a, p| {
+            (a.0 + (p.0 - mk) * (p.0 - mk), a.1 + (p.0 - mk) * (p.1 - mt))
+        });
+        let dt = if skk > 0.0 { skt / skk } else { dt0 };
+        let origin = mt - dt * mk;
+        let max_shift = points
+            .iter()
+            .map(|p| (p.1 - origin - p.0 * dt).abs())
+            .fold(0.0, f64::max);
+        if !(dt > 0.0 && max_shift <= dt / 4.0) {
             return Err(format!(
-                "scan times are not on one grid t0 + k·dt (FORMAT-MULTI.md): the scan at \
-                 {t} s is {off:.3e} s off a {dt} s grid"
+                "the scan times fit no grid t0 + k·dt (FORMAT-MULTI.md): with dt = {dt} s a scan \
+                 is {max_shift:.3} s off its grid point"
             ));
         }
+        if k > 1e7 {
+            return Err(format!("{k} scans of {dt} s are too many"));
+        }
+        Ok(Self {
+            dt,
+            origin,
+            max_shift,
+        })
     }
-    Ok(dt)
+
+    /// The grid index of time `t`.
+    fn index(&self, t: f64) -> i64 {
+        ((t - self.origin) / self.dt).round() as i64
+    }
 }
 
 /// The time line of an export: UNIX time when every scan of the session carries it (what the
@@ -729,7 +788,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         return Err(d.export_error(id, "it has no scans"));
     }
 
-    let line = TimeLine::new(&scans);
+    let mut line = TimeLine::new(&scans);
     let origin = GeoPoint::new(info.origin_lat_deg, info.origin_lon_deg, info.origin_alt_m);
     let frame = LocalFrame::new(origin);
     let geometry = Geometry::planar(info.plane_z);
@@ -740,33 +799,48 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         times,
         several,
     } = d.framed(id, &scans, line, &frame, geometry)?;
-    let mut multi = several;
     let ids = sensor_ids(&sensors);
-    let targets = truth_by_target(&truth, &frame, line);
-    multi |= targets.len() > 1;
+    let truth_ids: BTreeSet<&str> = truth
+        .iter()
+        .flat_map(|s| s.1.targets.iter().map(|g| g.id.as_str()))
+        .collect();
+    let multi = several || truth_ids.len() > 1;
 
-    // Scan times: the distinct times (single target), or the grid (multi-target).
-    let mut distinct = times.clone();
-    distinct.sort_by(f64::total_cmp);
-    distinct.dedup_by(|a, b| (*a - *b).abs() <= TIME_TOL_S);
-    let t_end = distinct.last().copied().unwrap_or(0.0);
-    let dt = if multi {
-        grid(&distinct, scan_period).map_err(|m| d.export_error(id, m))?
+    // Scan times: as recorded (single target), or snapped to the scan grid (multi-target), time
+    // 0 then being grid point 0.
+    let (times, dt, max_shift) = if multi {
+        let g = Grid::fit(&sensors, scan_period).map_err(|m| d.export_error(id, m))?;
+        line.epoch += g.origin;
+        for ((v, s), e) in &sensors {
+            let k: Vec<i64> = e.times.iter().map(|t| g.index(*t)).collect();
+            if let Some(w) = k.windows(2).find(|w| w[0] == w[1]) {
+                return Err(d.export_error(
+                    id,
+                    format!(
+                        "sensor {s} of vehicle {v} scans twice at grid time {} s (dt {} s)",
+                        w[0] as f64 * g.dt,
+                        g.dt
+                    ),
+                ));
+            }
+        }
+        for l in &mut lines {
+            l.m.t = g.index(l.t) as f64 * g.dt;
+        }
+        let last = times.iter().map(|t| g.index(*t)).max().unwrap_or(0);
+        let grid: Vec<f64> = (0..=last).map(|k| k as f64 * g.dt).collect();
+        (grid, g.dt, g.max_shift)
     } else {
-        scan_period
+        let mut distinct = times;
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup_by(|a, b| (*a - *b).abs() <= TIME_TOL_S);
+        (distinct, scan_period, 0.0)
     };
-    let snap = |t: f64| if multi { (t / dt).round() * dt } else { t };
-    let truth_times: Vec<f64> = if multi {
-        (0..=(t_end / dt).round() as u64)
-            .map(|k| k as f64 * dt)
-            .collect()
-    } else {
-        distinct.clone()
-    };
+    let t_end = times.last().copied().unwrap_or(0.0);
+    let targets = truth_by_target(&truth, &frame, line);
 
     // measurements.jsonl: sorted by time, then sensor id (a scan's detections keep their order).
     for l in &mut lines {
-        l.m.t = snap(l.t);
         l.m.sensor.clone_from(&ids[&l.sensor]);
     }
     lines.sort_by(|a, b| {
@@ -785,7 +859,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
     let (truth_csv, truth_rows) = if targets.is_empty() {
         (None, 0)
     } else {
-        let (csv, rows) = truth_csv(&targets, &truth_times, multi);
+        let (csv, rows) = truth_csv(&targets, &times, multi);
         (Some(csv), rows)
     };
     let prior = (!multi)
@@ -871,6 +945,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         multi,
         epoch,
         time_line: time_line.into(),
+        max_time_shift_s: max_shift,
         scans: scans.len() as u64,
         lines: lines.len() as u64,
         truth_rows,
@@ -1027,6 +1102,12 @@ pub fn run(args: &SessionsArgs) -> anyhow::Result<()> {
                     |_| format!("truth.csv ({} rows)", e.truth_rows)
                 )
             );
+            if e.multi {
+                out!(
+                    "  scan times snapped to the FORMAT-MULTI grid, by at most {:.4} s",
+                    e.max_time_shift_s
+                );
+            }
             out!(
                 "  sensors {}; time 0 = {:.6} ({}); replay: harrier replay {} -e <estimator>",
                 e.sensors.join(", "),
@@ -1083,9 +1164,9 @@ mod tests {
     }
 
     /// A 40 s session of `targets` targets seen by the `position` cameras of vehicles 1 and 2 at
-    /// 1 Hz (detections within 3 m; vehicle 2 publishes in a frame some 300 m away), truth at
-    /// 10 Hz, a track row per scan.
-    fn session(dir: &Path, targets: usize) -> PathBuf {
+    /// 1 Hz (detections within 3 m; vehicle 2 scans `late` s after vehicle 1 and publishes in a
+    /// frame some 300 m away), truth at 10 Hz, a track row per scan.
+    fn session(dir: &Path, targets: usize, late: f64) -> PathBuf {
         let path = dir.join("rec.sqlite");
         let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(20), 4096).expect("open");
         let away = GeoPoint::new(HOME.lat_deg + 0.002, HOME.lon_deg + 0.003, HOME.alt_m + 5.0);
@@ -1098,6 +1179,7 @@ mod tests {
         for k in 0..=40_u64 {
             let t = k as f64;
             for v in [1_u8, 2] {
+                let t = if v == 2 { t + late } else { t };
                 let z: Vec<[f64; 2]> = (0..targets)
                     .map(|j| {
                         let s = state(t, j);
@@ -1121,7 +1203,7 @@ mod tests {
     #[test]
     fn a_single_target_session_lists_exports_replays_and_scores() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let db = session(dir.path(), 1);
+        let db = session(dir.path(), 1, 0.0);
         let all = list(&db).expect("list");
         assert_eq!(all.len(), 1);
         let s = &all[0];
@@ -1175,9 +1257,19 @@ mod tests {
     #[test]
     fn several_targets_export_as_format_multi_and_replay_with_the_tracker() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let db = session(dir.path(), 2);
+        // Vehicle 2 scans 15 ms after vehicle 1: its scans are snapped to the 1 s grid.
+        let db = session(dir.path(), 2, 0.015);
         let e = export(&db, 1).expect("export");
         assert!(e.multi && e.lines == 164 && e.truth_rows == 82, "{e:?}");
+        assert!(
+            e.max_time_shift_s > 0.005 && e.max_time_shift_s < 0.015,
+            "{e:?}"
+        );
+        assert!(
+            (e.epoch - T0_UNIX - 0.0075).abs() < 1e-6,
+            "{}",
+            e.epoch - T0_UNIX
+        );
         let m = MultiScenario::parse(
             &e.scenario_json,
             &e.measurements_jsonl,
@@ -1201,7 +1293,7 @@ mod tests {
     #[test]
     fn errors_name_the_file_the_session_and_the_row() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let db = session(dir.path(), 1);
+        let db = session(dir.path(), 1, 0.0);
         let e = info(&db, 99).expect_err("no such session");
         assert!(matches!(e, SessionError::NotFound { id: 99, .. }), "{e}");
         assert!(e.to_string().ends_with("rec.sqlite: no session 99"), "{e}");
@@ -1274,7 +1366,7 @@ mod tests {
     #[test]
     fn the_command_line_lists_and_exports() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let db = session(dir.path(), 1);
+        let db = session(dir.path(), 1, 0.0);
         let out = dir.path().join("out/session1");
         for command in [
             SessionsCommand::List {
@@ -1315,11 +1407,39 @@ mod tests {
         assert_eq!(utc(0.0), "1970-01-01 00:00:00Z");
         assert_eq!(utc(1_700_000_000.9), "2023-11-14 22:13:20Z");
         assert_eq!(utc(951_782_400.0), "2000-02-29 00:00:00Z");
-        let times: Vec<f64> = (0..50).map(|k| micros(f64::from(k) * 0.2 + 3e-7)).collect();
-        assert!((grid(&times, 1.0).expect("grid") - 0.2).abs() < 1e-12);
-        assert_eq!(grid(&[0.0], 0.5).expect("one scan"), 0.5);
-        let e = grid(&[0.0, 0.2, 0.5], 1.0).expect_err("off grid");
-        assert!(e.contains("not on one grid"), "{e}");
+        let sensors = |series: &[Vec<f64>]| -> BTreeMap<(u8, String), SensorEntry> {
+            (1..)
+                .zip(series)
+                .map(|(v, times)| {
+                    let e = SensorEntry {
+                        kind: MeasKind::Position,
+                        noise_std: vec![1.0, 1.0],
+                        times: times.clone(),
+                    };
+                    ((v, "cam".to_owned()), e)
+                })
+                .collect()
+        };
+        // On a grid to the µs.
+        let exact: Vec<f64> = (0..50).map(|k| micros(f64::from(k) * 0.2 + 3e-7)).collect();
+        let g = Grid::fit(&sensors(&[exact.clone(), exact]), 1.0).expect("grid");
+        assert!((g.dt - 0.2).abs() < 1e-9 && g.max_shift < 1e-6, "{g:?}");
+        // Stamped up to 30 ms late, two sources 10 ms apart, 400 scans: no drift.
+        let late =
+            |k: u32, j: f64| f64::from(k) * 0.5 + 0.03 * (f64::from(k) * 1.7).sin().abs() + j;
+        let a: Vec<f64> = (0..400).map(|k| late(k, 0.0)).collect();
+        let b: Vec<f64> = (0..400)
+            .filter(|k| k % 3 != 0)
+            .map(|k| late(k, 0.01))
+            .collect();
+        let g = Grid::fit(&sensors(&[a.clone(), b]), 1.0).expect("grid");
+        assert!((g.dt - 0.5).abs() < 1e-4 && g.max_shift < 0.03, "{g:?}");
+        assert!(a.iter().zip(0..).all(|(t, k)| g.index(*t) == k), "{g:?}");
+        // One scan each: the fallback period.
+        let g = Grid::fit(&sensors(&[vec![3.0], vec![3.1]]), 0.5).expect("one scan");
+        assert_eq!((g.dt, g.origin), (0.5, 3.0));
+        let e = Grid::fit(&sensors(&[vec![0.0, 0.5, 1.2, 1.5, 2.0]]), 1.0).expect_err("irregular");
+        assert!(e.contains("fit no grid"), "{e}");
         let s = [
             (0.0, [0.0; 6], "a".into()),
             (1.0, [2.0; 6], "b".into()),
