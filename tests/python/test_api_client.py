@@ -55,6 +55,9 @@ def test_list_tracks_and_one_track(api):
     major, minor = d["ellipse_95"]["semi_axes"]
     assert major >= minor > 0
     assert d["history"] and len(d["history"][-1]) == 4
+    bound = d["bound"]  # the set-membership bound runs beside the tracks in this deployment
+    assert bound and len(bound["center"]) == 4 and len(bound["shape"]) == 4
+    assert bound["semi_axes"][0] >= bound["semi_axes"][1] > 0
     assert api.get("/api/v1/tracks/123456789").status_code == 404
     assert api.get("/api/v1/tracks/abc").json()["error"]
     vehicles = api.get("/api/v1/vehicles").json()["vehicles"]

@@ -112,6 +112,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     config.tracker.motion = scenario.estimator.motion.clone().expect("motion hints");
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.token = TOKEN.into();
+    config.tracker.bound.enabled = true;
     let recording = tempfile::tempdir().expect("tempdir");
     config.recorder.path = recording
         .path()

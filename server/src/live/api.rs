@@ -361,6 +361,8 @@ pub struct TrackDetail {
     ellipsoid_95: Option<Ellipsoid>,
     /// `[t, x, y, z]` after each update, oldest first (the last 200).
     history: Vec<[f64; 4]>,
+    /// The set-membership (OBE) bound beside the track, when `tracker.bound.enabled`.
+    bound: Option<super::bound::BoundView>,
 }
 
 /// χ² quantiles of 0.95 for 2 and 3 degrees of freedom.
@@ -440,6 +442,7 @@ async fn track(State(s): State<ApiState>, Path(id): Path<String>) -> Response {
             ellipse_95: ellipse(k),
             ellipsoid_95: ellipsoid(k),
             history: s.recent.history(id),
+            bound: s.recent.bound(id),
             track: k.clone(),
         })
         .into_response(),

@@ -65,6 +65,8 @@ pub struct TrackerConfig {
     /// Characteristic size of the targets (m), which `bearing_size` detections need (their
     /// subtended angle gives the range); unset: `bearing_size` scans are dropped as `frame`.
     pub target_size_m: Option<f64>,
+    /// Set-membership bounds beside the tracks ([`super::bound`]).
+    pub bound: super::bound::BoundConfig,
 }
 
 /// The HTTP API.
@@ -149,6 +151,7 @@ impl Default for TrackerConfig {
             queue: 1024,
             sensors: Vec::new(),
             target_size_m: None,
+            bound: super::bound::BoundConfig::default(),
         }
     }
 }
@@ -265,6 +268,7 @@ impl Config {
         {
             return bad(format!("tracker.target_size_m must be > 0, got {size}"));
         }
+        t.bound.check().map_err(ConfigError::Invalid)?;
         if self.api.ws_queue == 0 {
             return bad("api.ws_queue must be ≥ 1".into());
         }

@@ -71,6 +71,8 @@ pub struct ReadyScan {
     pub geodetic: GeoPoint,
     /// When its payload arrived from Zenoh.
     pub received: Instant,
+    /// Per-component noise std of the detections, as published.
+    pub noise_std: Vec<f64>,
 }
 
 /// At most one log line per reason and interval; the lines in between are counted.
@@ -208,6 +210,7 @@ impl Ingest {
             platform: framed.platform_pos.into(),
             geodetic: scan.platform.geodetic,
             received: p.received,
+            noise_std: framed.noise_std,
             sensor: scan.sensor,
             scan: SensorScan {
                 // One time line for every publisher: UNIX time when the scan carries it.

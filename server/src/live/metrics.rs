@@ -72,6 +72,7 @@ struct Inner {
     vehicles: BTreeMap<String, VehicleCounters>,
     tracks_confirmed: usize,
     ws_clients: i64,
+    bound_resets: u64,
     latency: Histogram,
     ws_sent: u64,
     ws_dropped: u64,
@@ -165,6 +166,11 @@ impl Metrics {
     /// and the track engine).
     pub fn latency(&self, seconds: f64) {
         self.with(|i| i.latency.observe(seconds));
+    }
+
+    /// The set-membership bounds have restarted `total` times so far.
+    pub fn bound_resets(&self, total: u64) {
+        self.with(|i| i.bound_resets = total);
     }
 
     /// WebSocket clients connected (`+1`) or gone (`-1`).
@@ -289,6 +295,12 @@ impl Metrics {
                     vec![(String::new(), t.to_string())],
                 );
             }
+            family(
+                "harrier_bound_resets_total",
+                "counter",
+                "Set-membership bounds found inconsistent with a detection and restarted from it.",
+                vec![(String::new(), i.bound_resets.to_string())],
+            );
             family(
                 "harrier_ws_clients",
                 "gauge",

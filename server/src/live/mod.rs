@@ -31,6 +31,7 @@
 //! recorder by `try_send`.
 
 pub mod api;
+pub mod bound;
 pub mod config;
 pub mod ingest;
 pub mod metrics;
@@ -323,7 +324,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         Arc::clone(&recent),
         snap_tx,
         events_tx.clone(),
-    );
+    )
+    .with_bounds(config.tracker.bound);
     if let Some(r) = &recorder {
         let r = r.clone();
         actor.add_sink(Box::new(move |scan| {

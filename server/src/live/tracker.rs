@@ -20,6 +20,7 @@ use harrier_core::tracker::{DeleteReason, TrackEvent};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
+use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
 use crate::engine::{Params, TrackEngine, TrackView};
@@ -192,6 +193,7 @@ pub enum SetError {
 pub struct Recent {
     scans: Mutex<VecDeque<Arc<ScanEvents>>>,
     history: Mutex<HashMap<u64, VecDeque<[f64; 4]>>>,
+    bounds: Mutex<HashMap<u64, BoundView>>,
 }
 
 impl Recent {
@@ -199,6 +201,11 @@ impl Recent {
     pub fn scans_after(&self, seq: u64) -> Vec<Arc<ScanEvents>> {
         let q = self.scans.lock().unwrap_or_else(PoisonError::into_inner);
         q.iter().filter(|s| s.seq > seq).cloned().collect()
+    }
+    /// Track `id`'s set-membership bound, when bounds run and it has one.
+    pub fn bound(&self, id: u64) -> Option<BoundView> {
+        let b = self.bounds.lock().unwrap_or_else(PoisonError::into_inner);
+        b.get(&id).cloned()
     }
     /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
     pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
@@ -227,6 +234,8 @@ pub struct TrackerActor {
     events: broadcast::Sender<Arc<ScanEvents>>,
     /// Called with every processed scan (the recorder, the Zenoh publisher): must not block.
     sinks: Sinks,
+    /// The set-membership bounds, when they run.
+    bounds: Option<Bounds>,
 }
 
 /// A consumer of every processed scan.
@@ -277,7 +286,14 @@ impl TrackerActor {
             snapshot,
             events,
             sinks: Sinks::default(),
+            bounds: None,
         }
+    }
+
+    /// Runs a set-membership bound beside every track ([`super::bound`]).
+    pub fn with_bounds(mut self, config: BoundConfig) -> Self {
+        self.bounds = config.enabled.then(|| Bounds::new(config));
+        self
     }
 
     /// Adds a consumer of every processed scan; it runs on the tracker's task, so it must only
@@ -363,6 +379,26 @@ impl TrackerActor {
             v.sensors.sort();
         }
         self.remember(&events, &tracks);
+        if let Some(b) = &mut self.bounds {
+            let kind = s.scan.sensor.kind();
+            let changed = b.on_scan(s.scan.t, kind, &s.noise_std, &s.scan.detections, &events);
+            self.metrics.bound_resets(b.resets());
+            let mut views = self
+                .recent
+                .bounds
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            for e in &events {
+                if let TrackEvent::Deleted { id, .. } = e {
+                    views.remove(id);
+                }
+            }
+            for id in changed {
+                if let Some(v) = b.view(id) {
+                    views.insert(id, v);
+                }
+            }
+        }
         let scan = Arc::new(ScanEvents {
             seq: self.seq,
             t: s.scan.t,
@@ -513,6 +549,7 @@ mod tests {
             platform: [0.0; 3],
             geodetic: DEFAULT_ORIGIN,
             received: std::time::Instant::now(),
+            noise_std: vec![10.0, 10.0],
         }
     }
 
