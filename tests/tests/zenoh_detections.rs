@@ -8,11 +8,10 @@
 use std::process::Stdio;
 use std::time::Duration;
 
+use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::SimScenario;
-use harrier_tests::{
-    free_tcp_port, python_script, require_python_module, sim_world, wait_with_deadline,
-};
+use harrier_tests::{free_tcp_port, python_script, require_python_module, wait_with_deadline};
 
 const RATE_HZ: f64 = 20.0;
 const SCANS: usize = 60;
@@ -26,16 +25,15 @@ fn eclipse_zenoh_subscriber_decodes_the_detections() {
         s.rate_hz = RATE_HZ;
     }
     let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let (_vehicles, running) = sim_world(
-        &[1, 2],
-        &LiveConfig {
-            scenario,
-            seed: 7,
-            speedup: 1.0,
-            truth_hz: 5.0,
-        },
-        &endpoint,
-    );
+    let mut world = WorldConfig::new(LiveConfig {
+        scenario,
+        seed: 7,
+        speedup: 1.0,
+        truth_hz: 5.0,
+    });
+    world.vehicles = vec![WorldVehicle::grounded(1), WorldVehicle::grounded(2)];
+    world.zenoh.listen = vec![endpoint.clone()];
+    let running = SimWorld::start(&world).expect("start the simulated world");
 
     let mut child = python_script("zenoh_subscriber.py")
         .args(["--connect", &endpoint, "--vehicles", "1,2"])
@@ -68,4 +66,5 @@ fn eclipse_zenoh_subscriber_decodes_the_detections() {
     let c = running.counters();
     assert_eq!(c.failed, 0);
     assert!(c.scans >= 2 * SCANS as u64, "{c:?}");
+    running.stop();
 }
