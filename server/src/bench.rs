@@ -39,11 +39,12 @@ use anyhow::Context as _;
 use serde::Serialize;
 use tokio::time::Instant;
 
+pub use self::publish::Phase;
 use self::publish::{Plan, Publishers};
 pub use self::rest::RestReport;
 use self::rest::{Api, RestLoad};
-pub use self::stats::{Counters, Machine, Percentiles};
-use self::stats::{load_1m, now_unix, rss_kib};
+pub use self::stats::{Counters, CpuUse, Machine, Percentiles, ServerLatency};
+use self::stats::{CpuSample, load_1m, now_unix, rss_kib};
 use self::ws::Clients;
 pub use self::ws::WsReport;
 use crate::live::{self, config::Config};
@@ -60,6 +61,10 @@ pub struct BenchArgs {
     /// Scans per second of each vehicle.
     #[arg(long, default_value_t = 50.0)]
     pub rate_hz: f64,
+    /// Where in the scan period each vehicle publishes: spread (evenly), random (seeded) or
+    /// same (synchronised). A scan is processed once every vehicle has published a newer one.
+    #[arg(long, value_enum, default_value_t = Phase::Spread)]
+    pub phase: Phase,
     /// Detections per scan: one of each target (the targets circle 300 m apart).
     #[arg(long, default_value_t = 4)]
     pub detections: usize,
@@ -218,6 +223,8 @@ pub struct Setup {
     pub vehicles: u8,
     /// Scans per second per vehicle.
     pub rate_hz: f64,
+    /// Publication phases.
+    pub phase: Phase,
     /// Detections per scan.
     pub detections: usize,
     /// Warm-up (s).
@@ -259,6 +266,9 @@ pub struct ServerReport {
     pub max_lag_ms: f64,
     /// Whether the server had processed or dropped everything it received when the run ended.
     pub drained: bool,
+    /// The server's own latency over the steady state (`harrier_scan_latency_seconds`: payload
+    /// arrival → scan processed, reorder buffer included), if it reports it.
+    pub latency: Option<ServerLatency>,
 }
 
 /// Resident memory over the steady state.
@@ -292,6 +302,9 @@ pub struct Report {
     pub rest: Option<RestReport>,
     /// Resident memory.
     pub rss: RssReport,
+    /// CPU over the steady state: the measured processes (this one, and the server's with
+    /// `--server-pid`), the machine, everything else (unknown without `/proc`).
+    pub cpu: Option<CpuUse>,
 }
 
 /// Runs the load test and prints its figures.
@@ -428,6 +441,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
         origin: live::config::DEFAULT_ORIGIN,
         connect: target.zenoh.clone(),
         listen,
+        phase: args.phase,
     })
     .await?;
     let started = Instant::now();
@@ -442,6 +456,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
     let steady = Instant::now();
     let end = steady + Duration::from_secs_f64(args.duration_s);
     let rss_start = rss_kib(target.rss_pid);
+    let cpu_start = CpuSample::now(target.rss_pid);
     let c0 = counters().await?;
     let published0 = publishers.scans();
     if let Some(c) = &clients {
@@ -458,6 +473,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
     });
     let mut max_lag_s: f64 = 0.0;
     let ws0 = clients.as_ref().map_or(0, |c| c.stats().scans());
+    let mut cpu_last = cpu_start;
     let mut last = (Instant::now(), c0.clone(), published0, ws0, 0);
     loop {
         let next = (Instant::now() + Duration::from_secs_f64(args.progress_s)).min(end);
@@ -478,6 +494,15 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
             )
         });
         let rest_ok = rest_load.ok();
+        let cpu_now = CpuSample::now(target.rss_pid);
+        let cpu_line = cpu_last.zip(cpu_now).map_or(String::new(), |(a, b)| {
+            let u = a.until(&b);
+            format!(
+                "  cpu {:.2} + others {:.2}",
+                u.measured_cores, u.others_cores
+            )
+        });
+        cpu_last = cpu_now;
         let rest_line = if rest.is_some() {
             format!("  rest {:.0} req/s", rate(rest_ok, last.4))
         } else {
@@ -485,7 +510,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
         };
         eprintln!(
             "[{:7.1} s] published {:.0} scans/s  processed {:.0} scans/s {:.0} det/s  lag {:.1} ms  \
-             dropped {}{ws}{rest_line}",
+             dropped {}{ws}{rest_line}{cpu_line}",
             (now - steady).as_secs_f64(),
             rate(published, last.2),
             rate(c.ingested, last.1.ingested),
@@ -502,6 +527,9 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
     let c1 = &last.1;
     let published1 = last.2;
     let rss_end = rss_kib(target.rss_pid);
+    let cpu = cpu_start
+        .zip(CpuSample::now(target.rss_pid))
+        .map(|(a, b)| a.until(&b));
     if let Some(c) = &clients {
         c.stats().record(false);
     }
@@ -572,6 +600,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
                 .then(|| args.ws_queue.unwrap_or(Config::default().api.ws_queue)),
             vehicles: args.vehicles,
             rate_hz: args.rate_hz,
+            phase: args.phase,
             detections: args.detections,
             warmup_s: args.warmup_s,
             duration_s: args.duration_s,
@@ -592,6 +621,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
             detections_per_s: steady_counts.detections as f64 / steady_s,
             max_lag_ms: max_lag_s * 1e3,
             drained,
+            latency: steady_counts.server_latency(),
         },
         websocket,
         rest,
@@ -604,6 +634,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
                 _ => None,
             },
         },
+        cpu,
     })
 }
 
@@ -626,8 +657,8 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
         _ => format!("server {}", s.server),
     };
     out.push(format!(
-        "harrier bench: {} vehicles × {} Hz × {} detections; {} s measured after {} s warm-up; {server}",
-        s.vehicles, s.rate_hz, s.detections, s.duration_s, s.warmup_s
+        "harrier bench: {} vehicles × {} Hz ({:?} phases) × {} detections; {} s measured after {} s warm-up; {server}",
+        s.vehicles, s.rate_hz, s.phase, s.detections, s.duration_s, s.warmup_s
     ));
     let m = &r.machine;
     out.push(format!(
@@ -669,6 +700,17 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
         "ingest       {:.1} scans/s, {:.0} detections/s (steady state); tracker lag max {:.1} ms",
         v.scans_per_s, v.detections_per_s, v.max_lag_ms
     ));
+    if let Some(l) = &v.latency {
+        let ms = |x: Option<f64>| x.map_or("> last bucket".to_string(), |x| format!("≤ {x}"));
+        out.push(format!(
+            "server lat.  arrival → processed: mean {:.2} ms; p50 {}  p99 {}  p99.9 {} ms  (n = {})",
+            l.mean_ms,
+            ms(l.p50_le_ms),
+            ms(l.p99_le_ms),
+            ms(l.p999_le_ms),
+            l.count
+        ));
+    }
     if let Some(w) = &r.websocket {
         out.push(format!(
             "websocket    {} clients: {} scan messages of {} expected; missing {}, resyncs {}, out of order {}, errors {}",
@@ -685,6 +727,22 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
             h.path, h.connections, h.duration_s, h.ok, h.req_per_s, h.non_ok, h.errors
         ));
         out.push(format!("rest latency {}", percentiles_line(&h.latency_ms)));
+    }
+    if let Some(c) = &r.cpu {
+        out.push(format!(
+            "cpu          {:.2} cores measured ({}), machine {:.2}, others {:.2} (steady state)",
+            c.measured_cores,
+            match (
+                r.setup.server == "in-process",
+                r.rss.scope.starts_with("server process")
+            ) {
+                (true, _) => "this process",
+                (false, true) => "this process and the server's",
+                (false, false) => "this process only",
+            },
+            c.machine_cores,
+            c.others_cores
+        ));
     }
     let mib = |k: Option<u64>| k.map_or("?".to_string(), |k| format!("{:.1}", k as f64 / 1024.0));
     out.push(format!(

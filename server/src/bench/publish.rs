@@ -52,6 +52,23 @@ pub(super) struct Plan {
     pub connect: Vec<String>,
     /// Endpoint this session listens on.
     pub listen: String,
+    /// How the vehicles' publication instants are placed within a period.
+    pub phase: Phase,
+}
+
+/// Where in the scan period each vehicle publishes. The tracker processes scans in time order,
+/// so a scan waits until every other active vehicle has published a newer one: the phases decide
+/// how long.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Phase {
+    /// Evenly spread over the period (vehicle k of N at k/N of it): each scan waits about
+    /// (N − 1)/N of a period for the others.
+    Spread,
+    /// Uniformly random in the period (seeded): unsynchronised vehicles.
+    Random,
+    /// All at the same instant: synchronised sensors.
+    Same,
 }
 
 /// The publishing vehicles. Stop them with [`Publishers::stop`].
@@ -152,7 +169,8 @@ impl Publishers {
         let period = Duration::from_secs_f64(1.0 / plan.rate_hz);
         let epoch = now_unix();
         let start = tokio::time::Instant::now();
-        let n = publishers.len() as u32;
+        let n = publishers.len() as f64;
+        let mut phase_rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
         let tasks = publishers
             .into_iter()
             .enumerate()
@@ -165,7 +183,12 @@ impl Publishers {
                     scans: Arc::clone(&scans),
                     failed: Arc::clone(&failed),
                 };
-                let first = start + period * k as u32 / n.max(1);
+                let fraction = match plan.phase {
+                    Phase::Spread => k as f64 / n,
+                    Phase::Random => rand::Rng::random::<f64>(&mut phase_rng),
+                    Phase::Same => 0.0,
+                };
+                let first = start + period.mul_f64(fraction);
                 tokio::spawn(vehicle.run(p, first, period, stop_rx.clone()))
             })
             .collect();

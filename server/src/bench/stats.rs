@@ -181,6 +181,83 @@ impl Machine {
     }
 }
 
+/// Clock ticks per second of `/proc/stat` and `/proc/PID/stat` (Linux's `USER_HZ`).
+const USER_HZ: f64 = 100.0;
+
+/// CPU time so far: the whole machine's busy time and some processes' own.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct CpuSample {
+    at: std::time::Instant,
+    machine_busy: u64,
+    processes: u64,
+}
+
+/// Busy ticks of the machine: every `cpu` time but idle and iowait.
+fn machine_busy_ticks() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/stat").ok()?;
+    let line = text.lines().find(|l| l.starts_with("cpu "))?;
+    let v: Vec<u64> = line
+        .split_whitespace()
+        .skip(1)
+        .filter_map(|x| x.parse().ok())
+        .collect();
+    // user nice system idle iowait irq softirq steal (guest time is inside user).
+    Some(v.iter().take(8).sum::<u64>() - v.get(3)? - v.get(4)?)
+}
+
+/// User + system ticks of process `pid` (`None`: this process).
+fn process_ticks(pid: Option<u32>) -> Option<u64> {
+    let path = pid.map_or_else(
+        || "/proc/self/stat".to_string(),
+        |p| format!("/proc/{p}/stat"),
+    );
+    let text = std::fs::read_to_string(path).ok()?;
+    // Fields after the command name (which may hold spaces): state is field 3, utime 14.
+    let rest = text.rsplit_once(')')?.1;
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    Some(f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?)
+}
+
+/// Where the CPU went between two samples, in cores (1.0: one core busy all the time).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct CpuUse {
+    /// The measured processes: this one, and the server's with `--server-pid`.
+    pub measured_cores: f64,
+    /// The whole machine.
+    pub machine_cores: f64,
+    /// Everything else on the machine (other users' work disturbs the figures).
+    pub others_cores: f64,
+}
+
+impl CpuSample {
+    /// Now, for this process and `pid` (if any); `None` without `/proc`.
+    pub(super) fn now(pid: Option<u32>) -> Option<Self> {
+        let mine = process_ticks(None)?;
+        let theirs = match pid {
+            Some(p) => process_ticks(Some(p))?,
+            None => 0,
+        };
+        Some(Self {
+            at: std::time::Instant::now(),
+            machine_busy: machine_busy_ticks()?,
+            processes: mine + theirs,
+        })
+    }
+
+    /// The CPU used from `self` to `later`.
+    pub(super) fn until(&self, later: &Self) -> CpuUse {
+        let dt = (later.at - self.at).as_secs_f64().max(1e-9);
+        let cores = |a: u64, b: u64| b.saturating_sub(a) as f64 / USER_HZ / dt;
+        let measured = cores(self.processes, later.processes);
+        let machine = cores(self.machine_busy, later.machine_busy);
+        CpuUse {
+            measured_cores: measured,
+            machine_cores: machine,
+            others_cores: (machine - measured).max(0.0),
+        }
+    }
+}
+
 /// The 1-minute load average (0 when unknown).
 pub(super) fn load_1m() -> f64 {
     std::fs::read_to_string("/proc/loadavg")
@@ -207,6 +284,28 @@ pub struct Counters {
     /// Scan time of the last processed scan (UNIX s), if any.
     #[serde(skip)]
     pub last_scan_t: Option<f64>,
+    /// The server's `harrier_scan_latency_seconds` histogram (payload arrival → scan processed,
+    /// every vehicle): cumulative counts by upper bound (s), ascending.
+    #[serde(skip)]
+    pub latency_buckets: Vec<(f64, u64)>,
+    /// Its sum (s).
+    #[serde(skip)]
+    pub latency_sum: f64,
+}
+
+/// The server's own latency (payload arrival → scan processed) over part of a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct ServerLatency {
+    /// Scans observed.
+    pub count: u64,
+    /// Mean (ms).
+    pub mean_ms: f64,
+    /// Upper bound (ms) of the histogram bucket holding the median (`None`: beyond the last).
+    pub p50_le_ms: Option<f64>,
+    /// The same for the 99th percentile.
+    pub p99_le_ms: Option<f64>,
+    /// The same for the 99.9th percentile.
+    pub p999_le_ms: Option<f64>,
 }
 
 /// Splits a sample line into name, labels and value.
@@ -244,6 +343,16 @@ impl Counters {
             }
             if name == "harrier_ws_dropped_total" {
                 c.ws_dropped = value as u64;
+                continue;
+            }
+            if name == "harrier_scan_latency_seconds_bucket" {
+                if let Some(le) = labels.get("le").and_then(|b| b.parse::<f64>().ok()) {
+                    c.latency_buckets.push((le, value as u64));
+                }
+                continue;
+            }
+            if name == "harrier_scan_latency_seconds_sum" {
+                c.latency_sum = value;
                 continue;
             }
             if !labels.get("vehicle").is_some_and(|v| ours(v)) {
@@ -287,7 +396,46 @@ impl Counters {
             seq_lost: self.seq_lost.saturating_sub(base.seq_lost),
             ws_dropped: self.ws_dropped.saturating_sub(base.ws_dropped),
             last_scan_t: self.last_scan_t,
+            latency_buckets: self
+                .latency_buckets
+                .iter()
+                .map(|&(le, n)| {
+                    let before = base
+                        .latency_buckets
+                        .iter()
+                        .find(|(b, _)| *b == le)
+                        .map_or(0, |(_, m)| *m);
+                    (le, n.saturating_sub(before))
+                })
+                .collect(),
+            latency_sum: self.latency_sum - base.latency_sum,
         }
+    }
+
+    /// The server's latency histogram summarised (`None` when the server has none).
+    pub(super) fn server_latency(&self) -> Option<ServerLatency> {
+        let mut buckets = self.latency_buckets.clone();
+        buckets.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let count = buckets.last()?.1;
+        let le = |q: f64| {
+            let rank = ((q * count as f64).ceil() as u64).max(1);
+            buckets
+                .iter()
+                .find(|(_, n)| *n >= rank)
+                .map(|(b, _)| b * 1e3)
+                .filter(|b| b.is_finite())
+        };
+        Some(ServerLatency {
+            count,
+            mean_ms: if count == 0 {
+                0.0
+            } else {
+                self.latency_sum / count as f64 * 1e3
+            },
+            p50_le_ms: le(0.5),
+            p99_le_ms: le(0.99),
+            p999_le_ms: le(0.999),
+        })
     }
 }
 
@@ -328,7 +476,11 @@ mod tests {
             harrier_scans_dropped_total{vehicle=\"9\",reason=\"json\"} 7\n\
             harrier_seq_lost_total{vehicle=\"1\"} 1\n\
             harrier_last_scan_time_seconds 1795430412.25\n\
-            harrier_ws_dropped_total 3\n";
+            harrier_ws_dropped_total 3\n\
+            harrier_scan_latency_seconds_bucket{le=\"0.001\"} 90\n\
+            harrier_scan_latency_seconds_bucket{le=\"0.01\"} 99\n\
+            harrier_scan_latency_seconds_bucket{le=\"+Inf\"} 100\n\
+            harrier_scan_latency_seconds_sum 0.25\n";
         let c = Counters::parse(text, &|v| v == "1" || v == "2");
         assert_eq!((c.received, c.ingested, c.seq_lost), (15, 9, 1));
         assert_eq!(c.dropped_total(), 2);
@@ -340,5 +492,12 @@ mod tests {
             ..Counters::default()
         });
         assert_eq!((d.received, d.dropped_total()), (10, 0));
+        let l = c.server_latency().expect("latency histogram");
+        assert_eq!(
+            (l.count, l.p50_le_ms, l.p99_le_ms),
+            (100, Some(1.0), Some(10.0))
+        );
+        assert_eq!(l.p999_le_ms, None);
+        assert!((l.mean_ms - 2.5).abs() < 1e-9, "{l:?}");
     }
 }
