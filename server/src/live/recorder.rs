@@ -576,9 +576,12 @@ impl Writer {
             Record::Scan {
                 received_unix,
                 scan,
-            } => ("write a scan", self.scan(*received_unix, scan)),
+            } => (
+                "write a scan",
+                self.atomic(|w| w.scan(*received_unix, scan)),
+            ),
             Record::Truth(s) => ("write a truth sample", self.truth(s)),
-            Record::Tracks { t, tracks } => ("write tracks", self.tracks(*t, tracks)),
+            Record::Tracks { t, tracks } => ("write tracks", self.atomic(|w| w.tracks(*t, tracks))),
             Record::Action {
                 time_unix,
                 method,
@@ -587,30 +590,69 @@ impl Writer {
                 status,
             } => (
                 "write an action",
-                self.conn
-                    .prepare_cached(INSERT_ACTION)
-                    .and_then(|mut st| {
-                        st.execute(params![self.session, time_unix, method, path, body, status])
-                    })
-                    .map(|_| self.batch.actions += 1),
+                self.conn.prepare_cached(INSERT_ACTION).and_then(|mut st| {
+                    st.execute(params![self.session, time_unix, method, path, body, status])
+                        .map(|_| ())
+                }),
             ),
         };
-        if let Err(e) = result {
-            self.failed(what, &e);
-            if self.conn.is_autocommit() {
-                // SQLite rolled the whole transaction back (I/O error, full disk): its rows are
-                // gone, start afresh.
-                self.batch = Batch::default();
-                self.batch_started = None;
-                self.sensors.clear();
+        match result {
+            Ok(()) => self.count(r),
+            Err(e) => {
+                self.failed(what, &e);
+                if self.conn.is_autocommit() {
+                    // SQLite rolled the whole transaction back (I/O error, full disk): its rows
+                    // are gone, start afresh.
+                    self.batch = Batch::default();
+                    self.batch_started = None;
+                    self.sensors.clear();
+                }
             }
         }
     }
 
-    fn scan(&mut self, received: f64, scan: &DetectionScan) -> rusqlite::Result<()> {
+    /// Runs `f` as one unit of the open transaction: all its rows or none.
+    fn atomic(&mut self, f: impl FnOnce(&Self) -> rusqlite::Result<()>) -> rusqlite::Result<()> {
+        self.conn.prepare_cached("SAVEPOINT record")?.execute([])?;
+        let result = f(self);
+        if result.is_err() && !self.conn.is_autocommit() {
+            if let Err(e) = self
+                .conn
+                .execute_batch("ROLLBACK TO record; RELEASE record")
+            {
+                self.failed("roll back a record", &e);
+            }
+            return result;
+        }
+        result?;
+        self.conn.prepare_cached("RELEASE record")?.execute([])?;
+        Ok(())
+    }
+
+    /// Counts the rows of `r`, written.
+    fn count(&mut self, r: &Record) {
+        let b = &mut self.batch;
+        match r {
+            Record::Scan {
+                received_unix,
+                scan,
+            } => {
+                let received = *received_unix;
+                b.scans += 1;
+                b.detections += scan.detections.len() as u64;
+                b.first_received = Some(b.first_received.map_or(received, |f| f.min(received)));
+                b.last_received = Some(b.last_received.map_or(received, |l| l.max(received)));
+                self.sensors.insert((scan.vehicle, scan.sensor.clone()));
+            }
+            Record::Truth(_) => b.truth_rows += 1,
+            Record::Tracks { tracks, .. } => b.track_rows += tracks.len() as u64,
+            Record::Action { .. } => b.actions += 1,
+        }
+    }
+
+    fn scan(&self, received: f64, scan: &DetectionScan) -> rusqlite::Result<()> {
         let kind = kind_name(scan.kind);
-        let key = (scan.vehicle, scan.sensor.clone());
-        if !self.sensors.contains(&key) {
+        if !self.sensors.contains(&(scan.vehicle, scan.sensor.clone())) {
             self.conn.prepare_cached(INSERT_SENSOR)?.execute(params![
                 self.session,
                 scan.vehicle,
@@ -618,7 +660,6 @@ impl Writer {
                 kind,
                 received
             ])?;
-            self.sensors.insert(key);
         }
         self.conn.prepare_cached(INSERT_SCAN)?.execute(params![
             self.session,
@@ -638,15 +679,10 @@ impl Writer {
             let z = |k: usize| d.z.get(k).copied();
             st.execute(params![id, int(i as u64), z(0), z(1), z(2)])?;
         }
-        let b = &mut self.batch;
-        b.scans += 1;
-        b.detections += scan.detections.len() as u64;
-        b.first_received = Some(b.first_received.map_or(received, |f| f.min(received)));
-        b.last_received = Some(b.last_received.map_or(received, |l| l.max(received)));
         Ok(())
     }
 
-    fn truth(&mut self, s: &TruthSample) -> rusqlite::Result<()> {
+    fn truth(&self, s: &TruthSample) -> rusqlite::Result<()> {
         self.conn.prepare_cached(INSERT_TRUTH)?.execute(params![
             self.session,
             s.t,
@@ -654,11 +690,10 @@ impl Writer {
             int(s.targets.len() as u64),
             s.to_json(),
         ])?;
-        self.batch.truth_rows += 1;
         Ok(())
     }
 
-    fn tracks(&mut self, t: f64, tracks: &[TrackView]) -> rusqlite::Result<()> {
+    fn tracks(&self, t: f64, tracks: &[TrackView]) -> rusqlite::Result<()> {
         let mut st = self.conn.prepare_cached(INSERT_TRACK)?;
         for k in tracks {
             let s = &k.state;
@@ -680,7 +715,6 @@ impl Writer {
                 k.last_update,
                 (!k.mode_probabilities.is_empty()).then(|| json(&k.mode_probabilities)),
             ])?;
-            self.batch.track_rows += 1;
         }
         Ok(())
     }
@@ -982,6 +1016,37 @@ mod tests {
     }
 
     #[test]
+    fn a_record_that_fails_half_way_leaves_no_row_and_is_counted() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("rec.sqlite");
+        let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(20), 64).expect("open");
+        // A real SQLite trigger refuses one detection: its scan fails after its scan row.
+        Connection::open(&path)
+            .and_then(|c| {
+                c.execute_batch(
+                    "CREATE TRIGGER refuse BEFORE INSERT ON detections WHEN NEW.z0 = 666 \
+                     BEGIN SELECT RAISE(ABORT, 'refused by the test'); END;",
+                )
+            })
+            .expect("trigger");
+        r.record(scan(1, 0, 0.0, [0.0; 3], &[[1.0, 2.0]]));
+        r.record(scan(2, 0, 0.0, [0.0; 3], &[[1.0, 2.0], [666.0, 0.0]]));
+        r.record(scan(1, 1, 1.0, [0.0; 3], &[[3.0, 4.0]]));
+        let s = r.close().expect("close");
+        assert_eq!((s.scans, s.detections, s.errors), (2, 2, 1), "{s:?}");
+        let c = reader(&path);
+        assert_eq!(count(&c, "SELECT count(*) FROM scans"), 2);
+        assert_eq!(count(&c, "SELECT count(*) FROM detections"), 2);
+        assert_eq!(count(&c, "SELECT count(*) FROM scans WHERE vehicle = 2"), 0);
+        assert_eq!(
+            count(&c, "SELECT count(*) FROM sensors"),
+            1,
+            "vehicle 2's sensor row went with its scan"
+        );
+        assert_eq!(count(&c, "SELECT scans FROM sessions"), 2);
+    }
+
+    #[test]
     fn other_files_are_refused_with_their_path() {
         let dir = tempfile::tempdir().expect("tempdir");
         let other = dir.path().join("other.sqlite");
@@ -1050,7 +1115,7 @@ mod tests {
         );
     }
 
-    /// `cargo test -p harrier-server --release bench_recorder -- --ignored --nocapture`
+    /// `cargo test -p harrier-server --lib bench_recorder -- --ignored --nocapture`
     #[test]
     #[ignore = "benchmark"]
     fn bench_recorder_burst() {
