@@ -69,6 +69,26 @@ pub fn ln_det<const N: usize>(chol: &Cholesky<f64, Const<N>>) -> f64 {
         .sum::<f64>()
 }
 
+/// The ellipse `{x : xᵀ M⁻¹ x ≤ 1}` of a symmetric positive semi-definite 2 × 2 matrix `M`: its
+/// semi-axes `[√λ_max, √λ_min]` and the direction of the major axis (rad, counter-clockwise from
+/// the first axis). Scale `M` by a χ² quantile first for a confidence ellipse.
+pub fn ellipse_axes(m: &nalgebra::Matrix2<f64>) -> ([f64; 2], f64) {
+    let e = nalgebra::SymmetricEigen::new(symmetrize(m));
+    let (major, minor) = if e.eigenvalues[0] >= e.eigenvalues[1] {
+        (0, 1)
+    } else {
+        (1, 0)
+    };
+    let v = e.eigenvectors.column(major);
+    (
+        [
+            e.eigenvalues[major].max(0.0).sqrt(),
+            e.eigenvalues[minor].max(0.0).sqrt(),
+        ],
+        v[1].atan2(v[0]),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -94,6 +114,22 @@ mod tests {
         assert_eq!(
             cholesky(&n, "n").unwrap_err(),
             EstimationError::NonFinite("n")
+        );
+    }
+
+    #[test]
+    fn ellipse_axes_of_a_rotated_ellipse() {
+        let (c, s) = (0.3f64.cos(), 0.3f64.sin());
+        let r = nalgebra::Matrix2::new(c, -s, s, c);
+        let m = r * nalgebra::Matrix2::new(16.0, 0.0, 0.0, 4.0) * r.transpose();
+        let (axes, angle) = ellipse_axes(&m);
+        assert!(
+            (axes[0] - 4.0).abs() < 1e-12 && (axes[1] - 2.0).abs() < 1e-12,
+            "{axes:?}"
+        );
+        assert!(
+            (wrap_angle(2.0 * (angle - 0.3)) / 2.0).abs() < 1e-12,
+            "{angle}"
         );
     }
 }

@@ -33,6 +33,7 @@ use axum::http::{HeaderValue, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use harrier_core::linalg::ellipse_axes;
 use nalgebra::{Matrix2, Matrix3, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
@@ -386,19 +387,10 @@ fn position_cov(k: &TrackView, dims: &[usize]) -> Option<Vec<Vec<f64>>> {
 fn ellipse(k: &TrackView) -> Option<Ellipse> {
     let c = position_cov(k, &[0, 1])?;
     let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
-    let e = SymmetricEigen::new(0.5 * (m + m.transpose()));
-    let (major, minor) = if e.eigenvalues[0] >= e.eigenvalues[1] {
-        (0, 1)
-    } else {
-        (1, 0)
-    };
-    let v = e.eigenvectors.column(major);
+    let (semi_axes, angle_rad) = ellipse_axes(&(m * CHI2_95_2));
     Some(Ellipse {
-        semi_axes: [
-            (CHI2_95_2 * e.eigenvalues[major].max(0.0)).sqrt(),
-            (CHI2_95_2 * e.eigenvalues[minor].max(0.0)).sqrt(),
-        ],
-        angle_rad: v[1].atan2(v[0]),
+        semi_axes,
+        angle_rad,
     })
 }
 

@@ -18,10 +18,11 @@ use std::collections::HashMap;
 use harrier_core::filter::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, Predictor, Updater,
 };
+use harrier_core::linalg::ellipse_axes;
 use harrier_core::scenario::MeasKind;
 use harrier_core::state::Ellipsoid;
 use harrier_core::tracker::TrackEvent;
-use nalgebra::{Matrix2, Matrix4, SMatrix, SymmetricEigen, Vector2, Vector4};
+use nalgebra::{Matrix2, Matrix4, SMatrix, Vector2, Vector4};
 use serde::{Deserialize, Serialize};
 
 /// `[tracker.bound]`.
@@ -202,22 +203,13 @@ impl Bounds {
         let (t, set) = self.sets.get(&id)?;
         let p = &set.shape;
         let xy = Matrix2::new(p[(0, 0)], p[(0, 1)], p[(1, 0)], p[(1, 1)]);
-        let e = SymmetricEigen::new(xy);
-        let (major, minor) = if e.eigenvalues[0] >= e.eigenvalues[1] {
-            (0, 1)
-        } else {
-            (1, 0)
-        };
-        let v = e.eigenvectors.column(major);
+        let (semi_axes, angle_rad) = ellipse_axes(&xy);
         Some(BoundView {
             t: *t,
             center: set.center.into(),
             shape: std::array::from_fn(|i| std::array::from_fn(|j| p[(i, j)])),
-            semi_axes: [
-                e.eigenvalues[major].max(0.0).sqrt(),
-                e.eigenvalues[minor].max(0.0).sqrt(),
-            ],
-            angle_rad: v[1].atan2(v[0]),
+            semi_axes,
+            angle_rad,
         })
     }
 }
