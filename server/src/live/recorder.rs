@@ -23,6 +23,7 @@ use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
 use harrier_core::scenario::MeasKind;
 use rusqlite::{Connection, params};
 
+use super::ingest::unix_now;
 use crate::engine::TrackView;
 
 /// `PRAGMA application_id` of a Harrier session file (`"HRR1"`).
@@ -278,13 +279,6 @@ struct Inner {
 #[derive(Debug, Clone)]
 pub struct Recorder {
     inner: Arc<Inner>,
-}
-
-/// The time now, UNIX seconds.
-fn unix_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// Why a file is not a Harrier session file this build can read, or `None` when it is one (or is
