@@ -188,13 +188,30 @@ const USER_HZ: f64 = 100.0;
 #[derive(Debug, Clone, Copy)]
 pub(super) struct CpuSample {
     at: std::time::Instant,
+    /// ns.
     machine_busy: u64,
+    /// Ticks.
     processes: u64,
 }
 
-/// Busy ticks of the machine: every `cpu` time but idle and iowait.
-fn machine_busy_ticks() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/stat").ok()?;
+/// CPU time (ns) the whole machine has been busy: the root cgroup's precise usage (cgroup v1
+/// `cpuacct.usage`, else v2 `cpu.stat`), else `/proc/stat` (tick-sampled: it misses much of a
+/// load made of short bursts, like this tool's).
+fn machine_busy_ns() -> Option<u64> {
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    if let Some(ns) =
+        read("/sys/fs/cgroup/cpuacct/cpuacct.usage").and_then(|t| t.trim().parse().ok())
+    {
+        return Some(ns);
+    }
+    if let Some(us) = read("/sys/fs/cgroup/cpu.stat").and_then(|t| {
+        t.lines()
+            .find_map(|l| l.strip_prefix("usage_usec "))
+            .and_then(|v| v.trim().parse::<u64>().ok())
+    }) {
+        return Some(us * 1000);
+    }
+    let text = read("/proc/stat")?;
     let line = text.lines().find(|l| l.starts_with("cpu "))?;
     let v: Vec<u64> = line
         .split_whitespace()
@@ -202,7 +219,8 @@ fn machine_busy_ticks() -> Option<u64> {
         .filter_map(|x| x.parse().ok())
         .collect();
     // user nice system idle iowait irq softirq steal (guest time is inside user).
-    Some(v.iter().take(8).sum::<u64>() - v.get(3)? - v.get(4)?)
+    let ticks = v.iter().take(8).sum::<u64>() - v.get(3)? - v.get(4)?;
+    Some((ticks as f64 * 1e9 / USER_HZ) as u64)
 }
 
 /// User + system ticks of process `pid` (`None`: this process).
@@ -225,7 +243,8 @@ pub struct CpuUse {
     pub measured_cores: f64,
     /// The whole machine.
     pub machine_cores: f64,
-    /// Everything else on the machine (other users' work disturbs the figures).
+    /// Everything else on the machine: other processes (other users' work disturbs the
+    /// figures) and kernel work not charged to a process.
     pub others_cores: f64,
 }
 
@@ -239,7 +258,7 @@ impl CpuSample {
         };
         Some(Self {
             at: std::time::Instant::now(),
-            machine_busy: machine_busy_ticks()?,
+            machine_busy: machine_busy_ns()?,
             processes: mine + theirs,
         })
     }
@@ -247,9 +266,8 @@ impl CpuSample {
     /// The CPU used from `self` to `later`.
     pub(super) fn until(&self, later: &Self) -> CpuUse {
         let dt = (later.at - self.at).as_secs_f64().max(1e-9);
-        let cores = |a: u64, b: u64| b.saturating_sub(a) as f64 / USER_HZ / dt;
-        let measured = cores(self.processes, later.processes);
-        let machine = cores(self.machine_busy, later.machine_busy);
+        let measured = later.processes.saturating_sub(self.processes) as f64 / USER_HZ / dt;
+        let machine = later.machine_busy.saturating_sub(self.machine_busy) as f64 / 1e9 / dt;
         CpuUse {
             measured_cores: measured,
             machine_cores: machine,
