@@ -503,6 +503,9 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
             )
         });
         cpu_last = cpu_now;
+        let rss_line = rss_kib(target.rss_pid).map_or(String::new(), |k| {
+            format!("  rss {:.1} MiB", k as f64 / 1024.0)
+        });
         let rest_line = if rest.is_some() {
             format!("  rest {:.0} req/s", rate(rest_ok, last.4))
         } else {
@@ -510,7 +513,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
         };
         eprintln!(
             "[{:7.1} s] published {:.0} scans/s  processed {:.0} scans/s {:.0} det/s  lag {:.1} ms  \
-             dropped {}{ws}{rest_line}{cpu_line}",
+             dropped {}{ws}{rest_line}{cpu_line}{rss_line}",
             (now - steady).as_secs_f64(),
             rate(published, last.2),
             rate(c.ingested, last.1.ingested),
