@@ -553,7 +553,13 @@ mod tests {
                 None => panic!("no update in {ev:?}"),
             },
         }));
-        assert!(ev.contains(&TrackEvent::Born { id: 2, detection: 1 }), "{ev:?}");
+        assert!(
+            ev.contains(&TrackEvent::Born {
+                id: 2,
+                detection: 1
+            }),
+            "{ev:?}"
+        );
         let twice = vec![taken[0].clone(), taken[0].clone()];
         assert!(b.adopt(4.0, &twice).is_err());
         assert!(b.adopt(f64::NAN, &taken).is_err());

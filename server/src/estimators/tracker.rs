@@ -312,7 +312,10 @@ where
         let mut tracks = Vec::with_capacity(h.tracks.len());
         for (record, mean, cov) in &h.tracks {
             if mean.len() != N || cov.len() != N * N {
-                return Err(setup(format!("track {}: estimate of the wrong size", record.id)));
+                return Err(setup(format!(
+                    "track {}: estimate of the wrong size",
+                    record.id
+                )));
             }
             let g = Gaussian::new(
                 SVector::<f64, N>::from_column_slice(mean),
