@@ -660,8 +660,11 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
         _ => format!("server {}", s.server),
     };
     out.push(format!(
-        "harrier bench: {} vehicles × {} Hz ({:?} phases) × {} detections; {} s measured after {} s warm-up; {server}",
-        s.vehicles, s.rate_hz, s.phase, s.detections, s.duration_s, s.warmup_s
+        "harrier bench: {} vehicles × {} Hz ({} phases) × {} detections; {} s measured after {} s warm-up; {server}",
+        s.vehicles,
+        s.rate_hz,
+        format!("{:?}", s.phase).to_lowercase(),
+        s.detections, s.duration_s, s.warmup_s
     ));
     let m = &r.machine;
     out.push(format!(
