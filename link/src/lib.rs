@@ -12,6 +12,8 @@
 //!   ENU in, NED on the wire), encoded and decoded.
 //! - [`offboard`]: arm → takeoff → setpoints → OFFBOARD as a pure state machine driven by the
 //!   caller's clock and transport.
+//! - [`frame`]: connection strings ([`frame::Endpoint`]) and MAVLink frames reassembled from
+//!   bytes with their headers and raw bytes ([`frame::StreamParser`], [`frame::parse_datagram`]).
 //! - [`detections`]: a `DetectionScan` re-expressed in a consumer's ENU frame, and the
 //!   harrier-core measurement model for it.
 //! - [`scenario_out`]: writing `gcs-scenario/1` directories from scans (sensor and platform ids,
@@ -34,6 +36,7 @@
 pub mod bus;
 pub mod command;
 pub mod detections;
+pub mod frame;
 pub mod geo;
 pub mod offboard;
 pub mod px4;

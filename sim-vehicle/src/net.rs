@@ -15,15 +15,16 @@
 //! ([`StreamParser`]), so a frame split over several segments waits for its end.
 
 use std::io::{self, Read, Write};
-use std::net::{SocketAddr, TcpListener, TcpStream, ToSocketAddrs, UdpSocket};
+use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use mavlink::consts::MAX_FRAME_SIZE;
 use mavlink::dialects::common::MavMessage;
-use mavlink::{MAVLinkMessageRaw, MavHeader, MavlinkReader, Message};
+use mavlink::{MavHeader, MavlinkReader};
 
+pub use harrier_link::frame::{Endpoint, EndpointError, StreamParser};
 use harrier_link::px4::COMPONENT_ID;
 
 use crate::vehicle::{Vehicle, VehicleConfig};
@@ -33,11 +34,8 @@ use crate::worker::Worker;
 #[derive(Debug, thiserror::Error)]
 pub enum LinkError {
     /// The connection string is not one of the supported forms.
-    #[error(
-        "bad connection string {0:?}: expected udpin:HOST:PORT, udpout:HOST:PORT, \
-         tcpin:HOST:PORT or tcpout:HOST:PORT"
-    )]
-    BadAddress(String),
+    #[error(transparent)]
+    BadAddress(#[from] EndpointError),
     /// A socket operation failed.
     #[error("{what} {address}: {source}")]
     Io {
@@ -48,140 +46,6 @@ pub enum LinkError {
         /// The error.
         source: std::io::Error,
     },
-}
-
-/// A parsed connection string.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Endpoint {
-    /// Bind here and answer whoever sends.
-    UdpIn(SocketAddr),
-    /// Send to this address from an ephemeral port.
-    UdpOut(SocketAddr),
-    /// Listen here and serve every client that connects.
-    TcpIn(SocketAddr),
-    /// Connect to this server, and reconnect when the connection drops.
-    TcpOut(SocketAddr),
-}
-
-impl Endpoint {
-    /// Parses `udpin:HOST:PORT`, `udpout:HOST:PORT`, `tcpin:HOST:PORT` or `tcpout:HOST:PORT`
-    /// (as in pymavlink, `udp:` is `udpin:` and `tcp:` is `tcpout:`).
-    pub fn parse(s: &str) -> Result<Self, LinkError> {
-        let bad = || LinkError::BadAddress(s.to_owned());
-        let (kind, rest) = s.split_once(':').ok_or_else(bad)?;
-        let addr = rest
-            .to_socket_addrs()
-            .ok()
-            .and_then(|mut a| a.next())
-            .ok_or_else(bad)?;
-        match kind {
-            "udpin" | "udp" => Ok(Self::UdpIn(addr)),
-            "udpout" => Ok(Self::UdpOut(addr)),
-            "tcpin" => Ok(Self::TcpIn(addr)),
-            "tcpout" | "tcp" => Ok(Self::TcpOut(addr)),
-            _ => Err(bad()),
-        }
-    }
-
-    /// The address: where to bind or listen (`*in`), or where to send or connect (`*out`).
-    pub fn addr(&self) -> SocketAddr {
-        match *self {
-            Self::UdpIn(a) | Self::UdpOut(a) | Self::TcpIn(a) | Self::TcpOut(a) => a,
-        }
-    }
-
-    /// The same kind of endpoint at another address.
-    pub fn with_addr(&self, addr: SocketAddr) -> Self {
-        match self {
-            Self::UdpIn(_) => Self::UdpIn(addr),
-            Self::UdpOut(_) => Self::UdpOut(addr),
-            Self::TcpIn(_) => Self::TcpIn(addr),
-            Self::TcpOut(_) => Self::TcpOut(addr),
-        }
-    }
-}
-
-/// The canonical connection string, which [`Endpoint::parse`] reads back.
-impl std::fmt::Display for Endpoint {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let kind = match self {
-            Self::UdpIn(_) => "udpin",
-            Self::UdpOut(_) => "udpout",
-            Self::TcpIn(_) => "tcpin",
-            Self::TcpOut(_) => "tcpout",
-        };
-        write!(f, "{kind}:{}", self.addr())
-    }
-}
-
-/// Reassembles MAVLink frames (1 or 2) from a byte stream delivered in arbitrary pieces.
-///
-/// Bytes that cannot start a frame are skipped; each stretch of skipped bytes between two valid
-/// frames counts once as malformed (as a UDP datagram without a valid frame does), and so does a
-/// frame with a valid checksum whose payload does not decode. A partial frame at the end of the
-/// buffer waits for the next bytes.
-#[derive(Debug, Default)]
-pub struct StreamParser {
-    buf: Vec<u8>,
-    /// The bytes skipped since the last valid frame have already been counted.
-    counted: bool,
-}
-
-/// What one [`StreamParser::push`] produced.
-#[derive(Debug, Default)]
-pub struct Parsed {
-    /// The complete messages, in stream order.
-    pub messages: Vec<MavMessage>,
-    /// Stretches of skipped bytes and undecodable frames.
-    pub malformed: u64,
-}
-
-impl StreamParser {
-    /// Appends `bytes` and returns every message completed by them.
-    pub fn push(&mut self, bytes: &[u8]) -> Parsed {
-        self.buf.extend_from_slice(bytes);
-        let mut out = Parsed::default();
-        // Everything before `pos` is consumed (frames and skipped bytes).
-        let mut pos = 0;
-        let mut reader = MavlinkReader::with_capacity(0, &self.buf[..]);
-        // The reader skips to the next valid frame and fails at the end of the buffer (a partial
-        // frame or nothing left); where the frame lies tells how many bytes were skipped.
-        while let Ok(raw) = reader.read_any_raw_message::<MavMessage>() {
-            let frame = match &raw {
-                MAVLinkMessageRaw::V1(m) => m.raw_bytes(),
-                MAVLinkMessageRaw::V2(m) => m.raw_bytes(),
-            };
-            let Some(at) = self.buf[pos..]
-                .windows(frame.len())
-                .position(|w| w == frame)
-            else {
-                break; // the reader only returns frames it read from the buffer
-            };
-            if at > 0 && !self.counted {
-                out.malformed += 1;
-            }
-            self.counted = false;
-            pos += at + frame.len();
-            match MavMessage::parse(raw.version(), raw.message_id(), raw.payload()) {
-                Ok(m) => out.messages.push(m),
-                Err(_) => out.malformed += 1,
-            }
-        }
-        // A frame still to be completed starts within the last MAX_FRAME_SIZE bytes: anything
-        // before is garbage.
-        let keep_from = pos.max(self.buf.len().saturating_sub(MAX_FRAME_SIZE));
-        if keep_from > pos && !self.counted {
-            out.malformed += 1;
-            self.counted = true;
-        }
-        self.buf.drain(..keep_from);
-        out
-    }
-
-    /// Bytes waiting for the rest of a frame.
-    pub fn pending(&self) -> usize {
-        self.buf.len()
-    }
 }
 
 /// Where a message came from, so that its replies go back there.
@@ -243,8 +107,8 @@ impl TcpConn {
                 Ok(0) => return None,
                 Ok(n) => {
                     let p = self.parser.push(&buf[..n]);
-                    got.messages.extend(p.messages);
                     got.malformed += p.malformed;
+                    got.messages.extend(p.into_messages());
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
@@ -649,41 +513,6 @@ mod tests {
         PARAM_REQUEST_READ_DATA,
     };
 
-    #[test]
-    fn connection_strings() {
-        let local = |port| SocketAddr::from(([127, 0, 0, 1], port));
-        for (s, e) in [
-            ("udpin:127.0.0.1:14540", Endpoint::UdpIn(local(14540))),
-            ("udp:127.0.0.1:14540", Endpoint::UdpIn(local(14540))),
-            ("udpout:127.0.0.1:14550", Endpoint::UdpOut(local(14550))),
-            ("tcpin:127.0.0.1:5760", Endpoint::TcpIn(local(5760))),
-            ("tcpout:127.0.0.1:5760", Endpoint::TcpOut(local(5760))),
-            ("tcp:127.0.0.1:5760", Endpoint::TcpOut(local(5760))),
-        ] {
-            assert_eq!(Endpoint::parse(s).ok(), Some(e), "{s}");
-            // Display gives the canonical form, which parses back.
-            assert_eq!(Endpoint::parse(&e.to_string()).ok(), Some(e));
-        }
-        assert_eq!(
-            Endpoint::TcpIn(local(5760))
-                .with_addr(local(5762))
-                .to_string(),
-            "tcpin:127.0.0.1:5762"
-        );
-        for bad in [
-            "",
-            "udpin",
-            "tcpin",
-            "serial:/dev/ttyUSB0",
-            "udpin:nohost",
-            "tcpout:nohost",
-            "udpout:1.2.3.4:99999",
-        ] {
-            let e = Endpoint::parse(bad).expect_err(bad);
-            assert!(e.to_string().contains("tcpout:HOST:PORT"), "{e}");
-        }
-    }
-
     fn gcs_frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
         let mut frame = Vec::new();
         mavlink::write_v2_msg(
@@ -712,52 +541,6 @@ mod tests {
 
     fn heartbeat() -> MavMessage {
         MavMessage::HEARTBEAT(HEARTBEAT_DATA::DEFAULT)
-    }
-
-    #[test]
-    fn stream_parser_reassembles_frames_and_counts_garbage_stretches() {
-        let hb = gcs_frame(&heartbeat(), 0);
-        let cmd = gcs_frame(&command(MavCmd::MAV_CMD_REQUEST_MESSAGE, 148.0, 0.0), 1);
-        let mut p = StreamParser::default();
-        // One byte at a time: nothing until the last byte of the frame.
-        for (i, b) in hb.iter().enumerate() {
-            let r = p.push(&[*b]);
-            assert_eq!(r.messages.len(), usize::from(i + 1 == hb.len()), "byte {i}");
-            assert_eq!(r.malformed, 0);
-        }
-        assert_eq!(p.pending(), 0);
-        // Garbage (with a false start marker), then two adjacent frames in one piece: the garbage
-        // counts once.
-        let mut bytes = vec![0xFD, 9, 0, 0, 1, 2, 3, b'x'];
-        bytes.extend_from_slice(&cmd);
-        bytes.extend_from_slice(&hb);
-        let r = p.push(&bytes);
-        assert_eq!(r.messages.len(), 2);
-        assert!(matches!(r.messages[0], MavMessage::COMMAND_LONG(_)));
-        assert_eq!(r.malformed, 1);
-        // A corrupted frame is skipped and counted; the frame after it is read.
-        let mut bad = cmd.clone();
-        let last = bad.len() - 1;
-        bad[last] ^= 0xFF;
-        bad.extend_from_slice(&hb);
-        let r = p.push(&bad);
-        assert_eq!((r.messages.len(), r.malformed), (1, 1));
-        // A long stretch of garbage is dropped as it comes (the buffer stays bounded) and counts
-        // once, however many pieces it arrives in.
-        let mut malformed = 0;
-        for _ in 0..10 {
-            let r = p.push(&[0x55; 200]);
-            assert!(r.messages.is_empty());
-            malformed += r.malformed;
-            assert!(p.pending() <= MAX_FRAME_SIZE);
-        }
-        let r = p.push(&hb);
-        assert_eq!(r.messages.len(), 1);
-        assert_eq!(malformed + r.malformed, 1);
-        // MAVLink 1 frames are read too.
-        let mut v1 = Vec::new();
-        mavlink::write_v1_msg(&mut v1, MavHeader::default(), &heartbeat()).expect("serialise");
-        assert_eq!(p.push(&v1).messages.len(), 1);
     }
 
     /// A blocking TCP client of a test vehicle.
