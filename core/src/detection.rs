@@ -30,6 +30,13 @@ pub const TRACKS_KEY: &str = "harrier/v1/tracks";
 /// Schema of a ground station's track message.
 pub const TRACKS_SCHEMA: &str = "harrier-tracks/1";
 
+/// Largest magnitude (m, m/s) of a platform position or velocity component, a `position`
+/// detection's coordinate or a range, and of the origin's altitude, that a payload may carry:
+/// ten times the geostationary radius. Beyond it a consumer's frame conversion (through ECEF)
+/// overflows to NaN — found by fuzzing (`fuzz/regressions/detections/`): a `position` fix at
+/// 3·10⁷⁴ m passed validation and became `[NaN, NaN]` in harrier-link's `scan_in_frame`.
+pub const MAX_DISTANCE_M: f64 = 1e8;
+
 /// The Zenoh key on which vehicle `id` publishes its detections.
 pub fn detections_key(vehicle: u8) -> String {
     format!("harrier/v1/vehicle/{vehicle}/detections")
@@ -136,6 +143,16 @@ fn all_finite(v: &[f64]) -> bool {
     v.iter().all(|x| x.is_finite())
 }
 
+/// Finite and within ±[`MAX_DISTANCE_M`].
+fn all_bounded(v: &[f64]) -> bool {
+    v.iter().all(|x| x.abs() <= MAX_DISTANCE_M)
+}
+
+/// A valid WGS-84 point: latitude in [-90, 90], longitude in [-180, 180], bounded altitude.
+fn valid_geo(g: &GeoPoint) -> bool {
+    g.lat_deg.abs() <= 90.0 && g.lon_deg.abs() <= 180.0 && g.alt_m.abs() <= MAX_DISTANCE_M
+}
+
 impl DetectionScan {
     /// Number of components of each detection's `z`.
     pub fn dim(&self) -> usize {
@@ -166,12 +183,21 @@ impl DetectionScan {
             },
         )?;
         check(!self.sensor.is_empty(), W, || "sensor id is empty".into())?;
+        check(valid_geo(&self.origin), W, || {
+            format!("origin {:?} is not a valid WGS-84 point", self.origin)
+        })?;
         let p = &self.platform;
         check(
             all_finite(&p.pos) && all_finite(&p.vel) && all_finite(&p.attitude),
             W,
             || "platform pose has a non-finite number".into(),
         )?;
+        check(all_bounded(&p.pos) && all_bounded(&p.vel), W, || {
+            format!(
+                "platform pos/vel beyond ±{MAX_DISTANCE_M:e}: {:?} {:?}",
+                p.pos, p.vel
+            )
+        })?;
         let n = self.dim();
         let expected = match self.kind {
             MeasKind::Position => (2..=3).contains(&n),
@@ -224,6 +250,17 @@ impl DetectionScan {
                     format!("detections[{i}].z[0] (range) = {} is negative", d.z[0])
                 })?;
             }
+            let distances = match self.kind {
+                MeasKind::Position => &d.z[..],
+                MeasKind::RangeBearing => &d.z[..1],
+                MeasKind::AzEl | MeasKind::BearingSize => &[],
+            };
+            check(all_bounded(distances), W, || {
+                format!(
+                    "detections[{i}].z = {:?} has a distance beyond ±{MAX_DISTANCE_M:e} m",
+                    d.z
+                )
+            })?;
         }
         Ok(())
     }
@@ -345,8 +382,13 @@ mod tests {
     #[test]
     fn malformed_payloads_name_the_problem() {
         type Mutation = fn(&mut DetectionScan);
-        let cases: [(Mutation, &str); 9] = [
+        let cases: [(Mutation, &str); 13] = [
             (|s| s.schema = "x".into(), "schema"),
+            // Found by fuzzing: valid JSON numbers a consumer's frame conversion cannot take.
+            (|s| s.origin.lat_deg = 91.0, "origin"),
+            (|s| s.origin.alt_m = 1e300, "origin"),
+            (|s| s.platform.pos[2] = 3e74, "platform pos/vel beyond"),
+            (|s| s.platform.vel[0] = -1e300, "platform pos/vel beyond"),
             (|s| s.time_unix = Some(-1.0), "time_unix"),
             (|s| s.t = f64::NAN, "t = NaN"),
             (|s| s.detections[0].z = vec![0.1], "detections[0].z has 1"),
@@ -372,6 +414,11 @@ mod tests {
         pos.noise_std = vec![10.0, 10.0];
         pos.detections[0].z = vec![100.0, -50.0];
         pos.validate().expect("2-component position");
+        // fuzz/regressions/detections/position-3e74: a fix beyond any frame conversion.
+        pos.detections[0].z[0] = 3.3e74;
+        let e = pos.validate().expect_err("3e74 m");
+        assert!(e.to_string().contains("distance beyond"), "{e}");
+        pos.detections[0].z[0] = 100.0;
         pos.noise_std = vec![10.0; 4];
         assert!(pos.validate().is_err());
         // `time_unix` is optional: a payload without it (an older sender) still reads.
