@@ -47,6 +47,23 @@ pub fn ensure_finite<const R: usize, const C: usize>(
     }
 }
 
+/// Checks what every covariance a filter returns must satisfy at least: finite, and no variance
+/// below zero (a necessary condition of positive semi-definiteness, O(N)). Rounding may leave a
+/// zero variance at −1e-12 of the largest one; anything more negative comes from a corrupt
+/// input — a negative process-noise density or measurement variance, a prior that is not a
+/// covariance — and is refused (found by the hostile-number tests, `core/tests/hostile.rs`).
+#[inline]
+pub fn ensure_covariance<const N: usize>(a: &SMatrix<f64, N, N>, what: &'static str) -> Result<()> {
+    ensure_finite(a, what)?;
+    let d = a.diagonal();
+    let tol = 1e-12 * d.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    if d.iter().all(|&v| v >= -tol) {
+        Ok(())
+    } else {
+        Err(EstimationError::NotPositiveDefinite(what))
+    }
+}
+
 /// `vᵀ A⁻¹ v` through a Cholesky solve (never an explicit inverse).
 #[inline]
 pub fn mahalanobis_sq<const N: usize>(

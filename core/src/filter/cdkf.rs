@@ -30,7 +30,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
-use crate::linalg::{cholesky, ensure_finite, symmetrize};
+use crate::linalg::{cholesky, ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
 use crate::state::{Gaussian, Posterior};
@@ -165,7 +165,7 @@ impl<const N: usize, const Y: usize> Stirling<N, Y> {
         // Pxy = 1/(2h) Σ sⱼ d1ᵀ   (eq. (3.102))
         let Pxy = self.pxy / (2.0 * h);
         ensure_finite(&mean, "sigma-point mean")?;
-        ensure_finite(&Pyy, "sigma-point covariance")?;
+        ensure_covariance(&Pyy, "sigma-point covariance")?;
         Ok((mean, Pyy, Pxy))
     }
 }
@@ -181,7 +181,7 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for CentralDifferenc
             |a, b| a - b,
         )?;
         let cov = symmetrize(&(Pyy + model.covar(dt)));
-        ensure_finite(&cov, "predicted covariance")?;
+        ensure_covariance(&cov, "predicted covariance")?;
         Ok(Gaussian { mean, cov })
     }
 }
@@ -234,7 +234,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
         predicted: &Gaussian<N>,
     ) -> Result<MeasurementPrediction<M>> {
         let (zhat, cov, _) = self.measurement_moments(model, predicted)?;
-        ensure_finite(&cov, "innovation covariance")?;
+        ensure_covariance(&cov, "innovation covariance")?;
         Ok(MeasurementPrediction { zhat, cov })
     }
 }
@@ -263,7 +263,7 @@ pub(crate) fn sigma_point_update<const N: usize, const M: usize>(
     let I_KH = SMatrix::<f64, N, N>::identity() - K * Ht;
     let cov = symmetrize(&(I_KH * P * I_KH.transpose() + K * R_eff * K.transpose()));
     ensure_finite(&mean, "updated mean")?;
-    ensure_finite(&cov, "updated covariance")?;
+    ensure_covariance(&cov, "updated covariance")?;
     Ok(Posterior {
         state: Gaussian { mean, cov },
         innovation: nu,

@@ -38,7 +38,7 @@ use nalgebra::SVector;
 use super::CentralDifference;
 use super::cdkf::sigma_point_update;
 use crate::Result;
-use crate::linalg::{ensure_finite, symmetrize};
+use crate::linalg::{ensure_covariance, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
 use crate::state::{Gaussian, Posterior};
@@ -109,7 +109,7 @@ impl IncrementalCdkf {
             }
         };
         let cov = symmetrize(&Pyy);
-        ensure_finite(&cov, "predicted covariance")?;
+        ensure_covariance(&cov, "predicted covariance")?;
         Ok(Gaussian { mean, cov })
     }
 

@@ -41,7 +41,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::{MeasurementPrediction, NonlinearFilter, Predictor, Updater};
-use crate::linalg::{ensure_finite, symmetrize};
+use crate::linalg::{ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::{ConstantTurn, ConstantVelocity, LinearTransition, TransitionModel};
 use crate::state::{Gaussian, Posterior};
@@ -295,7 +295,7 @@ impl<F, T, const R: usize> Imm<F, T, R> {
             cov.ger(*w, &d, &d, 1.0);
         }
         let cov = symmetrize(&cov);
-        ensure_finite(&cov, "IMM innovation covariance")?;
+        ensure_covariance(&cov, "IMM innovation covariance")?;
         Ok(MeasurementPrediction { zhat, cov })
     }
 }

@@ -19,7 +19,7 @@ use nalgebra::{SMatrix, SVector};
 
 use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
 use crate::Result;
-use crate::linalg::{cholesky, ensure_finite, symmetrize};
+use crate::linalg::{cholesky, ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::{LinearMeasurement, MeasurementModel};
 use crate::motion::{LinearTransition, TransitionModel};
 use crate::state::{Gaussian, Posterior};
@@ -40,7 +40,7 @@ fn propagate<const N: usize>(
 ) -> Result<Gaussian<N>> {
     ensure_finite(&mean, "predicted mean")?;
     let cov = symmetrize(&(FPFt + Q));
-    ensure_finite(&cov, "predicted covariance")?;
+    ensure_covariance(&cov, "predicted covariance")?;
     Ok(Gaussian { mean, cov })
 }
 
@@ -91,7 +91,7 @@ pub fn joseph_update<const N: usize, const M: usize>(
     let A = P - K * PHt.transpose();
     let cov = symmetrize(&(A - (A * H.transpose()) * K.transpose() + K * R * K.transpose()));
     ensure_finite(&mean, "updated mean")?;
-    ensure_finite(&cov, "updated covariance")?;
+    ensure_covariance(&cov, "updated covariance")?;
     Ok(Posterior {
         state: Gaussian { mean, cov },
         innovation,
@@ -143,7 +143,7 @@ fn linearised_prediction<const N: usize, const M: usize>(
 ) -> Result<MeasurementPrediction<M>> {
     let cov = symmetrize(&(H * predicted.cov * H.transpose() + R));
     ensure_finite(&zhat, "predicted measurement")?;
-    ensure_finite(&cov, "innovation covariance")?;
+    ensure_covariance(&cov, "innovation covariance")?;
     Ok(MeasurementPrediction { zhat, cov })
 }
 

@@ -66,7 +66,7 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3, Vector6};
 
-use crate::linalg::{ensure_finite, symmetrize, wrap_angle};
+use crate::linalg::{ensure_covariance, ensure_finite, symmetrize, wrap_angle};
 use crate::measurement::{MeasurementModel, TargetSize};
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
@@ -332,7 +332,7 @@ impl ModifiedPolarEkf {
         mean.fixed_rows_mut::<6>(0).copy_from(&y1);
         let cov = symmetrize(&(F * prior.cov * F.transpose() + Q));
         ensure_finite(&mean, "predicted mean")?;
-        ensure_finite(&cov, "predicted covariance")?;
+        ensure_covariance(&cov, "predicted covariance")?;
         Ok(Gaussian { mean, cov })
     }
 }
@@ -387,7 +387,7 @@ pub fn to_cartesian<const N: usize>(
     let p6 = g.cov.fixed_view::<6, 6>(0, 0).into_owned();
     let cov = symmetrize(&(j * p6 * j.transpose()));
     ensure_finite(&mean, "Cartesian mean")?;
-    ensure_finite(&cov, "Cartesian covariance")?;
+    ensure_covariance(&cov, "Cartesian covariance")?;
     Ok(Gaussian { mean, cov })
 }
 

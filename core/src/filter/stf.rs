@@ -45,7 +45,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use super::joseph_update;
-use crate::linalg::{ensure_finite, symmetrize};
+use crate::linalg::{ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::LinearMeasurement;
 use crate::motion::LinearTransition;
 use crate::state::{Gaussian, Posterior};
@@ -189,7 +189,7 @@ impl StrongTracking {
             self.fading_factor(&gamma, prior.innovation_cov.as_ref(), &FPFt, &Q, &Hm, &R)?;
         // P⁻ = λ F P Fᵀ + Q.
         let cov = symmetrize(&(FPFt * lambda + Q));
-        ensure_finite(&cov, "predicted covariance")?;
+        ensure_covariance(&cov, "predicted covariance")?;
         let posterior = joseph_update(&Gaussian { mean, cov }, gamma, &Hm, &R)?;
         Ok(StfStep {
             state: StfState {

@@ -79,19 +79,26 @@ impl RangeRegulator {
     }
 
     /// The pair state after `dt` seconds: reference model (Euler) and adaptive law `v̇_ad = −γ e`.
-    /// A non-finite range leaves the state unchanged.
+    /// A non-finite range, a non-finite or negative `dt`, or a step whose result would not be
+    /// finite (`dt` = 1e308) leaves the state unchanged.
     pub fn advance(&self, pair: &PairState, r: f64, r_com: f64, dt: f64) -> PairState {
-        if !r.is_finite() || !r_com.is_finite() || !dt.is_finite() {
+        if !r.is_finite() || !r_com.is_finite() || !dt.is_finite() || dt < 0.0 {
             return *pair;
         }
         let e = pair.r_c - r;
-        PairState {
+        let next = PairState {
             r_c: pair.r_c + self.r_c_dot(pair, r_com) * dt,
             v_ad: clampf(
                 pair.v_ad - self.gamma * e * dt,
                 -self.v_ad_max,
                 self.v_ad_max,
             ),
+        };
+        // Overflow (found by the hostile-number tests, core/tests/hostile.rs): keep the state.
+        if next.r_c.is_finite() && next.v_ad.is_finite() {
+            next
+        } else {
+            *pair
         }
     }
 }

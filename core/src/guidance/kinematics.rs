@@ -122,7 +122,8 @@ impl UavState {
 /// below [`Limits::pivot_speed`] may point anywhere); the vertical speed moves towards
 /// `clamp(v_z,cmd, ±v_z,max)` by at most `a_z,max·dt`. Position is integrated with the mean of the
 /// old and new velocity. A non-finite command is replaced by [`hold`](super::hold); a non-finite
-/// state or `dt` is returned unchanged.
+/// state or `dt`, or a step whose result would not be finite (a position near `f64::MAX`, a `dt`
+/// of 1e300), returns the state unchanged.
 pub fn step(state: &UavState, cmd: &Command, limits: &Limits, dt: f64) -> UavState {
     if !state.is_finite() || !dt.is_finite() || dt <= 0.0 {
         return *state;
@@ -158,10 +159,12 @@ pub fn step(state: &UavState, cmd: &Command, limits: &Limits, dt: f64) -> UavSta
         limits.vz_max,
     );
     let velocity = Vector3::new(vh.x, vh.y, vz);
-    UavState {
+    let next = UavState {
         position: state.position + (state.velocity + velocity) * (0.5 * dt),
         velocity,
-    }
+    };
+    // Overflow of huge states or steps (found by the hostile-number tests): keep the state.
+    if next.is_finite() { next } else { *state }
 }
 
 #[cfg(test)]

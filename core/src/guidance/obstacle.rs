@@ -55,7 +55,8 @@ fn hit(p: Vector2<f64>, dir: Vector2<f64>, len: f64, c: Vector2<f64>, r: f64) ->
 
 /// Corrects the horizontal velocity command `cmd` of a vehicle at `p` flying with `vel` so that
 /// the look-ahead line clears every obstacle. Returns the (possibly) corrected command and
-/// whether an obstacle forced a correction.
+/// whether an obstacle forced a correction. A non-finite position, velocity, look-ahead or margin
+/// returns `(cmd, false)`, and an obstacle that is not finite is ignored.
 pub fn avoid(
     p: Vector2<f64>,
     vel: Vector2<f64>,
@@ -64,7 +65,13 @@ pub fn avoid(
     params: &Avoidance,
 ) -> (Vector2<f64>, bool) {
     let speed = cmd.norm();
-    if speed.is_nan() || speed <= 1e-9 || !p.iter().chain(vel.iter()).all(|v| v.is_finite()) {
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    if speed.is_nan()
+        || speed <= 1e-9
+        || !finite(p.as_slice())
+        || !finite(vel.as_slice())
+        || !finite(&[params.lookahead, params.margin])
+    {
         return (cmd, false);
     }
     let heading = if vel.norm() > 1e-9 { vel } else { cmd };
@@ -73,6 +80,8 @@ pub fn avoid(
     for _ in 0..=obstacles.len() {
         let threat = obstacles
             .iter()
+            // An obstacle that is not finite cannot be steered around: it is ignored.
+            .filter(|o| finite(o.center.as_slice()) && o.radius.is_finite())
             .filter_map(|o| {
                 hit(p, dir, params.lookahead, o.center, o.radius + params.margin).map(|t| (t, o))
             })
@@ -103,7 +112,12 @@ pub fn avoid(
             }
         };
     }
-    (dir * speed, changed)
+    // Degenerate geometry (a zero-radius circle at the vehicle, overflow) gives no correction.
+    if finite(dir.as_slice()) {
+        (dir * speed, changed)
+    } else {
+        (cmd, false)
+    }
 }
 
 #[cfg(test)]
