@@ -22,7 +22,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::linalg::{cholesky, ensure_finite, ln_det, symmetrize};
+use crate::linalg::{cholesky, ensure_covariance, ensure_finite, ln_det, symmetrize};
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
 
@@ -47,14 +47,20 @@ fn from_information<const N: usize>(
     Ok(Gaussian { mean, cov })
 }
 
+/// At least one track, and every track a finite Gaussian with no negative variance: a single
+/// track is returned as it is, so a corrupt one must be refused here (found by the
+/// hostile-number tests, `core/tests/hostile.rs`).
 fn nonempty<const N: usize>(tracks: &[Gaussian<N>]) -> Result<()> {
     if tracks.is_empty() {
-        Err(EstimationError::InvalidParameter(
+        return Err(EstimationError::InvalidParameter(
             "fusion needs at least one track".into(),
-        ))
-    } else {
-        Ok(())
+        ));
     }
+    for g in tracks {
+        ensure_finite(&g.mean, "track mean")?;
+        ensure_covariance(&g.cov, "track covariance")?;
+    }
+    Ok(())
 }
 
 /// State-vector fusion ignoring cross-covariances ([CIMM] §3.3), see the module docs.

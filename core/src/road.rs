@@ -36,6 +36,10 @@ use crate::{EstimationError, Result};
 /// joins of consecutive segments).
 pub const GEOMETRY_TOL_M: f64 = 1e-3;
 
+/// Largest magnitude (m) of a road coordinate or arc radius: far beyond any road, well inside
+/// what the projection can square without overflow.
+pub const MAX_ROAD_COORD_M: f64 = 1e9;
+
 /// A segment of a road's centre line.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum RoadSegment {
@@ -183,6 +187,33 @@ impl Road {
             )));
         }
         for (k, s) in segments.iter().enumerate() {
+            // Every defining number finite and of a physical size (|·| ≤ MAX_ROAD_COORD_M): an
+            // arc's length alone does not see a NaN centre, and a projection onto coordinates
+            // near f64::MAX overflows (found by the hostile-number tests, core/tests/hostile.rs).
+            let finite = match *s {
+                RoadSegment::Line { start, end } => start
+                    .iter()
+                    .chain(end.iter())
+                    .all(|v| v.abs() <= MAX_ROAD_COORD_M),
+                RoadSegment::Arc {
+                    center,
+                    radius,
+                    start_angle,
+                    sweep,
+                } => {
+                    center
+                        .iter()
+                        .chain(&[radius])
+                        .all(|v| v.abs() <= MAX_ROAD_COORD_M)
+                        && start_angle.is_finite()
+                        && sweep.is_finite()
+                }
+            };
+            if !finite {
+                return Err(EstimationError::InvalidParameter(format!(
+                    "road segment {k} has a coordinate that is not finite or beyond ±{MAX_ROAD_COORD_M:e} m"
+                )));
+            }
             if !(s.length().is_finite() && s.length() > 0.0) {
                 return Err(EstimationError::InvalidParameter(format!(
                     "road segment {k} has no length"

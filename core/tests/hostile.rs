@@ -17,6 +17,7 @@ use harrier_core::filter::{
     IncrementalCdkf, Kalman, MeasurementPredictor, ModeModel, Obe, ObeCriterion, Predictor,
     StfState, StrongTracking, Updater, WithBias,
 };
+use harrier_core::fusion::{CiCriterion, covariance_intersection, state_vector_fusion};
 use harrier_core::guidance::formation::{PairState, RangeRegulator, vector_sum};
 use harrier_core::guidance::kinematics::step;
 use harrier_core::guidance::lgvf::Lgvf;
@@ -31,9 +32,11 @@ use harrier_core::measurement::{
 use harrier_core::motion::{
     ConstantAcceleration, ConstantTurn, ConstantVelocity, WienerAcceleration,
 };
+use harrier_core::road::{Road, RoadNetwork, RoadSegment, road_from_turn_legs};
 use harrier_core::state::{Ellipsoid, Gaussian, Posterior};
 use harrier_core::tracker::{
-    Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
+    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, Tracker,
+    TrackerConfig,
 };
 use nalgebra::{SMatrix, SVector, Vector2, Vector3, Vector4};
 use proptest::prelude::*;
@@ -407,6 +410,84 @@ proptest! {
             }
             for s in ekf.snapshot() {
                 prop_assert!(s.estimate.mean.iter().all(|x| x.is_finite()));
+            }
+        }
+    }
+
+    /// Roads (lines and arcs with hostile geometry), projection of hostile points, the road
+    /// builder of the guidance simulation, and state-vector / covariance-intersection fusion.
+    #[test]
+    fn roads_and_fusion(
+        a in vec::<2>(), b in vec::<2>(), c in vec::<2>(), radius in num(), start in num(),
+        sweep in num(), sigma in noise(), p in vec::<2>(), legs in prop::collection::vec((num(), num()), 0..4),
+        end_t in num(), tracks in prop::collection::vec(gaussian::<4>(), 1..4),
+    ) {
+        let segments = vec![
+            RoadSegment::Line { start: a, end: b },
+            RoadSegment::Arc { center: c, radius, start_angle: start, sweep },
+        ];
+        for segs in [segments[..1].to_vec(), segments[1..].to_vec(), segments] {
+            if let Ok(road) = Road::new(segs, sigma) {
+                let q = road.project(&p);
+                if finite(&p) {
+                    prop_assert!(finite(&q.point) && finite(&q.tangent) && q.offset.is_finite(), "{q:?}");
+                }
+            }
+        }
+        if let Ok(spec) = road_from_turn_legs(a, b, &legs, end_t, "r", None, Some(sigma)) {
+            if let Ok(net) = RoadNetwork::from_scenario(&[spec]) {
+                if let Some(road) = net.nearest(&p) {
+                    let q = road.project(&p);
+                    if finite(&p) {
+                        prop_assert!(finite(&q.point) && q.offset.is_finite(), "{q:?}");
+                    }
+                }
+            }
+        }
+        check_predict(&state_vector_fusion(&tracks), "state-vector fusion");
+        for crit in [CiCriterion::Trace, CiCriterion::Det] {
+            check_predict(&covariance_intersection(&tracks, crit), "covariance intersection");
+        }
+    }
+
+    /// The road-constrained IMM tracker (CIMM): hostile scans on a road network.
+    #[test]
+    fn cimm_tracker(
+        scans in prop::collection::vec((dt(), prop::collection::vec(prop_oneof![3 => ordinary::<2>(), 1 => vec::<2>()], 0..4), noise()), 1..10),
+    ) {
+        let spec = road_from_turn_legs(
+            Vector2::new(-500.0, 0.0), Vector2::new(10.0, 0.0), &[(0.0, 0.0), (30.0, 0.05)], 100.0,
+            "r", Some(8.0), Some(3.0),
+        ).unwrap();
+        let roads = RoadNetwork::from_scenario(&[spec]).unwrap();
+        let imm = Imm::new(
+            Extended,
+            [ModeModel::Cv { q: 0.05 }, ModeModel::Ct { omega: 0.05, q: 0.05 }],
+            [[0.95, 0.05], [0.05, 0.95]],
+        ).unwrap();
+        let filter = CimmFilter {
+            imm: ImmFilter { imm, initial_probs: [0.9, 0.1] },
+            roads,
+            sigma_v: 3.0,
+            max_offset_m: 19.0,
+        };
+        let config = TrackerConfig {
+            gater: Gater::chi2(0.999, 2).unwrap(),
+            tentative_gater: Gater::chi2(0.99, 2).unwrap(),
+            confirm: MOfN::new(2, 3).unwrap(),
+            deleter: Deleter::new(3, 1e4, 2).unwrap(),
+        };
+        let mut tr: Tracker<_, _, 4> = Tracker::new(filter, SinglePointInitiator::new(10.0, 10.0).unwrap(), config);
+        let mut t = 0.0;
+        for (dt, dets, std) in scans {
+            t += dt;
+            let cam = Position::<2>::new(Geometry::planar(0.0), [std, std]);
+            let before = (format!("{:?}", tr.tracks()), tr.time(), tr.next_id());
+            if tr.step(t, &cam, &dets).is_err() {
+                prop_assert_eq!((format!("{:?}", tr.tracks()), tr.time(), tr.next_id()), before);
+            }
+            for s in tr.snapshot() {
+                check_gaussian(&s.estimate, "cimm track");
             }
         }
     }

@@ -13,11 +13,16 @@ use std::path::Path;
 use std::sync::OnceLock;
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
+use harrier_core::filter::Extended;
 use harrier_core::measurement::{Geometry, TargetSize};
+use harrier_core::motion::{ConstantVelocity, TransitionModel};
 use harrier_core::scenario::{
     self, FormatError, Scenario, group_by_time, parse_measurements, parse_truth, truth_at,
 };
 use harrier_core::tracker::format::{MultiScenario, parse_multi_truth};
+use harrier_core::tracker::{
+    Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
+};
 use harrier_link::command::Setpoint;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::frame::{Frame, StreamParser, parse_datagram};
@@ -77,7 +82,8 @@ impl<'a> Bytes<'a> {
 
 /// `DetectionScan::from_json` and `TruthSample::from_json` on the raw payload; an accepted scan
 /// must re-validate, survive its own JSON round trip, and convert with `scan_in_frame` into
-/// finite numbers in the publisher's and in a distant consumer's frame.
+/// finite numbers in the publisher's and in a distant consumer's frame, whose detections a
+/// tracker then takes.
 pub(crate) fn detections(data: &[u8]) {
     if let Ok(scan) = DetectionScan::from_json(data) {
         assert_eq!(
@@ -115,14 +121,62 @@ pub(crate) fn detections(data: &[u8]) {
                 for z in &f.detections {
                     assert!(finite(z), "non-finite detection in frame: {z:?}");
                 }
-                let _ = f.sensor_model(Some(TargetSize::Known(2.0)));
                 let _ = f.sensor_model(None);
+                if let Ok(sensor) = f.sensor_model(Some(TargetSize::Known(2.0))) {
+                    track(&f, &sensor);
+                }
             }
         }
     }
     if let Ok(truth) = TruthSample::from_json(data) {
         let again = TruthSample::from_json(truth.to_json().as_bytes());
         assert!(again.is_ok(), "a valid truth sample does not round-trip");
+    }
+}
+
+/// The ground station's next step: the scan's detections into a fresh multi-target tracker
+/// (EKF per track, the live service's default tuning), twice so that tracks are updated. The
+/// tracker must not panic and its tracks stay finite.
+fn track(f: &harrier_link::detections::FrameScan, sensor: &harrier_core::measurement::SensorModel) {
+    fn run<const N: usize>(
+        f: &harrier_link::detections::FrameScan,
+        sensor: &harrier_core::measurement::SensorModel,
+    ) where
+        ConstantVelocity<N>: TransitionModel<N>,
+    {
+        let config = TrackerConfig {
+            gater: Gater::chi2(0.999, 2).expect("gate"),
+            tentative_gater: Gater::chi2(0.95, 2).expect("gate"),
+            confirm: MOfN::new(2, 4).expect("m of n"),
+            deleter: Deleter::new(5, 1e5, if N == 4 { 2 } else { 3 }).expect("deleter"),
+        };
+        let mut tracker: Tracker<_, _, N> = Tracker::new(
+            GaussianFilter {
+                filter: Extended,
+                motion: ConstantVelocity::<N>::new(1.0),
+            },
+            SinglePointInitiator::new(12.0, 50.0).expect("initiator"),
+            config,
+        );
+        let dets: Vec<&[f64]> = f.detections.iter().map(Vec::as_slice).collect();
+        for t in [f.t, f.t + 1.0] {
+            let _ = tracker.step_any(t, sensor, &dets);
+            for s in tracker.snapshot() {
+                assert!(
+                    s.estimate
+                        .mean
+                        .iter()
+                        .chain(s.estimate.cov.iter())
+                        .all(|x| x.is_finite()),
+                    "non-finite track {s:?}"
+                );
+            }
+        }
+    }
+    if f.geometry.up_in_state {
+        run::<6>(f, sensor);
+    } else {
+        run::<4>(f, sensor);
     }
 }
 

@@ -224,7 +224,7 @@ impl<F, T, const R: usize> Imm<F, T, R> {
             out.probs[j] = cbar;
         }
         out.probs = normalized(out.probs)?;
-        Ok(out)
+        combinable(out)
     }
 
     /// Mode-matched update with one measurement and mode-probability update ([BLK01] §11.6.6
@@ -317,7 +317,17 @@ fn update_modes<const N: usize, const M: usize, const R: usize>(
     for g in &out.modes {
         ensure_finite(&g.mean, "IMM mode mean")?;
     }
-    Ok(out)
+    combinable(out)
+}
+
+/// `s` when its moment-matched combination is finite. Modes far apart (means beyond ~1e154 m)
+/// overflow the spread term `(x_j − x̄)(x_j − x̄)ᵀ` although each mode is finite; such a state is
+/// refused rather than handed on (found by the hostile-number tests, `core/tests/hostile.rs`).
+fn combinable<const N: usize, const R: usize>(s: ImmState<N, R>) -> Result<ImmState<N, R>> {
+    let c = s.combined();
+    ensure_finite(&c.mean, "IMM combined mean")?;
+    ensure_covariance(&c.cov, "IMM combined covariance")?;
+    Ok(s)
 }
 
 /// `exp(l_j) / Σ_t exp(l_t)` by log-sum-exp, then floored at [`PROB_FLOOR`] and renormalised.
