@@ -309,7 +309,8 @@ impl Road {
     }
 
     /// Nearest point of the centre line to `p` (see the module docs). No allocation; one `atan2`
-    /// per arc.
+    /// per arc. Finite for a finite `p` within ±1e150 m; beyond, the offset may overflow to ±∞ or
+    /// NaN, which [`crate::tracker::CimmFilter`] takes as off every road.
     pub fn project(&self, p: &Vector2<f64>) -> RoadPoint {
         let last = self.geoms.len() - 1;
         let mut best: Option<(f64, RoadPoint)> = None;
