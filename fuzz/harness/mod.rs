@@ -37,8 +37,11 @@ use harrier_sim::setup::SimScenario;
 use harrier_sim::vehicle::{Vehicle, VehicleConfig};
 use harrier_sim::world::World;
 
-/// The fuzz targets, by name (the directory names under `fuzz/seeds` and `fuzz/regressions`).
-pub(crate) const TARGETS: &[(&str, fn(&[u8]))] = &[
+/// A fuzz target: its name (the directory under `fuzz/seeds` and `fuzz/regressions`) and body.
+pub(crate) type Target = (&'static str, fn(&[u8]));
+
+/// The fuzz targets.
+pub(crate) const TARGETS: &[Target] = &[
     ("detections", detections),
     ("scenario", scenario),
     ("vehicle", vehicle),
@@ -452,7 +455,9 @@ fn payload(m: &MavMessage, version: MavlinkVersion) -> (u32, Vec<u8>) {
 pub(crate) fn stream(data: &[u8]) {
     let mut b = Bytes { data };
     let mut wire = Vec::new();
-    let mut expected: Vec<(MavlinkVersion, u8, (u32, Vec<u8>), Vec<u8>)> = Vec::new();
+    // (version, sequence, (message id, payload), frame bytes) of every frame put on the wire.
+    type Sent = (MavlinkVersion, u8, (u32, Vec<u8>), Vec<u8>);
+    let mut expected: Vec<Sent> = Vec::new();
     let mut exact = true;
     let mut pieces = Vec::new();
     while !b.is_empty() && wire.len() < 64 * 1024 {
