@@ -31,7 +31,8 @@ pub const TRACKS_KEY: &str = "harrier/v1/tracks";
 pub const TRACKS_SCHEMA: &str = "harrier-tracks/1";
 
 /// Largest magnitude (m, m/s) of a platform position or velocity component, a `position`
-/// detection's coordinate or a range, and of the origin's altitude, that a payload may carry:
+/// detection's coordinate or a range, a truth state component, and of the origin's altitude,
+/// that a payload may carry:
 /// ten times the geostationary radius. Beyond it a consumer's frame conversion (through ECEF)
 /// overflows to NaN — found by fuzzing (`fuzz/regressions/detections/`): a `position` fix at
 /// 3·10⁷⁴ m passed validation and became `[NaN, NaN]` in harrier-link's `scan_in_frame`.
@@ -315,7 +316,8 @@ impl TruthSample {
         serde_json::to_string(self).unwrap_or_default()
     }
 
-    /// Parses and checks a payload (schema, finite numbers).
+    /// Parses and checks a payload (schema, a WGS-84 origin, states finite and within
+    /// ±[`MAX_DISTANCE_M`]).
     pub fn from_json(bytes: &[u8]) -> Result<Self, PayloadError> {
         const W: &str = "truth";
         let s: Self = serde_json::from_slice(bytes).map_err(|e| PayloadError {
@@ -326,9 +328,19 @@ impl TruthSample {
             format!("schema {:?}, expected {TRUTH_SCHEMA:?}", s.schema)
         })?;
         check(s.t.is_finite(), W, || format!("t = {} is not finite", s.t))?;
+        check(valid_geo(&s.origin), W, || {
+            format!("origin {:?} is not a valid WGS-84 point", s.origin)
+        })?;
         for t in &s.targets {
             check(all_finite(&t.state), W, || {
                 format!("target {:?} state {:?} is not finite", t.id, t.state)
+            })?;
+            // As for detections: a session export takes every state into another frame.
+            check(all_bounded(&t.state), W, || {
+                format!(
+                    "target {:?} state {:?} is beyond ±{MAX_DISTANCE_M:e}",
+                    t.id, t.state
+                )
             })?;
         }
         Ok(s)
@@ -448,5 +460,10 @@ mod tests {
         );
         let bad = t.to_json().replace("3.0", "1e999");
         assert!(TruthSample::from_json(bad.as_bytes()).is_err());
+        // fuzz/regressions/detections/truth-state-1e308.json: overflows a frame change.
+        let huge = t.to_json().replace("3.0", "1.7e308");
+        assert!(TruthSample::from_json(huge.as_bytes()).is_err());
+        let pole = t.to_json().replace("47.39", "147.39");
+        assert!(TruthSample::from_json(pole.as_bytes()).is_err());
     }
 }

@@ -134,6 +134,21 @@ pub(crate) fn detections(data: &[u8]) {
     if let Ok(truth) = TruthSample::from_json(data) {
         let again = TruthSample::from_json(truth.to_json().as_bytes());
         assert!(again.is_ok(), "a valid truth sample does not round-trip");
+        // As the session export does: every target into another frame.
+        let from = LocalFrame::new(truth.origin);
+        let to = LocalFrame::new(GeoPoint::new(-33.9, 151.2, 10.0));
+        let rot = from.rotation_to(&to);
+        for g in &truth.targets {
+            let p = from.enu_to_frame(
+                &to,
+                &nalgebra::Vector3::new(g.state[0], g.state[1], g.state[2]),
+            );
+            let v = rot * nalgebra::Vector3::new(g.state[3], g.state[4], g.state[5]);
+            assert!(
+                p.iter().chain(v.iter()).all(|x| x.is_finite()),
+                "truth {g:?} not finite in another frame: {p:?} {v:?}"
+            );
+        }
     }
 }
 
