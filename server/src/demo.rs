@@ -2,15 +2,17 @@
 //!
 //! [`start`] opens the live service ([`crate::live::start`]) with its Zenoh session listening on a
 //! free loopback port, then starts harrier-sim's world ([`SimWorld`]) whose session connects to
-//! it: the `cimm-road` preset with a second car on the road and a camera slaved to each car on
-//! every UAV, the UAVs launched to stations spread along the road, 300 m up. The service tracks
-//! with the preset's road and motion models (CIMM by default). [`run`] is the command: it starts
-//! the demo, prints where to point a browser and waits for Ctrl-C.
+//! it: the `cimm-road` preset with its car slowed to 5 m/s, a second car ahead on the road and a
+//! camera slaved to each car on every UAV. The UAVs stand on the ground at home and send their
+//! MAVLink to the service's GCS link (`--gcs`, PX4's UDP 14550). The service tracks with the
+//! preset's road and motion models (CIMM by default); once a track is confirmed, the demo assigns
+//! every UAV to the slowest one with TOGVF and phase spacing (`--radius`, `--height`), and the
+//! guidance loop arms them, takes them off and flies the standoff. [`run`] is the command: it
+//! starts the demo, prints where to point a browser and waits for Ctrl-C.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
-use harrier_core::scenario::Segment;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{ScenarioError, SensorModel, SimScenario, TargetMotion};
@@ -40,6 +42,22 @@ pub struct DemoArgs {
     /// Track engine: ekf, cdkf, imm or cimm (road-constrained IMM on the demo's road).
     #[arg(long, short, default_value = "cimm")]
     pub estimator: String,
+    /// The GCS link the simulated UAVs send their MAVLink to (PX4's UDP 14550).
+    #[arg(long, default_value = "udpin:127.0.0.1:14550")]
+    pub gcs: String,
+    /// MAVLink router endpoints for QGroundControl, MAVProxy or MAVSDK (repeatable; `none`
+    /// for none).
+    #[arg(long = "router", default_values = ["udpin:127.0.0.1:14551", "tcpin:127.0.0.1:5760"])]
+    pub router: Vec<String>,
+    /// Do not assign the UAVs to a track (fly nothing; assign through the API or the page).
+    #[arg(long)]
+    pub no_assign: bool,
+    /// Standoff radius R (m) of the demo's assignment.
+    #[arg(long, default_value_t = 150.0)]
+    pub radius: f64,
+    /// Height H (m) above the target of the demo's assignment.
+    #[arg(long, default_value_t = 300.0)]
+    pub height: f64,
 }
 
 /// What [`start`] runs (the command's arguments).
@@ -54,6 +72,14 @@ impl Default for DemoConfig {
             vehicles: 3,
             record: None,
             estimator: "cimm".into(),
+            gcs: "udpin:127.0.0.1:14550".into(),
+            router: vec![
+                "udpin:127.0.0.1:14551".into(),
+                "tcpin:127.0.0.1:5760".into(),
+            ],
+            no_assign: false,
+            radius: 150.0,
+            height: 300.0,
         }
     }
 }
@@ -81,10 +107,10 @@ pub enum DemoError {
     Task(String),
 }
 
-/// Height of the UAVs' stations above the ground (m): the preset's orbit height.
-const STATION_HEIGHT_M: f64 = 300.0;
 /// Slant range of the demo's cameras (m): every point of the road is within it from a station.
 const CAMERA_RANGE_M: f64 = 2_500.0;
+/// Speed of the first car (m/s).
+const FIRST_CAR_SPEED: f64 = 5.0;
 /// Where the second car starts on the road (m of arc length) and its speed (m/s).
 const SECOND_CAR: (f64, f64) = (1_800.0, 7.0);
 
@@ -96,6 +122,11 @@ pub fn scenario() -> Result<SimScenario, ScenarioError> {
     s.description = "harrier demo: two cars on the cimm-road road, UAVs on station along it, \
                      a camera slaved to each car on every UAV."
         .into();
+    // The first car slower than the preset's 10 m/s: the multirotors (15 m/s at most) keep
+    // their standoff circle around it with speed to spare for the phase spacing.
+    if let TargetMotion::Road { speed_mps, .. } = &mut s.targets[0].motion {
+        *speed_mps = FIRST_CAR_SPEED;
+    }
     let mut second = s.targets[0].clone();
     second.id = "tgt2".into();
     if let TargetMotion::Road {
@@ -117,44 +148,6 @@ pub fn scenario() -> Result<SimScenario, ScenarioError> {
     Ok(s)
 }
 
-/// `n` stations spread evenly along the scenario's first road (on the polyline through its
-/// segments' ends), at [`STATION_HEIGHT_M`]; above the origin when there is no road.
-pub fn stations(scenario: &SimScenario, n: u8) -> Vec<[f64; 3]> {
-    let mut points: Vec<[f64; 2]> = Vec::new();
-    for seg in scenario.roads.first().map_or(&[][..], |r| &r.segments) {
-        let (start, end) = match seg {
-            Segment::Line { start, end } | Segment::Arc { start, end, .. } => (*start, *end),
-        };
-        if points.is_empty() {
-            points.push(start);
-        }
-        points.push(end);
-    }
-    let legs: Vec<f64> = points
-        .windows(2)
-        .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
-        .collect();
-    let total: f64 = legs.iter().sum();
-    (0..n)
-        .map(|k| {
-            let mut s = total * (f64::from(k) + 0.5) / f64::from(n);
-            for (w, len) in points.windows(2).zip(&legs) {
-                if s <= *len && *len > 0.0 {
-                    let f = s / len;
-                    let (a, b) = (w[0], w[1]);
-                    return [
-                        a[0] + f * (b[0] - a[0]),
-                        a[1] + f * (b[1] - a[1]),
-                        STATION_HEIGHT_M,
-                    ];
-                }
-                s -= len;
-            }
-            [0.0, 0.0, STATION_HEIGHT_M]
-        })
-        .collect()
-}
-
 /// A Zenoh TCP endpoint on a loopback port that is free now (Zenoh's stable API does not report
 /// the port it bound for port 0).
 fn free_loopback_endpoint() -> Result<String, DemoError> {
@@ -171,6 +164,8 @@ pub struct Demo {
     server: LiveServer,
     world: SimWorld,
     endpoints: Vec<String>,
+    /// Assigns the UAVs once they are on station and a track is confirmed.
+    assigner: Option<tokio::task::JoinHandle<()>>,
 }
 
 impl Demo {
@@ -190,6 +185,9 @@ impl Demo {
 
     /// Stops the service, then the simulated world.
     pub async fn stop(self) {
+        if let Some(a) = self.assigner {
+            a.abort();
+        }
         self.server.shutdown().await;
         let world = self.world;
         if let Err(e) = tokio::task::spawn_blocking(move || world.stop()).await {
@@ -231,7 +229,25 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     if let Some(path) = &config.record {
         server_config.recorder.path = path.display().to_string();
     }
+    server_config.mavlink.gcs = vec![config.gcs.clone()];
+    server_config.mavlink.router = config
+        .router
+        .iter()
+        .filter(|r| r.as_str() != "none")
+        .cloned()
+        .collect();
+    // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
+    server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
     let server = live::start(&server_config).await?;
+    let gcs = server
+        .link()
+        .and_then(|l| l.gcs().next().map(|e| e.addr()))
+        .ok_or_else(|| DemoError::Invalid("the demo needs a GCS link".into()))?;
+    let gcs = if gcs.ip().is_unspecified() {
+        SocketAddr::from(([127, 0, 0, 1], gcs.port()))
+    } else {
+        gcs
+    };
 
     let mut world_config = WorldConfig::new(LiveConfig {
         scenario: scenario.clone(),
@@ -239,12 +255,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         speedup: config.speedup,
         truth_hz: 10.0,
     });
-    world_config.vehicles = (1..=config.vehicles)
-        .zip(stations(&scenario, config.vehicles))
-        .map(|(id, station)| WorldVehicle::at(id, station))
-        .collect();
+    world_config.vehicles = (1..=config.vehicles).map(WorldVehicle::grounded).collect();
     world_config.zenoh.connect = vec![server_endpoint.clone()];
     world_config.zenoh.listen = vec![sim_endpoint.clone()];
+    world_config.gcs = Some(gcs);
     let world = match tokio::task::spawn_blocking(move || SimWorld::start(&world_config)).await {
         Ok(Ok(w)) => w,
         Ok(Err(e)) => {
@@ -262,11 +276,86 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         seed = config.seed,
         "simulated world started"
     );
+    let assigner = (!config.no_assign).then(|| {
+        tokio::spawn(assign_when_ready(
+            server.guidance().cloned(),
+            server.link().cloned(),
+            server.snapshot(),
+            config.vehicles,
+            config.radius,
+            config.height,
+        ))
+    });
     Ok(Demo {
         server,
         world,
         endpoints: vec![server_endpoint, sim_endpoint],
+        assigner,
     })
+}
+
+/// Relative speed of the demo's standoff law (m/s).
+const DEMO_SPEED_M_S: f64 = 5.0;
+
+/// Waits until every UAV is heard on the GCS link (on the ground at home) and a track is
+/// confirmed, then assigns all
+/// UAVs to the slowest confirmed track with TOGVF and phase spacing.
+async fn assign_when_ready(
+    guidance: Option<crate::live::guidance::Guidance>,
+    link: Option<crate::live::gcs::GcsLink>,
+    mut snapshot: tokio::sync::watch::Receiver<std::sync::Arc<crate::live::tracker::Snapshot>>,
+    n: u8,
+    radius: f64,
+    height: f64,
+) {
+    let (Some(guidance), Some(link)) = (guidance, link) else {
+        return;
+    };
+    loop {
+        if snapshot.changed().await.is_err() {
+            return;
+        }
+        let heard = link
+            .vehicles
+            .borrow()
+            .iter()
+            .filter(|v| v.view.position.is_some() && v.status.is_some())
+            .count();
+        let track = snapshot
+            .borrow()
+            .tracks
+            .iter()
+            .filter(|t| t.status == "confirmed" && t.age >= 5)
+            .min_by(|a, b| {
+                let speed = |t: &crate::engine::TrackView| t.state[3].hypot(t.state[4]);
+                speed(a).total_cmp(&speed(b))
+            })
+            .map(|t| t.id);
+        let (Some(track), true) = (track, heard >= usize::from(n)) else {
+            continue;
+        };
+        let request = crate::live::guidance::AssignmentRequest {
+            vehicles: (1..=n).collect(),
+            track,
+            law: "togvf".into(),
+            radius_m: Some(radius),
+            height_m: Some(height),
+            spacing_deg: None,
+            speed_m_s: None,
+            orbit: None,
+        };
+        match guidance.create(request).await {
+            Ok(a) => {
+                tracing::info!(
+                    assignment = a.id,
+                    track,
+                    "demo: UAVs assigned to standoff-track"
+                );
+                return;
+            }
+            Err(e) => tracing::warn!("demo: assignment refused ({e}); retrying"),
+        }
+    }
 }
 
 /// Runs the demo until Ctrl-C: structured logs on stderr (`RUST_LOG`), the URLs on stdout.
@@ -314,28 +403,20 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    /// The stations are spread along the road, and from them the cameras reach every segment end
-    /// of it.
+    /// The demo's world: two cars on one road that never meet (the slower one behind), a
+    /// camera slaved to each.
     #[test]
-    fn stations_cover_the_road() {
+    fn two_cars_that_never_meet() {
         let s = scenario().expect("demo scenario");
         assert_eq!(s.targets.len(), 2);
-        let st = stations(&s, 3);
-        assert_eq!(st.len(), 3);
-        for w in st.windows(2) {
-            assert!(
-                (w[0][0] - w[1][0]).hypot(w[0][1] - w[1][1]) > 1000.0,
-                "{st:?}"
-            );
-        }
-        for seg in &s.roads[0].segments {
-            let (Segment::Line { end, .. } | Segment::Arc { end, .. }) = seg;
-            let nearest = st
-                .iter()
-                .map(|p| (p[0] - end[0]).hypot(p[1] - end[1]).hypot(p[2]))
-                .fold(f64::INFINITY, f64::min);
-            assert!(nearest < CAMERA_RANGE_M, "{end:?} is {nearest} m away");
-        }
-        assert_eq!(stations(&s, 1).len(), 1);
+        assert_eq!(s.sensors.len(), 2);
+        let road = |t: &harrier_sim::setup::TargetSpec| match t.motion {
+            TargetMotion::Road {
+                start_m, speed_mps, ..
+            } => (start_m, speed_mps),
+            _ => panic!("not on the road"),
+        };
+        let (a, b) = (road(&s.targets[0]), road(&s.targets[1]));
+        assert!(a.0 < b.0 && a.1 < b.1, "{a:?} {b:?}");
     }
 }

@@ -88,6 +88,9 @@ pub struct WorldConfig {
     pub mavlink_ip: IpAddr,
     /// The Zenoh session detections and truth are published on.
     pub zenoh: BusConfig,
+    /// A ground station every vehicle also sends its telemetry to (`udpout:` this address, as
+    /// PX4 sends to UDP 14550), and takes commands from; `None`: only the `udpin` link.
+    pub gcs: Option<SocketAddr>,
 }
 
 impl WorldConfig {
@@ -100,6 +103,7 @@ impl WorldConfig {
             airframe: Airframe::Multirotor,
             mavlink_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
             zenoh: BusConfig::default(),
+            gcs: None,
         }
     }
 }
@@ -170,9 +174,10 @@ impl SimWorld {
                     origin: config.live.scenario.origin,
                     speedup: config.live.speedup,
                 };
-                let link = LinkConfig {
-                    endpoints: vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))],
-                };
+                let mut endpoints =
+                    vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))];
+                endpoints.extend(config.gcs.map(|g| format!("udpout:{g}")));
+                let link = LinkConfig { endpoints };
                 spawn(vc, &link).map_err(|source| WorldError::Link { id: v.id, source })
             })
             .collect::<Result<Vec<_>, _>>()?;

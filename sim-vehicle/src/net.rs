@@ -509,8 +509,7 @@ mod tests {
     use super::*;
     use mavlink::MessageData;
     use mavlink::dialects::common::{
-        COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, MavCmd, MavResult,
-        PARAM_REQUEST_READ_DATA,
+        COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, MavCmd, MavResult, PARAM_REQUEST_READ_DATA,
     };
 
     fn gcs_frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
@@ -537,10 +536,6 @@ mod tests {
             target_component: 1,
             ..COMMAND_LONG_DATA::DEFAULT
         })
-    }
-
-    fn heartbeat() -> MavMessage {
-        MavMessage::HEARTBEAT(HEARTBEAT_DATA::DEFAULT)
     }
 
     /// A blocking TCP client of a test vehicle.

@@ -32,7 +32,7 @@ use axum::extract::{Path, Query, Request, State};
 use axum::http::{HeaderValue, Method, StatusCode, header};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
-use axum::routing::get;
+use axum::routing::{get, post};
 use harrier_core::linalg::ellipse_axes;
 use nalgebra::{Matrix2, Matrix3, SymmetricEigen};
 use serde::{Deserialize, Serialize};
@@ -41,7 +41,7 @@ use utoipa::{OpenApi, ToSchema};
 
 use super::metrics::Metrics;
 use super::recorder::{Record, Recorder, RecorderStats};
-use super::tracker::{Command, EstimatorState, Recent, ScanEvents, Snapshot, VehicleView};
+use super::tracker::{Command, EstimatorState, Recent, ScanEvents, Snapshot};
 use crate::engine::TrackView;
 use crate::registry::TRACK_ENGINES;
 use crate::sessions::{self, Exported, SessionError, SessionInfo};
@@ -67,6 +67,12 @@ pub struct ApiState {
     pub stop: watch::Receiver<bool>,
     /// The session recorder (records the API actions; its file serves `/sessions`).
     pub recorder: Option<Recorder>,
+    /// The MAVLink GCS link, when configured.
+    pub link: Option<super::gcs::GcsLink>,
+    /// The guidance loop, when the link runs.
+    pub guidance: Option<super::guidance::Guidance>,
+    /// The latest simulation truth.
+    pub truth: watch::Receiver<Arc<super::control::TruthBody>>,
 }
 
 /// The API's access rule.
@@ -131,7 +137,14 @@ pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
         tracks,
         track,
         detections,
-        vehicles,
+        super::control::vehicles,
+        super::control::vehicle,
+        super::control::command,
+        super::control::assignments,
+        super::control::create_assignment,
+        super::control::assignment,
+        super::control::end_assignment,
+        super::control::truth,
         get_estimator,
         put_estimator,
         estimators,
@@ -146,6 +159,8 @@ pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
     tags(
         (name = "tracks", description = "Live tracks and what they are made of"),
         (name = "control", description = "The running estimator"),
+        (name = "vehicles", description = "Vehicles on the MAVLink link, and commands"),
+        (name = "guidance", description = "Assignments of vehicles to tracks"),
         (name = "service", description = "Health and metrics"),
         (name = "sessions", description = "Recorded sessions (SQLite, RECORDING.md)"),
         (name = "stream", description = "The WebSocket stream"),
@@ -174,7 +189,18 @@ pub fn app(state: ApiState, web_dir: Option<&std::path::Path>, cors_origins: &[S
         .route("/tracks", get(tracks))
         .route("/tracks/{id}", get(track))
         .route("/detections", get(detections))
-        .route("/vehicles", get(vehicles))
+        .route("/vehicles", get(super::control::vehicles))
+        .route("/vehicles/{id}", get(super::control::vehicle))
+        .route("/vehicles/{id}/commands", post(super::control::command))
+        .route(
+            "/assignments",
+            get(super::control::assignments).post(super::control::create_assignment),
+        )
+        .route(
+            "/assignments/{id}",
+            get(super::control::assignment).delete(super::control::end_assignment),
+        )
+        .route("/truth", get(super::control::truth))
         .route("/estimator", get(get_estimator).put(put_estimator))
         .route("/estimators", get(estimators))
         .route("/health", get(health))
@@ -509,27 +535,6 @@ async fn detections(
         })
         .collect();
     Json(DetectionsBody { scans }).into_response()
-}
-
-/// The vehicles.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct VehiclesBody {
-    /// By label.
-    vehicles: Vec<VehicleView>,
-}
-
-/// The vehicles as seen in their detections.
-#[utoipa::path(get, path = "/api/v1/vehicles", tag = "tracks",
-    responses(
-        (status = 200, body = VehiclesBody),
-        (status = 401, description = "Reads need the token", body = ErrorBody),
-    ),
-    security((), ("bearer" = [])))]
-async fn vehicles(State(s): State<ApiState>) -> Json<VehiclesBody> {
-    let snap = Arc::clone(&s.snapshot.borrow());
-    Json(VehiclesBody {
-        vehicles: snap.vehicles.to_vec(),
-    })
 }
 
 /// The running estimator.

@@ -29,6 +29,77 @@ pub struct Config {
     pub zenoh: ZenohConfig,
     /// The SQLite session recording.
     pub recorder: RecorderConfig,
+    /// The MAVLink GCS link and router.
+    pub mavlink: MavlinkConfig,
+    /// The guidance loop.
+    pub guidance: GuidanceConfig,
+}
+
+/// The MAVLink GCS link and router ([`super::gcs`]).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct MavlinkConfig {
+    /// Endpoints the vehicles talk to (`udpin:`, `udpout:`, `tcpin:`, `tcpout:HOST:PORT`); PX4
+    /// sends to UDP 14550. Empty: no MAVLink link (and no guidance).
+    pub gcs: Vec<String>,
+    /// Router endpoints for MAVLink clients (QGroundControl, MAVProxy, MAVSDK): they see every
+    /// vehicle through Harrier. `udpin:` waits for the client to send first (pymavlink
+    /// `udpout:`, MAVSDK `udpout://`), `udpout:` sends to a listening client (QGroundControl on
+    /// UDP 14550 of another host), `tcpin:` serves TCP clients.
+    pub router: Vec<String>,
+    /// The ground station's MAVLink system id.
+    pub system_id: u8,
+    /// Its component id (190: MAV_COMP_ID_MISSIONPLANNER).
+    pub component_id: u8,
+    /// Silence (s) after which a vehicle is marked lost.
+    pub lost_after_s: f64,
+    /// Wait (ms) for a COMMAND_ACK before the command is sent again.
+    pub command_timeout_ms: u64,
+    /// Sends of one command before its result is `timeout`.
+    pub command_attempts: u32,
+    /// Raw MAVLink log (`.tlog`, read by pymavlink and MAVExplorer). Empty: beside the
+    /// recording (`FILE.sqlite` → `FILE-session-N.tlog`) when recording, else none.
+    pub tlog: String,
+}
+
+impl Default for MavlinkConfig {
+    fn default() -> Self {
+        Self {
+            gcs: vec!["udpin:0.0.0.0:14550".into()],
+            router: vec!["udpin:0.0.0.0:14551".into(), "tcpin:0.0.0.0:5760".into()],
+            system_id: 255,
+            component_id: 190,
+            lost_after_s: 3.0,
+            command_timeout_ms: 1000,
+            command_attempts: 3,
+            tlog: String::new(),
+        }
+    }
+}
+
+/// The guidance loop ([`super::guidance`]).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct GuidanceConfig {
+    /// Rate (Hz) at which assigned vehicles get a setpoint.
+    pub rate_hz: f64,
+    /// Flight envelope of the vehicles: `multirotor` or `fixed_wing`.
+    pub airframe: String,
+    /// Cruise speed (m/s) of the laws (their v₀).
+    pub speed_m_s: f64,
+    /// Takeoff height above home (m) of a vehicle assigned on the ground.
+    pub takeoff_height_m: f64,
+}
+
+impl Default for GuidanceConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: 20.0,
+            airframe: "multirotor".into(),
+            speed_m_s: 10.0,
+            takeoff_height_m: 30.0,
+        }
+    }
 }
 
 /// The ENU frame tracks are expressed in.
@@ -295,7 +366,89 @@ impl Config {
             }
         }
         self.bus()?;
+        let m = &self.mavlink;
+        for e in m.gcs.iter().chain(&m.router) {
+            harrier_link::frame::Endpoint::parse(e)
+                .map_err(|e| ConfigError::Invalid(format!("mavlink: {e}")))?;
+        }
+        if m.system_id == 0 {
+            return bad("mavlink.system_id must be 1-255".into());
+        }
+        if !(m.lost_after_s.is_finite() && m.lost_after_s > 0.0) {
+            return bad(format!(
+                "mavlink.lost_after_s must be > 0, got {}",
+                m.lost_after_s
+            ));
+        }
+        if !(1..=60_000).contains(&m.command_timeout_ms) || m.command_attempts == 0 {
+            return bad(
+                "mavlink.command_timeout_ms must be in [1, 60000] and mavlink.command_attempts ≥ 1"
+                    .into(),
+            );
+        }
+        let g = &self.guidance;
+        if !(g.rate_hz.is_finite() && g.rate_hz > 0.0 && g.rate_hz <= 100.0) {
+            return bad(format!(
+                "guidance.rate_hz must be in (0, 100], got {}",
+                g.rate_hz
+            ));
+        }
+        if !matches!(g.airframe.as_str(), "multirotor" | "fixed_wing") {
+            return bad(format!(
+                "guidance.airframe must be multirotor or fixed_wing, got {:?}",
+                g.airframe
+            ));
+        }
+        if !(g.speed_m_s.is_finite() && g.speed_m_s > 0.0) {
+            return bad(format!(
+                "guidance.speed_m_s must be > 0, got {}",
+                g.speed_m_s
+            ));
+        }
+        if !(g.takeoff_height_m.is_finite() && g.takeoff_height_m > 0.0) {
+            return bad(format!(
+                "guidance.takeoff_height_m must be > 0, got {}",
+                g.takeoff_height_m
+            ));
+        }
         Ok(())
+    }
+
+    /// The MAVLink link's settings, or `None` when `mavlink.gcs` is empty. `session` names the
+    /// default `.tlog` beside the recording.
+    pub fn gcs(&self, session: Option<i64>) -> Result<Option<super::gcs::GcsConfig>, ConfigError> {
+        let m = &self.mavlink;
+        if m.gcs.is_empty() {
+            return Ok(None);
+        }
+        let parse = |v: &[String]| {
+            v.iter()
+                .map(|e| harrier_link::frame::Endpoint::parse(e))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| ConfigError::Invalid(format!("mavlink: {e}")))
+        };
+        let tlog = if !m.tlog.is_empty() {
+            Some(std::path::PathBuf::from(&m.tlog))
+        } else if let (false, Some(id)) = (self.recorder.path.is_empty(), session) {
+            let p = Path::new(&self.recorder.path);
+            let stem = p
+                .file_stem()
+                .map_or_else(|| "harrier".into(), |s| s.to_string_lossy());
+            Some(p.with_file_name(format!("{stem}-session-{id}.tlog")))
+        } else {
+            None
+        };
+        Ok(Some(super::gcs::GcsConfig {
+            gcs: parse(&m.gcs)?,
+            router: parse(&m.router)?,
+            system_id: m.system_id,
+            component_id: m.component_id,
+            lost_after: std::time::Duration::from_secs_f64(m.lost_after_s),
+            command_timeout: std::time::Duration::from_millis(m.command_timeout_ms),
+            command_attempts: m.command_attempts,
+            frame: harrier_link::geo::LocalFrame::new(self.frame.origin),
+            tlog,
+        }))
     }
 
     /// The Zenoh session configuration.

@@ -33,6 +33,9 @@
 pub mod api;
 pub mod bound;
 pub mod config;
+pub mod control;
+pub mod gcs;
+pub mod guidance;
 pub mod ingest;
 pub mod metrics;
 pub mod publish;
@@ -82,6 +85,9 @@ pub enum LiveError {
     /// The recording file cannot be opened.
     #[error("recorder: {0}")]
     Recorder(#[from] recorder::RecorderError),
+    /// The MAVLink link cannot start.
+    #[error(transparent)]
+    Gcs(#[from] gcs::GcsError),
 }
 
 /// Where the API token came from.
@@ -135,9 +141,20 @@ pub struct LiveServer {
     subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     session: zenoh::Session,
     recorder: Option<Recorder>,
+    link: Option<gcs::GcsLink>,
+    guidance: Option<guidance::Guidance>,
+    control: Vec<JoinHandle<()>>,
 }
 
 impl LiveServer {
+    /// The MAVLink GCS link, when `mavlink.gcs` is set.
+    pub fn link(&self) -> Option<&gcs::GcsLink> {
+        self.link.as_ref()
+    }
+    /// The guidance loop, when the link runs.
+    pub fn guidance(&self) -> Option<&guidance::Guidance> {
+        self.guidance.as_ref()
+    }
     /// The address the API listens on.
     pub fn local_addr(&self) -> SocketAddr {
         self.addr
@@ -190,6 +207,11 @@ impl LiveServer {
         let _ = self.stop.send(true);
         if let Err(e) = self.api.await {
             tracing::warn!("the API ended abnormally: {e}");
+        }
+        for t in self.control {
+            if let Err(e) = t.await {
+                tracing::warn!("the MAVLink link or the guidance ended abnormally: {e}");
+            }
         }
         if let Err(e) = self.session.close().await {
             tracing::warn!("zenoh: close the session: {e}");
@@ -274,14 +296,21 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         .await
         .map_err(|e| LiveError::Zenoh(format!("subscribe {DETECTIONS_KEY_ALL}: {e}")))?;
     let mut subscribers = vec![subscriber];
-    if let Some(r) = recorder.as_ref().filter(|_| config.recorder.truth) {
-        let r = r.clone();
+    let (truth_tx, truth_rx) = watch::channel(Arc::new(control::TruthBody::default()));
+    {
+        let r = recorder.clone().filter(|_| config.recorder.truth);
+        let server_frame = LocalFrame::new(config.frame.origin);
         let truth = session
             .declare_subscriber(TRUTH_KEY)
             .callback(
                 move |sample| match TruthSample::from_json(&sample.payload().to_bytes()) {
-                    Ok(t) => r.record(recorder::Record::Truth(t)),
-                    Err(e) => tracing::debug!("truth sample not recorded: {e}"),
+                    Ok(t) => {
+                        truth_tx.send_replace(Arc::new(truth_body(&t, &server_frame)));
+                        if let Some(r) = &r {
+                            r.record(recorder::Record::Truth(t));
+                        }
+                    }
+                    Err(e) => tracing::debug!("truth sample not used: {e}"),
                 },
             )
             .await
@@ -339,6 +368,32 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         }));
     }
     let token = token(config);
+    let mut control = Vec::new();
+    let (link, guidance) = match config.gcs(recorder.as_ref().map(Recorder::session_id))? {
+        None => (None, None),
+        Some(c) => {
+            if let Some(p) = &c.tlog {
+                tracing::info!(path = %p.display(), "raw MAVLink log");
+            }
+            let (link, task) = gcs::start(c, stop_rx.clone()).await?;
+            control.push(task);
+            let g = &config.guidance;
+            let settings = guidance::GuidanceSettings {
+                rate_hz: g.rate_hz,
+                limits: if g.airframe == "fixed_wing" {
+                    harrier_core::guidance::Limits::fixed_wing()
+                } else {
+                    harrier_core::guidance::Limits::multirotor()
+                },
+                speed: g.speed_m_s,
+                takeoff_height: g.takeoff_height_m,
+            };
+            let (guidance, task) =
+                guidance::start(settings, link.clone(), snap_rx.clone(), stop_rx.clone());
+            control.push(task);
+            (Some(link), Some(guidance))
+        }
+    };
     let app = api::app(
         ApiState {
             snapshot: snap_rx.clone(),
@@ -353,6 +408,9 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             started,
             stop: stop_rx.clone(),
             recorder: recorder.clone(),
+            link: link.clone(),
+            guidance: guidance.clone(),
+            truth: truth_rx,
         },
         web_dir(config).as_deref(),
         &config.api.cors_origins,
@@ -396,5 +454,31 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         subscribers,
         session,
         recorder,
+        link,
+        guidance,
+        control,
     })
+}
+
+/// A truth sample in the server's ENU frame.
+fn truth_body(t: &TruthSample, server: &LocalFrame) -> control::TruthBody {
+    let theirs = LocalFrame::new(t.origin);
+    let rot = theirs.rotation_to(server);
+    control::TruthBody {
+        targets: t
+            .targets
+            .iter()
+            .map(|k| {
+                let [x, y, z, vx, vy, vz] = k.state;
+                let p = theirs.enu_to_frame(server, &nalgebra::Vector3::new(x, y, z));
+                let v = rot * nalgebra::Vector3::new(vx, vy, vz);
+                control::TruthTarget {
+                    id: k.id.clone(),
+                    t: t.time_unix.unwrap_or(t.t),
+                    position: p.into(),
+                    velocity: v.into(),
+                }
+            })
+            .collect(),
+    }
 }

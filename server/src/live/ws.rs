@@ -13,6 +13,14 @@
 //!   `deleted` event, a coasted one keeps its last state). `seq` counts processed scans: a client
 //!   sees consecutive values unless it was dropped to a snapshot.
 //!
+//! - `vehicles` (every 0.5 s when the MAVLink link runs): `{"type": "vehicles", "vehicles":
+//!   [VehicleEntry…], "assignments": [AssignmentView…]}`, as `GET /api/v1/vehicles` and
+//!   `GET /api/v1/assignments`.
+//! - `vehicle_event`: `{"type": "vehicle_event", "event": {"vehicle", "event": "connected" |
+//!   "lost" | "recovered" | "mode" | "armed" | "disarmed", "mode", "time_unix"}}`.
+//! - `assignment`: `{"type": "assignment", "assignment": AssignmentView}` when one is created,
+//!   a vehicle of it changes state, or it ends.
+//!
 //! Each client has a bounded queue (`api.ws_queue` messages, the tracker's broadcast ring): the
 //! tracker never waits for a client. A client that falls further behind loses the oldest
 //! messages, gets a fresh `snapshot` with the count (also in `harrier_ws_dropped_total`) and goes
@@ -73,6 +81,25 @@ pub async fn ws(
     }
 }
 
+/// Period of the `vehicles` message.
+pub const VEHICLES_PERIOD: Duration = Duration::from_millis(500);
+
+/// The next item of an optional event stream (lagged items are skipped; `None` when there is
+/// no stream or it closed, which disables the branch).
+async fn next<T: Clone>(rx: &mut Option<tokio::sync::broadcast::Receiver<T>>) -> Option<T> {
+    let r = rx.as_mut()?;
+    loop {
+        match r.recv().await {
+            Ok(v) => return Some(v),
+            Err(RecvError::Lagged(_)) => {}
+            Err(RecvError::Closed) => {
+                *rx = None;
+                return None;
+            }
+        }
+    }
+}
+
 /// Sends one text message, within [`SEND_TIMEOUT`]; `false` when the client is gone.
 async fn send(socket: &mut WebSocket, text: &str) -> bool {
     matches!(
@@ -88,9 +115,35 @@ async fn client(mut socket: WebSocket, s: ApiState) {
     let mut last = snap.seq;
     let mut stop = s.stop.clone();
     s.metrics.ws_clients(1);
+    let mut link_events = s.link.as_ref().map(|l| l.events.subscribe());
+    let mut assignments = s.guidance.as_ref().map(|g| g.events.subscribe());
+    let mut vehicles = tokio::time::interval(VEHICLES_PERIOD);
+    vehicles.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
     if send(&mut socket, &snapshot_message(&snap, 0)).await {
         loop {
             tokio::select! {
+                _ = vehicles.tick(), if s.link.is_some() => {
+                    let body = serde_json::json!({
+                        "type": "vehicles",
+                        "vehicles": super::control::vehicle_entries(&s),
+                        "assignments": s.guidance.as_ref().map(|g| g.assignments.borrow().to_vec()).unwrap_or_default(),
+                    });
+                    if !send(&mut socket, &body.to_string()).await {
+                        break;
+                    }
+                }
+                Some(e) = next(&mut link_events) => {
+                    let body = serde_json::json!({"type": "vehicle_event", "event": e});
+                    if !send(&mut socket, &body.to_string()).await {
+                        break;
+                    }
+                }
+                Some(a) = next(&mut assignments) => {
+                    let body = serde_json::json!({"type": "assignment", "assignment": a});
+                    if !send(&mut socket, &body.to_string()).await {
+                        break;
+                    }
+                }
                 r = rx.recv() => {
                     let ok = match r {
                         Ok(scan) if scan.seq <= last => true,

@@ -1,0 +1,921 @@
+//! The MAVLink GCS link and router (an actor): many vehicles on the GCS endpoints (PX4 sends to
+//! UDP 14550), their telemetry decoded per vehicle, the ground station's own HEARTBEAT, commands
+//! with COMMAND_ACK, retries and a timeout, and the vehicles' raw frames routed to client
+//! endpoints (QGroundControl, MAVProxy, MAVSDK) and back by target system.
+//!
+//! ```text
+//! vehicles ─UDP/TCP─▶ [gcs endpoints] ─Inbound─▶ [link actor] ─Outbound (raw bytes)─▶ [router endpoints] ─▶ clients
+//!          ◀──────────────────────────Outbound─┘    │  ▲  ◀─Inbound (by target_system)─┘
+//!                              vehicles watch, events,│  │ requests (commands with ACK, setpoints)
+//!                              ACKs, .tlog ◀──────────┘  └── [API], [guidance]
+//! ```
+//!
+//! - A vehicle is known from its first HEARTBEAT (any MAV_TYPE but GCS) on a GCS endpoint; its
+//!   replies go to the endpoint and peer its frames last came from. Silent for
+//!   `mavlink.lost_after_s` it is marked lost; it recovers when it speaks again.
+//! - A command is a COMMAND_LONG sent with confirmation 0, re-sent with confirmation + 1 after
+//!   `command_timeout_ms` without its COMMAND_ACK, `command_attempts` times in all; the caller
+//!   gets the final ACK's result, or `timeout`. `MAV_RESULT_IN_PROGRESS` restarts the wait.
+//! - Router: every valid frame from a vehicle goes, unchanged, to every client endpoint; a
+//!   client's frame goes to the vehicle its `target_system` names, or to every vehicle when it
+//!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
+//!   routed (counted as malformed).
+//! - Garbage datagrams and undecodable frames are counted per endpoint and skipped.
+
+pub mod transport;
+pub mod vehicle;
+
+use std::collections::{BTreeMap, HashMap};
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use harrier_link::frame::{Endpoint, EndpointError};
+use harrier_link::geo::LocalFrame;
+use harrier_link::mavlink::MavHeader;
+use harrier_link::mavlink::dialects::common::{
+    HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType,
+};
+use harrier_link::px4::VehicleStatus;
+use serde::Serialize;
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use utoipa::ToSchema;
+
+use self::transport::{EndpointHandle, Inbound, Outbound, Peer, stopped};
+use self::vehicle::{LinkState, VehicleLink, VehicleLinkView};
+use super::ingest::unix_now;
+
+/// Settings of the link (the `[mavlink]` section, checked).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GcsConfig {
+    /// Endpoints the vehicles talk to.
+    pub gcs: Vec<Endpoint>,
+    /// Client endpoints of the router.
+    pub router: Vec<Endpoint>,
+    /// The ground station's system id.
+    pub system_id: u8,
+    /// Its component id.
+    pub component_id: u8,
+    /// Silence after which a vehicle is lost.
+    pub lost_after: Duration,
+    /// Wait for a COMMAND_ACK before re-sending.
+    pub command_timeout: Duration,
+    /// Sends of one command before `timeout`.
+    pub command_attempts: u32,
+    /// The server's ENU frame (vehicle positions are given in it).
+    pub frame: LocalFrame,
+    /// Raw MAVLink log (`.tlog`: each frame after its 8-byte big-endian UNIX time in µs).
+    pub tlog: Option<PathBuf>,
+}
+
+/// Why the link cannot start.
+#[derive(Debug, thiserror::Error)]
+pub enum GcsError {
+    /// A connection string is malformed.
+    #[error("mavlink: {0}")]
+    Endpoint(#[from] EndpointError),
+    /// An endpoint cannot be opened.
+    #[error("mavlink: cannot open {endpoint}: {source}")]
+    Open {
+        /// The endpoint.
+        endpoint: Endpoint,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The `.tlog` file cannot be created.
+    #[error("mavlink: cannot create the tlog {path}: {source}")]
+    Tlog {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: std::io::Error,
+    },
+}
+
+/// The answer to a command.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct CommandOutcome {
+    /// The vehicle.
+    pub vehicle: u8,
+    /// The MAV_CMD sent.
+    pub command: String,
+    /// `accepted`, `temporarily_rejected`, `denied`, `unsupported`, `failed`, `cancelled` (the
+    /// vehicle's COMMAND_ACK), or `timeout` (no final ACK after every attempt).
+    pub result: String,
+    /// Whether the vehicle accepted it.
+    pub ok: bool,
+    /// Times it was sent.
+    pub attempts: u32,
+    /// From the first send to the answer (ms).
+    pub elapsed_ms: f64,
+}
+
+/// Why a command was not sent.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CommandError {
+    /// No vehicle with this system id was heard.
+    #[error("no vehicle {0}")]
+    UnknownVehicle(u8),
+    /// The vehicle is silent.
+    #[error("vehicle {0} is lost (silent {1:.1} s)")]
+    Lost(u8, f64),
+    /// The same command to the same vehicle is waiting for its ACK.
+    #[error("a {1} to vehicle {0} is already waiting for its acknowledgement")]
+    Busy(u8, String),
+    /// Not a COMMAND_LONG.
+    #[error("not a COMMAND_LONG")]
+    NotACommand,
+    /// The link is shutting down.
+    #[error("the MAVLink link is not running")]
+    Stopped,
+}
+
+/// A request to the link actor.
+#[derive(Debug)]
+pub enum Request {
+    /// Send a COMMAND_LONG and answer with its outcome.
+    Command {
+        /// The vehicle.
+        vehicle: u8,
+        /// The COMMAND_LONG.
+        message: MavMessage,
+        /// Where the outcome goes.
+        reply: oneshot::Sender<Result<CommandOutcome, CommandError>>,
+    },
+    /// Send a message once, no answer awaited (setpoints; the guidance's own commands, whose ACKs
+    /// it reads from [`GcsLink::acks`]).
+    Send {
+        /// The vehicle.
+        vehicle: u8,
+        /// The message.
+        message: MavMessage,
+    },
+}
+
+/// A change of a vehicle's link or flight state, on the WebSocket and in the recording.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct LinkEvent {
+    /// The vehicle.
+    pub vehicle: u8,
+    /// `connected` (first heard), `lost`, `recovered`, `mode` (the PX4 mode changed), `armed`,
+    /// `disarmed`.
+    pub event: &'static str,
+    /// The mode after the change.
+    pub mode: Option<String>,
+    /// When (UNIX s).
+    pub time_unix: f64,
+}
+
+/// A vehicle's state for the guidance: its API view and its status (times on the link's clock,
+/// seconds since [`GcsLink::epoch`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct VehicleSample {
+    /// The API view.
+    pub view: VehicleLinkView,
+    /// Mode and armed state from its last HEARTBEAT.
+    pub status: Option<VehicleStatus>,
+    /// Home altitude AMSL (m), once known.
+    pub home_amsl: Option<f64>,
+}
+
+/// The link's counters, rendered into `/metrics`.
+#[derive(Debug, Default)]
+pub struct LinkMetrics {
+    frames_in: AtomicU64,
+    malformed_gcs: AtomicU64,
+    malformed_router: AtomicU64,
+    frames_from_clients: AtomicU64,
+    routed_to_clients: AtomicU64,
+    routed_to_vehicles: AtomicU64,
+    unroutable: AtomicU64,
+    frames_out: AtomicU64,
+    heartbeats: AtomicU64,
+    commands: AtomicU64,
+    command_retries: AtomicU64,
+    acks: Mutex<BTreeMap<String, u64>>,
+    vehicles_lost: AtomicU64,
+    tlog_dropped: AtomicU64,
+}
+
+impl LinkMetrics {
+    /// Appends the Prometheus text of the link's counters, and of `vehicles`.
+    pub fn render(
+        &self,
+        vehicles: &[VehicleSample],
+        endpoints: &[EndpointHandle],
+        out: &mut String,
+    ) {
+        let mut family = |name: &str, kind: &str, help: &str, rows: &[(String, u64)]| {
+            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
+            for (labels, value) in rows {
+                let _ = writeln!(out, "{name}{labels} {value}");
+            }
+        };
+        let v = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let one = |a: &AtomicU64| vec![(String::new(), v(a))];
+        family(
+            "harrier_mavlink_frames_received_total",
+            "counter",
+            "Valid MAVLink frames received on the GCS endpoints.",
+            &one(&self.frames_in),
+        );
+        family(
+            "harrier_mavlink_malformed_total",
+            "counter",
+            "Garbage datagrams, skipped byte stretches and undecodable frames, by side.",
+            &[
+                ("{side=\"gcs\"}".into(), v(&self.malformed_gcs)),
+                ("{side=\"router\"}".into(), v(&self.malformed_router)),
+            ],
+        );
+        family(
+            "harrier_mavlink_frames_sent_total",
+            "counter",
+            "Frames the ground station sent to vehicles (its own: heartbeats, commands, setpoints).",
+            &one(&self.frames_out),
+        );
+        family(
+            "harrier_mavlink_heartbeats_sent_total",
+            "counter",
+            "GCS HEARTBEATs sent.",
+            &one(&self.heartbeats),
+        );
+        family(
+            "harrier_router_frames_total",
+            "counter",
+            "Frames routed: vehicle to clients, client to vehicles, from clients, unroutable (unknown target system).",
+            &[
+                (
+                    "{direction=\"to_clients\"}".into(),
+                    v(&self.routed_to_clients),
+                ),
+                (
+                    "{direction=\"to_vehicles\"}".into(),
+                    v(&self.routed_to_vehicles),
+                ),
+                (
+                    "{direction=\"from_clients\"}".into(),
+                    v(&self.frames_from_clients),
+                ),
+                ("{direction=\"unroutable\"}".into(), v(&self.unroutable)),
+            ],
+        );
+        family(
+            "harrier_mavlink_commands_total",
+            "counter",
+            "Commands sent (first attempts).",
+            &one(&self.commands),
+        );
+        family(
+            "harrier_mavlink_command_retries_total",
+            "counter",
+            "Commands re-sent after an acknowledgement timeout.",
+            &one(&self.command_retries),
+        );
+        let acks: Vec<(String, u64)> = self
+            .acks
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .iter()
+            .map(|(r, n)| (format!("{{result=\"{r}\"}}"), *n))
+            .collect();
+        family(
+            "harrier_mavlink_command_results_total",
+            "counter",
+            "Command outcomes by result (timeout: no final ACK).",
+            &acks,
+        );
+        family(
+            "harrier_mavlink_vehicle_lost_total",
+            "counter",
+            "Times a vehicle was marked lost.",
+            &one(&self.vehicles_lost),
+        );
+        family(
+            "harrier_mavlink_tlog_dropped_total",
+            "counter",
+            "Frames not written to the .tlog (writer behind).",
+            &one(&self.tlog_dropped),
+        );
+        let ep: Vec<(String, u64)> = endpoints
+            .iter()
+            .map(|e| {
+                (
+                    format!("{{endpoint=\"{}\"}}", e.endpoint),
+                    e.counters.send_dropped.load(Ordering::Relaxed),
+                )
+            })
+            .collect();
+        family(
+            "harrier_mavlink_send_dropped_total",
+            "counter",
+            "Frames an endpoint could not send (slow TCP client, full socket, absent server).",
+            &ep,
+        );
+        let per = |f: &dyn Fn(&VehicleLinkView) -> String| {
+            vehicles
+                .iter()
+                .map(|s| format!("{{vehicle=\"{}\"}} {}", s.view.id, f(&s.view)))
+                .collect::<Vec<_>>()
+        };
+        for (name, help, rows) in [
+            (
+                "harrier_vehicle_connected",
+                "1 while the vehicle is heard, 0 when lost.",
+                per(&|v| u8::from(v.state == LinkState::Connected).to_string()),
+            ),
+            (
+                "harrier_vehicle_message_rate_hz",
+                "Messages received from the vehicle over the last second.",
+                per(&|v| v.rate_hz.to_string()),
+            ),
+            (
+                "harrier_vehicle_frames_lost_total",
+                "Frames lost (MAVLink sequence gaps).",
+                per(&|v| v.lost_frames.to_string()),
+            ),
+        ] {
+            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} gauge");
+            for r in rows {
+                let _ = writeln!(out, "{name}{r}");
+            }
+        }
+    }
+
+    fn result(&self, result: &str) {
+        *self
+            .acks
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .entry(result.to_owned())
+            .or_default() += 1;
+    }
+}
+
+/// The running link, as the API and the guidance use it.
+#[derive(Debug, Clone)]
+pub struct GcsLink {
+    /// Requests (commands, messages) to the link actor.
+    pub requests: mpsc::Sender<Request>,
+    /// Every vehicle, updated at [`PUBLISH_HZ`].
+    pub vehicles: watch::Receiver<Arc<Vec<VehicleSample>>>,
+    /// Link events.
+    pub events: broadcast::Sender<LinkEvent>,
+    /// COMMAND_ACKs from the vehicles: (system id, the ACK).
+    pub acks: broadcast::Sender<(u8, MavMessage)>,
+    /// The endpoints as bound: the GCS endpoints first, then the router's.
+    pub endpoints: Vec<EndpointHandle>,
+    /// How many of `endpoints` are GCS endpoints.
+    pub gcs_endpoints: usize,
+    /// Counters.
+    pub metrics: Arc<LinkMetrics>,
+    /// Zero of the link's clock (the `at` of [`VehicleStatus`]).
+    pub epoch: Instant,
+}
+
+impl GcsLink {
+    /// Sends a command and waits for its outcome (never longer than the attempts take).
+    pub async fn command(
+        &self,
+        vehicle: u8,
+        message: MavMessage,
+    ) -> Result<CommandOutcome, CommandError> {
+        let (reply, rx) = oneshot::channel();
+        self.requests
+            .send(Request::Command {
+                vehicle,
+                message,
+                reply,
+            })
+            .await
+            .map_err(|_| CommandError::Stopped)?;
+        rx.await.map_err(|_| CommandError::Stopped)?
+    }
+
+    /// The bound GCS endpoints.
+    pub fn gcs(&self) -> impl Iterator<Item = &Endpoint> {
+        self.endpoints[..self.gcs_endpoints]
+            .iter()
+            .map(|e| &e.endpoint)
+    }
+
+    /// The bound router endpoints.
+    pub fn router(&self) -> impl Iterator<Item = &Endpoint> {
+        self.endpoints[self.gcs_endpoints..]
+            .iter()
+            .map(|e| &e.endpoint)
+    }
+
+    /// Appends the link's counters to a Prometheus text.
+    pub fn render_metrics(&self, out: &mut String) {
+        let vehicles = self.vehicles.borrow().clone();
+        self.metrics.render(&vehicles, &self.endpoints, out);
+    }
+}
+
+/// Rate of the vehicles watch and of the timeout checks.
+pub const PUBLISH_HZ: f64 = 20.0;
+
+/// A command waiting for its ACK.
+#[derive(Debug)]
+struct Pending {
+    vehicle: u8,
+    command: MavCmd,
+    message: MavMessage,
+    attempts: u32,
+    first_sent: Instant,
+    sent_at: Instant,
+    reply: oneshot::Sender<Result<CommandOutcome, CommandError>>,
+}
+
+/// The `snake_case` name of a MAV_RESULT, without its prefix.
+pub fn result_name(r: MavResult) -> String {
+    format!("{r:?}")
+        .trim_start_matches("MAV_RESULT_")
+        .to_ascii_lowercase()
+}
+
+/// A COMMAND_LONG's MAV_CMD name.
+fn command_name(c: MavCmd) -> String {
+    format!("{c:?}")
+}
+
+/// Appends frames to a `.tlog` on a writer thread; a full queue drops (counted).
+#[derive(Debug)]
+struct Tlog {
+    tx: std::sync::mpsc::SyncSender<(u64, Vec<u8>)>,
+}
+
+impl Tlog {
+    fn create(path: &Path) -> std::io::Result<Self> {
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)?;
+        let (tx, rx) = std::sync::mpsc::sync_channel::<(u64, Vec<u8>)>(16_384);
+        std::thread::Builder::new()
+            .name("harrier-tlog".into())
+            .spawn(move || {
+                let mut w = std::io::BufWriter::new(file);
+                let mut last_flush = Instant::now();
+                loop {
+                    match rx.recv_timeout(Duration::from_millis(200)) {
+                        Ok((us, frame)) => {
+                            if w.write_all(&us.to_be_bytes()).is_err()
+                                || w.write_all(&frame).is_err()
+                            {
+                                tracing::warn!("tlog: write failed; raw logging stops");
+                                return;
+                            }
+                        }
+                        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+                        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                            let _ = w.flush();
+                            return;
+                        }
+                    }
+                    if last_flush.elapsed() >= Duration::from_millis(200) {
+                        let _ = w.flush();
+                        last_flush = Instant::now();
+                    }
+                }
+            })?;
+        Ok(Self { tx })
+    }
+}
+
+/// The actor's state.
+struct Actor {
+    config: GcsConfig,
+    endpoints: Vec<EndpointHandle>,
+    vehicles: BTreeMap<u8, VehicleLink>,
+    pending: Vec<Pending>,
+    sequence: u8,
+    epoch: Instant,
+    metrics: Arc<LinkMetrics>,
+    events: broadcast::Sender<LinkEvent>,
+    acks: broadcast::Sender<(u8, MavMessage)>,
+    watch: watch::Sender<Arc<Vec<VehicleSample>>>,
+    tlog: Option<Tlog>,
+    last_heartbeat: Option<Instant>,
+    /// Last (armed, mode) per vehicle, for the events.
+    flight: HashMap<u8, (bool, Option<String>)>,
+}
+
+/// Opens every endpoint and starts the actor.
+pub async fn start(
+    config: GcsConfig,
+    stop: watch::Receiver<bool>,
+) -> Result<(GcsLink, tokio::task::JoinHandle<()>), GcsError> {
+    let (inbound_tx, inbound_rx) = mpsc::channel(4096);
+    let mut endpoints = Vec::new();
+    for (i, e) in config.gcs.iter().chain(&config.router).enumerate() {
+        let h = transport::open(i, *e, inbound_tx.clone(), stop.clone())
+            .await
+            .map_err(|source| GcsError::Open {
+                endpoint: *e,
+                source,
+            })?;
+        tracing::info!(endpoint = %h.endpoint, role = if i < config.gcs.len() { "gcs" } else { "router" }, "mavlink endpoint open");
+        endpoints.push(h);
+    }
+    drop(inbound_tx);
+    let tlog = match &config.tlog {
+        Some(path) => Some(Tlog::create(path).map_err(|source| GcsError::Tlog {
+            path: path.clone(),
+            source,
+        })?),
+        None => None,
+    };
+    let (requests, requests_rx) = mpsc::channel(1024);
+    let (watch_tx, watch_rx) = watch::channel(Arc::new(Vec::new()));
+    let (events, _) = broadcast::channel(256);
+    let (acks, _) = broadcast::channel(256);
+    let metrics = Arc::new(LinkMetrics::default());
+    let epoch = Instant::now();
+    let link = GcsLink {
+        requests,
+        vehicles: watch_rx,
+        events: events.clone(),
+        acks: acks.clone(),
+        endpoints: endpoints.clone(),
+        gcs_endpoints: config.gcs.len(),
+        metrics: Arc::clone(&metrics),
+        epoch,
+    };
+    let actor = Actor {
+        config,
+        endpoints,
+        vehicles: BTreeMap::new(),
+        pending: Vec::new(),
+        sequence: 0,
+        epoch,
+        metrics,
+        events,
+        acks,
+        watch: watch_tx,
+        tlog,
+        last_heartbeat: None,
+        flight: HashMap::new(),
+    };
+    let task = tokio::spawn(actor.run(inbound_rx, requests_rx, stop));
+    Ok((link, task))
+}
+
+impl Actor {
+    async fn run(
+        mut self,
+        mut inbound: mpsc::Receiver<Inbound>,
+        mut requests: mpsc::Receiver<Request>,
+        mut stop: watch::Receiver<bool>,
+    ) {
+        let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / PUBLISH_HZ));
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                Some(i) = inbound.recv() => self.on_inbound(i),
+                Some(r) = requests.recv() => self.on_request(r),
+                _ = tick.tick() => self.on_tick(Instant::now()),
+                () = stopped(&mut stop) => break,
+            }
+        }
+        for p in self.pending.drain(..) {
+            let _ = p.reply.send(Err(CommandError::Stopped));
+        }
+    }
+
+    fn log(&self, bytes: &[u8]) {
+        if let Some(t) = &self.tlog {
+            let us = (unix_now() * 1e6) as u64;
+            if t.tx.try_send((us, bytes.to_vec())).is_err() {
+                self.metrics.tlog_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    fn is_gcs(&self, endpoint: usize) -> bool {
+        endpoint < self.config.gcs.len()
+    }
+
+    fn on_inbound(&mut self, i: Inbound) {
+        let gcs = self.is_gcs(i.endpoint);
+        if i.parsed.malformed > 0 {
+            let c = if gcs {
+                &self.metrics.malformed_gcs
+            } else {
+                &self.metrics.malformed_router
+            };
+            c.fetch_add(i.parsed.malformed, Ordering::Relaxed);
+        }
+        for f in i.parsed.frames {
+            self.log(&f.bytes);
+            if gcs {
+                self.metrics.frames_in.fetch_add(1, Ordering::Relaxed);
+                self.on_vehicle_frame(i.endpoint, i.peer, i.at, &f);
+            } else {
+                self.on_client_frame(&f);
+            }
+        }
+    }
+
+    fn on_vehicle_frame(
+        &mut self,
+        endpoint: usize,
+        peer: Peer,
+        at: Instant,
+        f: &harrier_link::frame::Frame,
+    ) {
+        // Every vehicle frame goes to every client, unchanged.
+        let bytes: Arc<[u8]> = Arc::from(f.bytes.as_slice());
+        for e in &self.endpoints[self.config.gcs.len()..] {
+            if e.tx.try_send(Outbound::All(Arc::clone(&bytes))).is_ok() {
+                self.metrics
+                    .routed_to_clients
+                    .fetch_add(1, Ordering::Relaxed);
+            } else {
+                e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let Ok(id) = u8::try_from(f.header.system_id) else {
+            return;
+        };
+        if id == 0 || id == self.config.system_id {
+            return;
+        }
+        let t = at.duration_since(self.epoch).as_secs_f64();
+        let is_vehicle_heartbeat =
+            matches!(&f.message, MavMessage::HEARTBEAT(hb) if hb.mavtype != MavType::MAV_TYPE_GCS);
+        let v = match self.vehicles.get_mut(&id) {
+            Some(v) => v,
+            None if is_vehicle_heartbeat => {
+                tracing::info!(vehicle = id, %peer, "vehicle connected");
+                self.event(id, "connected", None);
+                self.vehicles
+                    .entry(id)
+                    .or_insert_with(|| VehicleLink::new(id, endpoint, peer, at))
+            }
+            None => return,
+        };
+        if v.on_frame(&f.header, &f.message, (endpoint, peer), at, t) {
+            tracing::info!(vehicle = id, "vehicle recovered");
+            self.event(id, "recovered", None);
+        }
+        match &f.message {
+            MavMessage::HEARTBEAT(_) => self.flight_events(id),
+            MavMessage::COMMAND_ACK(ack) => {
+                let _ = self.acks.send((id, f.message.clone()));
+                self.on_ack(id, ack.command, ack.result, at);
+            }
+            _ => {}
+        }
+    }
+
+    fn flight_events(&mut self, id: u8) {
+        let Some(v) = self.vehicles.get(&id) else {
+            return;
+        };
+        let Some(s) = v.status() else { return };
+        let mode = v.view(&self.config.frame, Instant::now()).mode;
+        let now = (s.armed, mode.clone());
+        let before = self.flight.insert(id, now);
+        match before {
+            Some((armed, m)) => {
+                if armed != s.armed {
+                    self.event(id, if s.armed { "armed" } else { "disarmed" }, mode.clone());
+                }
+                if m != mode {
+                    self.event(id, "mode", mode);
+                }
+            }
+            None => self.event(id, "mode", mode),
+        }
+    }
+
+    fn event(&self, vehicle: u8, event: &'static str, mode: Option<String>) {
+        let _ = self.events.send(LinkEvent {
+            vehicle,
+            event,
+            mode,
+            time_unix: unix_now(),
+        });
+    }
+
+    fn on_client_frame(&mut self, f: &harrier_link::frame::Frame) {
+        self.metrics
+            .frames_from_clients
+            .fetch_add(1, Ordering::Relaxed);
+        let bytes: Arc<[u8]> = Arc::from(f.bytes.as_slice());
+        let targets: Vec<&VehicleLink> = match f.target_system() {
+            Some(t) => match self.vehicles.get(&t) {
+                Some(v) => vec![v],
+                None => {
+                    self.metrics.unroutable.fetch_add(1, Ordering::Relaxed);
+                    return;
+                }
+            },
+            None => self.vehicles.values().collect(),
+        };
+        for v in targets {
+            let e = &self.endpoints[v.endpoint];
+            if e.tx
+                .try_send(Outbound::To(v.peer, Arc::clone(&bytes)))
+                .is_ok()
+            {
+                self.metrics
+                    .routed_to_vehicles
+                    .fetch_add(1, Ordering::Relaxed);
+            } else {
+                e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Serialises `msg` as the ground station's next frame.
+    fn frame(&mut self, msg: &MavMessage) -> Option<Arc<[u8]>> {
+        let header = MavHeader {
+            system_id: self.config.system_id.into(),
+            component_id: self.config.component_id,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        let mut buf = Vec::with_capacity(280);
+        harrier_link::mavlink::write_v2_msg(&mut buf, header, msg).ok()?;
+        self.log(&buf);
+        Some(Arc::from(buf))
+    }
+
+    fn send_to(&mut self, vehicle: u8, msg: &MavMessage) -> bool {
+        let Some((endpoint, peer)) = self.vehicles.get(&vehicle).map(|v| (v.endpoint, v.peer))
+        else {
+            return false;
+        };
+        let Some(bytes) = self.frame(msg) else {
+            return false;
+        };
+        let e = &self.endpoints[endpoint];
+        if e.tx.try_send(Outbound::To(peer, bytes)).is_ok() {
+            self.metrics.frames_out.fetch_add(1, Ordering::Relaxed);
+            true
+        } else {
+            e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+            false
+        }
+    }
+
+    fn on_request(&mut self, r: Request) {
+        match r {
+            Request::Send { vehicle, message } => {
+                self.send_to(vehicle, &message);
+            }
+            Request::Command {
+                vehicle,
+                message,
+                reply,
+            } => {
+                let MavMessage::COMMAND_LONG(c) = &message else {
+                    let _ = reply.send(Err(CommandError::NotACommand));
+                    return;
+                };
+                let command = c.command;
+                let now = Instant::now();
+                let err = match self.vehicles.get(&vehicle) {
+                    None => Some(CommandError::UnknownVehicle(vehicle)),
+                    Some(v) if v.state() == LinkState::Lost => Some(CommandError::Lost(
+                        vehicle,
+                        v.view(&self.config.frame, now).last_seen_s,
+                    )),
+                    Some(_)
+                        if self
+                            .pending
+                            .iter()
+                            .any(|p| p.vehicle == vehicle && p.command == command) =>
+                    {
+                        Some(CommandError::Busy(vehicle, command_name(command)))
+                    }
+                    Some(_) => None,
+                };
+                if let Some(e) = err {
+                    let _ = reply.send(Err(e));
+                    return;
+                }
+                self.metrics.commands.fetch_add(1, Ordering::Relaxed);
+                self.send_to(vehicle, &message);
+                self.pending.push(Pending {
+                    vehicle,
+                    command,
+                    message,
+                    attempts: 1,
+                    first_sent: now,
+                    sent_at: now,
+                    reply,
+                });
+            }
+        }
+    }
+
+    fn on_ack(&mut self, vehicle: u8, command: MavCmd, result: MavResult, at: Instant) {
+        let Some(i) = self
+            .pending
+            .iter()
+            .position(|p| p.vehicle == vehicle && p.command == command)
+        else {
+            return;
+        };
+        if result == MavResult::MAV_RESULT_IN_PROGRESS {
+            self.pending[i].sent_at = at;
+            return;
+        }
+        let p = self.pending.swap_remove(i);
+        let name = result_name(result);
+        self.metrics.result(&name);
+        let _ = p.reply.send(Ok(CommandOutcome {
+            vehicle,
+            command: command_name(command),
+            ok: result == MavResult::MAV_RESULT_ACCEPTED,
+            result: name,
+            attempts: p.attempts,
+            elapsed_ms: at.duration_since(p.first_sent).as_secs_f64() * 1e3,
+        }));
+    }
+
+    fn on_tick(&mut self, now: Instant) {
+        let lost_after = self.config.lost_after.as_secs_f64();
+        let mut lost = Vec::new();
+        for (id, v) in &mut self.vehicles {
+            if v.check(now, lost_after) {
+                lost.push(*id);
+            }
+        }
+        for id in lost {
+            tracing::warn!(vehicle = id, "vehicle lost (silent {lost_after} s)");
+            self.metrics.vehicles_lost.fetch_add(1, Ordering::Relaxed);
+            self.event(id, "lost", None);
+        }
+        // Commands: re-send after the timeout, give up after the last attempt.
+        let timeout = self.config.command_timeout;
+        let mut i = 0;
+        while i < self.pending.len() {
+            if now.duration_since(self.pending[i].sent_at) < timeout {
+                i += 1;
+                continue;
+            }
+            if self.pending[i].attempts >= self.config.command_attempts {
+                let p = self.pending.swap_remove(i);
+                self.metrics.result("timeout");
+                let _ = p.reply.send(Ok(CommandOutcome {
+                    vehicle: p.vehicle,
+                    command: command_name(p.command),
+                    result: "timeout".into(),
+                    ok: false,
+                    attempts: p.attempts,
+                    elapsed_ms: now.duration_since(p.first_sent).as_secs_f64() * 1e3,
+                }));
+                continue;
+            }
+            let p = &mut self.pending[i];
+            p.attempts += 1;
+            p.sent_at = now;
+            if let MavMessage::COMMAND_LONG(c) = &mut p.message {
+                c.confirmation = c.confirmation.saturating_add(1);
+            }
+            let (vehicle, message) = (p.vehicle, p.message.clone());
+            self.metrics.command_retries.fetch_add(1, Ordering::Relaxed);
+            self.send_to(vehicle, &message);
+            i += 1;
+        }
+        // The ground station's HEARTBEAT, 1 Hz, to every vehicle.
+        if self
+            .last_heartbeat
+            .is_none_or(|t| now.duration_since(t) >= Duration::from_secs(1))
+        {
+            self.last_heartbeat = Some(now);
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: 0,
+                mavtype: MavType::MAV_TYPE_GCS,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+                base_mode: MavModeFlag::empty(),
+                system_status: MavState::MAV_STATE_ACTIVE,
+                mavlink_version: 3,
+            });
+            if let Some(bytes) = self.frame(&hb) {
+                for e in &self.endpoints[..self.config.gcs.len()] {
+                    let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
+                }
+                self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        let samples: Vec<VehicleSample> = self
+            .vehicles
+            .values()
+            .map(|v| VehicleSample {
+                view: v.view(&self.config.frame, now),
+                status: v.status(),
+                home_amsl: v.home_amsl(),
+            })
+            .collect();
+        self.watch.send_replace(Arc::new(samples));
+    }
+}

@@ -1,0 +1,350 @@
+//! The sockets of the GCS link and the router: one task per endpoint (and per TCP connection),
+//! turning bytes into [`Inbound`] frames for the link actor and sending the actor's
+//! [`Outbound`] bytes.
+//!
+//! - `udpin` binds and answers whoever sent a valid frame (at most [`MAX_UDP_PEERS`], oldest
+//!   forgotten first); `udpout` sends to its address from an ephemeral port.
+//! - `tcpin` accepts any number of clients; `tcpout` connects and reconnects every
+//!   [`TCP_RETRY`] while the server is away. Each connection has a bounded send queue: a client
+//!   that does not read loses frames (counted), it never slows the link.
+//!
+//! A datagram is parsed on its own ([`parse_datagram`]), a TCP stream across reads
+//! ([`StreamParser`]).
+
+use std::collections::HashMap;
+use std::io;
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use harrier_link::frame::{Endpoint, Parsed, StreamParser, parse_datagram};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+use tokio::net::{TcpListener, TcpStream, UdpSocket};
+use tokio::sync::{mpsc, watch};
+
+/// Most UDP peers an `udpin` endpoint answers.
+pub const MAX_UDP_PEERS: usize = 64;
+/// Pause between two connection attempts of a `tcpout` endpoint.
+pub const TCP_RETRY: Duration = Duration::from_secs(1);
+/// Frames queued for one TCP connection before further ones are dropped.
+const TCP_QUEUE: usize = 4096;
+
+/// Who sent a frame, or where to send one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Peer {
+    /// A UDP address.
+    Udp(SocketAddr),
+    /// A TCP connection, by its number on the endpoint.
+    Tcp(u64),
+}
+
+impl std::fmt::Display for Peer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Udp(a) => write!(f, "udp:{a}"),
+            Self::Tcp(n) => write!(f, "tcp#{n}"),
+        }
+    }
+}
+
+/// What one read of one peer gave.
+#[derive(Debug)]
+pub struct Inbound {
+    /// Index of the endpoint (in the order the link opened them).
+    pub endpoint: usize,
+    /// The sender.
+    pub peer: Peer,
+    /// Its frames and malformed stretches.
+    pub parsed: Parsed,
+    /// When it was read.
+    pub at: Instant,
+}
+
+/// Bytes to send on an endpoint.
+#[derive(Debug, Clone)]
+pub enum Outbound {
+    /// To one peer.
+    To(Peer, Arc<[u8]>),
+    /// To every peer of the endpoint.
+    All(Arc<[u8]>),
+}
+
+/// Counters of an endpoint.
+#[derive(Debug, Default)]
+pub struct EndpointCounters {
+    /// Frames sent.
+    pub sent: AtomicU64,
+    /// Frames dropped: a TCP client's queue was full, or a send failed.
+    pub send_dropped: AtomicU64,
+}
+
+/// An open endpoint: where it is bound, and the queue of bytes to send on it.
+#[derive(Debug, Clone)]
+pub struct EndpointHandle {
+    /// The endpoint as bound (an `*in` endpoint of port 0 gets its real port here).
+    pub endpoint: Endpoint,
+    /// Bytes to send.
+    pub tx: mpsc::Sender<Outbound>,
+    /// Its counters.
+    pub counters: Arc<EndpointCounters>,
+}
+
+/// Opens `endpoint`; frames read go to `inbound` tagged with `index`. Runs until `stop` turns
+/// true or the link actor goes away.
+pub async fn open(
+    index: usize,
+    endpoint: Endpoint,
+    inbound: mpsc::Sender<Inbound>,
+    stop: watch::Receiver<bool>,
+) -> io::Result<EndpointHandle> {
+    let (tx, rx) = mpsc::channel(TCP_QUEUE);
+    let counters = Arc::new(EndpointCounters::default());
+    let bound = match endpoint {
+        Endpoint::UdpIn(addr) => {
+            let socket = UdpSocket::bind(addr).await?;
+            let bound = Endpoint::UdpIn(socket.local_addr()?);
+            let c = Arc::clone(&counters);
+            tokio::spawn(udp(index, socket, None, inbound, rx, stop, c));
+            bound
+        }
+        Endpoint::UdpOut(remote) => {
+            let any = if remote.is_ipv4() {
+                SocketAddr::from((Ipv4Addr::UNSPECIFIED, 0))
+            } else {
+                SocketAddr::from((Ipv6Addr::UNSPECIFIED, 0))
+            };
+            let socket = UdpSocket::bind(any).await?;
+            let c = Arc::clone(&counters);
+            tokio::spawn(udp(index, socket, Some(remote), inbound, rx, stop, c));
+            endpoint
+        }
+        Endpoint::TcpIn(addr) => {
+            let listener = TcpListener::bind(addr).await?;
+            let bound = Endpoint::TcpIn(listener.local_addr()?);
+            let c = Arc::clone(&counters);
+            tokio::spawn(tcp_in(index, listener, inbound, rx, stop, c));
+            bound
+        }
+        Endpoint::TcpOut(remote) => {
+            let c = Arc::clone(&counters);
+            tokio::spawn(tcp_out(index, remote, inbound, rx, stop, c));
+            endpoint
+        }
+    };
+    Ok(EndpointHandle {
+        endpoint: bound,
+        tx,
+        counters,
+    })
+}
+
+async fn udp(
+    index: usize,
+    socket: UdpSocket,
+    remote: Option<SocketAddr>,
+    inbound: mpsc::Sender<Inbound>,
+    mut rx: mpsc::Receiver<Outbound>,
+    mut stop: watch::Receiver<bool>,
+    counters: Arc<EndpointCounters>,
+) {
+    let mut peers: Vec<SocketAddr> = remote.into_iter().collect();
+    let mut buf = vec![0u8; 65_536];
+    let send = |to: SocketAddr, bytes: &[u8]| match socket.try_send_to(bytes, to) {
+        Ok(_) => counters.sent.fetch_add(1, Ordering::Relaxed),
+        // UDP is lossy by nature: a full socket buffer or an absent listener drops the frame.
+        Err(_) => counters.send_dropped.fetch_add(1, Ordering::Relaxed),
+    };
+    loop {
+        tokio::select! {
+            r = socket.recv_from(&mut buf) => {
+                let (n, from) = match r {
+                    Ok(r) => r,
+                    // ICMP port unreachable of an earlier send, and the like.
+                    Err(e) => {
+                        tracing::trace!("udp endpoint {index}: {e}");
+                        continue;
+                    }
+                };
+                let parsed = parse_datagram(&buf[..n]);
+                if remote.is_none() && !parsed.frames.is_empty() && !peers.contains(&from) {
+                    if peers.len() >= MAX_UDP_PEERS {
+                        peers.remove(0);
+                    }
+                    peers.push(from);
+                }
+                let msg = Inbound { endpoint: index, peer: Peer::Udp(from), parsed, at: Instant::now() };
+                if inbound.send(msg).await.is_err() {
+                    return;
+                }
+            }
+            o = rx.recv() => match o {
+                Some(Outbound::To(Peer::Udp(to), bytes)) => { send(to, &bytes); }
+                Some(Outbound::To(Peer::Tcp(_), _)) => {}
+                Some(Outbound::All(bytes)) => {
+                    for &to in &peers {
+                        send(to, &bytes);
+                    }
+                }
+                None => return,
+            },
+            () = stopped(&mut stop) => return,
+        }
+    }
+}
+
+/// Reads frames from one TCP connection and writes what its queue holds, until either side
+/// closes.
+async fn connection(
+    index: usize,
+    id: u64,
+    stream: TcpStream,
+    inbound: mpsc::Sender<Inbound>,
+    mut rx: mpsc::Receiver<Arc<[u8]>>,
+    counters: Arc<EndpointCounters>,
+) {
+    let _ = stream.set_nodelay(true);
+    let (mut read, mut write) = stream.into_split();
+    let mut parser = StreamParser::default();
+    let mut buf = vec![0u8; 16_384];
+    loop {
+        tokio::select! {
+            r = read.read(&mut buf) => {
+                let n = match r {
+                    Ok(0) | Err(_) => return,
+                    Ok(n) => n,
+                };
+                let parsed = parser.push(&buf[..n]);
+                if parsed.frames.is_empty() && parsed.malformed == 0 {
+                    continue;
+                }
+                let msg = Inbound { endpoint: index, peer: Peer::Tcp(id), parsed, at: Instant::now() };
+                if inbound.send(msg).await.is_err() {
+                    return;
+                }
+            }
+            o = rx.recv() => match o {
+                Some(bytes) => {
+                    if write.write_all(&bytes).await.is_err() {
+                        return;
+                    }
+                    counters.sent.fetch_add(1, Ordering::Relaxed);
+                }
+                None => return,
+            },
+        }
+    }
+}
+
+async fn tcp_in(
+    index: usize,
+    listener: TcpListener,
+    inbound: mpsc::Sender<Inbound>,
+    mut rx: mpsc::Receiver<Outbound>,
+    mut stop: watch::Receiver<bool>,
+    counters: Arc<EndpointCounters>,
+) {
+    let mut clients: HashMap<u64, mpsc::Sender<Arc<[u8]>>> = HashMap::new();
+    let mut next = 0u64;
+    let push =
+        |tx: &mpsc::Sender<Arc<[u8]>>, bytes: &Arc<[u8]>| match tx.try_send(Arc::clone(bytes)) {
+            Ok(()) => true,
+            Err(mpsc::error::TrySendError::Full(_)) => {
+                counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+                true
+            }
+            Err(mpsc::error::TrySendError::Closed(_)) => false,
+        };
+    loop {
+        tokio::select! {
+            a = listener.accept() => {
+                let Ok((stream, from)) = a else { continue };
+                next += 1;
+                tracing::debug!("tcp endpoint {index}: client #{next} from {from}");
+                let (tx, crx) = mpsc::channel(TCP_QUEUE);
+                clients.insert(next, tx);
+                tokio::spawn(connection(index, next, stream, inbound.clone(), crx, Arc::clone(&counters)));
+            }
+            o = rx.recv() => match o {
+                Some(Outbound::To(Peer::Tcp(id), bytes)) => {
+                    if clients.get(&id).is_some_and(|tx| !push(tx, &bytes)) {
+                        clients.remove(&id);
+                    }
+                }
+                Some(Outbound::To(Peer::Udp(_), _)) => {}
+                Some(Outbound::All(bytes)) => clients.retain(|_, tx| push(tx, &bytes)),
+                None => return,
+            },
+            () = stopped(&mut stop) => return,
+        }
+    }
+}
+
+async fn tcp_out(
+    index: usize,
+    remote: SocketAddr,
+    inbound: mpsc::Sender<Inbound>,
+    mut rx: mpsc::Receiver<Outbound>,
+    mut stop: watch::Receiver<bool>,
+    counters: Arc<EndpointCounters>,
+) {
+    let mut id = 0u64;
+    loop {
+        let connect = tokio::time::timeout(TCP_RETRY, TcpStream::connect(remote));
+        let stream = tokio::select! {
+            c = connect => match c {
+                Ok(Ok(s)) => Some(s),
+                _ => None,
+            },
+            () = stopped(&mut stop) => return,
+        };
+        let Some(stream) = stream else {
+            // Frames for an absent server are dropped while waiting to retry.
+            let retry = tokio::time::sleep(TCP_RETRY);
+            tokio::pin!(retry);
+            loop {
+                tokio::select! {
+                    () = &mut retry => break,
+                    o = rx.recv() => match o {
+                        Some(_) => { counters.send_dropped.fetch_add(1, Ordering::Relaxed); }
+                        None => return,
+                    },
+                    () = stopped(&mut stop) => return,
+                }
+            }
+            continue;
+        };
+        id += 1;
+        tracing::info!("tcp endpoint {index}: connected to {remote}");
+        let (tx, crx) = mpsc::channel(TCP_QUEUE);
+        let conn = connection(
+            index,
+            id,
+            stream,
+            inbound.clone(),
+            crx,
+            Arc::clone(&counters),
+        );
+        tokio::pin!(conn);
+        loop {
+            tokio::select! {
+                () = &mut conn => break,
+                o = rx.recv() => match o {
+                    Some(Outbound::To(_, bytes) | Outbound::All(bytes)) => {
+                        if tx.try_send(bytes).is_err() {
+                            counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                    None => return,
+                },
+                () = stopped(&mut stop) => return,
+            }
+        }
+        tracing::info!("tcp endpoint {index}: {remote} closed the connection; reconnecting");
+    }
+}
+
+/// Resolves once `stop` turns true (or its sender is gone).
+pub async fn stopped(stop: &mut watch::Receiver<bool>) {
+    let _ = stop.wait_for(|s| *s).await;
+}

@@ -1,0 +1,362 @@
+//! What the ground station knows of one vehicle from its MAVLink telemetry: PX4 mode and armed
+//! state (HEARTBEAT), position and velocity (GLOBAL_POSITION_INT, in the server's ENU frame),
+//! attitude (ATTITUDE), battery (SYS_STATUS), and the link's quality: message rate over the last
+//! second and frames lost, from the gaps in the sender's MAVLink sequence numbers.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use harrier_core::detection::GeoPoint;
+use harrier_link::geo::{Geodetic, LocalFrame, ned_to_enu};
+use harrier_link::mavlink::MavHeader;
+use harrier_link::mavlink::dialects::common::{MavMessage, MavModeFlag};
+use harrier_link::px4::{FlightMode, VehicleStatus};
+use nalgebra::Vector3;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::transport::Peer;
+
+/// Link state of a vehicle.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkState {
+    /// Heard within the loss timeout.
+    Connected,
+    /// Silent for longer than the loss timeout (`mavlink.lost_after_s`).
+    Lost,
+}
+
+/// The PX4 mode name of a HEARTBEAT, as QGroundControl shows it.
+pub fn mode_name(mode: Option<FlightMode>, custom_mode: u32) -> String {
+    match mode {
+        Some(FlightMode::Position) => "POSCTL".into(),
+        Some(FlightMode::Hold) => "HOLD".into(),
+        Some(FlightMode::Takeoff) => "TAKEOFF".into(),
+        Some(FlightMode::Land) => "LAND".into(),
+        Some(FlightMode::Offboard) => "OFFBOARD".into(),
+        None => format!(
+            "PX4 main {} sub {}",
+            (custom_mode >> 16) & 0xFF,
+            custom_mode >> 24
+        ),
+    }
+}
+
+/// A vehicle as the API shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct VehicleLinkView {
+    /// MAVLink system id.
+    pub id: u8,
+    /// `connected` or `lost`.
+    pub state: LinkState,
+    /// Where its frames come from (`udp:ADDR` or `tcp#N`).
+    pub address: String,
+    /// PX4 mode (`HOLD`, `OFFBOARD`, `TAKEOFF`, `LAND`, `POSCTL`, or main/sub numbers), once a
+    /// HEARTBEAT was heard.
+    pub mode: Option<String>,
+    /// Motors armed.
+    pub armed: bool,
+    /// MAV_STATE of the last HEARTBEAT (`MAV_STATE_ACTIVE`…).
+    pub system_status: Option<String>,
+    /// Position in the server's ENU frame (m), from GLOBAL_POSITION_INT.
+    pub position: Option<[f64; 3]>,
+    /// Position (WGS-84: `lat_deg`, `lon_deg`, `alt_m` AMSL).
+    #[schema(value_type = Option<Object>)]
+    pub geodetic: Option<GeoPoint>,
+    /// Height above home (m).
+    pub relative_alt_m: Option<f64>,
+    /// Velocity, ENU (m/s).
+    pub velocity: Option<[f64; 3]>,
+    /// Heading (degrees from north, clockwise).
+    pub heading_deg: Option<f64>,
+    /// Roll, pitch, yaw (degrees).
+    pub attitude_deg: Option<[f64; 3]>,
+    /// Remaining battery (%), when reported.
+    pub battery_pct: Option<f64>,
+    /// Battery voltage (V), when reported.
+    pub battery_v: Option<f64>,
+    /// Messages received over the last second.
+    pub rate_hz: f64,
+    /// Frames lost (sequence gaps) as a share of frames sent (%), since first heard.
+    pub loss_pct: f64,
+    /// Frames received.
+    pub received: u64,
+    /// Frames lost (sequence gaps).
+    pub lost_frames: u64,
+    /// Seconds since its last frame.
+    pub last_seen_s: f64,
+    /// Times it was marked lost and came back.
+    pub reconnects: u64,
+}
+
+/// What a vehicle's telemetry tells (see the module documentation).
+#[derive(Debug)]
+pub struct VehicleLink {
+    id: u8,
+    /// The GCS endpoint and peer its frames come from (replies go there).
+    pub endpoint: usize,
+    /// The peer on that endpoint.
+    pub peer: Peer,
+    last_seen: Instant,
+    state: LinkState,
+    status: Option<VehicleStatus>,
+    custom_mode: u32,
+    system_status: Option<String>,
+    geodetic: Option<Geodetic>,
+    relative_alt: Option<f64>,
+    velocity_ned: Option<Vector3<f64>>,
+    heading: Option<f64>,
+    attitude: Option<[f64; 3]>,
+    battery_pct: Option<f64>,
+    battery_v: Option<f64>,
+    /// Last sequence number per component.
+    sequences: HashMap<u8, u8>,
+    received: u64,
+    lost_frames: u64,
+    reconnects: u64,
+    /// Arrival times of the last second's messages.
+    window: std::collections::VecDeque<Instant>,
+}
+
+impl VehicleLink {
+    /// A vehicle first heard at `now` from `peer` of GCS endpoint `endpoint`.
+    pub fn new(id: u8, endpoint: usize, peer: Peer, now: Instant) -> Self {
+        Self {
+            id,
+            endpoint,
+            peer,
+            last_seen: now,
+            state: LinkState::Connected,
+            status: None,
+            custom_mode: 0,
+            system_status: None,
+            geodetic: None,
+            relative_alt: None,
+            velocity_ned: None,
+            heading: None,
+            attitude: None,
+            battery_pct: None,
+            battery_v: None,
+            sequences: HashMap::new(),
+            received: 0,
+            lost_frames: 0,
+            reconnects: 0,
+            window: std::collections::VecDeque::new(),
+        }
+    }
+
+    /// Link state.
+    pub fn state(&self) -> LinkState {
+        self.state
+    }
+
+    /// Mode and armed state from the last HEARTBEAT (`at` in seconds since the link started).
+    pub fn status(&self) -> Option<VehicleStatus> {
+        self.status
+    }
+
+    /// Takes one frame of this vehicle, received at `now` (`t` the same instant in seconds
+    /// since the link started) from `peer`. Returns whether the vehicle came back from `Lost`.
+    pub fn on_frame(
+        &mut self,
+        header: &MavHeader,
+        msg: &MavMessage,
+        peer: (usize, Peer),
+        now: Instant,
+        t: f64,
+    ) -> bool {
+        (self.endpoint, self.peer) = peer;
+        self.last_seen = now;
+        self.received += 1;
+        if let Some(last) = self.sequences.insert(header.component_id, header.sequence) {
+            let gap = header.sequence.wrapping_sub(last).wrapping_sub(1);
+            // A jump back by less than half the range is a reordered or repeated frame, or a
+            // restarted sender: not a loss.
+            if gap < 128 {
+                self.lost_frames += u64::from(gap);
+            }
+        }
+        self.window.push_back(now);
+        while self
+            .window
+            .front()
+            .is_some_and(|f| now.duration_since(*f).as_secs_f64() > 1.0)
+        {
+            self.window.pop_front();
+        }
+        match msg {
+            MavMessage::HEARTBEAT(hb) => {
+                self.status = Some(VehicleStatus::from_heartbeat(hb, t));
+                self.custom_mode = if hb
+                    .base_mode
+                    .contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
+                {
+                    hb.custom_mode
+                } else {
+                    0
+                };
+                self.system_status = Some(format!("{:?}", hb.system_status));
+            }
+            MavMessage::GLOBAL_POSITION_INT(p) => {
+                self.geodetic = Some(Geodetic {
+                    lat_deg: f64::from(p.lat) * 1e-7,
+                    lon_deg: f64::from(p.lon) * 1e-7,
+                    alt_m: f64::from(p.alt) * 1e-3,
+                });
+                self.relative_alt = Some(f64::from(p.relative_alt) * 1e-3);
+                self.velocity_ned = Some(Vector3::new(
+                    f64::from(p.vx) * 0.01,
+                    f64::from(p.vy) * 0.01,
+                    f64::from(p.vz) * 0.01,
+                ));
+                self.heading = (p.hdg != u16::MAX).then(|| f64::from(p.hdg) * 0.01);
+            }
+            MavMessage::ATTITUDE(a) => {
+                self.attitude = Some([
+                    f64::from(a.roll).to_degrees(),
+                    f64::from(a.pitch).to_degrees(),
+                    f64::from(a.yaw).to_degrees(),
+                ]);
+            }
+            MavMessage::SYS_STATUS(s) => {
+                self.battery_pct =
+                    (s.battery_remaining >= 0).then(|| f64::from(s.battery_remaining));
+                self.battery_v =
+                    (s.voltage_battery != u16::MAX).then(|| f64::from(s.voltage_battery) * 1e-3);
+            }
+            _ => {}
+        }
+        if self.state == LinkState::Lost {
+            self.state = LinkState::Connected;
+            self.reconnects += 1;
+            return true;
+        }
+        false
+    }
+
+    /// Marks the vehicle lost when it has been silent for `lost_after_s` at `now`; returns
+    /// whether it just became lost.
+    pub fn check(&mut self, now: Instant, lost_after_s: f64) -> bool {
+        if self.state == LinkState::Connected
+            && now.duration_since(self.last_seen).as_secs_f64() > lost_after_s
+        {
+            self.state = LinkState::Lost;
+            self.window.clear();
+            return true;
+        }
+        false
+    }
+
+    /// Position (ENU in `frame`) and velocity (ENU), once GLOBAL_POSITION_INT was heard.
+    pub fn kinematics(&self, frame: &LocalFrame) -> Option<(Vector3<f64>, Vector3<f64>)> {
+        let g = self.geodetic?;
+        Some((frame.to_enu(&g), ned_to_enu(&self.velocity_ned?)))
+    }
+
+    /// Home altitude AMSL (m): altitude minus height above home.
+    pub fn home_amsl(&self) -> Option<f64> {
+        Some(self.geodetic?.alt_m - self.relative_alt?)
+    }
+
+    /// The API view at `now`.
+    pub fn view(&self, frame: &LocalFrame, now: Instant) -> VehicleLinkView {
+        let sent = self.received + self.lost_frames;
+        let kin = self.kinematics(frame);
+        VehicleLinkView {
+            id: self.id,
+            state: self.state,
+            address: self.peer.to_string(),
+            mode: self.status.map(|s| mode_name(s.mode, self.custom_mode)),
+            armed: self.status.is_some_and(|s| s.armed),
+            system_status: self.system_status.clone(),
+            position: kin.map(|(p, _)| p.into()),
+            geodetic: self
+                .geodetic
+                .map(|g| GeoPoint::new(g.lat_deg, g.lon_deg, g.alt_m)),
+            relative_alt_m: self.relative_alt,
+            velocity: kin.map(|(_, v)| v.into()),
+            heading_deg: self.heading,
+            attitude_deg: self.attitude,
+            battery_pct: self.battery_pct,
+            battery_v: self.battery_v,
+            rate_hz: self.window.len() as f64,
+            loss_pct: if sent == 0 {
+                0.0
+            } else {
+                100.0 * self.lost_frames as f64 / sent as f64
+            },
+            received: self.received,
+            lost_frames: self.lost_frames,
+            last_seen_s: now.duration_since(self.last_seen).as_secs_f64(),
+            reconnects: self.reconnects,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harrier_link::mavlink::dialects::common::{GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA};
+    use std::net::SocketAddr;
+    use std::time::Duration;
+
+    fn header(sequence: u8) -> MavHeader {
+        MavHeader {
+            system_id: 1,
+            component_id: 1,
+            sequence,
+        }
+    }
+
+    #[test]
+    fn telemetry_loss_and_lost_state() {
+        let t0 = Instant::now();
+        let peer = (0, Peer::Udp(SocketAddr::from(([127, 0, 0, 1], 9))));
+        let mut v = VehicleLink::new(1, 0, peer.1, t0);
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: FlightMode::Offboard.px4_custom_mode(),
+            base_mode: harrier_link::px4::base_mode(true),
+            ..HEARTBEAT_DATA::DEFAULT
+        });
+        let origin = Geodetic {
+            lat_deg: 47.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        };
+        let frame = LocalFrame::new(origin);
+        let pos = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+            lat: 470_000_000,
+            lon: 80_000_000,
+            alt: 500_000,
+            relative_alt: 100_000,
+            vx: 100,
+            vy: -200,
+            vz: -50,
+            hdg: 9000,
+            ..GLOBAL_POSITION_INT_DATA::DEFAULT
+        });
+        // Sequences 0, 1, then 5: three frames lost.
+        assert!(!v.on_frame(&header(0), &hb, peer, t0, 0.0));
+        assert!(!v.on_frame(&header(1), &pos, peer, t0, 0.0));
+        assert!(!v.on_frame(&header(5), &hb, peer, t0, 0.0));
+        let view = v.view(&frame, t0);
+        assert_eq!((view.received, view.lost_frames), (3, 3));
+        assert!((view.loss_pct - 50.0).abs() < 1e-9);
+        assert_eq!(view.mode.as_deref(), Some("OFFBOARD"));
+        assert!(view.armed);
+        let p = view.position.expect("position");
+        assert!(p[0].abs() < 1e-6 && p[1].abs() < 1e-6 && (p[2] - 100.0).abs() < 1e-6);
+        // NED (1, −2, −0.5) m/s is ENU (−2, 1, 0.5).
+        assert_eq!(view.velocity, Some([-2.0, 1.0, 0.5]));
+        assert_eq!(v.home_amsl(), Some(400.0));
+        // Silent past the timeout: lost once; a frame brings it back.
+        assert!(!v.check(t0 + Duration::from_millis(2900), 3.0));
+        assert!(v.check(t0 + Duration::from_millis(3100), 3.0));
+        assert!(!v.check(t0 + Duration::from_millis(4000), 3.0));
+        assert_eq!(v.state(), LinkState::Lost);
+        assert!(v.on_frame(&header(6), &hb, peer, t0 + Duration::from_secs(5), 5.0));
+        assert_eq!(v.state(), LinkState::Connected);
+        assert_eq!(v.view(&frame, t0 + Duration::from_secs(5)).reconnects, 1);
+    }
+}

@@ -1,0 +1,820 @@
+//! The guidance loop (an actor): assignments tie vehicles to a track with a standoff law, and at
+//! `guidance.rate_hz` each assigned vehicle gets a velocity setpoint computed by harrier-core's
+//! law from the track predicted to now and the vehicle's **measured** state (its
+//! GLOBAL_POSITION_INT, in the server's ENU frame).
+//!
+//! - Laws: `togvf` (time-optimal guidance vector field, [CIMM] §4.1–4.2) and `lgvf` (the Lyapunov
+//!   baseline), both with the phase coordination of [CIMM] §4.3 when several vehicles share the
+//!   target (ring order from the current phases, spacing `spacing_deg`, default 360°/n).
+//! - Each vehicle flies harrier-link's [`OffboardSequence`]: arm and take off if needed, stream
+//!   setpoints, then OFFBOARD (PX4 refuses OFFBOARD before setpoints arrive), and OFFBOARD again
+//!   whenever it is seen out of it. COMMAND_ACKs come from the link's ACK broadcast.
+//! - A vehicle that is lost pauses (`lost`); when it speaks again its sequence restarts and it
+//!   flies the assignment again. A vehicle whose sequence fails (a refused or unacknowledged
+//!   command) goes to Hold and stays out (`failed`).
+//! - When the track is deleted, or the assignment is ended through the API, every vehicle of it
+//!   is sent to Hold (AUTO.LOITER) and the assignment is `ended` with the reason.
+//!
+//! [CIMM]: the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use harrier_core::guidance::lgvf::Lgvf;
+use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
+use harrier_core::guidance::togvf::Togvf;
+use harrier_core::guidance::{Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_link::command::set_mode;
+use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase};
+use harrier_link::px4::FlightMode;
+use nalgebra::{Vector2, Vector3};
+use serde::{Deserialize, Serialize};
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+use utoipa::ToSchema;
+
+use super::gcs::transport::stopped;
+use super::gcs::vehicle::LinkState;
+use super::gcs::{GcsLink, Request, VehicleSample};
+use super::ingest::unix_now;
+use super::tracker::Snapshot;
+use crate::engine::TrackView;
+
+/// A new assignment, as `POST /api/v1/assignments` takes it.
+#[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AssignmentRequest {
+    /// MAVLink system ids of the vehicles (1–255, each in no other active assignment).
+    #[schema(min_items = 1, max_items = 16)]
+    pub vehicles: Vec<u8>,
+    /// The track to follow (a live track id).
+    pub track: u64,
+    /// `togvf` or `lgvf`.
+    pub law: String,
+    /// Standoff radius R (m).
+    #[serde(default)]
+    pub radius_m: Option<f64>,
+    /// Observation height H above the target (m).
+    #[serde(default)]
+    pub height_m: Option<f64>,
+    /// Phase spacing between neighbours on the circle (degrees); default 360/n.
+    #[serde(default)]
+    pub spacing_deg: Option<f64>,
+    /// Nominal speed relative to the target (m/s); default `guidance.speed_m_s`.
+    #[serde(default)]
+    pub speed_m_s: Option<f64>,
+    /// `ccw` or `cw` (default `ccw`).
+    #[serde(default)]
+    pub orbit: Option<String>,
+}
+
+/// Default standoff radius (m).
+pub const DEFAULT_RADIUS_M: f64 = 60.0;
+/// Default observation height (m).
+pub const DEFAULT_HEIGHT_M: f64 = 40.0;
+
+/// Where one vehicle of an assignment is.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct SlotView {
+    /// The vehicle.
+    pub vehicle: u8,
+    /// `waiting` (no telemetry yet), `arming`, `taking_off`, `offboard`, `lost`, `failed`, `hold`
+    /// (the assignment ended).
+    pub state: String,
+    /// Why it failed, when it did.
+    pub error: Option<String>,
+    /// Horizontal distance to the track estimate minus R (m).
+    pub range_error_m: Option<f64>,
+    /// Phase around the track estimate (degrees, from east, counter-clockwise).
+    pub phase_deg: Option<f64>,
+    /// The last commanded velocity (ENU, m/s).
+    pub commanded_velocity: Option<[f64; 3]>,
+}
+
+/// An assignment as the API shows it.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct AssignmentView {
+    /// Assignment id.
+    pub id: u64,
+    /// The track.
+    pub track: u64,
+    /// The law.
+    pub law: String,
+    /// R (m).
+    pub radius_m: f64,
+    /// H (m).
+    pub height_m: f64,
+    /// Phase spacing (degrees).
+    pub spacing_deg: f64,
+    /// Speed relative to the target (m/s).
+    pub speed_m_s: f64,
+    /// `ccw` or `cw`.
+    pub orbit: String,
+    /// `active` or `ended`.
+    pub state: String,
+    /// Why it ended.
+    pub ended_reason: Option<String>,
+    /// When it was created (UNIX s).
+    pub created_unix: f64,
+    /// Its vehicles.
+    pub vehicles: Vec<SlotView>,
+}
+
+/// Why an assignment request was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum AssignError {
+    /// A parameter is out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The vehicle or the track does not exist.
+    #[error("{0}")]
+    NotFound(String),
+    /// A vehicle already flies another assignment.
+    #[error("{0}")]
+    Conflict(String),
+    /// The guidance loop is not running.
+    #[error("the guidance loop is not running")]
+    Stopped,
+}
+
+/// A request to the guidance actor.
+#[derive(Debug)]
+pub enum GuidanceRequest {
+    /// Create an assignment.
+    Create(
+        AssignmentRequest,
+        oneshot::Sender<Result<AssignmentView, AssignError>>,
+    ),
+    /// End one.
+    End(u64, oneshot::Sender<Option<AssignmentView>>),
+}
+
+/// Counters of the loop.
+#[derive(Debug, Default)]
+pub struct GuidanceMetrics {
+    ticks: AtomicU64,
+    setpoints: AtomicU64,
+    /// Tick lateness histogram buckets (µs): ≤100, ≤500, ≤1000, ≤5000, ≤20000, more.
+    late: [AtomicU64; 6],
+    max_late_us: AtomicU64,
+    created: AtomicU64,
+    ended: AtomicU64,
+}
+
+const LATE_BOUNDS_US: [u64; 5] = [100, 500, 1000, 5000, 20_000];
+
+impl GuidanceMetrics {
+    /// Appends the Prometheus text.
+    pub fn render(&self, active: usize, out: &mut String) {
+        use std::fmt::Write as _;
+        let v = |a: &AtomicU64| a.load(Ordering::Relaxed);
+        let _ = writeln!(
+            out,
+            "# HELP harrier_guidance_ticks_total Guidance loop iterations.\n# TYPE harrier_guidance_ticks_total counter\nharrier_guidance_ticks_total {}",
+            v(&self.ticks)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP harrier_guidance_setpoints_total Velocity setpoints sent.\n# TYPE harrier_guidance_setpoints_total counter\nharrier_guidance_setpoints_total {}",
+            v(&self.setpoints)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP harrier_guidance_assignments Assignments: active now; created and ended since start.\n# TYPE harrier_guidance_assignments gauge\nharrier_guidance_assignments{{state=\"active\"}} {active}\nharrier_guidance_assignments{{state=\"created\"}} {}\nharrier_guidance_assignments{{state=\"ended\"}} {}",
+            v(&self.created),
+            v(&self.ended)
+        );
+        let _ = writeln!(
+            out,
+            "# HELP harrier_guidance_tick_late_seconds How late each tick started against its schedule (jitter).\n# TYPE harrier_guidance_tick_late_seconds histogram"
+        );
+        let mut cum = 0;
+        for (i, b) in LATE_BOUNDS_US.iter().enumerate() {
+            cum += v(&self.late[i]);
+            let _ = writeln!(
+                out,
+                "harrier_guidance_tick_late_seconds_bucket{{le=\"{}\"}} {cum}",
+                *b as f64 * 1e-6
+            );
+        }
+        cum += v(&self.late[5]);
+        let _ = writeln!(
+            out,
+            "harrier_guidance_tick_late_seconds_bucket{{le=\"+Inf\"}} {cum}\nharrier_guidance_tick_late_seconds_count {cum}\n# HELP harrier_guidance_tick_late_max_seconds Latest tick start seen.\n# TYPE harrier_guidance_tick_late_max_seconds gauge\nharrier_guidance_tick_late_max_seconds {}",
+            v(&self.max_late_us) as f64 * 1e-6
+        );
+    }
+
+    fn late(&self, us: u64) {
+        let i = LATE_BOUNDS_US
+            .iter()
+            .position(|b| us <= *b)
+            .unwrap_or(LATE_BOUNDS_US.len());
+        self.late[i].fetch_add(1, Ordering::Relaxed);
+        self.max_late_us.fetch_max(us, Ordering::Relaxed);
+    }
+}
+
+/// The guidance loop as the API uses it.
+#[derive(Debug, Clone)]
+pub struct Guidance {
+    /// Requests to the actor.
+    pub requests: mpsc::Sender<GuidanceRequest>,
+    /// Every assignment (active and ended), updated each tick.
+    pub assignments: watch::Receiver<Arc<Vec<AssignmentView>>>,
+    /// Each created, changed (a vehicle's state) and ended assignment.
+    pub events: broadcast::Sender<AssignmentView>,
+    /// Counters.
+    pub metrics: Arc<GuidanceMetrics>,
+}
+
+impl Guidance {
+    /// Creates an assignment.
+    pub async fn create(&self, r: AssignmentRequest) -> Result<AssignmentView, AssignError> {
+        let (tx, rx) = oneshot::channel();
+        self.requests
+            .send(GuidanceRequest::Create(r, tx))
+            .await
+            .map_err(|_| AssignError::Stopped)?;
+        rx.await.map_err(|_| AssignError::Stopped)?
+    }
+
+    /// Ends an assignment; `None` when there is no such id.
+    pub async fn end(&self, id: u64) -> Result<Option<AssignmentView>, AssignError> {
+        let (tx, rx) = oneshot::channel();
+        self.requests
+            .send(GuidanceRequest::End(id, tx))
+            .await
+            .map_err(|_| AssignError::Stopped)?;
+        rx.await.map_err(|_| AssignError::Stopped)
+    }
+}
+
+/// Settings of the loop.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuidanceSettings {
+    /// Setpoint rate (Hz).
+    pub rate_hz: f64,
+    /// Flight envelope.
+    pub limits: Limits,
+    /// Default speed (m/s).
+    pub speed: f64,
+    /// Takeoff height above home (m).
+    pub takeoff_height: f64,
+}
+
+#[derive(Debug)]
+struct Slot {
+    vehicle: u8,
+    sequence: Option<OffboardSequence>,
+    state: &'static str,
+    error: Option<String>,
+    range_error: Option<f64>,
+    phase: Option<f64>,
+    commanded: Option<Vector3<f64>>,
+}
+
+#[derive(Debug)]
+struct Assignment {
+    id: u64,
+    track: u64,
+    law: String,
+    radius: f64,
+    height: f64,
+    spacing: f64,
+    speed: f64,
+    orbit: Orbit,
+    created_unix: f64,
+    ended: Option<String>,
+    slots: Vec<Slot>,
+}
+
+impl Assignment {
+    fn view(&self) -> AssignmentView {
+        AssignmentView {
+            id: self.id,
+            track: self.track,
+            law: self.law.clone(),
+            radius_m: self.radius,
+            height_m: self.height,
+            spacing_deg: self.spacing.to_degrees(),
+            speed_m_s: self.speed,
+            orbit: if self.orbit == Orbit::Cw { "cw" } else { "ccw" }.into(),
+            state: if self.ended.is_some() {
+                "ended"
+            } else {
+                "active"
+            }
+            .into(),
+            ended_reason: self.ended.clone(),
+            created_unix: self.created_unix,
+            vehicles: self
+                .slots
+                .iter()
+                .map(|s| SlotView {
+                    vehicle: s.vehicle,
+                    state: s.state.into(),
+                    error: s.error.clone(),
+                    range_error_m: s.range_error,
+                    phase_deg: s.phase.map(f64::to_degrees),
+                    commanded_velocity: s.commanded.map(Into::into),
+                })
+                .collect(),
+        }
+    }
+
+    fn law(&self) -> Box<dyn StandoffLaw + Send> {
+        match self.law.as_str() {
+            "lgvf" => Box::new(Lgvf {
+                orbit: self.orbit,
+                ..Lgvf::new(self.radius, self.height, self.speed)
+            }),
+            _ => Box::new(Togvf {
+                orbit: self.orbit,
+                ..Togvf::new(self.radius, self.height, self.speed)
+            }),
+        }
+    }
+}
+
+/// A vehicle within this share of R of the circle takes part in the phase coordination.
+const ON_CIRCLE: f64 = 0.25;
+
+/// Longest extrapolation of a track to now (s): beyond it the last estimate is used as is.
+const MAX_PREDICTION_S: f64 = 2.0;
+
+/// The track's estimate at time `now` of the tracker's time line (constant velocity from its
+/// last update).
+fn predict(track: &TrackView, now: f64) -> TargetEstimate {
+    let [x, y, z, vx, vy, vz] = track.state;
+    let dt = (now - track.t).clamp(0.0, MAX_PREDICTION_S);
+    let dt = if dt.is_finite() { dt } else { 0.0 };
+    TargetEstimate {
+        position: Vector3::new(x + vx * dt, y + vy * dt, z + vz * dt),
+        velocity: Vector3::new(vx, vy, vz),
+    }
+}
+
+struct Actor {
+    settings: GuidanceSettings,
+    link: GcsLink,
+    snapshot: watch::Receiver<Arc<Snapshot>>,
+    assignments: BTreeMap<u64, Assignment>,
+    next_id: u64,
+    watch: watch::Sender<Arc<Vec<AssignmentView>>>,
+    events: broadcast::Sender<AssignmentView>,
+    metrics: Arc<GuidanceMetrics>,
+}
+
+/// Starts the loop.
+pub fn start(
+    settings: GuidanceSettings,
+    link: GcsLink,
+    snapshot: watch::Receiver<Arc<Snapshot>>,
+    stop: watch::Receiver<bool>,
+) -> (Guidance, tokio::task::JoinHandle<()>) {
+    let (requests, rx) = mpsc::channel(64);
+    let (watch_tx, watch_rx) = watch::channel(Arc::new(Vec::new()));
+    let (events, _) = broadcast::channel(256);
+    let metrics = Arc::new(GuidanceMetrics::default());
+    let acks = link.acks.subscribe();
+    let actor = Actor {
+        settings,
+        link,
+        snapshot,
+        assignments: BTreeMap::new(),
+        next_id: 1,
+        watch: watch_tx,
+        events: events.clone(),
+        metrics: Arc::clone(&metrics),
+    };
+    let task = tokio::spawn(actor.run(rx, acks, stop));
+    (
+        Guidance {
+            requests,
+            assignments: watch_rx,
+            events,
+            metrics,
+        },
+        task,
+    )
+}
+
+impl Actor {
+    async fn run(
+        mut self,
+        mut requests: mpsc::Receiver<GuidanceRequest>,
+        mut acks: broadcast::Receiver<(u8, harrier_link::mavlink::dialects::common::MavMessage)>,
+        mut stop: watch::Receiver<bool>,
+    ) {
+        let period = Duration::from_secs_f64(1.0 / self.settings.rate_hz);
+        let mut tick = tokio::time::interval(period);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                Some(r) = requests.recv() => self.on_request(r),
+                a = acks.recv() => match a {
+                    Ok((vehicle, msg)) => self.on_ack(vehicle, &msg),
+                    Err(broadcast::error::RecvError::Lagged(n)) => {
+                        tracing::warn!("guidance: {n} COMMAND_ACKs missed");
+                    }
+                    Err(broadcast::error::RecvError::Closed) => break,
+                },
+                scheduled = tick.tick() => {
+                    let now = Instant::now();
+                    // Lateness against the schedule: the jitter of the loop.
+                    self.metrics.late(now.duration_since(scheduled.into_std()).as_micros() as u64);
+                    self.on_tick(now);
+                }
+                () = stopped(&mut stop) => break,
+            }
+        }
+    }
+
+    fn t(&self, now: Instant) -> f64 {
+        now.duration_since(self.link.epoch).as_secs_f64()
+    }
+
+    fn send(&self, vehicle: u8, message: harrier_link::mavlink::dialects::common::MavMessage) {
+        if self
+            .link
+            .requests
+            .try_send(Request::Send { vehicle, message })
+            .is_err()
+        {
+            tracing::debug!(vehicle, "guidance: link queue full, message dropped");
+        }
+    }
+
+    fn hold(&self, vehicle: u8) {
+        let link = self.link.clone();
+        tokio::spawn(async move {
+            match link
+                .command(vehicle, set_mode(vehicle, FlightMode::Hold))
+                .await
+            {
+                Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent to Hold"),
+                Ok(o) => tracing::warn!(vehicle, result = o.result, "guidance: Hold refused"),
+                Err(e) => tracing::warn!(vehicle, "guidance: Hold not sent: {e}"),
+            }
+        });
+    }
+
+    fn on_request(&mut self, r: GuidanceRequest) {
+        match r {
+            GuidanceRequest::Create(req, reply) => {
+                let r = self.create(req);
+                if let Ok(v) = &r {
+                    self.metrics.created.fetch_add(1, Ordering::Relaxed);
+                    let _ = self.events.send(v.clone());
+                    tracing::info!(id = v.id, track = v.track, vehicles = ?v.vehicles.iter().map(|s| s.vehicle).collect::<Vec<_>>(), law = v.law, "assignment created");
+                }
+                let _ = reply.send(r);
+                self.publish();
+            }
+            GuidanceRequest::End(id, reply) => {
+                let v = self.end(id, "ended by the operator".into());
+                let _ = reply.send(v);
+                self.publish();
+            }
+        }
+    }
+
+    fn create(&mut self, r: AssignmentRequest) -> Result<AssignmentView, AssignError> {
+        let bad = |m: String| Err(AssignError::Invalid(m));
+        if r.vehicles.is_empty() || r.vehicles.len() > 16 {
+            return bad("vehicles: give 1 to 16 system ids".into());
+        }
+        let mut ids = r.vehicles.clone();
+        ids.sort_unstable();
+        ids.dedup();
+        if ids.len() != r.vehicles.len() || ids.contains(&0) {
+            return bad("vehicles: ids must be 1-255 and distinct".into());
+        }
+        if !matches!(r.law.as_str(), "togvf" | "lgvf") {
+            return bad(format!("law {:?}: expected togvf or lgvf", r.law));
+        }
+        let radius = r.radius_m.unwrap_or(DEFAULT_RADIUS_M);
+        let height = r.height_m.unwrap_or(DEFAULT_HEIGHT_M);
+        let speed = r.speed_m_s.unwrap_or(self.settings.speed);
+        let n = r.vehicles.len();
+        let spacing = r.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
+        let limits = self.settings.limits;
+        if !(radius.is_finite() && radius > 0.0 && radius <= 10_000.0) {
+            return bad(format!("radius_m must be in (0, 10000], got {radius}"));
+        }
+        let r_min = limits.min_turn_radius(speed);
+        if radius < r_min {
+            return bad(format!(
+                "radius_m {radius} is below the vehicles' turning radius {r_min:.1} m at {speed} m/s"
+            ));
+        }
+        if !(height.is_finite() && height > 0.0 && height <= 5_000.0) {
+            return bad(format!("height_m must be in (0, 5000], got {height}"));
+        }
+        if !(speed.is_finite() && speed > 0.0 && speed <= limits.v_max) {
+            return bad(format!(
+                "speed_m_s must be in (0, {}], got {speed}",
+                limits.v_max
+            ));
+        }
+        if !(spacing.is_finite()
+            && spacing > 0.0
+            && spacing * n as f64 <= std::f64::consts::TAU + 1e-9)
+        {
+            return bad(format!(
+                "spacing_deg must be > 0 with n × spacing ≤ 360, got {}",
+                spacing.to_degrees()
+            ));
+        }
+        let orbit = match r.orbit.as_deref() {
+            None | Some("ccw") => Orbit::Ccw,
+            Some("cw") => Orbit::Cw,
+            Some(o) => return bad(format!("orbit {o:?}: expected ccw or cw")),
+        };
+        let vehicles = self.link.vehicles.borrow().clone();
+        for id in &r.vehicles {
+            if !vehicles.iter().any(|s| s.view.id == *id) {
+                return Err(AssignError::NotFound(format!("no vehicle {id}")));
+            }
+            if let Some(a) = self
+                .assignments
+                .values()
+                .find(|a| a.ended.is_none() && a.slots.iter().any(|s| s.vehicle == *id))
+            {
+                return Err(AssignError::Conflict(format!(
+                    "vehicle {id} already flies assignment {}",
+                    a.id
+                )));
+            }
+        }
+        if !self
+            .snapshot
+            .borrow()
+            .tracks
+            .iter()
+            .any(|t| t.id == r.track)
+        {
+            return Err(AssignError::NotFound(format!("no track {}", r.track)));
+        }
+        let id = self.next_id;
+        self.next_id += 1;
+        let a = Assignment {
+            id,
+            track: r.track,
+            law: r.law,
+            radius,
+            height,
+            spacing,
+            speed,
+            orbit,
+            created_unix: unix_now(),
+            ended: None,
+            slots: r
+                .vehicles
+                .iter()
+                .map(|&vehicle| Slot {
+                    vehicle,
+                    sequence: None,
+                    state: "waiting",
+                    error: None,
+                    range_error: None,
+                    phase: None,
+                    commanded: None,
+                })
+                .collect(),
+        };
+        let view = a.view();
+        self.assignments.insert(id, a);
+        Ok(view)
+    }
+
+    fn end(&mut self, id: u64, reason: String) -> Option<AssignmentView> {
+        let a = self.assignments.get_mut(&id)?;
+        if a.ended.is_none() {
+            tracing::info!(id, reason, "assignment ended");
+            a.ended = Some(reason);
+            let holds: Vec<u8> = a
+                .slots
+                .iter_mut()
+                .filter(|s| s.state != "lost" && s.state != "waiting")
+                .map(|s| {
+                    s.state = "hold";
+                    s.sequence = None;
+                    s.vehicle
+                })
+                .collect();
+            let view = a.view();
+            for v in holds {
+                self.hold(v);
+            }
+            self.metrics.ended.fetch_add(1, Ordering::Relaxed);
+            let _ = self.events.send(view);
+        }
+        self.assignments.get(&id).map(Assignment::view)
+    }
+
+    fn on_ack(&mut self, vehicle: u8, msg: &harrier_link::mavlink::dialects::common::MavMessage) {
+        let t = self.t(Instant::now());
+        let mut failed = None;
+        for a in self.assignments.values_mut().filter(|a| a.ended.is_none()) {
+            for s in a.slots.iter_mut().filter(|s| s.vehicle == vehicle) {
+                if let Some(seq) = &mut s.sequence
+                    && let Err(e) = seq.handle(t, msg)
+                {
+                    s.state = "failed";
+                    s.error = Some(e.to_string());
+                    s.sequence = None;
+                    failed = Some(vehicle);
+                }
+            }
+        }
+        if let Some(v) = failed {
+            tracing::warn!(vehicle = v, "guidance: launch failed; vehicle to Hold");
+            self.hold(v);
+        }
+    }
+
+    fn on_tick(&mut self, now: Instant) {
+        self.metrics.ticks.fetch_add(1, Ordering::Relaxed);
+        if self.assignments.values().all(|a| a.ended.is_some()) {
+            return;
+        }
+        let t = self.t(now);
+        let snapshot = self.snapshot.borrow().clone();
+        let vehicles: Vec<VehicleSample> = self.link.vehicles.borrow().as_ref().clone();
+        let limits = self.settings.limits;
+        let takeoff_height = self.settings.takeoff_height;
+        let mut to_end = Vec::new();
+        let mut to_send = Vec::new();
+        let mut to_hold = Vec::new();
+        let mut changed = Vec::new();
+        for a in self.assignments.values_mut().filter(|a| a.ended.is_none()) {
+            let Some(track) = snapshot.tracks.iter().find(|k| k.id == a.track) else {
+                to_end.push((a.id, format!("track {} deleted", a.track)));
+                continue;
+            };
+            // To the tracker's latest scan time: its time line may run ahead of the wall clock
+            // (a simulator with a speed-up), so the wall clock is not used.
+            let target = predict(track, snapshot.t.unwrap_or(track.t));
+            let law = a.law();
+            // Measured states of the flying vehicles, and their ring order along the orbit.
+            let states: Vec<Option<(UavState, &VehicleSample)>> = a
+                .slots
+                .iter()
+                .map(|s| {
+                    let v = vehicles.iter().find(|v| v.view.id == s.vehicle)?;
+                    if v.view.state != LinkState::Connected {
+                        return None;
+                    }
+                    let p = v.view.position?;
+                    let vel = v.view.velocity?;
+                    Some((UavState::new(p.into(), vel.into()), v))
+                })
+                .collect();
+            // The ring: the vehicles on the circle. One still on its way flies the law alone,
+            // at full speed: its phase error would only slow its approach ([CIMM] §4.3
+            // coordinates UAVs already on the limit cycle).
+            let mut ring: Vec<(usize, f64)> = states
+                .iter()
+                .enumerate()
+                .filter_map(|(i, s)| {
+                    let (u, _) = s.as_ref()?;
+                    let d = u.horizontal_position() - target.position.xy();
+                    ((d.norm() - a.radius).abs() <= ON_CIRCLE * a.radius)
+                        .then(|| (i, d.y.atan2(d.x)))
+                })
+                .collect();
+            let sign = a.orbit.sign();
+            ring.sort_by(|x, y| (sign * x.1).total_cmp(&(sign * y.1)));
+            let phases: Vec<f64> = ring.iter().map(|r| r.1).collect();
+            let n_slots = a.slots.len();
+            for (i, slot) in a.slots.iter_mut().enumerate() {
+                let before = (slot.state, slot.error.clone());
+                let known = vehicles.iter().find(|v| v.view.id == slot.vehicle);
+                match (&states[i], known) {
+                    (None, Some(v)) if v.view.state == LinkState::Lost => {
+                        if slot.state != "failed" {
+                            slot.state = "lost";
+                            slot.sequence = None;
+                        }
+                    }
+                    (None, _) => {
+                        if slot.state != "failed" && slot.state != "lost" {
+                            slot.state = "waiting";
+                        }
+                    }
+                    (Some(_), _) if slot.state == "failed" => {}
+                    (Some((uav, v)), _) => {
+                        let d: Vector2<f64> = uav.horizontal_position() - target.position.xy();
+                        slot.range_error = Some(d.norm() - a.radius);
+                        slot.phase =
+                            Some(phase_of(uav.horizontal_position(), target.position.xy()));
+                        let neighbours = ring.iter().position(|r| r.0 == i).and_then(|k| {
+                            PhaseNeighbours::ring(&phases, k).map(|mut nb| {
+                                // The assignment's spacing once all are on the circle.
+                                if phases.len() == n_slots {
+                                    nb.spacing = a.spacing;
+                                }
+                                nb
+                            })
+                        });
+                        let cmd = law
+                            .command(uav, Some(&target), &limits, neighbours.as_ref())
+                            .or_hold(uav, &limits);
+                        let status = v.status.unwrap_or(harrier_link::px4::VehicleStatus {
+                            armed: false,
+                            mode: None,
+                            at: 0.0,
+                        });
+                        let seq = slot.sequence.get_or_insert_with(|| {
+                            let takeoff = v.home_amsl.map(|h| (h + takeoff_height) as f32);
+                            OffboardSequence::new(slot.vehicle, OffboardConfig::new(takeoff))
+                        });
+                        match seq.next(t, &status, Some(cmd.velocity)) {
+                            Ok(msgs) => {
+                                for m in msgs {
+                                    to_send.push((slot.vehicle, m));
+                                }
+                                slot.state = match seq.phase() {
+                                    Phase::Arming => "arming",
+                                    Phase::TakingOff => "taking_off",
+                                    Phase::Offboard => "offboard",
+                                };
+                                slot.commanded = Some(cmd.velocity);
+                            }
+                            Err(e) => {
+                                slot.state = "failed";
+                                slot.error = Some(e.to_string());
+                                slot.sequence = None;
+                                to_hold.push(slot.vehicle);
+                            }
+                        }
+                    }
+                }
+                if before != (slot.state, slot.error.clone()) {
+                    changed.push(a.id);
+                }
+            }
+        }
+        let mut sent = 0;
+        for (vehicle, m) in to_send {
+            if matches!(
+                m,
+                harrier_link::mavlink::dialects::common::MavMessage::SET_POSITION_TARGET_LOCAL_NED(
+                    _
+                )
+            ) {
+                sent += 1;
+            }
+            self.send(vehicle, m);
+        }
+        self.metrics.setpoints.fetch_add(sent, Ordering::Relaxed);
+        for v in to_hold {
+            self.hold(v);
+        }
+        for (id, reason) in to_end {
+            self.end(id, reason);
+        }
+        changed.dedup();
+        for id in changed {
+            if let Some(a) = self.assignments.get(&id) {
+                let _ = self.events.send(a.view());
+            }
+        }
+        self.publish();
+    }
+
+    fn publish(&self) {
+        let views: Vec<AssignmentView> = self.assignments.values().map(Assignment::view).collect();
+        self.watch.send_replace(Arc::new(views));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prediction_is_bounded() {
+        let track = TrackView {
+            id: 1,
+            status: "confirmed",
+            t: 100.0,
+            state: [0.0, 0.0, 0.0, 2.0, -1.0, 0.0],
+            cov: Vec::new(),
+            cov_dims: Vec::new(),
+            updated: true,
+            age: 3,
+            last_update: 100.0,
+            mode_probabilities: Vec::new(),
+        };
+        let e = predict(&track, 100.5);
+        assert_eq!(e.position, Vector3::new(1.0, -0.5, 0.0));
+        // Far ahead: at most MAX_PREDICTION_S; behind or non-finite: the estimate as is.
+        assert_eq!(predict(&track, 1e9).position.x, 2.0 * MAX_PREDICTION_S);
+        assert_eq!(predict(&track, 0.0).position.x, 0.0);
+        assert_eq!(predict(&track, f64::NAN).position.x, 0.0);
+    }
+}
