@@ -7,7 +7,7 @@ import { ApiError, Stream, features, get, getText, getToken, request, setToken }
 import { MapView } from "./js/map.js";
 import { SceneView } from "./js/scene3d.js";
 import { Store } from "./js/store.js";
-import { SeriesPanel, ServicePanel, TracksPanel, VehiclesPanel, el, parseMetrics, showResult } from "./js/panels.js";
+import { SeriesPanel, ServicePanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
 
 const $ = (id) => document.getElementById(id);
 const store = new Store();
@@ -392,7 +392,7 @@ function frame(now) {
     hook.fps = (1000 * frames) / (now - fpsSince);
     hook.sceneFps = (1000 * renders) / (now - fpsSince);
     scene.adapt(hook.fps);
-    hook.sceneQuality = { resolution: scene.quality, dataFps: scene.dataFps };
+    hook.sceneQuality = { resolution: scene.quality, dataFps: scene.dataFps, software: !!scene.software };
     frames = 0;
     renders = 0;
     fpsSince = now;
@@ -421,15 +421,15 @@ function publish() {
 }
 
 function updatePanels() {
-  $("seq").textContent = store.seq || "–";
+  setText($("seq"), `${store.seq || "–"}`);
   const rates = store.ingestRates();
   let total = 0;
   for (const r of rates.values()) total += r.scans;
-  $("scanrate").textContent = total.toFixed(1);
-  $("ntracks").textContent = `${store.confirmed().length}`;
-  $("nuavs").textContent = `${[...store.vehicles.values()].filter((v) => v.position).length}`;
-  $("fps").textContent = hook.fps.toFixed(0);
-  if (store.estimator) $("estimator-running").textContent = `running: ${store.estimator.name}${Object.keys(store.estimator.params || {}).length ? ` ${JSON.stringify(store.estimator.params)}` : ""}`;
+  setText($("scanrate"), total.toFixed(1));
+  setText($("ntracks"), `${store.confirmed().length}`);
+  setText($("nuavs"), `${[...store.vehicles.values()].filter((v) => v.position).length}`);
+  setText($("fps"), hook.fps.toFixed(0));
+  if (store.estimator) setText($("estimator-running"), `running: ${store.estimator.name}${Object.keys(store.estimator.params || {}).length ? ` ${JSON.stringify(store.estimator.params)}` : ""}`);
   vehiclesPanel?.update();
   tracksPanel.update(map.follow);
   seriesPanel.update();

@@ -18,6 +18,11 @@ export function el(tag, attrs = {}, ...children) {
   return e;
 }
 
+/** Sets a node's text only when it differs (no DOM mutation, no relayout, when unchanged). */
+export function setText(node, text) {
+  if (node.textContent !== text) node.textContent = text;
+}
+
 /** Shows an action's outcome in `node`: "pending", "ok" or "bad". */
 export function showResult(node, kind, text) {
   node.className = `result ${kind}`;
@@ -88,50 +93,53 @@ export class VehiclesPanel {
     if (!list.length) return;
     const empty = this.root.querySelector(".empty");
     if (empty) empty.remove();
-    this.count.textContent = `${list.length}`;
+    setText(this.count, `${list.length}`);
     for (const v of list) {
       const { node, f } = this.card(v);
       if (!node.isConnected) this.root.append(node);
       const link = v.link;
       const alt = v.position ? v.position[2] - s.planeZ : NaN;
-      f.title.textContent = `UAV ${v.label}`;
-      f.alt.textContent = `${fmt(alt, 0)} m`;
+      setText(f.title, `UAV ${v.label}`);
+      setText(f.alt, `${fmt(alt, 0)} m`);
       const vel = v.velocity;
-      f.speed.textContent = vel ? `${fmt(Math.hypot(vel[0], vel[1]), 1)} m/s` : "–";
-      f.scans.textContent = `${v.scans}`;
-      f.seen.textContent = link && Number.isFinite(link.last_seen_s) ? `${fmt(link.last_seen_s, 1)} s` : s.t != null && v.lastScanT != null ? `${fmt(Math.max(0, s.t - v.lastScanT), 1)} s` : "–";
-      f.sensors.textContent = v.sensors.size ? `sensors: ${[...v.sensors].join(", ")}` : "";
+      setText(f.speed, vel ? `${fmt(Math.hypot(vel[0], vel[1]), 1)} m/s` : "–");
+      setText(f.scans, `${v.scans}`);
+      setText(f.seen, link && Number.isFinite(link.last_seen_s) ? `${fmt(link.last_seen_s, 1)} s` : s.t != null && v.lastScanT != null ? `${fmt(Math.max(0, s.t - v.lastScanT), 1)} s` : "–");
+      setText(f.sensors, v.sensors.size ? `sensors: ${[...v.sensors].join(", ")}` : "");
       if (link) {
-        f.mode.textContent = link.mode || "mode ?";
+        setText(f.mode, link.mode || "mode ?");
         f.mode.hidden = false;
-        f.armed.textContent = link.armed ? "ARMED" : "disarmed";
+        setText(f.armed, link.armed ? "ARMED" : "disarmed");
         f.armed.className = `tag ${link.armed ? "warn" : ""}`;
         f.armed.hidden = false;
         const lost = link.state === "lost";
-        f.link.textContent = lost ? "LINK LOST" : "link ok";
+        setText(f.link, lost ? "LINK LOST" : "link ok");
         f.link.className = `tag ${lost ? "bad" : "ok"}`;
-        f.battery.textContent = Number.isFinite(link.battery_pct) ? `${fmt(link.battery_pct, 0)} %` : "–";
-        f.rate.textContent = Number.isFinite(link.rate_hz)
+        setText(f.battery, Number.isFinite(link.battery_pct) ? `${fmt(link.battery_pct, 0)} %` : "–");
+        setText(f.rate, Number.isFinite(link.rate_hz)
           ? `${fmt(link.rate_hz, 0)} Hz${Number.isFinite(link.loss_pct) ? ` ${fmt(link.loss_pct, 0)}% loss` : ""}`
-          : "–";
+          : "–");
         f.warn.hidden = !lost;
-        f.warn.textContent = lost ? `Lost link: nothing heard for ${fmt(link.last_seen_s, 1)} s` : "";
+        setText(f.warn, lost ? `Lost link: nothing heard for ${fmt(link.last_seen_s, 1)} s` : "");
         node.classList.toggle("lost", lost);
         node.dataset.link = link.state;
       } else {
         f.mode.hidden = true;
         f.armed.hidden = true;
-        f.link.textContent = "detections only";
+        setText(f.link, "detections only");
         f.link.className = "tag";
-        f.battery.textContent = "–";
-        f.rate.textContent = "–";
+        setText(f.battery, "–");
+        setText(f.rate, "–");
         f.warn.hidden = true;
         node.dataset.link = "none";
       }
     }
-    this.note.textContent = s.linkShape
-      ? ""
-      : "This server reports vehicles as seen in their detections: mode, arming, battery and link state come with its MAVLink links.";
+    setText(
+      this.note,
+      s.linkShape
+        ? ""
+        : "This server reports vehicles as seen in their detections: mode, arming, battery and link state come with its MAVLink links.",
+    );
   }
 }
 
@@ -176,7 +184,7 @@ export class TracksPanel {
   update(follow) {
     const s = this.store;
     const list = s.confirmed().sort((a, b) => a.id - b.id);
-    this.count.textContent = `${list.length} confirmed, ${s.tracks.size - list.length} tentative`;
+    setText(this.count, `${list.length} confirmed, ${s.tracks.size - list.length} tentative`);
     const ids = new Set(list.map((k) => k.id));
     for (const [id, c] of this.cards) {
       if (!ids.has(id)) {
@@ -198,21 +206,21 @@ export class TracksPanel {
       }
       prev = node;
       const v = k.view;
-      f.title.textContent = `T${k.id}`;
+      setText(f.title, `T${k.id}`);
       f.title.style.color = colorFor(k.id);
-      f.est.textContent = s.estimator ? s.estimator.name : "";
-      f.speed.textContent = `${fmt(Math.hypot(v.state[3], v.state[4]), 1)} m/s`;
+      setText(f.est, s.estimator ? s.estimator.name : "");
+      setText(f.speed, `${fmt(Math.hypot(v.state[3], v.state[4]), 1)} m/s`);
       const since = k.history.length ? k.history[0][0] : k.firstSeen;
-      f.age.textContent = `${v.age} scans · ${fmt(v.t - since, 0)} s`;
+      setText(f.age, `${v.age} scans · ${fmt(v.t - since, 0)} s`);
       f.age.title = "scans since initiation · time since the oldest position of its history";
-      f.ell.textContent = k.ellipse ? `${fmt(k.ellipse.a, 1)}×${fmt(k.ellipse.b, 1)}` : "–";
-      f.upd.textContent = s.t != null ? `${fmt(Math.max(0, s.t - v.last_update), 1)} s` : "–";
-      f.pos.textContent = `${fmt(v.state[0], 0)}, ${fmt(v.state[1], 0)}`;
-      f.nees.textContent = k.nees != null && Number.isFinite(k.nees) ? fmt(k.nees, 2) : "–";
+      setText(f.ell, k.ellipse ? `${fmt(k.ellipse.a, 1)}×${fmt(k.ellipse.b, 1)}` : "–");
+      setText(f.upd, s.t != null ? `${fmt(Math.max(0, s.t - v.last_update), 1)} s` : "–");
+      setText(f.pos, `${fmt(v.state[0], 0)}, ${fmt(v.state[1], 0)}`);
+      setText(f.nees, k.nees != null && Number.isFinite(k.nees) ? fmt(k.nees, 2) : "–");
       f.nees.title = k.nees != null ? `position NEES (${k.neesDim} dof; 95 % bound ${k.neesDim === 3 ? "7.81" : "5.99"})` : "needs simulation truth";
-      f.err.textContent = k.error != null ? `${fmt(k.error, 1)} m` : "–";
-      f.bound.textContent = k.bound ? `${fmt(k.bound.semi_axes[0], 0)}×${fmt(k.bound.semi_axes[1], 0)}` : "–";
-      f.follow.textContent = follow === k.id ? "Following" : "Follow";
+      setText(f.err, k.error != null ? `${fmt(k.error, 1)} m` : "–");
+      setText(f.bound, k.bound ? `${fmt(k.bound.semi_axes[0], 0)}×${fmt(k.bound.semi_axes[1], 0)}` : "–");
+      setText(f.follow, follow === k.id ? "Following" : "Follow");
       f.follow.classList.toggle("on", follow === k.id);
       const probs = v.mode_probabilities || [];
       if (c.modes !== probs.length) {
@@ -225,8 +233,10 @@ export class TracksPanel {
       }
       probs.forEach((p, i) => {
         const bar = f.bars.children[i];
-        bar.querySelector(".fill").style.width = `${(100 * p).toFixed(1)}%`;
-        bar.querySelector(".pct").textContent = `${(100 * p).toFixed(0)}%`;
+        const w = `${(100 * p).toFixed(0)}%`;
+        const fill = bar.querySelector(".fill");
+        if (fill.style.width !== w) fill.style.width = w;
+        setText(bar.querySelector(".pct"), `${(100 * p).toFixed(0)}%`);
       });
     }
   }
@@ -255,10 +265,13 @@ export class SeriesPanel {
     ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
     ctx.clearRect(0, 0, w, h);
     const truth = s.truth.size > 0;
-    this.title.textContent = truth ? "Position error vs time" : "95 % ellipse semi-major axis vs time";
-    this.note.textContent = truth
-      ? "Distance from each track to the nearest true target (simulation)."
-      : "No simulation truth from this server: the estimates' own 95 % uncertainty instead of their error.";
+    setText(this.title, truth ? "Position error vs time" : "95 % ellipse semi-major axis vs time");
+    setText(
+      this.note,
+      truth
+        ? "Distance from each track to the nearest true target (simulation)."
+        : "No simulation truth from this server: the estimates' own 95 % uncertainty instead of their error.",
+    );
     const series = s.confirmed().filter((k) => k.series.length > 1);
     const t1 = s.t ?? 0;
     const t0 = t1 - 120;
@@ -373,10 +386,15 @@ export class ServicePanel {
     } else if (this.metricsError) {
       row("metrics", this.metricsError, true);
     }
-    const frag = document.createDocumentFragment();
-    for (const [k, v, bad] of rows) {
-      frag.append(el("tr", { class: bad ? "bad" : null }, el("td", { text: k }), el("td", { text: v })));
+    const trs = this.table.rows;
+    if (trs.length !== rows.length) {
+      this.table.replaceChildren(...rows.map(() => el("tr", {}, el("td"), el("td"))));
     }
-    this.table.replaceChildren(frag);
+    rows.forEach(([k, v, bad], i) => {
+      const tr = this.table.rows[i];
+      setText(tr.cells[0], k);
+      setText(tr.cells[1], v);
+      if (tr.classList.contains("bad") !== bad) tr.classList.toggle("bad", bad);
+    });
   }
 }

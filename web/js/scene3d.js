@@ -13,6 +13,40 @@ const MAX_RAYS = 600;
 /** Most renders per second for data changes (the camera's own moves render at every frame). */
 const DATA_FPS = 15;
 
+/** Whether WebGL is rendered in software (SwiftShader, llvmpipe): then no multisampling. */
+function softwareWebGL() {
+  try {
+    const gl = document.createElement("canvas").getContext("webgl2");
+    if (!gl) return false;
+    const info = gl.getExtension("WEBGL_debug_renderer_info");
+    const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : "";
+    gl.getExtension("WEBGL_lose_context")?.loseContext();
+    return /swiftshader|llvmpipe|software/i.test(name);
+  } catch {
+    return false;
+  }
+}
+
+/** A line whose points change: one preallocated buffer, grown by doubling, drawn up to `n`. */
+function setLine(line, points, zOffset = 0) {
+  const n = points.length;
+  let attr = line.geometry.getAttribute("position");
+  if (!attr || attr.count < n) {
+    const cap = Math.max(64, 2 ** Math.ceil(Math.log2(Math.max(n, 1))));
+    line.geometry.dispose();
+    line.geometry = new THREE.BufferGeometry();
+    attr = new THREE.BufferAttribute(new Float32Array(cap * 3), 3);
+    attr.setUsage(THREE.DynamicDrawUsage);
+    line.geometry.setAttribute("position", attr);
+  }
+  for (let i = 0; i < n; i++) {
+    const p = points[i];
+    attr.setXYZ(i, p[1], p[2], p[3] + zOffset);
+  }
+  attr.needsUpdate = true;
+  line.geometry.setDrawRange(0, n);
+}
+
 export class SceneView {
   constructor(canvas, store) {
     this.canvas = canvas;
@@ -20,7 +54,8 @@ export class SceneView {
     this.stats = { tracks: 0, ellipsoids: 0, bounds: 0, uavs: 0, rays: 0, frames: 0 };
     this.renderer = null;
     try {
-      this.renderer = new THREE.WebGLRenderer({ canvas, antialias: true, alpha: false, powerPreference: "low-power" });
+      this.software = softwareWebGL();
+      this.renderer = new THREE.WebGLRenderer({ canvas, antialias: !this.software, alpha: false, powerPreference: "low-power" });
     } catch (e) {
       this.error = `WebGL is not available: ${e.message || e}`;
       return;
@@ -193,11 +228,11 @@ export class SceneView {
     if (o) return o;
     const line = new THREE.Line(
       new THREE.BufferGeometry(),
-      new THREE.LineDashedMaterial({ color: 0xeef2f6, dashSize: 20, gapSize: 14, transparent: true, opacity: 0.55 }),
+      new THREE.LineBasicMaterial({ color: 0xeef2f6, transparent: true, opacity: 0.5 }),
     );
     line.frustumCulled = false;
     this.scene.add(line);
-    o = { line, len: -1 };
+    o = { line, key: null };
     this.truthObjs.set(id, o);
     return o;
   }
@@ -258,10 +293,10 @@ export class SceneView {
         o.bound.visible = false;
       }
       o.history.visible = layers.history;
-      if (layers.history && o.historyLen !== k.history.length) {
-        o.history.geometry.dispose();
-        o.history.geometry = new THREE.BufferGeometry().setFromPoints(k.history.map((h) => new THREE.Vector3(h[1], h[2], h[3] + 2)));
-        o.historyLen = k.history.length;
+      const last = k.history[k.history.length - 1];
+      if (layers.history && o.historyKey !== last) {
+        setLine(o.history, k.history, 2);
+        o.historyKey = last;
       }
       if (confirmed) {
         st.tracks += 1;
@@ -284,13 +319,16 @@ export class SceneView {
       const pos = o.drop.geometry.attributes.position;
       pos.setXYZ(0, x, y, z);
       pos.setXYZ(1, x, y, planeZ);
-      pos.needsUpdate = true;
-      o.drop.computeLineDistances();
+      if (o.dropKey !== v.position) {
+        pos.needsUpdate = true;
+        o.drop.computeLineDistances();
+        o.dropKey = v.position;
+      }
       o.trail.visible = layers.trails;
-      if (layers.trails && o.trailLen !== v.trail.length) {
-        o.trail.geometry.dispose();
-        o.trail.geometry = new THREE.BufferGeometry().setFromPoints(v.trail.map((p) => new THREE.Vector3(p[1], p[2], p[3])));
-        o.trailLen = v.trail.length;
+      const lastTrail = v.trail[v.trail.length - 1];
+      if (layers.trails && o.trailKey !== lastTrail) {
+        setLine(o.trail, v.trail);
+        o.trailKey = lastTrail;
       }
       st.uavs += 1;
     }
@@ -298,11 +336,10 @@ export class SceneView {
     for (const t of s.truth.values()) {
       const o = this.truthObj(t.id);
       o.line.visible = layers.truth;
-      if (layers.truth && o.len !== t.samples.length) {
-        o.line.geometry.dispose();
-        o.line.geometry = new THREE.BufferGeometry().setFromPoints(t.samples.map((p) => new THREE.Vector3(p[1], p[2], p[3] + 1)));
-        o.line.computeLineDistances();
-        o.len = t.samples.length;
+      const lastTruth = t.samples[t.samples.length - 1];
+      if (layers.truth && o.key !== lastTruth) {
+        setLine(o.line, t.samples, 1);
+        o.key = lastTruth;
       }
     }
     // Camera rays: UAV → detection (fading).
@@ -400,7 +437,7 @@ export class SceneView {
     if (!this.renderer) return;
     if (fps < 30) {
       this.quality = Math.max(0.4, this.quality * 0.8);
-      this.dataFps = Math.max(4, this.dataFps * 0.7);
+      this.dataFps = Math.max(2, this.dataFps * 0.7);
     } else if (fps > 50) {
       this.quality = Math.min(1, this.quality * 1.15);
       this.dataFps = Math.min(DATA_FPS, this.dataFps * 1.3);
