@@ -153,12 +153,14 @@ export class Store {
       const p2 = positionCov(v, [0, 1]);
       k.nees = p3 ? mahalanobis2(best.d, p3) : p2 ? mahalanobis2(best.d.slice(0, 2), p2) : null;
       k.neesDim = p3 ? 3 : 2;
+      if (k.seriesKind !== "error") k.series = [];
       k.seriesKind = "error";
       pushSeries(k.series, t, best.e);
     } else {
       k.error = null;
       k.nees = null;
       if (this.truth.size === 0 && k.ellipse) {
+        if (k.seriesKind !== "sigma") k.series = [];
         k.seriesKind = "sigma";
         pushSeries(k.series, t, k.ellipse.a);
       }
