@@ -379,10 +379,10 @@ export class SceneView {
     box.expandByPoint(new THREE.Vector3(box.min.x, box.min.y, this.store.planeZ));
     const c = box.getCenter(new THREE.Vector3());
     const size = box.getSize(new THREE.Vector3());
-    const r = Math.max(size.x, size.y, 800) * 0.5;
-    this.controls.target.set(c.x, c.y, this.store.planeZ);
+    const r = Math.max(size.x, size.y, 800) * 0.58;
+    this.controls.target.set(c.x, c.y, this.store.planeZ + 0.35 * (box.max.z - this.store.planeZ));
     const dir = new THREE.Vector3(-0.45, -0.85, 0.62).normalize();
-    this.camera.position.copy(this.controls.target).addScaledVector(dir, (0.95 * r) / Math.tan((this.camera.fov * Math.PI) / 360));
+    this.camera.position.copy(this.controls.target).addScaledVector(dir, (1.25 * r) / Math.tan((this.camera.fov * Math.PI) / 360));
     const span = Math.max(size.x, size.y) + 4000;
     const grid = Math.max(4000, Math.ceil(span / 1000) * 1000);
     if (grid !== this.groundSize) this.buildGround(grid, grid > 12000 ? 500 : 250);
@@ -431,14 +431,16 @@ export class SceneView {
 
   /**
    * Keeps the page smooth where WebGL is slow (software rendering): below 30 fps the 3-D view
-   * renders fewer pixels and fewer data updates; above 50 fps it goes back to full quality.
+   * renders fewer pixels and fewer data updates; above 42 fps it goes back towards full quality.
    */
   adapt(fps) {
     if (!this.renderer) return;
+    this.adaptCalls = (this.adaptCalls || 0) + 1;
+    if (this.adaptCalls <= 3) return; // start-up (module and shader compilation) is not the steady state
     if (fps < 30) {
       this.quality = Math.max(0.4, this.quality * 0.8);
       this.dataFps = Math.max(2, this.dataFps * 0.7);
-    } else if (fps > 50) {
+    } else if (fps > 42) {
       this.quality = Math.min(1, this.quality * 1.15);
       this.dataFps = Math.min(DATA_FPS, this.dataFps * 1.3);
     }
