@@ -68,16 +68,16 @@ export class VehiclesPanel {
       grid, f.warn, f.sensors);
     if (this.actions) {
       f.result = el("span", { class: "result" });
-      f.alt = el("input", { type: "number", value: "30", min: "1", step: "5", title: "takeoff altitude (m)" });
+      f.takeoffAlt = el("input", { type: "number", value: "30", min: "1", step: "any", title: "takeoff altitude (m)" });
       const btn = (label, command) =>
         el("button", {
           type: "button",
           "data-command": command,
           text: label,
-          onclick: () => this.actions.command(v.label, command, Number(f.alt.value), f.result),
+          onclick: () => this.actions.command(v.label, command, Number(f.takeoffAlt.value), f.result),
         });
       node.append(
-        el("div", { class: "actions" }, btn("Arm", "arm"), btn("Takeoff", "takeoff"), f.alt,
+        el("div", { class: "actions" }, btn("Arm", "arm"), btn("Takeoff", "takeoff"), f.takeoffAlt,
           btn("Hold", "hold"), btn("Land", "land"), btn("Disarm", "disarm")),
         el("div", {}, f.result),
       );
