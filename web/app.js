@@ -382,15 +382,22 @@ async function poll() {
 let frames = 0;
 let renders = 0;
 let fpsSince = performance.now();
+const frameWork = []; // ms of main-thread work per frame over the last second
 function frame(now) {
+  const t0 = performance.now();
   store.prune(now);
   map.draw(now);
   scene.update(now, layers);
   if (scene.canvas.clientWidth && scene.render(now)) renders += 1;
+  frameWork.push(performance.now() - t0);
   frames += 1;
   if (now - fpsSince >= 1000) {
     hook.fps = (1000 * frames) / (now - fpsSince);
     hook.sceneFps = (1000 * renders) / (now - fpsSince);
+    const sorted = frameWork.splice(0).sort((a, b) => a - b);
+    // The page's own work per frame (drawing, scene updates, WebGL calls), 90th percentile: what
+    // it leaves of a frame's budget, whatever the rasteriser (GPU or software) then takes.
+    hook.frameMs = sorted.length ? sorted[Math.floor(0.9 * (sorted.length - 1))] : 0;
     scene.adapt(hook.fps);
     hook.sceneQuality = { resolution: scene.quality, dataFps: scene.dataFps, software: !!scene.software };
     frames = 0;

@@ -12,8 +12,9 @@
 //!   and draws again, without a reload. The script asks for the restart with a line
 //!   `HARRIER-RESTART` on its stdout and waits for `restarted` on its stdin;
 //! - in another tab, with 20 synthetic tracks and 7 more UAVs fed into the page's store at 10 Hz,
-//!   the page keeps ≥ 30 frames per second (software WebGL: the 3-D view lowers its resolution
-//!   and update rate to keep the page smooth).
+//!   the page's own work per frame stays ≤ 20 ms (90th percentile: room for ≥ 30 fps) and its
+//!   frame rate ≥ 20 fps (software WebGL on a shared CPU; the 3-D view lowers its resolution and
+//!   update rate to keep the page smooth).
 //!
 //! Needs `/usr/bin/chromium` (`apt-get install chromium`) and `playwright` for Python (`.ci/run`
 //! installs both, pinned).
