@@ -1,0 +1,185 @@
+//! The web dashboard (`web/`) in a real browser: `tests/python/test_dashboard.py` drives headless
+//! Chromium (Debian's `/usr/bin/chromium`) with Playwright for Python against `harrier demo`'s
+//! world started here in-process (`harrier_server::demo::start`, three UAVs over a road with two
+//! cars, the CIMM track engine):
+//!
+//! - the page loads with no console error and, within 30 s, draws at least one track with its
+//!   95 % ellipse and three UAVs in the map, and the same with its ellipsoid in the 3-D view (what
+//!   the page exposes in `window.harrier` and data attributes, cross-checked with REST);
+//!   screenshots of the live page go to `target/screenshots/{dashboard,map,3d,map-zoom}.png`;
+//! - a wrong token shows the server's 401 as an error, the right one changes the estimator;
+//! - the server is stopped and a new one started on the same port: the page reconnects by itself
+//!   and draws again, without a reload. The script asks for the restart with a line
+//!   `HARRIER-RESTART` on its stdout and waits for `restarted` on its stdin;
+//! - in another tab, with 20 synthetic tracks and 7 more UAVs fed into the page's store at 10 Hz,
+//!   the page's own work per frame stays ≤ 20 ms (90th percentile: room for ≥ 30 fps) and its
+//!   frame rate ≥ 20 fps (software WebGL on a shared CPU; the 3-D view lowers its resolution and
+//!   update rate to keep the page smooth).
+//!
+//! Needs `/usr/bin/chromium` (`apt-get install chromium`) and `playwright` for Python (`.ci/run`
+//! installs both, pinned).
+
+use std::io::{BufRead as _, BufReader, Read as _, Write as _};
+use std::net::SocketAddr;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use harrier_server::demo::{self, Demo, DemoConfig};
+use harrier_tests::{kill_group, require_python_module};
+
+/// Where the screenshots go: `$CARGO_TARGET_DIR/screenshots`, else the workspace's
+/// `target/screenshots`.
+fn screenshots_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map_or_else(
+            || Path::new(env!("CARGO_MANIFEST_DIR")).join("../target"),
+            PathBuf::from,
+        )
+        .join("screenshots")
+}
+
+fn config(listen: SocketAddr) -> DemoConfig {
+    DemoConfig {
+        listen,
+        // Twice real time: tracks confirm sooner, and the page still sees every scan.
+        speedup: 2.0,
+        ..DemoConfig::default()
+    }
+}
+
+/// Starts the demo on `listen`; a port just released may take a moment to bind again.
+async fn start_demo(listen: SocketAddr) -> Demo {
+    let deadline = Instant::now() + Duration::from_secs(20);
+    loop {
+        match tokio::time::timeout(Duration::from_secs(30), demo::start(&config(listen))).await {
+            Ok(Ok(d)) => return d,
+            Ok(Err(e)) if Instant::now() < deadline => {
+                eprintln!("demo on {listen} did not start yet: {e}");
+                tokio::time::sleep(Duration::from_millis(200)).await;
+            }
+            Ok(Err(e)) => panic!("demo on {listen}: {e}"),
+            Err(_) => panic!("demo on {listen} did not start within 30 s"),
+        }
+    }
+}
+
+#[test]
+fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
+    require_python_module("playwright", "playwright==1.65.2");
+    require_python_module("pytest", "pytest==9.2.0");
+    require_python_module("httpx", "httpx==0.28.1");
+    assert!(
+        Path::new("/usr/bin/chromium").exists(),
+        "/usr/bin/chromium is missing: apt-get install -y chromium (.ci/run installs it)"
+    );
+    let started = Instant::now();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime");
+    let mut demo = Some(runtime.block_on(start_demo(SocketAddr::from(([127, 0, 0, 1], 0)))));
+    let addr = demo.as_ref().expect("demo").server().local_addr();
+    let token = demo.as_ref().expect("demo").server().token().0.to_owned();
+    let shots = screenshots_dir();
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/test_dashboard.py");
+
+    use std::os::unix::process::CommandExt as _;
+    let mut child = Command::new("python3")
+        .args(["-m", "pytest", "-q", "-s", "-p", "no:cacheprovider"])
+        .arg(&script)
+        .env("HARRIER_URL", format!("http://{addr}"))
+        .env("HARRIER_TOKEN", &token)
+        .env("HARRIER_SCREENSHOTS", &shots)
+        .env("HARRIER_RESTART_CONTROL", "stdio")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .expect("start python3 -m pytest");
+    let mut stdin = child.stdin.take().expect("stdin");
+    let stdout = child.stdout.take().expect("stdout");
+    let mut stderr = child.stderr.take().expect("stderr");
+    let (lines, rx) = mpsc::channel::<String>();
+    let reader = std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines() {
+            let Ok(line) = line else { break };
+            if lines.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    let errors = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stderr.read_to_string(&mut s);
+        s
+    });
+
+    let deadline = Instant::now() + Duration::from_secs(150);
+    let mut output = String::new();
+    let mut restarts = 0;
+    let status = loop {
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            Ok(line) => {
+                output.push_str(&line);
+                output.push('\n');
+                // pytest's progress dots may precede it on the line.
+                if line.trim_end().ends_with("HARRIER-RESTART") {
+                    let t = Instant::now();
+                    runtime.block_on(async {
+                        demo.take().expect("demo").stop().await;
+                        demo = Some(start_demo(addr).await);
+                    });
+                    restarts += 1;
+                    eprintln!(
+                        "demo restarted on {addr} in {:.1} s",
+                        t.elapsed().as_secs_f64()
+                    );
+                    writeln!(stdin, "restarted").expect("answer the script");
+                    stdin.flush().expect("flush");
+                }
+            }
+            Err(mpsc::RecvTimeoutError::Timeout) => {}
+            Err(mpsc::RecvTimeoutError::Disconnected) => {
+                // stdout closed: the script is ending.
+                break child.wait().expect("wait for pytest");
+            }
+        }
+        if let Some(status) = child.try_wait().expect("wait for pytest") {
+            while let Ok(line) = rx.recv_timeout(Duration::from_millis(200)) {
+                output.push_str(&line);
+                output.push('\n');
+            }
+            break status;
+        }
+        if Instant::now() > deadline {
+            kill_group(&mut child);
+            panic!("the dashboard test did not finish within 150 s:\n{output}");
+        }
+    };
+    kill_group(&mut child);
+    let _ = reader.join();
+    let err = errors.join().unwrap_or_default();
+    eprintln!("{output}{err}");
+    assert!(
+        status.success(),
+        "pytest test_dashboard.py failed ({status})"
+    );
+    assert_eq!(restarts, 1, "the script asked for one restart");
+    assert!(
+        output.contains("4 passed"),
+        "every test ran (none skipped):\n{output}"
+    );
+    for name in ["dashboard.png", "map.png", "3d.png"] {
+        assert!(
+            shots.join(name).is_file(),
+            "no {name} in {}",
+            shots.display()
+        );
+    }
+    runtime.block_on(demo.take().expect("demo").stop());
+    eprintln!("dashboard test: {:.1} s", started.elapsed().as_secs_f64());
+}

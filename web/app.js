@@ -1,0 +1,466 @@
+// The Harrier dashboard: wires the stream and the REST polls into the store, draws the map and the
+// 3-D view every animation frame, refreshes the panels a few times a second, and sends the
+// operator's actions with the bearer token. `window.harrier` exposes what is drawn (for tests
+// and for the curious: open the console).
+
+import { ApiError, Stream, features, get, getText, getToken, request, setToken } from "./js/api.js";
+import { MapView } from "./js/map.js";
+import { SceneView } from "./js/scene3d.js";
+import { Store } from "./js/store.js";
+import { SeriesPanel, ServicePanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
+
+const $ = (id) => document.getElementById(id);
+const store = new Store();
+const errors = []; // action errors shown to the operator, newest last
+
+const hook = {
+  store,
+  errors,
+  features: null,
+  ws: { state: "connecting", seq: 0, scans: 0, snapshots: 0, reconnects: 0 },
+  map: {},
+  scene: {},
+  fps: 0,
+  ready: false,
+};
+window.harrier = hook;
+
+// --- actions: results and errors ----------------------------------------------------------------
+
+function toast(text, kind = "ok") {
+  const t = el("div", { class: `toast ${kind}`, text });
+  $("toasts").append(t);
+  setTimeout(() => t.remove(), kind === "bad" ? 7000 : 3500);
+}
+
+/** Runs `fn` (a REST call) showing "…" then its result or its error in `node`. */
+async function act(node, what, fn, describe) {
+  showResult(node, "pending", `${what}…`);
+  try {
+    const body = await fn();
+    const d = describe ? describe(body) : "done";
+    // `describe` may say that a 2xx answer is a refusal (a command denied by the vehicle).
+    const { kind, text } = typeof d === "string" ? { kind: "ok", text: d } : d;
+    showResult(node, kind, text);
+    if (kind === "bad") errors.push({ what, message: text, status: null, at: Date.now() });
+    return body;
+  } catch (e) {
+    const msg = e instanceof ApiError ? e.describe() : String(e.message || e);
+    showResult(node, "bad", `${what}: ${msg}`);
+    errors.push({ what, message: msg, status: e.status ?? null, at: Date.now() });
+    if (e.status === 401) markToken(false);
+    toast(`${what} failed — ${msg}`, "bad");
+    return null;
+  }
+}
+
+// --- token --------------------------------------------------------------------------------------
+
+function markToken(ok) {
+  const s = $("token-state");
+  if (ok === false) {
+    s.textContent = getToken() ? "token refused" : "no token";
+    s.className = "hint bad";
+    document.body.dataset.token = "refused";
+  } else if (getToken()) {
+    s.textContent = ok ? "token accepted" : "saved for this tab";
+    s.className = `hint ${ok ? "ok" : ""}`;
+    document.body.dataset.token = ok ? "accepted" : "saved";
+  } else {
+    s.textContent = "needed for actions";
+    s.className = "hint";
+    document.body.dataset.token = "none";
+  }
+}
+
+$("token").value = getToken();
+markToken(null);
+$("token-form").addEventListener("submit", (e) => {
+  e.preventDefault();
+  setToken($("token").value.trim());
+  markToken(null);
+  stream.restart(); // servers whose reads need the token take it on the stream too
+});
+
+// --- views and layers ---------------------------------------------------------------------------
+
+const map = new MapView($("map"), store);
+const scene = new SceneView($("scene"), store);
+if (scene.error) {
+  $("scene-error").hidden = false;
+  $("scene-error").textContent = scene.error;
+}
+const layers = map.layers;
+for (const box of document.querySelectorAll("#layers input[data-layer]")) {
+  box.addEventListener("change", () => {
+    layers[box.dataset.layer] = box.checked;
+  });
+}
+for (const b of document.querySelectorAll(".seg button[data-view]")) {
+  b.addEventListener("click", () => {
+    for (const o of document.querySelectorAll(".seg button")) o.classList.toggle("on", o === b);
+    $("panes").dataset.view = b.dataset.view;
+  });
+}
+$("fit").addEventListener("click", () => {
+  map.userMoved = false;
+  setFollow(null);
+  map.fit();
+  scene.resetView();
+});
+$("reset3d").addEventListener("click", () => scene.resetView());
+
+function setFollow(id) {
+  map.follow = id;
+  $("follow").value = id == null ? "" : String(id);
+}
+map.onFollowChange = (id) => {
+  $("follow").value = id == null ? "" : String(id);
+};
+$("follow").addEventListener("change", () => {
+  const v = $("follow").value;
+  setFollow(v ? Number(v) : null);
+});
+
+// --- panels -------------------------------------------------------------------------------------
+
+let feats = { truth: false, assignments: false, commands: false, estimator: true, metrics: true };
+
+const vehicleActions = {
+  command(label, command, altitude, node) {
+    const body = { command };
+    if (command === "takeoff" && Number.isFinite(altitude)) body.altitude_m = altitude;
+    return act(
+      node,
+      `${command} UAV ${label}`,
+      () => request("POST", `vehicles/${encodeURIComponent(label)}/commands`, body),
+      (r) => {
+        const ok = r && r.result === "accepted";
+        const n = r && r.attempts;
+        const text = `${command}: ${r ? r.result : "?"}${n ? ` (${n} attempt${n > 1 ? "s" : ""})` : ""}${r && r.detail ? ` — ${r.detail}` : ""}`;
+        return { kind: ok ? "ok" : "bad", text };
+      },
+    );
+  },
+};
+
+let vehiclesPanel;
+const tracksPanel = new TracksPanel($("tracks"), store, (id) => setFollow(map.follow === id ? null : id));
+const seriesPanel = new SeriesPanel($("series"), store);
+let servicePanel;
+
+// Estimator.
+async function loadEstimators() {
+  try {
+    const body = await get("estimators");
+    const sel = $("estimator-name");
+    sel.replaceChildren(
+      ...body.estimators.map((e) => el("option", { value: e.name, text: `${e.name} — ${e.summary}`, title: e.params.map((p) => `${p.name}: ${p.description}`).join("\n") })),
+    );
+    if (store.estimator) sel.value = store.estimator.name;
+    $("estimator-panel").hidden = false;
+  } catch {
+    $("estimator-panel").hidden = true;
+  }
+}
+
+function parseParams(text) {
+  const params = {};
+  for (const part of text.split(/[,\s]+/).filter(Boolean)) {
+    const m = part.match(/^([\w.-]+)=(.+)$/);
+    if (!m || !Number.isFinite(Number(m[2]))) throw new Error(`"${part}" is not name=number`);
+    params[m[1]] = Number(m[2]);
+  }
+  return params;
+}
+
+$("estimator-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const node = $("estimator-result");
+  let params;
+  try {
+    params = parseParams($("estimator-params").value);
+  } catch (err) {
+    showResult(node, "bad", `parameters: ${err.message}`);
+    errors.push({ what: "change estimator", message: err.message, status: null, at: Date.now() });
+    return;
+  }
+  const name = $("estimator-name").value;
+  const body = await act(node, `change estimator to ${name}`, () => request("PUT", "estimator", { name, params }), (r) => `now running ${r.name}${Object.keys(r.params || {}).length ? ` (${Object.entries(r.params).map(([k, v]) => `${k}=${v}`).join(", ")})` : ""}`);
+  if (body) {
+    store.estimator = body;
+    markToken(true);
+  }
+});
+
+// Assignments.
+async function refreshAssignments() {
+  if (!feats.assignments) return;
+  try {
+    const body = await get("assignments");
+    store.applyAssignments(Array.isArray(body) ? body : body.assignments || []);
+    renderAssignments();
+  } catch {
+    /* shown by the service panel's stream state; the list keeps its last value */
+  }
+}
+
+function renderAssignments() {
+  const root = $("assignments");
+  const list = [...store.assignments.values()];
+  root.replaceChildren(
+    ...list.map((a) => {
+      const result = el("span", { class: "result" });
+      return el("div", { class: "card", "data-assignment": a.id },
+        el("div", { class: "head" },
+          el("span", { class: "title", text: `#${a.id}` }),
+          el("span", { class: "tag", text: a.law }),
+          el("span", { text: `UAV ${(a.vehicles || []).join(", ")} → T${a.track}` }),
+          el("span", { class: "spacer" }),
+          el("span", { class: `tag ${a.state === "active" ? "ok" : ""}`, text: a.state || "" }),
+          el("button", {
+            type: "button",
+            text: "End",
+            onclick: async () => {
+              if (await act(result, `end assignment ${a.id}`, () => request("DELETE", `assignments/${a.id}`), () => "ended") !== null) refreshAssignments();
+            },
+          })),
+        el("div", { class: "grid" },
+          el("span", { class: "k", text: "R" }), el("span", { class: "v", text: `${a.radius_m ?? "–"} m` }),
+          el("span", { class: "k", text: "H" }), el("span", { class: "v", text: `${a.height_m ?? "–"} m` })),
+        result);
+    }),
+  );
+}
+
+$("assign-form").addEventListener("submit", async (e) => {
+  e.preventDefault();
+  const vehicles = [...document.querySelectorAll("#assign-vehicles input:checked")].map((i) => Number(i.value));
+  const body = {
+    vehicles,
+    track: Number($("assign-track").value),
+    law: $("assign-law").value,
+    radius_m: Number($("assign-r").value),
+    height_m: Number($("assign-h").value),
+  };
+  if ($("assign-law").value === "formation" || $("assign-spacing").value !== "") body.spacing_deg = Number($("assign-spacing").value);
+  const node = $("assign-result");
+  if (!vehicles.length || !Number.isFinite(body.track)) {
+    showResult(node, "bad", "pick at least one vehicle and a track");
+    errors.push({ what: "assign", message: "nothing picked", status: null, at: Date.now() });
+    return;
+  }
+  const r = await act(node, "assign", () => request("POST", "assignments", body), (a) => `assignment ${a.id} ${a.state || "created"}`);
+  if (r) {
+    markToken(true);
+    refreshAssignments();
+  }
+});
+
+function updateAssignForm() {
+  if (!feats.assignments) return;
+  const vroot = $("assign-vehicles");
+  const labels = [...store.vehicles.keys()].sort((a, b) => a.localeCompare(b, undefined, { numeric: true }));
+  if (vroot.dataset.labels !== labels.join(",")) {
+    const checked = new Set([...vroot.querySelectorAll("input:checked")].map((i) => i.value));
+    vroot.replaceChildren(...labels.map((l) => el("label", {}, el("input", { type: "checkbox", value: l, checked: checked.has(l) }), ` ${l}`)));
+    vroot.dataset.labels = labels.join(",");
+  }
+  const tsel = $("assign-track");
+  const ids = store.confirmed().map((k) => k.id).sort((a, b) => a - b);
+  if (tsel.dataset.ids !== ids.join(",")) {
+    const cur = tsel.value;
+    tsel.replaceChildren(...ids.map((id) => el("option", { value: String(id), text: `T${id}` })));
+    if (ids.map(String).includes(cur)) tsel.value = cur;
+    tsel.dataset.ids = ids.join(",");
+  }
+}
+
+function updateFollowSelect() {
+  const sel = $("follow");
+  const ids = store.confirmed().map((k) => k.id).sort((a, b) => a - b);
+  if (sel.dataset.ids !== ids.join(",")) {
+    sel.replaceChildren(el("option", { value: "", text: "—" }), ...ids.map((id) => el("option", { value: String(id), text: `T${id}` })));
+    sel.dataset.ids = ids.join(",");
+  }
+  sel.value = map.follow == null ? "" : String(map.follow);
+  if (map.follow != null && !store.tracks.has(map.follow)) setFollow(null);
+}
+
+// --- stream -------------------------------------------------------------------------------------
+
+let lastVehiclesMsg = 0;
+const stream = new Stream(
+  (msg) => {
+    switch (msg.type) {
+      case "snapshot":
+        store.applySnapshot(msg);
+        if (store.estimator && $("estimator-name").value !== store.estimator.name && document.activeElement !== $("estimator-name")) {
+          $("estimator-name").value = store.estimator.name;
+        }
+        break;
+      case "scan":
+        store.applyScan(msg);
+        break;
+      case "vehicles":
+        lastVehiclesMsg = performance.now();
+        store.applyVehicles(msg);
+        break;
+      case "assignment":
+        refreshAssignments();
+        break;
+      default:
+        break; // unknown types are for newer pages
+    }
+  },
+  (state) => {
+    document.body.dataset.wsState = state;
+    const pill = $("conn");
+    pill.className = `pill pill-${state}`;
+    pill.textContent = { open: "live", connecting: "connecting…", closed: "disconnected — retrying" }[state];
+    if (state === "open") pollNow();
+  },
+);
+
+// Track details (history before this page saw the track, the OBE bound) for the confirmed tracks.
+const detailsPending = new Set();
+async function fetchDetails(id) {
+  if (detailsPending.has(id)) return;
+  detailsPending.add(id);
+  try {
+    const d = await get(`tracks/${id}`);
+    store.mergeHistory(id, d.history, d.bound ?? null);
+  } catch {
+    /* a track deleted meanwhile */
+  } finally {
+    detailsPending.delete(id);
+  }
+}
+store.onConfirmed = (id) => {
+  if (stream.state === "open") setTimeout(() => fetchDetails(id), 50);
+};
+
+// --- polls --------------------------------------------------------------------------------------
+
+let pollTick = 0;
+function pollNow() {
+  pollTick = 0;
+  poll();
+}
+
+async function poll() {
+  pollTick += 1;
+  if (stream.state !== "open") return; // the server is away: nothing to ask
+  const jobs = [];
+  // Vehicles: the stream's `vehicles` messages when the server sends them, else GET /vehicles.
+  if (performance.now() - lastVehiclesMsg > 3000 && pollTick % 2 === 1) {
+    jobs.push(get("vehicles").then((b) => store.applyVehicles(b)).catch(() => {}));
+  }
+  if (feats.truth) jobs.push(get("truth").then((b) => store.applyTruth(b)).catch(() => {}));
+  if (feats.metrics && pollTick % 2 === 1 && servicePanel) {
+    jobs.push(
+      getText("metrics")
+        .then((t) => {
+          servicePanel.metrics = parseMetrics(t);
+          servicePanel.metricsError = null;
+        })
+        .catch((e) => {
+          servicePanel.metricsError = e instanceof ApiError ? e.describe() : String(e);
+        }),
+    );
+  }
+  if (feats.assignments && pollTick % 2 === 0) jobs.push(refreshAssignments());
+  // The OBE bounds change with every update: refresh them for the confirmed tracks (≤ 20).
+  if (layers.bound && pollTick % 2 === 0) {
+    for (const k of store.confirmed().slice(0, 20)) if (k.view.updated) jobs.push(fetchDetails(k.id));
+  }
+  await Promise.all(jobs);
+}
+
+// --- render loop --------------------------------------------------------------------------------
+
+let frames = 0;
+let renders = 0;
+let fpsSince = performance.now();
+const frameWork = []; // ms of main-thread work per frame over the last second
+function frame(now) {
+  const t0 = performance.now();
+  store.prune(now);
+  map.draw(now);
+  scene.update(now, layers);
+  if (scene.canvas.clientWidth && scene.render(now)) renders += 1;
+  frameWork.push(performance.now() - t0);
+  frames += 1;
+  if (now - fpsSince >= 1000) {
+    hook.fps = (1000 * frames) / (now - fpsSince);
+    hook.sceneFps = (1000 * renders) / (now - fpsSince);
+    const sorted = frameWork.splice(0).sort((a, b) => a - b);
+    // The page's own work per frame (drawing, scene updates, WebGL calls), 90th percentile: what
+    // it leaves of a frame's budget, whatever the rasteriser (GPU or software) then takes.
+    hook.frameMs = sorted.length ? sorted[Math.floor(0.9 * (sorted.length - 1))] : 0;
+    scene.adapt(hook.fps);
+    hook.sceneQuality = { resolution: scene.quality, dataFps: scene.dataFps, software: !!scene.software };
+    frames = 0;
+    renders = 0;
+    fpsSince = now;
+  }
+  publish();
+  requestAnimationFrame(frame);
+}
+
+/** What the page draws, for tests: `window.harrier` and data attributes. */
+function publish() {
+  const m = map.stats;
+  const sc = scene.stats;
+  hook.map = { ...m };
+  hook.scene = { ...sc, available: !!scene.renderer };
+  hook.ws = { state: stream.state, seq: store.seq, scans: store.scans, snapshots: store.snapshots, reconnects: stream.reconnects, messages: stream.messages };
+  const mc = $("map").dataset;
+  mc.tracks = m.tracks;
+  mc.ellipses = m.ellipses;
+  mc.uavs = m.uavs;
+  const sd = $("scene").dataset;
+  sd.tracks = sc.tracks;
+  sd.ellipsoids = sc.ellipsoids;
+  sd.uavs = sc.uavs;
+  document.body.dataset.seq = store.seq;
+  document.body.dataset.scans = store.scans;
+}
+
+function updatePanels() {
+  setText($("seq"), `${store.seq || "–"}`);
+  const rates = store.ingestRates();
+  let total = 0;
+  for (const r of rates.values()) total += r.scans;
+  setText($("scanrate"), total.toFixed(1));
+  setText($("ntracks"), `${store.confirmed().length}`);
+  setText($("nuavs"), `${[...store.vehicles.values()].filter((v) => v.position).length}`);
+  setText($("fps"), hook.fps.toFixed(0));
+  if (store.estimator) setText($("estimator-running"), `running: ${store.estimator.name}${Object.keys(store.estimator.params || {}).length ? ` ${JSON.stringify(store.estimator.params)}` : ""}`);
+  vehiclesPanel?.update();
+  tracksPanel.update(map.follow);
+  seriesPanel.update();
+  servicePanel?.update();
+  updateAssignForm();
+  updateFollowSelect();
+}
+
+// --- start --------------------------------------------------------------------------------------
+
+async function start() {
+  feats = await features();
+  hook.features = feats;
+  vehiclesPanel = new VehiclesPanel($("vehicles"), store, feats.commands ? vehicleActions : null);
+  servicePanel = new ServicePanel($("service"), store, stream);
+  $("assign-panel").hidden = !feats.assignments;
+  document.body.dataset.features = Object.entries(feats).filter(([, v]) => v).map(([k]) => k).join(" ");
+  stream.connect();
+  loadEstimators();
+  setInterval(updatePanels, 250);
+  setInterval(poll, 1000);
+  requestAnimationFrame(frame);
+  hook.ready = true;
+  document.body.dataset.ready = "true";
+}
+
+start();

@@ -1,0 +1,307 @@
+// What the page knows: tracks (with their histories), vehicles (with trails), recent detections,
+// simulation truth, assignments and the stream's counters. Fed by WebSocket messages and REST
+// polls; read by the map, the 3-D view and the panels. Times are the tracker's time line (s).
+
+import { mahalanobis2, positionCov, trackEllipse } from "./util.js";
+
+const HISTORY_LEN = 200;
+const TRAIL_LEN = 300;
+const DETECTION_TTL_S = 8; // wall-clock seconds a detection stays on screen (fading)
+const TRUTH_LEN = 3000;
+const SERIES_WINDOW_S = 180;
+
+export class Store {
+  constructor() {
+    this.tracks = new Map(); // id → TrackState
+    this.vehicles = new Map(); // label → VehicleState
+    this.detections = []; // {at (performance.now ms), kind, vehicle, platform, z}
+    this.truth = new Map(); // target id → {samples: [[t,x,y,z]], last: {t, position, velocity}}
+    this.assignments = new Map(); // id → assignment body
+    this.estimator = null;
+    this.seq = 0;
+    this.t = null;
+    this.scans = 0; // scan messages received since the page loaded
+    this.snapshots = 0;
+    this.dropped = 0; // scan messages the server dropped for this page (lagging)
+    this.gaps = 0; // seq gaps seen
+    this.rates = []; // [performance.now ms, vehicle, detections] of recent scans
+    this.linkShape = false; // /vehicles answers the link shape (issue 9)
+    this.planeZ = 0;
+    this.version = 0; // bumped on every change (the panels redraw when it moves)
+    this.onConfirmed = null; // callback(id) when a track is first seen confirmed
+  }
+
+  // --- WebSocket messages -------------------------------------------------------------------
+
+  /** `snapshot`: replaces the tracks and vehicles (a new server, or this page fell behind). */
+  applySnapshot(msg) {
+    this.snapshots += 1;
+    this.dropped += msg.dropped || 0;
+    this.seq = msg.seq || 0;
+    this.t = msg.t ?? this.t;
+    if (msg.estimator) this.estimator = msg.estimator;
+    const seen = new Set();
+    for (const k of msg.tracks || []) {
+      seen.add(k.id);
+      this.upsertTrack(k, false);
+    }
+    for (const id of [...this.tracks.keys()]) if (!seen.has(id)) this.tracks.delete(id);
+    for (const v of msg.vehicles || []) this.upsertVehicle(v);
+    this.version += 1;
+  }
+
+  /** `scan`: detections, events, changed tracks. */
+  applyScan(msg) {
+    if (this.seq && msg.seq > this.seq + 1) this.gaps += 1;
+    this.seq = msg.seq;
+    this.t = msg.t;
+    this.scans += 1;
+    const now = performance.now();
+    const label = String(msg.vehicle);
+    this.rates.push([now, label, (msg.detections || []).length]);
+    for (const z of msg.detections || []) {
+      this.detections.push({ at: now, kind: msg.kind, vehicle: label, platform: msg.platform, z });
+    }
+    // The platform pose from the scan: the vehicle's position even before /vehicles says so.
+    if (msg.platform) {
+      const v = this.vehicleFor(label);
+      if (!v.linkPosition) this.moveVehicle(v, msg.platform, msg.t);
+      v.lastScanT = msg.t;
+      v.sensors.add(msg.sensor);
+      v.scans += 1;
+    }
+    for (const k of msg.tracks || []) this.upsertTrack(k, true);
+    for (const e of msg.events || []) {
+      if (e.type === "deleted") this.tracks.delete(e.id);
+    }
+    this.version += 1;
+  }
+
+  /** `vehicles` (issue 9) or GET /vehicles: either shape. */
+  applyVehicles(body) {
+    for (const v of body.vehicles || []) this.upsertVehicle(v);
+    this.version += 1;
+  }
+
+  // --- tracks -------------------------------------------------------------------------------
+
+  upsertTrack(view, fromScan) {
+    let k = this.tracks.get(view.id);
+    const isNew = !k;
+    if (!k) {
+      k = {
+        id: view.id,
+        view,
+        history: [],
+        ellipse: null,
+        bound: null,
+        firstSeen: view.t,
+        series: [], // [t, value] (position error with truth, else ellipse major semi-axis)
+        nees: null,
+        error: null,
+      };
+      this.tracks.set(view.id, k);
+    }
+    k.view = view;
+    k.ellipse = trackEllipse(view);
+    const [x, y, z] = view.state;
+    if (fromScan || isNew) {
+      const h = k.history;
+      if (!h.length || h[h.length - 1][0] < view.t) {
+        if (view.updated || isNew) h.push([view.t, x, y, z]);
+        if (h.length > HISTORY_LEN) h.splice(0, h.length - HISTORY_LEN);
+      }
+    }
+    this.scoreTrack(k);
+    if (view.status === "confirmed" && !k.confirmedSeen) {
+      k.confirmedSeen = true;
+      if (this.onConfirmed) this.onConfirmed(view.id);
+    }
+  }
+
+  /** A track's history from GET /tracks/{id} (what happened before this page saw it). */
+  mergeHistory(id, history, bound) {
+    const k = this.tracks.get(id);
+    if (!k) return;
+    if (history && history.length) {
+      const known = k.history.length ? k.history[0][0] : Infinity;
+      const older = history.filter((p) => p[0] < known);
+      k.history = older.concat(k.history).slice(-HISTORY_LEN);
+    }
+    if (bound !== undefined) k.bound = bound;
+  }
+
+  /** Position error and NEES against the nearest true target (when truth is known). */
+  scoreTrack(k) {
+    const v = k.view;
+    const t = v.t;
+    let best = null;
+    for (const target of this.truth.values()) {
+      const s = target.last;
+      if (!s) continue;
+      const dt = t - s.t;
+      if (Math.abs(dt) > 5) continue;
+      const vel = s.velocity || [0, 0, 0];
+      const p = [0, 1, 2].map((i) => s.position[i] + (vel[i] || 0) * dt);
+      const d = [v.state[0] - p[0], v.state[1] - p[1], v.state[2] - p[2]];
+      const e = Math.hypot(d[0], d[1]);
+      if (!best || e < best.e) best = { e, d };
+    }
+    if (best && best.e < 200) {
+      k.error = best.e;
+      const p3 = positionCov(v, [0, 1, 2]);
+      const p2 = positionCov(v, [0, 1]);
+      k.nees = p3 ? mahalanobis2(best.d, p3) : p2 ? mahalanobis2(best.d.slice(0, 2), p2) : null;
+      k.neesDim = p3 ? 3 : 2;
+      if (k.seriesKind !== "error") k.series = [];
+      k.seriesKind = "error";
+      pushSeries(k.series, t, best.e);
+    } else {
+      k.error = null;
+      k.nees = null;
+      if (this.truth.size === 0 && k.ellipse) {
+        if (k.seriesKind !== "sigma") k.series = [];
+        k.seriesKind = "sigma";
+        pushSeries(k.series, t, k.ellipse.a);
+      }
+    }
+  }
+
+  confirmed() {
+    return [...this.tracks.values()].filter((k) => k.view.status === "confirmed");
+  }
+
+  // --- vehicles -----------------------------------------------------------------------------
+
+  vehicleFor(label) {
+    let v = this.vehicles.get(label);
+    if (!v) {
+      v = {
+        label,
+        position: null,
+        velocity: null,
+        heading: null, // rad, clockwise from North
+        trail: [],
+        sensors: new Set(),
+        scans: 0,
+        lastScanT: null,
+        link: null,
+        linkPosition: false,
+      };
+      this.vehicles.set(label, v);
+    }
+    return v;
+  }
+
+  moveVehicle(v, p, t) {
+    const last = v.trail[v.trail.length - 1];
+    if (!last || Math.hypot(p[0] - last[1], p[1] - last[2], p[2] - last[3]) > 0.5) {
+      if (last && Math.hypot(p[0] - last[1], p[1] - last[2]) > 1.0 && !v.linkPosition) {
+        v.heading = Math.atan2(p[0] - last[1], p[1] - last[2]);
+      }
+      // Without link telemetry, the velocity from the last two positions.
+      const dt = last && t != null ? t - last[0] : 0;
+      if (!v.linkPosition && dt > 0.05) v.velocity = [(p[0] - last[1]) / dt, (p[1] - last[2]) / dt, (p[2] - last[3]) / dt];
+      v.trail.push([t ?? 0, p[0], p[1], p[2]]);
+      if (v.trail.length > TRAIL_LEN) v.trail.splice(0, v.trail.length - TRAIL_LEN);
+    } else if (!v.linkPosition && t != null && t - last[0] > 1) {
+      v.velocity = [(p[0] - last[1]) / (t - last[0]), (p[1] - last[2]) / (t - last[0]), (p[2] - last[3]) / (t - last[0])];
+    }
+    v.position = p;
+  }
+
+  /**
+   * One vehicle in either shape: today's `{vehicle, position, geodetic, sensors, …}` (as seen in
+   * its detections), or issue 9's `{id, link: {...} | null, detections: {...} | null}`.
+   */
+  upsertVehicle(raw) {
+    if (raw && ("link" in raw || "id" in raw) && !("vehicle" in raw)) {
+      this.linkShape = true;
+      const label = String(raw.id);
+      const v = this.vehicleFor(label);
+      v.link = raw.link || null;
+      const det = raw.detections || null;
+      if (det) this.mergeDetectionView(v, det);
+      if (v.link && Array.isArray(v.link.position)) {
+        v.linkPosition = true;
+        this.moveVehicle(v, v.link.position, det ? det.last_t : null);
+        v.velocity = v.link.velocity || null;
+        if (Number.isFinite(v.link.heading_deg)) v.heading = (v.link.heading_deg * Math.PI) / 180;
+      } else {
+        v.linkPosition = false;
+      }
+      return;
+    }
+    const v = this.vehicleFor(String(raw.vehicle));
+    this.mergeDetectionView(v, raw);
+  }
+
+  mergeDetectionView(v, det) {
+    if (Array.isArray(det.sensors)) for (const s of det.sensors) v.sensors.add(s);
+    if (Number.isFinite(det.scans)) v.scans = Math.max(v.scans, det.scans);
+    if (Number.isFinite(det.last_t)) v.lastScanT = det.last_t;
+    v.geodetic = det.geodetic || v.geodetic;
+    if (!v.linkPosition && Array.isArray(det.position)) this.moveVehicle(v, det.position, det.last_t);
+  }
+
+  // --- truth, assignments, housekeeping ------------------------------------------------------
+
+  applyTruth(body) {
+    for (const s of body.targets || []) {
+      let target = this.truth.get(s.id);
+      if (!target) {
+        target = { id: s.id, samples: [], last: null };
+        this.truth.set(s.id, target);
+      }
+      const last = target.samples[target.samples.length - 1];
+      if (!last || s.t > last[0]) {
+        target.samples.push([s.t, s.position[0], s.position[1], s.position[2] ?? this.planeZ]);
+        if (target.samples.length > TRUTH_LEN) target.samples.splice(0, target.samples.length - TRUTH_LEN);
+      }
+      target.last = s;
+    }
+    this.version += 1;
+  }
+
+  applyAssignments(list) {
+    this.assignments = new Map(list.map((a) => [a.id, a]));
+    this.version += 1;
+  }
+
+  /** Forgets what is too old to draw; called once per frame. */
+  prune(now) {
+    const ttl = DETECTION_TTL_S * 1000;
+    let i = 0;
+    while (i < this.detections.length && now - this.detections[i].at > ttl) i++;
+    if (i) this.detections.splice(0, i);
+    if (this.detections.length > 4000) this.detections.splice(0, this.detections.length - 4000);
+    let j = 0;
+    while (j < this.rates.length && now - this.rates[j][0] > 5000) j++;
+    if (j) this.rates.splice(0, j);
+  }
+
+  /** Scans/s and detections/s per vehicle over the last 5 s. */
+  ingestRates() {
+    const out = new Map();
+    for (const [, label, n] of this.rates) {
+      const r = out.get(label) || { scans: 0, detections: 0 };
+      r.scans += 1 / 5;
+      r.detections += n / 5;
+      out.set(label, r);
+    }
+    return out;
+  }
+
+  /** Fraction (0–1) of a detection's life left. */
+  static fade(d, now) {
+    return Math.max(0, 1 - (now - d.at) / (DETECTION_TTL_S * 1000));
+  }
+}
+
+function pushSeries(series, t, v) {
+  if (!Number.isFinite(v)) return;
+  const last = series[series.length - 1];
+  if (last && last[0] >= t) return;
+  series.push([t, v]);
+  while (series.length && t - series[0][0] > SERIES_WINDOW_S) series.shift();
+}
