@@ -187,6 +187,7 @@ impl BenchArgs {
     /// The in-process server's configuration, its Zenoh session listening on `endpoint`.
     fn server_config(&self, endpoint: String) -> Config {
         let mut c = Config::default();
+        c.mavlink.gcs.clear();
         c.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
         c.zenoh.listen = vec![endpoint];
         c.zenoh.connect = Vec::new();

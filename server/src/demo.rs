@@ -63,6 +63,19 @@ pub struct DemoArgs {
 /// What [`start`] runs (the command's arguments).
 pub type DemoConfig = DemoArgs;
 
+impl DemoConfig {
+    /// The default demo with its API on `listen`, its GCS link on a free loopback port and no
+    /// router: for tests, where the well-known ports may be taken.
+    pub fn ephemeral(listen: SocketAddr) -> Self {
+        Self {
+            listen,
+            gcs: "udpin:127.0.0.1:0".into(),
+            router: Vec::new(),
+            ..Self::default()
+        }
+    }
+}
+
 impl Default for DemoConfig {
     fn default() -> Self {
         Self {

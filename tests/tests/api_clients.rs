@@ -25,7 +25,10 @@ use std::net::SocketAddr;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use harrier_server::live::{self, config::Config};
+use harrier_server::live::{
+    self,
+    config::{Config, MavlinkConfig},
+};
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::SimScenario;
@@ -106,6 +109,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     let started = Instant::now();
     let scenario = SimScenario::load("cimm-road").expect("preset");
     let mut config = Config::default();
+    config.mavlink = MavlinkConfig::ephemeral();
     config.frame.origin = scenario.origin;
     config.tracker.estimator = "cimm".into();
     config.tracker.roads = scenario.roads.clone();
@@ -248,6 +252,7 @@ fn a_slow_websocket_client_is_dropped_to_the_latest_snapshot() {
     use tokio_tungstenite::tungstenite::Message;
 
     let mut config = Config::default();
+    config.mavlink.gcs.clear();
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.ws_queue = 512;
     config.zenoh.tracks_key = String::new();

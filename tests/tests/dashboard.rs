@@ -45,7 +45,7 @@ fn config(listen: SocketAddr) -> DemoConfig {
         listen,
         // Twice real time: tracks confirm sooner, and the page still sees every scan.
         speedup: 2.0,
-        ..DemoConfig::default()
+        ..DemoConfig::ephemeral(listen)
     }
 }
 

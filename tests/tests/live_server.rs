@@ -59,15 +59,37 @@ fn runtime() -> tokio::runtime::Runtime {
 
 /// `GET path` on a fresh HTTP/1 connection: status and body.
 async fn get(addr: SocketAddr, path: &str) -> (u16, String) {
-    within(5, path, async {
+    send(addr, "GET", path, None, None).await
+}
+
+/// `method path` with an optional bearer token and JSON body: status and body.
+async fn send(
+    addr: SocketAddr,
+    method: &str,
+    path: &str,
+    token: Option<&str>,
+    body: Option<&Value>,
+) -> (u16, String) {
+    within(10, path, async {
         let stream = tokio::net::TcpStream::connect(addr).await.expect("connect");
         let (mut sender, conn) = hyper::client::conn::http1::handshake(TokioIo::new(stream))
             .await
             .expect("handshake");
         tokio::spawn(conn);
-        let req = hyper::Request::get(path)
-            .header(hyper::header::HOST, addr.to_string())
-            .body(http_body_util::Empty::<hyper::body::Bytes>::new())
+        let mut req = hyper::Request::builder()
+            .method(method)
+            .uri(path)
+            .header(hyper::header::HOST, addr.to_string());
+        if let Some(t) = token {
+            req = req.header(hyper::header::AUTHORIZATION, format!("Bearer {t}"));
+        }
+        if body.is_some() {
+            req = req.header(hyper::header::CONTENT_TYPE, "application/json");
+        }
+        let req = req
+            .body(http_body_util::Full::new(hyper::body::Bytes::from(
+                body.map(Value::to_string).unwrap_or_default(),
+            )))
             .expect("request");
         let res = sender.send_request(req).await.expect("response");
         let status = res.status().as_u16();
@@ -261,6 +283,132 @@ fn ingested(metrics: &str, ids: &[u8]) -> f64 {
         .sum()
 }
 
+/// Horizontal distance and phase (rad) of `p` around `c`.
+fn polar(p: &Value, c: &Value) -> (f64, f64) {
+    let f = |v: &Value, i: usize| v[i].as_f64().expect("coordinate");
+    let (dx, dy) = (f(p, 0) - f(c, 0), f(p, 1) - f(c, 1));
+    (dx.hypot(dy), dy.atan2(dx))
+}
+
+/// The demo's whole loop: the UAVs, on the ground at first, are assigned by the demo to the
+/// slowest car's track; the guidance arms them, takes them off and flies TOGVF with phase
+/// spacing from the live track over MAVLink. Measured from the vehicles' own telemetry
+/// (`/api/v1/vehicles`, GLOBAL_POSITION_INT) against the simulator's truth (`/api/v1/truth`):
+/// |r − R| ≤ 5 % of R RMS and the spacing error ≤ 15° RMS; ending the assignment sends every UAV
+/// to Hold.
+#[test]
+fn the_demo_flies_its_uavs_around_a_car() {
+    const R: f64 = 150.0;
+    runtime().block_on(within(300, "the standoff test", async {
+        let config = DemoConfig {
+            speedup: 5.0,
+            seed: 2,
+            radius: R,
+            ..DemoConfig::ephemeral(SocketAddr::from(([127, 0, 0, 1], 0)))
+        };
+        let demo = within(30, "start the demo", demo::start(&config))
+            .await
+            .expect("start the demo");
+        let addr = demo.server().local_addr();
+        let token = demo.server().token().0.to_owned();
+        let started = Instant::now();
+        // The truth target the assignment's track follows, and the vehicles' telemetry.
+        let sample = || async {
+            let (_, a) = get_json(addr, "/api/v1/assignments").await;
+            let a = a["assignments"].get(0)?.clone();
+            let (_, k) = get_json(addr, &format!("/api/v1/tracks/{}", a["track"])).await;
+            let (_, truth) = get_json(addr, "/api/v1/truth").await;
+            let (_, vehicles) = get_json(addr, "/api/v1/vehicles").await;
+            let est = k.get("state")?.clone();
+            let car = truth["targets"]
+                .as_array()?
+                .iter()
+                .min_by(|x, y| {
+                    polar(&x["position"], &est)
+                        .0
+                        .total_cmp(&polar(&y["position"], &est).0)
+                })?
+                .clone();
+            let uavs: Vec<(f64, f64, String)> = vehicles["vehicles"]
+                .as_array()?
+                .iter()
+                .filter_map(|v| {
+                    let (r, phase) = polar(v["link"].get("position")?, &car["position"]);
+                    Some((r, phase, v["link"]["mode"].as_str()?.to_owned()))
+                })
+                .collect();
+            Some((a, uavs))
+        };
+        // On the circle: every UAV within 5 % of R for 2 s.
+        let mut settled = 0;
+        while settled < 8 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            settled = match sample().await {
+                Some((a, uavs))
+                    if a["state"] == "active"
+                        && uavs.len() == 3
+                        && uavs.iter().all(|u| u.2 == "OFFBOARD" && (u.0 - R).abs() < 0.05 * R) =>
+                {
+                    settled + 1
+                }
+                _ => 0,
+            };
+            assert!(
+                started.elapsed() < Duration::from_secs(150),
+                "the UAVs did not settle on the circle: {:?}",
+                sample().await
+            );
+        }
+        eprintln!("standoff: on the circle after {:.1} s", started.elapsed().as_secs_f64());
+        // 100 s of flight (20 s at 5×), 4 samples a second.
+        let (mut range2, mut spacing2, mut n) = (0.0, 0.0, 0usize);
+        for _ in 0..80 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            let Some((_, uavs)) = sample().await else {
+                continue;
+            };
+            let mut phases: Vec<f64> = uavs.iter().map(|u| u.1).collect();
+            phases.sort_by(f64::total_cmp);
+            for (i, u) in uavs.iter().enumerate() {
+                range2 += (u.0 - R).powi(2);
+                let next = phases[(i + 1) % phases.len()];
+                let gap = (next - phases[i]).rem_euclid(std::f64::consts::TAU);
+                spacing2 += (gap - std::f64::consts::TAU / 3.0).to_degrees().powi(2);
+            }
+            n += uavs.len();
+        }
+        let range_rms = (range2 / n as f64).sqrt();
+        let spacing_rms = (spacing2 / n as f64).sqrt();
+        eprintln!(
+            "standoff: |r - R| RMS {range_rms:.2} m (R = {R} m), spacing error RMS {spacing_rms:.1}°, {n} samples"
+        );
+        assert!(range_rms <= 0.05 * R, "|r - R| RMS {range_rms} m");
+        assert!(spacing_rms <= 15.0, "spacing error RMS {spacing_rms}°");
+        let (_, metrics) = get(addr, "/api/v1/metrics").await;
+        assert!(metric(&metrics, "harrier_guidance_setpoints_total") > 100.0, "{metrics}");
+        assert!(metric(&metrics, "harrier_mavlink_heartbeats_sent_total") >= 1.0);
+
+        // Ending the assignment sends every UAV to Hold.
+        let (status, body) = send(addr, "DELETE", "/api/v1/assignments/1", None, None).await;
+        assert_eq!(status, 401, "{body}");
+        let (status, body) =
+            send(addr, "DELETE", "/api/v1/assignments/1", Some(&token), None).await;
+        assert_eq!(status, 200, "{body}");
+        let holding = async {
+            loop {
+                if let Some((_, uavs)) = sample().await
+                    && uavs.iter().all(|u| u.2 == "HOLD")
+                {
+                    return;
+                }
+                tokio::time::sleep(Duration::from_millis(200)).await;
+            }
+        };
+        within(15, "every UAV in Hold", holding).await;
+        demo.stop().await;
+    }));
+}
+
 #[test]
 fn the_demo_tracks_its_road_targets() {
     let started = Instant::now();
@@ -269,7 +417,7 @@ fn the_demo_tracks_its_road_targets() {
             listen: SocketAddr::from(([127, 0, 0, 1], 0)),
             speedup: SPEEDUP,
             seed: 3,
-            ..DemoConfig::default()
+            ..DemoConfig::ephemeral(SocketAddr::from(([127, 0, 0, 1], 0)))
         };
         let demo = within(30, "start the demo", demo::start(&config))
             .await
@@ -477,6 +625,7 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
         let mut servers = Vec::new();
         for (_, sensors) in runs {
             let mut config = Config::default();
+            config.mavlink.gcs.clear();
             config.frame.origin = scenario.origin;
             config.tracker.estimator = "cimm".into();
             config.tracker.roads = scenario.roads.clone();

@@ -161,7 +161,8 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
              [tracker]\nestimator = \"ekf\"\n\
              [zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\nconnect = [\"{sim_endpoint}\"]\n\
              tracks_key = \"\"\n\
-             [recorder]\npath = '{}'\nflush_ms = 200\ntruth = true\n",
+             [recorder]\npath = '{}'\nflush_ms = 200\ntruth = true\n\
+             [mavlink]\ngcs = [\"udpin:127.0.0.1:0\"]\nrouter = []\n",
             o.lat_deg,
             o.lon_deg,
             o.alt_m,

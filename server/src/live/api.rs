@@ -722,6 +722,18 @@ async fn metrics(State(s): State<ApiState>) -> Response {
     if let Some(r) = &s.recorder {
         render_recorder(&mut text, &r.stats());
     }
+    if let Some(l) = &s.link {
+        l.render_metrics(&mut text);
+    }
+    if let Some(g) = &s.guidance {
+        let active = g
+            .assignments
+            .borrow()
+            .iter()
+            .filter(|a| a.state == "active")
+            .count();
+        g.metrics.render(active, &mut text);
+    }
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text).into_response()
 }
 

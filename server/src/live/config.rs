@@ -77,6 +77,18 @@ impl Default for MavlinkConfig {
     }
 }
 
+impl MavlinkConfig {
+    /// A GCS link on a free loopback UDP port and no router: for tests and embedded use, where
+    /// the well-known ports may be taken.
+    pub fn ephemeral() -> Self {
+        Self {
+            gcs: vec!["udpin:127.0.0.1:0".into()],
+            router: Vec::new(),
+            ..Self::default()
+        }
+    }
+}
+
 /// The guidance loop ([`super::guidance`]).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]

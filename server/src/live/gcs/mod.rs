@@ -16,7 +16,8 @@
 //! - A command is a COMMAND_LONG sent with confirmation 0, re-sent with confirmation + 1 after
 //!   `command_timeout_ms` without its COMMAND_ACK, `command_attempts` times in all; the caller
 //!   gets the final ACK's result, or `timeout`. `MAV_RESULT_IN_PROGRESS` restarts the wait.
-//! - Router: every valid frame from a vehicle goes, unchanged, to every client endpoint; a
+//! - Router: every valid frame from a vehicle, and the ground station's own HEARTBEAT, go
+//!   unchanged to every client endpoint; a
 //!   client's frame goes to the vehicle its `target_system` names, or to every vehicle when it
 //!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
 //!   routed (counted as malformed).
@@ -901,7 +902,9 @@ impl Actor {
                 mavlink_version: 3,
             });
             if let Some(bytes) = self.frame(&hb) {
-                for e in &self.endpoints[..self.config.gcs.len()] {
+                // To the vehicles, and to the router's clients, which see the ground station
+                // as mavlink-router shows the GCS behind it.
+                for e in &self.endpoints {
                     let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
                 }
                 self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
