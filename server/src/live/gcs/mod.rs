@@ -850,11 +850,6 @@ impl Actor {
                 lost.push(*id);
             }
         }
-        for id in lost {
-            tracing::warn!(vehicle = id, "vehicle lost (silent {lost_after} s)");
-            self.metrics.vehicles_lost.fetch_add(1, Ordering::Relaxed);
-            self.event(id, "lost", None);
-        }
         // Commands: re-send after the timeout, give up after the last attempt.
         let timeout = self.config.command_timeout;
         let mut i = 0;
@@ -920,5 +915,11 @@ impl Actor {
             })
             .collect();
         self.watch.send_replace(Arc::new(samples));
+        // After the watch shows them lost.
+        for id in lost {
+            tracing::warn!(vehicle = id, "vehicle lost (silent {lost_after} s)");
+            self.metrics.vehicles_lost.fetch_add(1, Ordering::Relaxed);
+            self.event(id, "lost", None);
+        }
     }
 }

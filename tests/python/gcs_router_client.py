@@ -1,0 +1,154 @@
+"""pymavlink as a MAVLink client of Harrier's router (run by tests/tests/mavlink_gcs.rs).
+
+    python3 gcs_router_client.py --api http://127.0.0.1:8080 --token T --vehicles 1,42 --silent 42
+    python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,42 --command 1
+    python3 gcs_router_client.py --tlog FILE.tlog --vehicles 1
+
+With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
+accepted arm, a timeout from the --silent vehicle, assignment errors, the counters in /metrics).
+With --connect: connects through the router as QGroundControl or MAVProxy would, waits for the
+ground station's HEARTBEAT (system 255, MAV_TYPE_GCS) and every listed vehicle's, then sends
+COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (disarm) to vehicle --command and waits for its
+COMMAND_ACK, which comes back through the router. With --tlog: reads a session's .tlog and checks
+it holds HEARTBEATs of the ground station and of every listed vehicle. Prints what it saw; exits
+non-zero on any failure.
+"""
+
+import argparse
+import sys
+import time
+
+import httpx
+from pymavlink import mavutil
+
+
+def fail(msg):
+    print(f"gcs_router_client: FAILED: {msg}", file=sys.stderr)
+    sys.exit(1)
+
+
+def client(url, vehicles, command, timeout_s=20.0):
+    m = mavutil.mavlink_connection(url, source_system=200, source_component=191)
+    seen = {}
+    deadline = time.monotonic() + timeout_s
+    last_hb = 0.0
+    want = set(vehicles) | {255}
+    while not want <= set(seen) and time.monotonic() < deadline:
+        if time.monotonic() - last_hb > 0.5:
+            m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            last_hb = time.monotonic()
+        msg = m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+        if msg is not None:
+            seen[msg.get_srcSystem()] = msg.type
+    if not want <= set(seen):
+        fail(f"{url}: heartbeats seen from {sorted(seen)}, wanted {sorted(want)}")
+    if seen[255] != mavutil.mavlink.MAV_TYPE_GCS:
+        fail(f"system 255 is type {seen[255]}, not MAV_TYPE_GCS")
+    print(f"{url}: heartbeats from {sorted(seen)}")
+    if command:
+        for attempt in range(3):
+            m.mav.command_long_send(command, 1, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, attempt, 0, 0, 0, 0, 0, 0, 0)
+            ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=2.0)
+            if ack is not None and ack.command == mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
+                print(f"{url}: COMMAND_ACK from {ack.get_srcSystem()}: result {ack.result}")
+                if ack.get_srcSystem() != command or ack.result != mavutil.mavlink.MAV_RESULT_ACCEPTED:
+                    fail(f"unexpected ACK {ack}")
+                break
+        else:
+            fail(f"{url}: no COMMAND_ACK from vehicle {command}")
+    m.close()
+
+
+def rest(url, token, vehicle, silent):
+    """The vehicle routes through the API, with httpx: errors, a refused command, an accepted
+    one, and a command to a vehicle that never acknowledges."""
+    auth = {"Authorization": f"Bearer {token}"}
+    with httpx.Client(base_url=url, timeout=30.0) as c:
+        def cmd(v, body, headers=auth):
+            return c.post(f"/api/v1/vehicles/{v}/commands", json=body, headers=headers)
+
+        r = cmd(vehicle, {"command": "arm"}, headers={})
+        if r.status_code != 401:
+            fail(f"no token: {r.status_code} {r.text}")
+        r = cmd(9, {"command": "arm"})
+        if r.status_code != 404 or "no vehicle 9" not in r.json()["error"]:
+            fail(f"unknown vehicle: {r.status_code} {r.text}")
+        r = cmd(vehicle, {"command": "fly"})
+        if r.status_code != 422:
+            fail(f"unknown command: {r.status_code} {r.text}")
+        # PX4 refuses OFFBOARD before setpoints arrive: the ACK's result is the answer.
+        r = cmd(vehicle, {"command": "set_mode", "mode": "offboard"})
+        body = r.json()
+        if r.status_code != 200 or body["ok"] or body["result"] != "denied":
+            fail(f"refused command: {r.status_code} {r.text}")
+        r = cmd(vehicle, {"command": "arm"})
+        body = r.json()
+        if r.status_code != 200 or not body["ok"] or body["result"] != "accepted":
+            fail(f"arm: {r.status_code} {r.text}")
+        print(f"arm: {body}")
+        r = cmd(silent, {"command": "arm"})
+        body = r.json()
+        if r.status_code != 504 or body["result"] != "timeout" or body["attempts"] != 3:
+            fail(f"silent vehicle: {r.status_code} {r.text}")
+        print(f"silent vehicle: {body}")
+        v = c.get(f"/api/v1/vehicles/{vehicle}").json()
+        if v["link"]["state"] != "connected" or not v["link"]["armed"] or v["link"]["rate_hz"] <= 0:
+            fail(f"vehicle view: {v}")
+        for body, status in [
+            ({"vehicles": [9], "track": 1, "law": "togvf"}, 404),
+            ({"vehicles": [], "track": 1, "law": "togvf"}, 422),
+            ({"vehicles": [vehicle], "track": 1, "law": "spiral"}, 422),
+            ({"vehicles": [vehicle], "track": 987654, "law": "togvf"}, 404),
+        ]:
+            r = c.post("/api/v1/assignments", json=body, headers=auth)
+            if r.status_code != status:
+                fail(f"assignment {body}: {r.status_code} {r.text}, wanted {status}")
+        metrics = c.get("/api/v1/metrics").text
+        for line in ['harrier_mavlink_command_results_total{result="timeout"} 1',
+                     'harrier_mavlink_command_results_total{result="denied"} 1',
+                     'harrier_vehicle_connected{vehicle="%d"} 1' % vehicle]:
+            if line not in metrics.splitlines():
+                fail(f"{line!r} not in /metrics")
+        malformed = [l for l in metrics.splitlines() if l.startswith('harrier_mavlink_malformed_total{side="gcs"}')]
+        if not malformed or float(malformed[0].split()[-1]) < 1:
+            fail(f"garbage not counted: {malformed}")
+        print("rest: ok")
+
+
+def tlog(path, vehicles):
+    m = mavutil.mavlink_connection(path)
+    counts = {}
+    while True:
+        msg = m.recv_match(blocking=False)
+        if msg is None:
+            break
+        if msg.get_type() == "HEARTBEAT":
+            counts[msg.get_srcSystem()] = counts.get(msg.get_srcSystem(), 0) + 1
+    print(f"{path}: HEARTBEATs by system {counts}")
+    for s in set(vehicles) | {255}:
+        if counts.get(s, 0) < 1:
+            fail(f"{path}: no HEARTBEAT of system {s}")
+
+
+def main():
+    p = argparse.ArgumentParser()
+    p.add_argument("--connect", action="append", default=[])
+    p.add_argument("--tlog")
+    p.add_argument("--vehicles", default="")
+    p.add_argument("--command", type=int, default=0)
+    p.add_argument("--api")
+    p.add_argument("--token")
+    p.add_argument("--silent", type=int, default=0)
+    a = p.parse_args()
+    vehicles = [int(v) for v in a.vehicles.split(",") if v]
+    if a.api:
+        rest(a.api, a.token, vehicles[0], a.silent)
+    for url in a.connect:
+        client(url, vehicles, a.command)
+    if a.tlog:
+        tlog(a.tlog, vehicles)
+    print("gcs_router_client: ok")
+
+
+if __name__ == "__main__":
+    main()

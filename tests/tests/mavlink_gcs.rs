@@ -1,0 +1,262 @@
+//! The ground station's MAVLink GCS link and router, with real UDP and TCP, real processes where
+//! it matters, and real clients.
+//!
+//! - `commands_router_and_tlog`: the live server's GCS link on a free UDP port, a harrier-sim
+//!   vehicle (in-process, on real sockets) sending to it, a silent fake vehicle (HEARTBEATs only,
+//!   never an ACK) and a garbage datagram. `tests/python/gcs_router_client.py` then drives the
+//!   vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an accepted arm, a
+//!   timeout after three attempts, assignment errors, the counters), and, with pymavlink through
+//!   the router's UDP and TCP endpoints, sees the ground station's and every vehicle's HEARTBEAT
+//!   and commands vehicle 1 (its COMMAND_ACK comes back through the router). After the server
+//!   stops, pymavlink reads the session's `.tlog`.
+//! - `a_killed_simulator_is_lost_then_found`: a `harrier-sim` process killed with SIGKILL is marked
+//!   lost 3 ± 0.5 s after its last frame; started again, it is heard again (`recovered`).
+
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use harrier_server::live::config::{Config, MavlinkConfig};
+use harrier_server::live::{self, LiveServer};
+use harrier_sim::mavlink::MavHeader;
+use harrier_sim::mavlink::dialects::common::{HEARTBEAT_DATA, MavMessage, MavType};
+use harrier_sim::net::{LinkConfig, spawn};
+use harrier_sim::vehicle::VehicleConfig;
+use harrier_tests::{free_tcp_port, python_script, require_python_module, wait_with_deadline};
+
+fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime")
+}
+
+async fn within<T>(secs: u64, what: &str, f: impl std::future::IntoFuture<Output = T>) -> T {
+    match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
+        Ok(v) => v,
+        Err(_) => panic!("{what}: no answer within {secs} s"),
+    }
+}
+
+/// A server with a GCS link and a router on free loopback ports.
+async fn server(record: Option<&Path>, router: Vec<String>) -> LiveServer {
+    let mut config = Config::default();
+    config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+    config.zenoh.tracks_key = String::new();
+    config.mavlink = MavlinkConfig {
+        router,
+        command_timeout_ms: 300,
+        ..MavlinkConfig::ephemeral()
+    };
+    if let Some(p) = record {
+        config.recorder.path = p.display().to_string();
+    }
+    within(20, "start the server", live::start(&config))
+        .await
+        .expect("start the server")
+}
+
+fn gcs_addr(s: &LiveServer) -> SocketAddr {
+    s.link()
+        .and_then(|l| l.gcs().next().map(|e| e.addr()))
+        .expect("a GCS endpoint")
+}
+
+/// Waits until the link has heard vehicle `id`.
+async fn heard(s: &LiveServer, id: u8) {
+    let mut rx = s.link().expect("link").vehicles.clone();
+    within(20, &format!("vehicle {id} heard"), async {
+        loop {
+            if rx.borrow_and_update().iter().any(|v| v.view.id == id) {
+                return;
+            }
+            rx.changed().await.expect("link running");
+        }
+    })
+    .await;
+}
+
+/// A fake vehicle that sends HEARTBEATs as system `id` to `gcs` and never answers anything.
+fn silent_vehicle(id: u8, gcs: SocketAddr, stop: Arc<AtomicBool>) -> std::thread::JoinHandle<()> {
+    std::thread::spawn(move || {
+        let socket = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        let mut sequence = 0u8;
+        while !stop.load(Ordering::Relaxed) {
+            let mut frame = Vec::new();
+            let header = MavHeader {
+                system_id: id.into(),
+                component_id: 1,
+                sequence,
+            };
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                mavtype: MavType::MAV_TYPE_QUADROTOR,
+                ..HEARTBEAT_DATA::DEFAULT
+            });
+            harrier_sim::mavlink::write_v2_msg(&mut frame, header, &hb).expect("frame");
+            let _ = socket.send_to(&frame, gcs);
+            sequence = sequence.wrapping_add(1);
+            std::thread::sleep(Duration::from_millis(200));
+        }
+    })
+}
+
+#[test]
+fn commands_router_and_tlog() {
+    require_python_module("pymavlink", "pymavlink==2.4.50");
+    require_python_module("httpx", "httpx==0.28.1");
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let db = dir.path().join("gcs.sqlite");
+    let rt = runtime();
+    let server = rt.block_on(server(
+        Some(&db),
+        vec!["udpin:127.0.0.1:0".into(), "tcpin:127.0.0.1:0".into()],
+    ));
+    let gcs = gcs_addr(&server);
+    let vehicle = spawn(
+        VehicleConfig::new(1),
+        &LinkConfig {
+            endpoints: vec![format!("udpout:{gcs}")],
+        },
+    )
+    .expect("start vehicle 1");
+    let stop = Arc::new(AtomicBool::new(false));
+    let silent = silent_vehicle(42, gcs, Arc::clone(&stop));
+    rt.block_on(async {
+        heard(&server, 1).await;
+        heard(&server, 42).await;
+    });
+    // Garbage on the GCS port: counted and skipped.
+    UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.send_to(b"\xfd\x09garbage, not MAVLink", gcs))
+        .expect("send garbage");
+
+    let router: Vec<String> = server
+        .link()
+        .expect("link")
+        .router()
+        .map(|e| match e {
+            harrier_link::frame::Endpoint::UdpIn(a) => format!("udpout:{a}"),
+            other => format!("tcp:{}", other.addr()),
+        })
+        .collect();
+    let api = format!("http://{}", server.local_addr());
+    let token = server.token().0.to_owned();
+    let mut args = vec![
+        "--api".to_owned(),
+        api,
+        "--token".to_owned(),
+        token,
+        "--vehicles".to_owned(),
+        "1,42".to_owned(),
+        "--silent".to_owned(),
+        "42".to_owned(),
+        "--command".to_owned(),
+        "1".to_owned(),
+    ];
+    for r in &router {
+        args.extend(["--connect".to_owned(), r.clone()]);
+    }
+    let mut child = python_script("gcs_router_client.py")
+        .args(&args)
+        .spawn()
+        .expect("run gcs_router_client.py");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(120), "gcs_router_client.py");
+    assert!(status.success(), "gcs_router_client.py failed: {status}");
+    // The router took the client's command to vehicle 1: it disarmed.
+    assert!(!vehicle.vehicle().armed());
+
+    stop.store(true, Ordering::Relaxed);
+    silent.join().expect("silent vehicle");
+    rt.block_on(server.shutdown());
+    vehicle.stop();
+    let tlog: PathBuf = dir.path().join("gcs-session-1.tlog");
+    assert!(tlog.is_file(), "{} missing", tlog.display());
+    let mut child = python_script("gcs_router_client.py")
+        .args(["--tlog", &tlog.display().to_string(), "--vehicles", "1,42"])
+        .spawn()
+        .expect("run gcs_router_client.py --tlog");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(60), "reading the tlog");
+    assert!(status.success(), "the .tlog did not read back: {status}");
+}
+
+/// `target/<profile>/harrier-sim`, beside this test executable's `deps/` directory.
+fn harrier_sim_bin() -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable");
+    let bin = exe
+        .parent()
+        .and_then(Path::parent)
+        .map(|d| d.join("harrier-sim"))
+        .expect("target directory");
+    assert!(
+        bin.is_file(),
+        "{} not found: build it with `cargo build -p harrier-sim` (cargo test --workspace does)",
+        bin.display()
+    );
+    bin
+}
+
+/// `harrier-sim` as vehicle `id`, telemetry to `gcs`, no Zenoh.
+fn sim_process(id: u8, gcs: SocketAddr) -> Child {
+    Command::new(harrier_sim_bin())
+        .args([
+            "--id",
+            &id.to_string(),
+            "--no-zenoh",
+            "--gcs",
+            &format!("udpout:{gcs}"),
+            "--api",
+            "udpin:127.0.0.1:0",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .spawn()
+        .expect("start harrier-sim")
+}
+
+#[test]
+fn a_killed_simulator_is_lost_then_found() {
+    let rt = runtime();
+    rt.block_on(async {
+        let server = server(None, Vec::new()).await;
+        let gcs = gcs_addr(&server);
+        let mut events = server.link().expect("link").events.subscribe();
+        let mut next_event = async |what: &str| loop {
+            let e = within(20, what, events.recv()).await.expect("link events");
+            if e.vehicle == 7 && e.event == what {
+                return e;
+            }
+        };
+        let mut sim = sim_process(7, gcs);
+        next_event("connected").await;
+        // Let it fly its telemetry for a moment, then kill it without warning.
+        heard(&server, 7).await;
+        sim.kill().expect("SIGKILL harrier-sim");
+        let killed = Instant::now();
+        sim.wait().expect("reap harrier-sim");
+        next_event("lost").await;
+        let after = killed.elapsed().as_secs_f64();
+        eprintln!("harrier-sim killed: marked lost after {after:.2} s");
+        assert!((2.5..=3.5).contains(&after), "lost after {after} s");
+        let view = server.link().expect("link").vehicles.borrow().clone();
+        assert_eq!(
+            view.iter().find(|v| v.view.id == 7).map(|v| v.view.state),
+            Some(harrier_server::live::gcs::vehicle::LinkState::Lost)
+        );
+        // Started again: heard again.
+        let restarted = Instant::now();
+        let mut sim = sim_process(7, gcs);
+        next_event("recovered").await;
+        eprintln!(
+            "harrier-sim restarted: recovered after {:.2} s",
+            restarted.elapsed().as_secs_f64()
+        );
+        sim.kill().expect("kill harrier-sim");
+        let _ = sim.wait();
+        server.shutdown().await;
+    });
+}
