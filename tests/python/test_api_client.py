@@ -61,7 +61,11 @@ def test_list_tracks_and_one_track(api):
     assert api.get("/api/v1/tracks/123456789").status_code == 404
     assert api.get("/api/v1/tracks/abc").json()["error"]
     vehicles = api.get("/api/v1/vehicles").json()["vehicles"]
-    assert vehicles and all(v["scans"] > 0 for v in vehicles)
+    assert vehicles and all(v["detections"]["scans"] > 0 for v in vehicles)
+    one = api.get(f"/api/v1/vehicles/{vehicles[0]['id']}")
+    assert one.status_code == 200 and one.json()["id"] == vehicles[0]["id"], one.text
+    assert api.get("/api/v1/vehicles/200").status_code == 404
+    assert api.get("/api/v1/vehicles/300").status_code == 400
     scans = api.get("/api/v1/detections").json()["scans"]
     assert scans and scans[-1]["seq"] >= scans[0]["seq"]
 
@@ -101,7 +105,9 @@ def test_the_websocket_streams_a_snapshot_then_every_scan():
             seqs, started = [], time.monotonic()
             while len(seqs) < 20:
                 m = json.loads(await asyncio.wait_for(ws.recv(), 10))
-                assert m["type"] == "scan", m["type"]
+                assert m["type"] in ("scan", "vehicles", "vehicle_event", "assignment"), m["type"]
+                if m["type"] != "scan":
+                    continue
                 assert {"t", "vehicle", "sensor", "kind", "detections", "events", "tracks"} <= m.keys()
                 seqs.append(m["seq"])
             elapsed = time.monotonic() - started
