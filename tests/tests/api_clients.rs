@@ -108,8 +108,10 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     }
     let started = Instant::now();
     let scenario = SimScenario::load("cimm-road").expect("preset");
-    let mut config = Config::default();
-    config.mavlink = MavlinkConfig::ephemeral();
+    let mut config = Config {
+        mavlink: MavlinkConfig::ephemeral(),
+        ..Config::default()
+    };
     config.frame.origin = scenario.origin;
     config.tracker.estimator = "cimm".into();
     config.tracker.roads = scenario.roads.clone();
