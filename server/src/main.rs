@@ -176,6 +176,21 @@ struct ServeArgs {
     /// Record the session into this SQLite file (`recorder.path`; see RECORDING.md).
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
+    /// MAVLink GCS endpoint the vehicles send to, e.g. udpin:0.0.0.0:14550 (repeatable; replaces
+    /// `mavlink.gcs`; `none`: no MAVLink link).
+    #[arg(long, value_name = "ENDPOINT")]
+    gcs: Vec<String>,
+    /// MAVLink router endpoint for QGroundControl, MAVProxy or MAVSDK, e.g. tcpin:0.0.0.0:5760
+    /// (repeatable; replaces `mavlink.router`; `none`: no router).
+    #[arg(long, value_name = "ENDPOINT")]
+    router: Vec<String>,
+}
+
+/// A repeatable endpoint option: empty keeps the configuration, `none` clears it.
+fn endpoints(given: &[String], configured: &mut Vec<String>) {
+    if !given.is_empty() {
+        *configured = given.iter().filter(|e| *e != "none").cloned().collect();
+    }
 }
 
 fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
@@ -209,11 +224,24 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
     if let Some(path) = &a.record {
         config.recorder.path = path.display().to_string();
     }
+    endpoints(&a.gcs, &mut config.mavlink.gcs);
+    endpoints(&a.router, &mut config.mavlink.router);
+    config.check()?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
     runtime.block_on(async {
         let server = live::start(&config).await?;
+        if let Some(link) = server.link() {
+            let list = |it: &mut dyn Iterator<Item = &harrier_link::frame::Endpoint>| {
+                it.map(ToString::to_string).collect::<Vec<_>>().join(", ")
+            };
+            eprintln!(
+                "harrier serve: MAVLink GCS link {}; router {}",
+                list(&mut link.gcs()),
+                list(&mut link.router())
+            );
+        }
         eprintln!(
             "harrier serve: ready: http://{}/api/v1 (estimator {}, zenoh {} listen {:?} connect {:?})",
             server.local_addr(),

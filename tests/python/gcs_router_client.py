@@ -2,7 +2,7 @@
 
     python3 gcs_router_client.py --api http://127.0.0.1:8080 --token T --vehicles 1,42 --silent 42
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,42 --command 1
-    python3 gcs_router_client.py --tlog FILE.tlog --vehicles 1
+    python3 gcs_router_client.py --tlog FILE.tlog --db FILE.sqlite --vehicles 1
 
 With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
 accepted arm, a timeout from the --silent vehicle, assignment errors, the counters in /metrics).
@@ -10,7 +10,8 @@ With --connect: connects through the router as QGroundControl or MAVProxy would,
 ground station's HEARTBEAT (system 255, MAV_TYPE_GCS) and every listed vehicle's, then sends
 COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (disarm) to vehicle --command and waits for its
 COMMAND_ACK, which comes back through the router. With --tlog: reads a session's .tlog and checks
-it holds HEARTBEATs of the ground station and of every listed vehicle. Prints what it saw; exits
+it holds HEARTBEATs of the ground station and of every listed vehicle. With --db: reads the
+session file's vehicle log (telemetry, link events, command outcomes) and actions. Prints what it saw; exits
 non-zero on any failure.
 """
 
@@ -130,6 +131,23 @@ def tlog(path, vehicles):
             fail(f"{path}: no HEARTBEAT of system {s}")
 
 
+def database(path, vehicle):
+    """The session file's vehicle log: telemetry of the vehicle, its command outcomes."""
+    import sqlite3
+    db = sqlite3.connect(path)
+    kinds = dict(db.execute("SELECT kind, count(*) FROM vehicle_log WHERE vehicle = ? GROUP BY kind", (vehicle,)))
+    results = [r[0] for r in db.execute(
+        "SELECT json_extract(json, '$.result') FROM vehicle_log WHERE kind = 'command' ORDER BY id")]
+    print(f"{path}: vehicle_log of {vehicle}: {kinds}; command results {results}")
+    if kinds.get("telemetry", 0) < 1 or kinds.get("event", 0) < 1:
+        fail(f"no telemetry or link event of vehicle {vehicle} recorded: {kinds}")
+    if "denied" not in results or "accepted" not in results or "timeout" not in results:
+        fail(f"command outcomes not recorded: {results}")
+    actions = db.execute("SELECT count(*) FROM actions WHERE path LIKE '%/vehicles/%/commands'").fetchone()[0]
+    if actions < 5:
+        fail(f"command requests not recorded as actions: {actions}")
+
+
 def main():
     p = argparse.ArgumentParser()
     p.add_argument("--connect", action="append", default=[])
@@ -139,6 +157,7 @@ def main():
     p.add_argument("--api")
     p.add_argument("--token")
     p.add_argument("--silent", type=int, default=0)
+    p.add_argument("--db")
     a = p.parse_args()
     vehicles = [int(v) for v in a.vehicles.split(",") if v]
     if a.api:
@@ -147,6 +166,8 @@ def main():
         client(url, vehicles, a.command)
     if a.tlog:
         tlog(a.tlog, vehicles)
+    if a.db:
+        database(a.db, vehicles[0])
     print("gcs_router_client: ok")
 
 

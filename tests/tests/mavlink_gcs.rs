@@ -8,9 +8,14 @@
 //!   timeout after three attempts, assignment errors, the counters), and, with pymavlink through
 //!   the router's UDP and TCP endpoints, sees the ground station's and every vehicle's HEARTBEAT
 //!   and commands vehicle 1 (its COMMAND_ACK comes back through the router). After the server
-//!   stops, pymavlink reads the session's `.tlog`.
+//!   stops, pymavlink reads the session's `.tlog`, and the session file holds the vehicle's
+//!   telemetry, its link events and the commands' outcomes.
 //! - `a_killed_simulator_is_lost_then_found`: a `harrier-sim` process killed with SIGKILL is marked
 //!   lost 3 ± 0.5 s after its last frame; started again, it is heard again (`recovered`).
+//! - `a_lost_vehicle_flies_its_assignment_again`: a `harrier-sim` process assigned to a track
+//!   (made from detections the test publishes on Zenoh) is armed, taken off and flown in
+//!   OFFBOARD by the guidance; killed, its place in the assignment is `lost`; restarted (on the
+//!   ground, disarmed), the guidance launches it again and it flies the assignment in OFFBOARD.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -42,11 +47,16 @@ async fn within<T>(secs: u64, what: &str, f: impl std::future::IntoFuture<Output
     }
 }
 
-/// A server with a GCS link and a router on free loopback ports.
+/// A server with a GCS link and a router on free loopback ports, its Zenoh session listening on
+/// `zenoh_port`.
 async fn server(record: Option<&Path>, router: Vec<String>) -> LiveServer {
+    server_on(record, router, free_tcp_port()).await
+}
+
+async fn server_on(record: Option<&Path>, router: Vec<String>, zenoh_port: u16) -> LiveServer {
     let mut config = Config::default();
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
     config.zenoh.tracks_key = String::new();
     config.mavlink = MavlinkConfig {
         router,
@@ -177,7 +187,14 @@ fn commands_router_and_tlog() {
     let tlog: PathBuf = dir.path().join("gcs-session-1.tlog");
     assert!(tlog.is_file(), "{} missing", tlog.display());
     let mut child = python_script("gcs_router_client.py")
-        .args(["--tlog", &tlog.display().to_string(), "--vehicles", "1,42"])
+        .args([
+            "--tlog",
+            &tlog.display().to_string(),
+            "--db",
+            &db.display().to_string(),
+            "--vehicles",
+            "1,42",
+        ])
         .spawn()
         .expect("run gcs_router_client.py --tlog");
     let status = wait_with_deadline(&mut child, Duration::from_secs(60), "reading the tlog");
@@ -200,9 +217,27 @@ fn harrier_sim_bin() -> PathBuf {
     bin
 }
 
+/// A `harrier-sim` process, killed and reaped when dropped (so a failing test leaves none).
+struct Sim(Child);
+
+impl Sim {
+    /// SIGKILL, and reap.
+    fn kill(&mut self) {
+        self.0.kill().expect("SIGKILL harrier-sim");
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for Sim {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
 /// `harrier-sim` as vehicle `id`, telemetry to `gcs`, no Zenoh.
-fn sim_process(id: u8, gcs: SocketAddr) -> Child {
-    Command::new(harrier_sim_bin())
+fn sim_process(id: u8, gcs: SocketAddr) -> Sim {
+    Sim(Command::new(harrier_sim_bin())
         .args([
             "--id",
             &id.to_string(),
@@ -214,8 +249,9 @@ fn sim_process(id: u8, gcs: SocketAddr) -> Child {
         ])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
+        .stderr(Stdio::null())
         .spawn()
-        .expect("start harrier-sim")
+        .expect("start harrier-sim"))
 }
 
 #[test]
@@ -235,9 +271,8 @@ fn a_killed_simulator_is_lost_then_found() {
         next_event("connected").await;
         // Let it fly its telemetry for a moment, then kill it without warning.
         heard(&server, 7).await;
-        sim.kill().expect("SIGKILL harrier-sim");
+        sim.kill();
         let killed = Instant::now();
-        sim.wait().expect("reap harrier-sim");
         next_event("lost").await;
         let after = killed.elapsed().as_secs_f64();
         eprintln!("harrier-sim killed: marked lost after {after:.2} s");
@@ -255,8 +290,172 @@ fn a_killed_simulator_is_lost_then_found() {
             "harrier-sim restarted: recovered after {:.2} s",
             restarted.elapsed().as_secs_f64()
         );
-        sim.kill().expect("kill harrier-sim");
-        let _ = sim.wait();
+        sim.kill();
+        server.shutdown().await;
+    });
+}
+
+/// Publishes a `position` detection of a target standing at (80, 0) m, from vehicle `vehicle`'s
+/// key, ten times a second until dropped.
+async fn publish_target(session: &zenoh::Session, vehicle: u8) -> tokio::task::JoinHandle<()> {
+    let key = harrier_core::detection::detections_key(vehicle);
+    let publisher = session.declare_publisher(key).await.expect("publisher");
+    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
+    tokio::spawn(async move {
+        let started = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let frame = harrier_link::geo::LocalFrame::new(origin);
+        let pos = nalgebra::Vector3::new(0.0, 0.0, 30.0);
+        for seq in 0u64.. {
+            let t = seq as f64 * 0.1;
+            let scan = harrier_core::detection::DetectionScan {
+                schema: harrier_core::detection::DETECTIONS_SCHEMA.into(),
+                t,
+                time_unix: Some(started + t),
+                vehicle,
+                seq,
+                sensor: "cam".into(),
+                kind: harrier_core::scenario::MeasKind::Position,
+                origin,
+                platform: harrier_core::detection::PlatformPose {
+                    pos: pos.into(),
+                    vel: [0.0; 3],
+                    attitude: [0.0; 3],
+                    geodetic: frame.from_enu(&pos),
+                },
+                noise_std: vec![1.0, 1.0],
+                detections: vec![harrier_core::detection::Detection {
+                    z: vec![80.0 + (seq % 3) as f64 * 0.5, (seq % 5) as f64 * 0.3],
+                }],
+            }
+            .to_json();
+            if publisher.put(scan).await.is_err() {
+                return;
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    })
+}
+
+/// Waits until assignment 1's slot of `vehicle` is in `state`.
+async fn slot_state(s: &LiveServer, vehicle: u8, state: &str) {
+    let mut rx = s.guidance().expect("guidance").assignments.clone();
+    within(60, &format!("vehicle {vehicle} {state}"), async {
+        loop {
+            let now = rx
+                .borrow_and_update()
+                .first()
+                .and_then(|a| a.vehicles.iter().find(|v| v.vehicle == vehicle))
+                .map(|v| v.state.clone());
+            if now.as_deref() == Some(state) {
+                return;
+            }
+            rx.changed().await.expect("guidance running");
+        }
+    })
+    .await;
+}
+
+#[test]
+fn a_lost_vehicle_flies_its_assignment_again() {
+    let rt = runtime();
+    rt.block_on(async {
+        let zenoh_port = free_tcp_port();
+        let server = server_on(None, Vec::new(), zenoh_port).await;
+        let gcs = gcs_addr(&server);
+        let config = harrier_link::bus::BusConfig {
+            connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
+            listen: Vec::new(),
+            ..harrier_link::bus::BusConfig::default()
+        }
+        .to_zenoh()
+        .expect("zenoh config");
+        let session = within(10, "open a session", zenoh::open(config))
+            .await
+            .expect("zenoh session");
+        let publisher = publish_target(&session, 7).await;
+        let mut sim = sim_process(7, gcs);
+        heard(&server, 7).await;
+        let mut snapshot = server.snapshot();
+        let track = within(30, "a confirmed track", async {
+            loop {
+                if let Some(t) = snapshot
+                    .borrow_and_update()
+                    .tracks
+                    .iter()
+                    .find(|t| t.status == "confirmed")
+                {
+                    return t.id;
+                }
+                snapshot.changed().await.expect("tracker running");
+            }
+        })
+        .await;
+        let a = server
+            .guidance()
+            .expect("guidance")
+            .create(harrier_server::live::guidance::AssignmentRequest {
+                vehicles: vec![7],
+                track,
+                law: "togvf".into(),
+                radius_m: Some(40.0),
+                height_m: Some(20.0),
+                spacing_deg: None,
+                speed_m_s: Some(5.0),
+                orbit: None,
+            })
+            .await
+            .expect("assignment");
+        assert_eq!(a.state, "active");
+        slot_state(&server, 7, "offboard").await;
+        let in_offboard = async {
+            let mut rx = server.link().expect("link").vehicles.clone();
+            loop {
+                let mode = rx
+                    .borrow_and_update()
+                    .iter()
+                    .find(|v| v.view.id == 7)
+                    .and_then(|v| v.view.mode.clone());
+                if mode.as_deref() == Some("OFFBOARD") {
+                    return;
+                }
+                rx.changed().await.expect("link running");
+            }
+        };
+        within(30, "vehicle 7 in OFFBOARD", in_offboard).await;
+        sim.kill();
+        let killed = Instant::now();
+        slot_state(&server, 7, "lost").await;
+        eprintln!(
+            "assigned harrier-sim killed: slot lost after {:.2} s",
+            killed.elapsed().as_secs_f64()
+        );
+        let mut sim = sim_process(7, gcs);
+        let restarted = Instant::now();
+        slot_state(&server, 7, "offboard").await;
+        let mut rx = server.link().expect("link").vehicles.clone();
+        within(30, "vehicle 7 in OFFBOARD again", async {
+            loop {
+                let v = rx
+                    .borrow_and_update()
+                    .iter()
+                    .find(|v| v.view.id == 7)
+                    .map(|v| (v.view.mode.clone(), v.view.armed));
+                if matches!(&v, Some((Some(m), true)) if m == "OFFBOARD") {
+                    return;
+                }
+                rx.changed().await.expect("link running");
+            }
+        })
+        .await;
+        eprintln!(
+            "restarted harrier-sim flies the assignment again after {:.2} s",
+            restarted.elapsed().as_secs_f64()
+        );
+        sim.kill();
+        publisher.abort();
+        let _ = session.close().await;
         server.shutdown().await;
     });
 }

@@ -751,6 +751,7 @@ fn render_recorder(out: &mut String, st: &RecorderStats) {
         ("tracks", st.track_rows),
         ("truth", st.truth_rows),
         ("actions", st.actions),
+        ("vehicle_log", st.vehicle_rows),
     ] {
         let _ = writeln!(out, "harrier_recorder_rows_total{{table=\"{table}\"}} {n}");
     }

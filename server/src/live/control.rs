@@ -224,7 +224,16 @@ pub async fn command(
             ));
         }
     };
-    match link.command(id, message).await {
+    let outcome = link.command(id, message).await;
+    if let (Some(r), Ok(o)) = (&s.recorder, &outcome) {
+        r.record(super::recorder::Record::Vehicle {
+            time_unix: super::ingest::unix_now(),
+            vehicle: Some(id),
+            kind: "command",
+            json: serde_json::to_string(o).unwrap_or_default(),
+        });
+    }
+    match outcome {
         Ok(o) if o.result == "timeout" => (StatusCode::GATEWAY_TIMEOUT, Json(o)).into_response(),
         Ok(o) => Json(o).into_response(),
         Err(e @ CommandError::UnknownVehicle(_)) => {

@@ -391,6 +391,14 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             let (guidance, task) =
                 guidance::start(settings, link.clone(), snap_rx.clone(), stop_rx.clone());
             control.push(task);
+            if let Some(r) = &recorder {
+                control.push(tokio::spawn(record_vehicles(
+                    r.clone(),
+                    link.clone(),
+                    guidance.clone(),
+                    stop_rx.clone(),
+                )));
+            }
             (Some(link), Some(guidance))
         }
     };
@@ -458,6 +466,40 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         guidance,
         control,
     })
+}
+
+/// Records every vehicle's telemetry once a second, the link's events and the assignments'
+/// changes, until `stop`.
+async fn record_vehicles(
+    r: Recorder,
+    link: gcs::GcsLink,
+    guidance: guidance::Guidance,
+    mut stop: watch::Receiver<bool>,
+) {
+    let mut events = link.events.subscribe();
+    let mut assignments = guidance.events.subscribe();
+    let mut tick = tokio::time::interval(std::time::Duration::from_secs(1));
+    let row = |vehicle, kind, json: Result<String, serde_json::Error>| {
+        r.record(recorder::Record::Vehicle {
+            time_unix: ingest::unix_now(),
+            vehicle,
+            kind,
+            json: json.unwrap_or_default(),
+        });
+    };
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {
+                let vehicles = link.vehicles.borrow().clone();
+                for v in vehicles.iter() {
+                    row(Some(v.view.id), "telemetry", serde_json::to_string(&v.view));
+                }
+            }
+            Ok(e) = events.recv() => row(Some(e.vehicle), "event", serde_json::to_string(&e)),
+            Ok(a) = assignments.recv() => row(None, "assignment", serde_json::to_string(&a)),
+            () = gcs::transport::stopped(&mut stop) => break,
+        }
+    }
 }
 
 /// A truth sample in the server's ENU frame.

@@ -117,10 +117,21 @@ CREATE TABLE IF NOT EXISTS actions (
     status INTEGER NOT NULL
 );
 CREATE INDEX IF NOT EXISTS actions_session ON actions (session);
+CREATE TABLE IF NOT EXISTS vehicle_log (
+    id INTEGER PRIMARY KEY,
+    session INTEGER NOT NULL REFERENCES sessions (id),
+    time_unix REAL NOT NULL,
+    vehicle INTEGER,
+    kind TEXT NOT NULL,
+    json TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS vehicle_log_session ON vehicle_log (session);
 ";
 
 const INSERT_SCAN: &str = "INSERT INTO scans (session, received_unix, t, time_unix, vehicle, \
      sensor, kind, seq, n_detections, json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
+const INSERT_VEHICLE_LOG: &str =
+    "INSERT INTO vehicle_log (session, time_unix, vehicle, kind, json) VALUES (?1, ?2, ?3, ?4, ?5)";
 const INSERT_DETECTION: &str =
     "INSERT INTO detections (scan, idx, z0, z1, z2) VALUES (?1, ?2, ?3, ?4, ?5)";
 const INSERT_SENSOR: &str = "INSERT OR IGNORE INTO sensors (session, vehicle, sensor, kind, \
@@ -188,6 +199,19 @@ pub enum Record {
         /// Response status.
         status: u16,
     },
+    /// What the MAVLink link and the guidance did: a vehicle's telemetry (1 Hz), a link event,
+    /// a command's outcome, an assignment's change.
+    Vehicle {
+        /// When (UNIX s).
+        time_unix: f64,
+        /// The vehicle, when the row is about one.
+        vehicle: Option<u8>,
+        /// `telemetry`, `event`, `command` or `assignment`.
+        kind: &'static str,
+        /// The API's JSON of it (`VehicleLinkView`, `LinkEvent`, `CommandOutcome`,
+        /// `AssignmentView`).
+        json: String,
+    },
 }
 
 /// What the recorder has done so far. Row counts are committed rows.
@@ -205,6 +229,8 @@ pub struct RecorderStats {
     pub truth_rows: u64,
     /// Action rows.
     pub actions: u64,
+    /// Vehicle log rows (telemetry, link events, commands, assignments).
+    pub vehicle_rows: u64,
     /// Records dropped because the queue was full (or the writer had stopped).
     pub dropped: u64,
     /// Transactions committed.
@@ -258,6 +284,7 @@ struct Shared {
     track_rows: AtomicU64,
     truth_rows: AtomicU64,
     actions: AtomicU64,
+    vehicle_rows: AtomicU64,
     dropped: AtomicU64,
     commits: AtomicU64,
     errors: AtomicU64,
@@ -451,6 +478,7 @@ impl Recorder {
             track_rows: n(&s.track_rows),
             truth_rows: n(&s.truth_rows),
             actions: n(&s.actions),
+            vehicle_rows: n(&s.vehicle_rows),
             dropped: n(&s.dropped),
             commits: n(&s.commits),
             errors: n(&s.errors),
@@ -489,6 +517,7 @@ struct Batch {
     track_rows: u64,
     truth_rows: u64,
     actions: u64,
+    vehicle_rows: u64,
     first_received: Option<f64>,
     last_received: Option<f64>,
 }
@@ -589,6 +618,20 @@ impl Writer {
                         .map(|_| ())
                 }),
             ),
+            Record::Vehicle {
+                time_unix,
+                vehicle,
+                kind,
+                json,
+            } => (
+                "write a vehicle log row",
+                self.conn
+                    .prepare_cached(INSERT_VEHICLE_LOG)
+                    .and_then(|mut st| {
+                        st.execute(params![self.session, time_unix, vehicle, kind, json])
+                            .map(|_| ())
+                    }),
+            ),
         };
         match result {
             Ok(()) => self.count(r),
@@ -641,6 +684,7 @@ impl Writer {
             Record::Truth(_) => b.truth_rows += 1,
             Record::Tracks { tracks, .. } => b.track_rows += tracks.len() as u64,
             Record::Action { .. } => b.actions += 1,
+            Record::Vehicle { .. } => b.vehicle_rows += 1,
         }
     }
 
@@ -747,6 +791,7 @@ impl Writer {
                 s.track_rows.fetch_add(b.track_rows, Ordering::Relaxed);
                 s.truth_rows.fetch_add(b.truth_rows, Ordering::Relaxed);
                 s.actions.fetch_add(b.actions, Ordering::Relaxed);
+                s.vehicle_rows.fetch_add(b.vehicle_rows, Ordering::Relaxed);
                 s.commits.fetch_add(1, Ordering::Relaxed);
                 s.last_commit.store(now.to_bits(), Ordering::Relaxed);
             }
