@@ -215,7 +215,7 @@ async function refreshAssignments() {
   }
 }
 
-const SLOT_TEXT = { waiting: "waiting", arming: "arming", taking_off: "taking off", offboard: "orbiting", lost: "LOST", failed: "FAILED", hold: "hold" };
+const SLOT_TEXT = { waiting: "waiting", arming: "arming", taking_off: "taking off", offboard: "offboard", lost: "LOST", failed: "FAILED", hold: "hold" };
 const assignCards = new Map(); // id → {node, f}
 
 function assignmentCard(a) {

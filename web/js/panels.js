@@ -434,8 +434,8 @@ export class StandoffPanel {
       !a
         ? "No assignment: assign vehicles to a track to see their standoff errors."
         : this.stats.rms != null
-          ? `r − R RMS ${fmt(this.stats.rms, 1)} m over ${fmt(Math.min(STANDOFF_SPAN_S, now - Math.min(...rl.flatMap((l) => l.points.map((p) => p[0])))), 0)} s (vehicles orbiting, in OFFBOARD).`
-          : "Waiting for the vehicles to orbit (OFFBOARD).",
+          ? `r − R RMS ${fmt(this.stats.rms, 1)} m over ${fmt(Math.min(STANDOFF_SPAN_S, now - Math.min(...rl.flatMap((l) => l.points.map((p) => p[0])))), 0)} s (vehicles in OFFBOARD: climbing, joining, orbiting).`
+          : "Waiting for the vehicles to fly it (OFFBOARD).",
     );
   }
 }
