@@ -7,7 +7,8 @@ import { ApiError, Stream, features, get, getText, getToken, request, setToken }
 import { MapView } from "./js/map.js";
 import { SceneView } from "./js/scene3d.js";
 import { Store } from "./js/store.js";
-import { SeriesPanel, ServicePanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
+import { SeriesPanel, ServicePanel, StandoffPanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
+import { fmt } from "./js/util.js";
 
 const $ = (id) => document.getElementById(id);
 const store = new Store();
@@ -30,6 +31,7 @@ window.harrier = hook;
 function toast(text, kind = "ok") {
   const t = el("div", { class: `toast ${kind}`, text });
   $("toasts").append(t);
+  while ($("toasts").children.length > 4) $("toasts").firstChild.remove();
   setTimeout(() => t.remove(), kind === "bad" ? 7000 : 3500);
 }
 
@@ -126,19 +128,27 @@ $("follow").addEventListener("change", () => {
 
 let feats = { truth: false, assignments: false, commands: false, estimator: true, metrics: true };
 
+/** A MAVLink command's name as the operator knows it (`MAV_CMD_DO_SET_MODE` → `set mode`). */
+function commandName(c) {
+  return String(c || "").replace(/^MAV_CMD_(NAV_|DO_|COMPONENT_)?/, "").replace(/_/g, " ").toLowerCase();
+}
+
 const vehicleActions = {
   command(label, command, altitude, node) {
     const body = { command };
-    if (command === "takeoff" && Number.isFinite(altitude)) body.altitude_m = altitude;
+    if (command === "takeoff" && Number.isFinite(altitude) && altitude > 0) body.altitude_m = altitude;
     return act(
       node,
       `${command} UAV ${label}`,
       () => request("POST", `vehicles/${encodeURIComponent(label)}/commands`, body),
       (r) => {
-        const ok = r && r.result === "accepted";
+        // 200: the vehicle's COMMAND_ACK; `ok` false when it refused (`denied`, `failed`…).
+        const ok = !!(r && (r.ok ?? r.result === "accepted"));
         const n = r && r.attempts;
-        const text = `${command}: ${r ? r.result : "?"}${n ? ` (${n} attempt${n > 1 ? "s" : ""})` : ""}${r && r.detail ? ` — ${r.detail}` : ""}`;
-        return { kind: ok ? "ok" : "bad", text };
+        const ms = r && Number.isFinite(r.elapsed_ms) ? ` in ${r.elapsed_ms.toFixed(0)} ms` : "";
+        const text = `${command}: ${r ? r.result : "?"}${r && r.command ? ` (${commandName(r.command)}` : " ("}${n ? `, ${n} attempt${n > 1 ? "s" : ""}` : ""}${ms})`;
+        if (ok) markToken(true);
+        return { kind: ok ? "ok" : "bad", text: text.replace(" ()", "") };
       },
     );
   },
@@ -147,6 +157,7 @@ const vehicleActions = {
 let vehiclesPanel;
 const tracksPanel = new TracksPanel($("tracks"), store, (id) => setFollow(map.follow === id ? null : id));
 const seriesPanel = new SeriesPanel($("series"), store);
+const standoffPanel = new StandoffPanel($("standoff-range"), $("standoff-spacing"), store);
 let servicePanel;
 
 // Estimator.
@@ -199,72 +210,152 @@ async function refreshAssignments() {
   try {
     const body = await get("assignments");
     store.applyAssignments(Array.isArray(body) ? body : body.assignments || []);
-    renderAssignments();
   } catch {
     /* shown by the service panel's stream state; the list keeps its last value */
   }
 }
 
+const SLOT_TEXT = { waiting: "waiting", arming: "arming", taking_off: "taking off", offboard: "offboard", lost: "LOST", failed: "FAILED", hold: "hold" };
+const assignCards = new Map(); // id → {node, f}
+
+function assignmentCard(a) {
+  let c = assignCards.get(a.id);
+  if (c) return c;
+  const f = {};
+  f.state = el("span", { class: "tag", "data-role": "state" });
+  f.result = el("span", { class: "result" });
+  f.end = el("button", {
+    type: "button",
+    text: "End",
+    "data-action": "end",
+    onclick: async () => {
+      const r = await act(f.result, `end assignment ${a.id}`, () => request("DELETE", `assignments/${a.id}`), (b) => `ended${b && b.ended_reason ? ` (${b.ended_reason})` : ""}`);
+      if (r) {
+        markToken(true);
+        store.applyAssignment(r);
+      }
+    },
+  });
+  f.params = el("div", { class: "note" });
+  f.slots = el("div", { class: "slots" });
+  f.ended = el("div", { class: "note" });
+  const node = el("div", { class: "card", "data-assignment": a.id },
+    el("div", { class: "head" },
+      el("span", { class: "title", text: `#${a.id}` }),
+      el("span", { class: "tag", text: a.law }),
+      el("span", { text: `→ T${a.track}` }),
+      el("span", { class: "spacer" }),
+      f.state,
+      f.end),
+    f.params, f.slots, f.ended, f.result);
+  c = { node, f, slotKey: "" };
+  assignCards.set(a.id, c);
+  return c;
+}
+
 function renderAssignments() {
   const root = $("assignments");
-  const list = [...store.assignments.values()];
-  root.replaceChildren(
-    ...list.map((a) => {
-      const result = el("span", { class: "result" });
-      return el("div", { class: "card", "data-assignment": a.id },
-        el("div", { class: "head" },
-          el("span", { class: "title", text: `#${a.id}` }),
-          el("span", { class: "tag", text: a.law }),
-          el("span", { text: `UAV ${(a.vehicles || []).join(", ")} → T${a.track}` }),
-          el("span", { class: "spacer" }),
-          el("span", { class: `tag ${a.state === "active" ? "ok" : ""}`, text: a.state || "" }),
-          el("button", {
-            type: "button",
-            text: "End",
-            onclick: async () => {
-              if (await act(result, `end assignment ${a.id}`, () => request("DELETE", `assignments/${a.id}`), () => "ended") !== null) refreshAssignments();
-            },
-          })),
-        el("div", { class: "grid" },
-          el("span", { class: "k", text: "R" }), el("span", { class: "v", text: `${a.radius_m ?? "–"} m` }),
-          el("span", { class: "k", text: "H" }), el("span", { class: "v", text: `${a.height_m ?? "–"} m` })),
-        result);
-    }),
-  );
+  // Newest first; ended ones after the active ones, at most 5 of them.
+  const list = [...store.assignments.values()].sort((x, y) => (x.state === y.state ? y.id - x.id : x.state === "active" ? -1 : 1));
+  const shown = list.filter((a, i) => a.state === "active" || i < list.findIndex((b) => b.state !== "active") + 5);
+  const ids = new Set(shown.map((a) => a.id));
+  for (const [id, c] of assignCards) {
+    if (!ids.has(id)) {
+      c.node.remove();
+      assignCards.delete(id);
+    }
+  }
+  let prev = null;
+  for (const a of shown) {
+    const { node, f } = assignmentCard(a);
+    if (prev ? prev.nextSibling !== node : root.firstChild !== node) {
+      if (prev) prev.after(node);
+      else root.prepend(node);
+    }
+    prev = node;
+    const active = a.state === "active";
+    setText(f.state, a.state);
+    f.state.className = `tag ${active ? "ok" : ""}`;
+    node.dataset.state = a.state;
+    f.end.hidden = !active;
+    node.classList.toggle("ended", !active);
+    setText(f.params, `R ${fmt(a.radius_m, 0)} m · H ${fmt(a.height_m, 0)} m · spacing ${fmt(a.spacing_deg, 0)}° · ${fmt(a.speed_m_s, 1)} m/s · ${a.orbit}`);
+    setText(f.ended, active ? "" : `ended${a.ended_reason ? `: ${a.ended_reason}` : ""}`);
+    const slots = a.vehicles || [];
+    const c = assignCards.get(a.id);
+    const key = slots.map((x) => x.vehicle).join(",");
+    if (c.slotKey !== key) {
+      f.slots.replaceChildren(
+        ...slots.map((x) => el("div", { class: "slot", "data-vehicle": x.vehicle },
+          el("span", { class: "k", text: `UAV ${x.vehicle}` }), el("span", { class: "tag" }), el("span", { class: "v" }))),
+      );
+      c.slotKey = key;
+    }
+    slots.forEach((x, i) => {
+      const row = f.slots.children[i];
+      const tag = row.children[1];
+      setText(tag, SLOT_TEXT[x.state] || x.state);
+      tag.className = `tag ${x.state === "offboard" ? "ok" : x.state === "lost" || x.state === "failed" ? "bad" : x.state === "hold" ? "" : "warn"}`;
+      row.dataset.state = x.state;
+      const parts = [];
+      if (Number.isFinite(x.range_error_m)) parts.push(`r−R ${x.range_error_m >= 0 ? "+" : ""}${fmt(x.range_error_m, 1)} m`);
+      if (Number.isFinite(x.phase_deg)) parts.push(`φ ${fmt(x.phase_deg, 0)}°`);
+      if (x.error) parts.push(x.error);
+      setText(row.children[2], parts.join(" · "));
+    });
+  }
+  const empty = root.querySelector(".empty");
+  if (!shown.length && !empty) root.append(el("p", { class: "empty", text: "No assignment." }));
+  if (shown.length && empty) empty.remove();
 }
 
 $("assign-form").addEventListener("submit", async (e) => {
   e.preventDefault();
   const vehicles = [...document.querySelectorAll("#assign-vehicles input:checked")].map((i) => Number(i.value));
-  const body = {
-    vehicles,
-    track: Number($("assign-track").value),
-    law: $("assign-law").value,
-    radius_m: Number($("assign-r").value),
-    height_m: Number($("assign-h").value),
-  };
-  if ($("assign-law").value === "formation" || $("assign-spacing").value !== "") body.spacing_deg = Number($("assign-spacing").value);
+  const num = (id) => ($(id).value.trim() === "" ? undefined : Number($(id).value));
+  const body = { vehicles, track: Number($("assign-track").value), law: $("assign-law").value, orbit: $("assign-orbit").value };
+  for (const [k, id] of [["radius_m", "assign-r"], ["height_m", "assign-h"], ["spacing_deg", "assign-spacing"], ["speed_m_s", "assign-speed"]]) {
+    const v = num(id);
+    if (v !== undefined) body[k] = v;
+  }
   const node = $("assign-result");
-  if (!vehicles.length || !Number.isFinite(body.track)) {
+  if (!vehicles.length || !$("assign-track").value) {
     showResult(node, "bad", "pick at least one vehicle and a track");
     errors.push({ what: "assign", message: "nothing picked", status: null, at: Date.now() });
     return;
   }
-  const r = await act(node, "assign", () => request("POST", "assignments", body), (a) => `assignment ${a.id} ${a.state || "created"}`);
+  const bad = Object.entries(body).find(([, v]) => typeof v === "number" && !Number.isFinite(v));
+  if (bad) {
+    showResult(node, "bad", `${bad[0]} is not a number`);
+    errors.push({ what: "assign", message: `${bad[0]} is not a number`, status: null, at: Date.now() });
+    return;
+  }
+  const r = await act(node, "assign", () => request("POST", "assignments", body), (a) => `assignment #${a.id} ${a.state || "created"}: UAV ${(a.vehicles || []).map((x) => x.vehicle).join(", ")} → T${a.track}`);
   if (r) {
     markToken(true);
-    refreshAssignments();
+    store.applyAssignment(r);
+    hook.lastAssignment = r.id;
+    for (const i of document.querySelectorAll("#assign-vehicles input:checked")) i.checked = false;
   }
 });
 
 function updateAssignForm() {
   if (!feats.assignments) return;
   const vroot = $("assign-vehicles");
-  const labels = [...store.vehicles.keys()].sort((a, b) => a.localeCompare(b, undefined, { numeric: true }));
+  // The vehicles the GCS link hears (those that can fly an assignment).
+  const linked = [...store.vehicles.values()].filter((v) => v.link);
+  const labels = linked.map((v) => v.label).sort((a, b) => a.localeCompare(b, undefined, { numeric: true }));
   if (vroot.dataset.labels !== labels.join(",")) {
     const checked = new Set([...vroot.querySelectorAll("input:checked")].map((i) => i.value));
-    vroot.replaceChildren(...labels.map((l) => el("label", {}, el("input", { type: "checkbox", value: l, checked: checked.has(l) }), ` ${l}`)));
+    vroot.replaceChildren(...labels.map((l) => el("label", { "data-vehicle": l }, el("input", { type: "checkbox", value: l, checked: checked.has(l) }), ` ${l}`)));
     vroot.dataset.labels = labels.join(",");
+  }
+  if (!labels.length && !vroot.textContent) vroot.textContent = "none with a MAVLink link";
+  for (const label of vroot.querySelectorAll("label[data-vehicle]")) {
+    const busy = store.slotOf(label.dataset.vehicle);
+    const t = busy ? `in assignment #${busy.assignment.id}` : "";
+    if (label.title !== t) label.title = t;
+    label.classList.toggle("busy", !!busy);
   }
   const tsel = $("assign-track");
   const ids = store.confirmed().map((k) => k.id).sort((a, b) => a - b);
@@ -274,6 +365,22 @@ function updateAssignForm() {
     if (ids.map(String).includes(cur)) tsel.value = cur;
     tsel.dataset.ids = ids.join(",");
   }
+  renderAssignments();
+}
+
+// Lost links: a banner while any vehicle is lost, and a toast on each loss and recovery.
+function updateAlerts() {
+  const lost = [...store.vehicles.values()].filter((v) => v.link && v.link.state === "lost").map((v) => v.label);
+  const banner = $("alerts");
+  banner.hidden = !lost.length;
+  setText(banner, lost.length ? `Link lost: UAV ${lost.join(", ")} — nothing heard for ${lost.map((l) => fmt(store.vehicles.get(l).link.last_seen_s, 0)).join(", ")} s` : "");
+  document.body.dataset.lost = lost.join(",");
+}
+
+function onVehicleEvent(e) {
+  store.applyVehicleEvent(e);
+  if (e.event === "lost") toast(`UAV ${e.vehicle}: link lost`, "bad");
+  else if (e.event === "recovered") toast(`UAV ${e.vehicle}: link recovered`);
 }
 
 function updateFollowSelect() {
@@ -306,8 +413,12 @@ const stream = new Stream(
         lastVehiclesMsg = performance.now();
         store.applyVehicles(msg);
         break;
+      case "vehicle_event":
+        if (msg.event) onVehicleEvent(msg.event);
+        break;
       case "assignment":
-        refreshAssignments();
+        if (msg.assignment) store.applyAssignment(msg.assignment);
+        else refreshAssignments();
         break;
       default:
         break; // unknown types are for newer pages
@@ -369,7 +480,8 @@ async function poll() {
         }),
     );
   }
-  if (feats.assignments && pollTick % 2 === 0) jobs.push(refreshAssignments());
+  // Assignments: in the stream's `vehicles` messages; polled only when those do not come.
+  if (feats.assignments && pollTick % 2 === 0 && performance.now() - lastVehiclesMsg > 3000) jobs.push(refreshAssignments());
   // The OBE bounds change with every update: refresh them for the confirmed tracks (≤ 20).
   if (layers.bound && pollTick % 2 === 0) {
     for (const k of store.confirmed().slice(0, 20)) if (k.view.updated) jobs.push(fetchDetails(k.id));
@@ -440,7 +552,9 @@ function updatePanels() {
   vehiclesPanel?.update();
   tracksPanel.update(map.follow);
   seriesPanel.update();
+  standoffPanel.update();
   servicePanel?.update();
+  updateAlerts();
   updateAssignForm();
   updateFollowSelect();
 }
@@ -453,12 +567,16 @@ async function start() {
   vehiclesPanel = new VehiclesPanel($("vehicles"), store, feats.commands ? vehicleActions : null);
   servicePanel = new ServicePanel($("service"), store, stream);
   $("assign-panel").hidden = !feats.assignments;
+  $("standoff-panel").hidden = !feats.assignments;
   document.body.dataset.features = Object.entries(feats).filter(([, v]) => v).map(([k]) => k).join(" ");
   stream.connect();
   loadEstimators();
   setInterval(updatePanels, 250);
   setInterval(poll, 1000);
   requestAnimationFrame(frame);
+  // Tests feed messages as the server would send them (a vehicle's link lost, which the demo
+  // cannot do on demand).
+  hook.inject = (msg) => stream.onMessage(msg);
   hook.ready = true;
   document.body.dataset.ready = "true";
 }

@@ -202,6 +202,161 @@ def test_a_wrong_token_shows_an_error_and_the_right_one_works(session):
     page.fill("#estimator-params", "")
 
 
+def set_token(page, token):
+    page.fill("#token", token)
+    page.click("#token-form button[type=submit]")
+
+
+def rest_assignments():
+    return httpx.get(f"{URL}/api/v1/assignments", timeout=5).json()["assignments"]
+
+
+def test_a_vehicle_command_shows_its_ack(session):
+    """The demo's UAVs wait on the ground (no automatic assignment): Hold is accepted, Land (on
+    the ground, disarmed) is denied; the page shows each COMMAND_ACK's result."""
+    page, console = session
+    card = '#vehicles [data-vehicle="1"]'
+    page.wait_for_selector(f"{card} button[data-command=hold]", timeout=10_000)
+    assert page.get_attribute(card, "data-link") == "connected"
+    page.click(f"{card} button[data-command=hold]")
+    page.wait_for_selector(f"{card} .result[data-state=ok]", timeout=10_000)
+    text = page.inner_text(f"{card} .result")
+    print(f"hold: {text!r}", flush=True)
+    assert text.startswith("hold: accepted"), text
+    page.click(f"{card} button[data-command=land]")
+    page.wait_for_selector(f"{card} .result[data-state=bad]", timeout=10_000)
+    text = page.inner_text(f"{card} .result")
+    print(f"land on the ground: {text!r}", flush=True)
+    assert text.startswith("land: denied"), text
+    # The vehicle card shows the link's telemetry.
+    assert page.inner_text(f"{card} .head").count("HOLD") == 1
+
+
+def test_assign_from_the_page_then_end_it(session):
+    """Assign UAVs 1 and 2 to a track from the form: refused with a wrong token (401 shown, nothing
+    created), created with the right one (visible through REST, its state and its vehicles' states
+    on the page, its standoff circle on the map), then ended from the page (REST says `ended`)."""
+    page, console = session
+    page.wait_for_selector("#assign-panel:not([hidden])", timeout=5_000)
+    page.wait_for_selector('#assign-vehicles input[value="2"]', timeout=10_000)
+    page.wait_for_selector("#assign-track option", state="attached", timeout=10_000)
+    assert rest_assignments() == [], "the demo was started with no_assign"
+    track = int(page.eval_on_selector("#assign-track", "s => s.options[0].value"))
+
+    def fill_form():
+        for v in ("1", "2"):
+            page.check(f'#assign-vehicles input[value="{v}"]')
+        page.select_option("#assign-track", str(track))
+        page.select_option("#assign-law", "togvf")
+        page.fill("#assign-r", "150")
+        page.fill("#assign-h", "120")
+
+    # A wrong token: the server's 401, shown; nothing created.
+    set_token(page, "not-the-token")
+    fill_form()
+    page.click("#assign-submit")
+    page.wait_for_selector("#assign-result[data-state=bad]", timeout=10_000)
+    text = page.inner_text("#assign-result")
+    print(f"assign with a wrong token: {text!r}", flush=True)
+    assert "401" in text, text
+    assert page.get_attribute("body", "data-token") == "refused"
+    assert rest_assignments() == []
+
+    # The right token: created.
+    set_token(page, TOKEN)
+    fill_form()
+    t0 = time.monotonic()
+    page.click("#assign-submit")
+    page.wait_for_selector("#assign-result[data-state=ok]", timeout=10_000)
+    text = page.inner_text("#assign-result")
+    print(f"assign: {text!r}", flush=True)
+    aid = page.evaluate("() => window.harrier.lastAssignment")
+    assert text.startswith(f"assignment #{aid} active"), text
+    rest = {a["id"]: a for a in rest_assignments()}
+    assert aid in rest, rest
+    a = rest[aid]
+    assert a["state"] == "active" and a["track"] == track and a["law"] == "togvf", a
+    assert [s["vehicle"] for s in a["vehicles"]] == [1, 2], a
+    assert a["radius_m"] == 150 and a["height_m"] == 120, a
+
+    # The page shows it, and its vehicles leave `waiting` (arming, taking off, then orbiting).
+    card = f'#assignments [data-assignment="{aid}"]'
+    page.wait_for_selector(f"{card}[data-state=active]", timeout=5_000)
+    page.wait_for_selector(
+        f'{card} .slot[data-vehicle="1"]:is([data-state=arming],[data-state=taking_off],[data-state=offboard])',
+        timeout=15_000,
+    )
+    states = page.eval_on_selector_all(f"{card} .slot", "rows => rows.map(r => r.dataset.state)")
+    print(f"assignment {aid} on the page {time.monotonic() - t0:.1f} s after: vehicles {states}", flush=True)
+    assert f"assignment #{aid}" in page.inner_text('#vehicles [data-vehicle="1"] .assigned')
+    state = wait_for(page, lambda s: s["map"].get("standoff", 0) >= 1 and s["scene"].get("standoff", 0) >= 1, 5.0, "the standoff circle drawn")
+    print(f"standoff drawn: map {state['map']['standoff']}, 3-D {state['scene']['standoff']}", flush=True)
+    page.locator("#assign-panel").screenshot(path=str(SHOTS / "assignment.png"))
+
+    # A vehicle already in it cannot be assigned again: the server's 409, shown.
+    page.check('#assign-vehicles input[value="1"]')
+    page.click("#assign-submit")
+    page.wait_for_selector("#assign-result[data-state=bad]", timeout=10_000)
+    text = page.inner_text("#assign-result")
+    print(f"vehicle 1 again: {text!r}", flush=True)
+    assert "409" in text, text
+    page.uncheck('#assign-vehicles input[value="1"]')
+
+    # Ended from the page: REST says so, and so does the page.
+    page.click(f"{card} button[data-action=end]")
+    page.wait_for_selector(f"{card} .result[data-state=ok]", timeout=10_000)
+    deadline = time.monotonic() + 5
+    while rest_assignments()[0]["state"] != "ended" and time.monotonic() < deadline:
+        time.sleep(0.2)
+    a = next(x for x in rest_assignments() if x["id"] == aid)
+    print(f"ended: {a['state']} ({a['ended_reason']}); vehicles {[s['state'] for s in a['vehicles']]}", flush=True)
+    assert a["state"] == "ended", a
+    page.wait_for_selector(f"{card}[data-state=ended]", timeout=5_000)
+    assert page.is_hidden(f"{card} button[data-action=end]")
+    wait_for(page, lambda s: s["map"].get("standoff", 0) == 0, 5.0, "the standoff circle gone")
+    # Chromium logs every refused request (the 401s, 422 and 409 these tests provoked) as a
+    # console error; anything else is the page's.
+    provoked = "Failed to load resource: the server responded with a status of "
+    unexpected = [e for e in console.errors if not any(f"{provoked}{c} " in e for c in (401, 409, 422))]
+    assert unexpected == [], "console errors:\n" + "\n".join(unexpected)
+
+
+LOST = """() => {
+  // A UAV 99 that the link marks lost, as the stream's `vehicles` and `vehicle_event` messages
+  // would say it (the demo cannot silence one of its UAVs on demand).
+  const link = {id: 99, state: "lost", address: "udp:127.0.0.1:9", mode: "OFFBOARD", armed: true,
+    position: [100, 100, 120], velocity: [0, 0, 0], heading_deg: 0, rate_hz: 0, loss_pct: 0,
+    received: 10, lost_frames: 0, last_seen_s: 4.2, reconnects: 0};
+  window.harrier.inject({type: "vehicle_event", event: {vehicle: 99, event: "lost", mode: "OFFBOARD", time_unix: Date.now() / 1000}});
+  window.harrier.inject({type: "vehicles", vehicles: [{id: 99, link, detections: null}]});
+}"""
+
+
+def test_a_lost_link_shows_a_warning(session):
+    page, console = session
+    page.evaluate(LOST)
+    page.wait_for_selector('#vehicles [data-vehicle="99"][data-link=lost] .warnline:not([hidden])', timeout=5_000)
+    page.wait_for_selector("#alerts:not([hidden])", timeout=5_000)
+    banner = page.inner_text("#alerts")
+    toast = page.inner_text("#toasts")
+    print(f"lost: banner {banner!r}, toast {toast!r}", flush=True)
+    assert "UAV 99" in banner and "lost" in banner.lower(), banner
+    assert "UAV 99: link lost" in toast, toast
+    assert "LINK LOST" in page.inner_text('#vehicles [data-vehicle="99"] .head')
+    assert page.get_attribute("body", "data-lost") == "99"
+    page.screenshot(path=str(SHOTS / "lost.png"))
+    # The vehicle speaks again: the warning goes.
+    page.evaluate(
+        """() => {
+      const v = window.harrier.store.vehicles.get("99");
+      window.harrier.inject({type: "vehicle_event", event: {vehicle: 99, event: "recovered", mode: "OFFBOARD", time_unix: 0}});
+      window.harrier.inject({type: "vehicles", vehicles: [{id: 99, link: {...v.link, state: "connected", last_seen_s: 0.1}, detections: null}]});
+    }"""
+    )
+    page.wait_for_selector("#alerts", state="hidden", timeout=5_000)
+    assert page.get_attribute('#vehicles [data-vehicle="99"]', "data-link") == "connected"
+
+
 @pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to restart the server")
 def test_the_page_reconnects_after_a_server_restart_without_a_reload(session):
     page, console = session

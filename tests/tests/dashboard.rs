@@ -1,13 +1,23 @@
 //! The web dashboard (`web/`) in a real browser: `tests/python/test_dashboard.py` drives headless
 //! Chromium (Debian's `/usr/bin/chromium`) with Playwright for Python against `harrier demo`'s
-//! world started here in-process (`harrier_server::demo::start`, three UAVs over a road with two
-//! cars, the CIMM track engine):
+//! world started here in-process (`harrier_server::demo::start`, three UAVs on the ground with
+//! their MAVLink link, `no_assign`, a road with two cars, the CIMM track engine):
 //!
 //! - the page loads with no console error and, within 30 s, draws at least one track with its
 //!   95 % ellipse and three UAVs in the map, and the same with its ellipsoid in the 3-D view (what
 //!   the page exposes in `window.harrier` and data attributes, cross-checked with REST);
-//!   screenshots of the live page go to `target/screenshots/{dashboard,map,3d,map-zoom}.png`;
+//!   screenshots of the live page go to
+//!   `target/screenshots/{dashboard,map,3d,map-zoom,assignment,stress}.png`;
 //! - a wrong token shows the server's 401 as an error, the right one changes the estimator;
+//! - a vehicle command from the page shows the vehicle's COMMAND_ACK (Hold `accepted`, Land on
+//!   the ground `denied`);
+//! - the assignment form: with a wrong token the 401 is shown and nothing is created; with the
+//!   right one UAVs 1 and 2 are assigned to a track (TOGVF, R 150 m, H 120 m), which
+//!   `GET /api/v1/assignments` lists as asked, the page shows it with its vehicles leaving
+//!   `waiting` and draws its standoff circle (map and 3-D); assigning a busy vehicle shows the
+//!   409; ending it from the page makes it `ended` in REST and on the page;
+//! - a vehicle whose link is lost (messages fed to the page as the stream would send them: the
+//!   demo cannot silence a UAV) gets a LINK LOST card, a banner and a toast, gone when it recovers;
 //! - the server is stopped and a new one started on the same port: the page reconnects by itself
 //!   and draws again, without a reload. The script asks for the restart with a line
 //!   `HARRIER-RESTART` on its stdout and waits for `restarted` on its stdin;
@@ -45,6 +55,8 @@ fn config(listen: SocketAddr) -> DemoConfig {
         listen,
         // Twice real time: tracks confirm sooner, and the page still sees every scan.
         speedup: 2.0,
+        // The UAVs wait on the ground: the page assigns them.
+        no_assign: true,
         ..DemoConfig::ephemeral(listen)
     }
 }
@@ -170,7 +182,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     );
     assert_eq!(restarts, 1, "the script asked for one restart");
     assert!(
-        output.contains("4 passed"),
+        output.contains("7 passed"),
         "every test ran (none skipped):\n{output}"
     );
     for name in ["dashboard.png", "map.png", "3d.png"] {

@@ -68,8 +68,11 @@ export async function request(method, path, body) {
     }
   }
   if (!res.ok) {
-    const msg = (json && json.error) || text || res.statusText || "error";
-    throw new ApiError(res.status, msg);
+    // Errors are {"error": …}; a command that timed out (504) answers its outcome instead.
+    const msg = (json && (json.error || (json.result && `${json.command || "command"}: ${json.result}${json.attempts ? ` after ${json.attempts} attempts` : ""}`))) || text || res.statusText || "error";
+    const err = new ApiError(res.status, msg);
+    err.body = json;
+    throw err;
   }
   return json;
 }

@@ -16,7 +16,7 @@ export class MapView {
     this.scale = 0.25; // px per m
     this.userMoved = false; // the operator panned or zoomed: no more automatic fitting
     this.follow = null; // track id
-    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true };
+    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true, standoff: true };
     this.stats = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, frames: 0 };
     this.cursor = null;
     this.dpr = 1;
@@ -148,10 +148,10 @@ export class MapView {
     ctx.setTransform(this.dpr, 0, 0, this.dpr, 0, 0);
     ctx.fillStyle = BG;
     ctx.fillRect(0, 0, this.width, this.height);
-    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, frames: this.stats.frames + 1 };
+    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, standoff: 0, vectors: 0, frames: this.stats.frames + 1 };
 
     this.drawGrid(ctx);
-    if (this.layers.trails) this.drawStandoff(ctx);
+    if (this.layers.standoff) this.drawStandoff(ctx, st);
     if (this.layers.truth) this.drawTruth(ctx);
     if (this.layers.detections) this.drawDetections(ctx, now, st);
     this.drawTracks(ctx, st);
@@ -365,22 +365,56 @@ export class MapView {
     }
   }
 
-  drawStandoff(ctx) {
+  /**
+   * Each active assignment: its standoff circle (radius R around the assigned track's estimate)
+   * and the velocity last commanded to each of its vehicles (an arrow of 10 s of flight).
+   */
+  drawStandoff(ctx, st) {
     for (const a of this.store.assignments.values()) {
+      if (a.state !== "active") continue;
       const k = this.store.tracks.get(a.track);
       const r = a.radius_m;
-      if (!k || !Number.isFinite(r)) continue;
-      const [px, py] = this.toScreen(k.view.state[0], k.view.state[1]);
-      ctx.strokeStyle = "rgba(120,220,255,0.7)";
-      ctx.lineWidth = 1.2;
-      ctx.setLineDash([8, 6]);
-      ctx.beginPath();
-      ctx.arc(px, py, r * this.scale, 0, 2 * Math.PI);
-      ctx.stroke();
-      ctx.setLineDash([]);
-      ctx.fillStyle = "rgba(120,220,255,0.8)";
-      ctx.font = "10.5px system-ui, sans-serif";
-      ctx.fillText(`${a.law} R ${fmtDist(r)}`, px + r * this.scale * 0.72 + 4, py - r * this.scale * 0.72);
+      if (k && Number.isFinite(r)) {
+        const [px, py] = this.toScreen(k.view.state[0], k.view.state[1]);
+        ctx.strokeStyle = "rgba(120,220,255,0.75)";
+        ctx.lineWidth = 1.3;
+        ctx.setLineDash([8, 6]);
+        ctx.beginPath();
+        ctx.arc(px, py, r * this.scale, 0, 2 * Math.PI);
+        ctx.stroke();
+        ctx.setLineDash([]);
+        ctx.fillStyle = "rgba(120,220,255,0.85)";
+        ctx.font = "10.5px system-ui, sans-serif";
+        // Below the circle, centred (the UAVs' labels sit right of them, on the circle).
+        const text = `#${a.id} ${a.law.toUpperCase()} R ${fmtDist(r)} H ${fmtDist(a.height_m)}`;
+        ctx.fillText(text, px - ctx.measureText(text).width / 2, py + r * this.scale + 14);
+        st.standoff += 1;
+      }
+      for (const slot of a.vehicles || []) {
+        const v = this.store.vehicles.get(String(slot.vehicle));
+        const u = slot.commanded_velocity;
+        if (!v || !v.position || !u || slot.state !== "offboard") continue;
+        const [x0, y0] = this.toScreen(v.position[0], v.position[1]);
+        const [x1, y1] = this.toScreen(v.position[0] + 10 * u[0], v.position[1] + 10 * u[1]);
+        const len = Math.hypot(x1 - x0, y1 - y0);
+        if (len < 2) continue;
+        ctx.strokeStyle = "#5ef0c0";
+        ctx.fillStyle = "#5ef0c0";
+        ctx.lineWidth = 2;
+        ctx.beginPath();
+        ctx.moveTo(x0, y0);
+        ctx.lineTo(x1, y1);
+        ctx.stroke();
+        const ang = Math.atan2(y1 - y0, x1 - x0);
+        const hl = Math.min(8, len / 2);
+        ctx.beginPath();
+        ctx.moveTo(x1, y1);
+        ctx.lineTo(x1 - hl * Math.cos(ang - 0.45), y1 - hl * Math.sin(ang - 0.45));
+        ctx.lineTo(x1 - hl * Math.cos(ang + 0.45), y1 - hl * Math.sin(ang + 0.45));
+        ctx.closePath();
+        ctx.fill();
+        st.vectors += 1;
+      }
     }
   }
 

@@ -62,10 +62,11 @@ export class VehiclesPanel {
     f.armed = el("span", { class: "tag" });
     f.link = el("span", { class: "tag" });
     f.warn = el("div", { class: "warnline", hidden: true });
+    f.assigned = el("div", { class: "assigned" });
     f.sensors = el("div", { class: "note" });
     const node = el("div", { class: "card", "data-vehicle": v.label },
       el("div", { class: "head" }, f.title, f.mode, f.armed, el("span", { class: "spacer" }), f.link),
-      grid, f.warn, f.sensors);
+      grid, f.warn, f.assigned, f.sensors);
     if (this.actions) {
       f.result = el("span", { class: "result" });
       f.takeoffAlt = el("input", { type: "number", value: "30", min: "1", step: "any", title: "takeoff altitude (m)" });
@@ -106,6 +107,10 @@ export class VehiclesPanel {
       setText(f.scans, `${v.scans}`);
       setText(f.seen, link && Number.isFinite(link.last_seen_s) ? `${fmt(link.last_seen_s, 1)} s` : s.t != null && v.lastScanT != null ? `${fmt(Math.max(0, s.t - v.lastScanT), 1)} s` : "–");
       setText(f.sensors, v.sensors.size ? `sensors: ${[...v.sensors].join(", ")}` : "");
+      const slot = s.slotOf(v.label);
+      setText(f.assigned, slot
+        ? `assignment #${slot.assignment.id} → T${slot.assignment.track}: ${slot.slot.state.replace("_", " ")}${Number.isFinite(slot.slot.range_error_m) ? ` · r−R ${fmt(slot.slot.range_error_m, 1)} m` : ""}`
+        : "");
       if (link) {
         setText(f.mode, link.mode || "mode ?");
         f.mode.hidden = false;
@@ -319,6 +324,119 @@ export class SeriesPanel {
       ctx.font = "12px system-ui, sans-serif";
       ctx.fillText("waiting for confirmed tracks…", L + 10, 6 + ph / 2);
     }
+  }
+}
+
+// --- standoff: range and spacing errors of the assignments --------------------------------------
+
+const STANDOFF_SPAN_S = 120;
+
+/** Lines [{color, label, points: [[t, v]]}] over the last `span` s to `now`, y symmetric around 0. */
+function plotLines(c, lines, now, unit, span = STANDOFF_SPAN_S) {
+  const dpr = window.devicePixelRatio || 1;
+  const w = c.clientWidth;
+  const h = c.clientHeight;
+  if (!w || !h) return;
+  if (c.width !== Math.round(w * dpr)) c.width = Math.round(w * dpr);
+  if (c.height !== Math.round(h * dpr)) c.height = Math.round(h * dpr);
+  const ctx = c.getContext("2d");
+  ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
+  ctx.clearRect(0, 0, w, h);
+  const t0 = now - span;
+  let ymax = 1;
+  for (const l of lines) for (const [t, v] of l.points) if (t >= t0) ymax = Math.max(ymax, Math.abs(v));
+  ymax = niceTick(ymax * 1.15) * Math.ceil((ymax * 1.15) / niceTick(ymax * 1.15));
+  const L = 40;
+  const B = 16;
+  const pw = w - L - 6;
+  const ph = h - B - 6;
+  const yOf = (v) => 6 + ph / 2 - (v / ymax) * (ph / 2);
+  ctx.font = "10px ui-monospace, Menlo, monospace";
+  ctx.lineWidth = 1;
+  ctx.fillStyle = "#7f90a2";
+  for (const y of [-ymax, -ymax / 2, 0, ymax / 2, ymax]) {
+    const py = Math.round(yOf(y)) + 0.5;
+    ctx.strokeStyle = y === 0 ? "#3a5066" : "#1f2d3b";
+    ctx.beginPath();
+    ctx.moveTo(L, py);
+    ctx.lineTo(L + pw, py);
+    ctx.stroke();
+    ctx.fillText(`${fmt(y, Math.abs(ymax) < 10 ? 1 : 0)}${unit}`, 2, py + 3);
+  }
+  for (let dt = 0; dt <= span; dt += 30) {
+    const px = L + (1 - dt / span) * pw;
+    ctx.fillText(dt ? `-${dt}s` : "now", px - (dt ? 12 : 20), h - 3);
+  }
+  let drawn = 0;
+  for (const l of lines) {
+    ctx.strokeStyle = l.color;
+    ctx.lineWidth = 1.4;
+    ctx.beginPath();
+    let started = false;
+    for (const [t, v] of l.points) {
+      if (t < t0) continue;
+      const px = L + ((t - t0) / span) * pw;
+      const py = yOf(Math.max(-ymax, Math.min(ymax, v)));
+      if (started) ctx.lineTo(px, py);
+      else ctx.moveTo(px, py);
+      started = true;
+    }
+    if (started) {
+      ctx.stroke();
+      drawn += 1;
+    }
+  }
+  // Legend.
+  let x = L + 6;
+  ctx.font = "10.5px system-ui, sans-serif";
+  for (const l of lines) {
+    ctx.fillStyle = l.color;
+    ctx.fillRect(x, 9, 10, 3);
+    ctx.fillText(l.label, x + 13, 14);
+    x += ctx.measureText(l.label).width + 24;
+  }
+  return drawn;
+}
+
+const UAV_COLORS = ["#7fd4ff", "#ffb86b", "#b99cff", "#7dff9b", "#ff7fb0", "#ffe36b", "#6bfff2", "#ff8c6b"];
+export const uavColor = (label) => UAV_COLORS[(Number(label) || [...String(label)].reduce((a, c) => a + c.charCodeAt(0), 0)) % UAV_COLORS.length];
+
+/** The range error r − R and the spacing error of each vehicle of the newest active assignment. */
+export class StandoffPanel {
+  constructor(rangeCanvas, spacingCanvas, store) {
+    this.range = rangeCanvas;
+    this.spacing = spacingCanvas;
+    this.store = store;
+    this.title = document.getElementById("standoff-title");
+    this.note = document.getElementById("standoff-note");
+    this.stats = { assignment: null, rangeLines: 0, spacingLines: 0, rms: null };
+  }
+
+  update() {
+    const s = this.store;
+    const active = [...s.assignments.values()].filter((a) => a.state === "active").sort((a, b) => b.id - a.id);
+    const a = active[0] || [...s.assignments.values()].sort((x, y) => y.id - x.id)[0];
+    const per = a ? s.standoff.get(a.id) : null;
+    const now = Date.now() / 1000;
+    const lines = (key) =>
+      per ? [...per].map(([label, f]) => ({ color: uavColor(label), label: `UAV ${label}`, points: f[key] })) : [];
+    const rl = lines("range");
+    const sl = lines("spacing");
+    this.stats.assignment = a ? a.id : null;
+    this.stats.rangeLines = plotLines(this.range, rl, now, "m") || 0;
+    this.stats.spacingLines = plotLines(this.spacing, sl, now, "°") || 0;
+    // RMS of the range error over the plotted window.
+    const recent = rl.flatMap((l) => l.points.filter(([t]) => t >= now - STANDOFF_SPAN_S).map(([, v]) => v));
+    this.stats.rms = recent.length ? Math.sqrt(recent.reduce((acc, v) => acc + v * v, 0) / recent.length) : null;
+    setText(this.title, a ? `#${a.id} → T${a.track} · ${a.law} R ${fmt(a.radius_m, 0)} m${a.state === "active" ? "" : " · ended"}` : "");
+    setText(
+      this.note,
+      !a
+        ? "No assignment: assign vehicles to a track to see their standoff errors."
+        : this.stats.rms != null
+          ? `r − R RMS ${fmt(this.stats.rms, 1)} m over ${fmt(Math.min(STANDOFF_SPAN_S, now - Math.min(...rl.flatMap((l) => l.points.map((p) => p[0])))), 0)} s (vehicles in OFFBOARD: climbing, joining, orbiting).`
+          : "Waiting for the vehicles to fly it (OFFBOARD).",
+    );
   }
 }
 

@@ -10,6 +10,7 @@ import { Store } from "./store.js";
 import { CHI2_95_3, cholesky3, colorHex, detectionPoint, detectionRay, positionCov3 } from "./util.js";
 
 const MAX_RAYS = 600;
+const MAX_CMDS = 64;
 /** Most renders per second for data changes (the camera's own moves render at every frame). */
 const DATA_FPS = 15;
 
@@ -114,6 +115,18 @@ export class SceneView {
     );
     this.rays.frustumCulled = false;
     this.scene.add(this.rays);
+
+    // Standoff: a ring of radius R at height H over each assigned track, and the commanded
+    // velocities (10 s of flight) of its vehicles, one line-segment buffer rewritten per frame.
+    this.ringGeom = new THREE.BufferGeometry().setFromPoints(
+      Array.from({ length: 96 }, (_, i) => new THREE.Vector3(Math.cos((i / 96) * 2 * Math.PI), Math.sin((i / 96) * 2 * Math.PI), 0)),
+    );
+    this.rings = new Map(); // assignment id → LineLoop
+    const cmdGeom = new THREE.BufferGeometry();
+    cmdGeom.setAttribute("position", new THREE.BufferAttribute(new Float32Array(MAX_CMDS * 6), 3));
+    this.cmds = new THREE.LineSegments(cmdGeom, new THREE.LineBasicMaterial({ color: 0x5ef0c0 }));
+    this.cmds.frustumCulled = false;
+    this.scene.add(this.cmds);
   }
 
   buildGround(size, cell) {
@@ -242,7 +255,7 @@ export class SceneView {
     if (!this.renderer) return;
     const s = this.store;
     const planeZ = s.planeZ;
-    const st = { tracks: 0, ellipsoids: 0, bounds: 0, uavs: 0, rays: 0, frames: this.stats.frames };
+    const st = { tracks: 0, ellipsoids: 0, bounds: 0, uavs: 0, rays: 0, standoff: 0, vectors: 0, frames: this.stats.frames };
     // Tracks.
     for (const [id, o] of this.trackObjs) {
       if (!s.tracks.has(id)) {
@@ -332,6 +345,46 @@ export class SceneView {
       }
       st.uavs += 1;
     }
+    // Standoff rings and commanded velocities of the active assignments.
+    const active = new Set();
+    let nc = 0;
+    const cpos = this.cmds.geometry.attributes.position;
+    for (const a of layers.standoff === false ? [] : s.assignments.values()) {
+      if (a.state !== "active") continue;
+      const k = s.tracks.get(a.track);
+      if (k && Number.isFinite(a.radius_m)) {
+        let ring = this.rings.get(a.id);
+        if (!ring) {
+          ring = new THREE.LineLoop(this.ringGeom, new THREE.LineDashedMaterial({ color: 0x78dcff, dashSize: 0.06, gapSize: 0.04, transparent: true, opacity: 0.85 }));
+          ring.computeLineDistances();
+          this.scene.add(ring);
+          this.rings.set(a.id, ring);
+        }
+        ring.position.set(k.view.state[0], k.view.state[1], (k.view.state[2] || planeZ) + a.height_m);
+        ring.scale.set(a.radius_m, a.radius_m, 1);
+        active.add(a.id);
+        st.standoff += 1;
+      }
+      for (const slot of a.vehicles || []) {
+        const v = s.vehicles.get(String(slot.vehicle));
+        const u = slot.commanded_velocity;
+        if (!v || !v.position || !u || slot.state !== "offboard" || nc >= MAX_CMDS) continue;
+        const [x, y, z] = v.position;
+        cpos.setXYZ(2 * nc, x, y, z);
+        cpos.setXYZ(2 * nc + 1, x + 10 * u[0], y + 10 * u[1], z + 10 * (u[2] || 0));
+        nc += 1;
+      }
+    }
+    for (const [id, ring] of this.rings) {
+      if (!active.has(id)) {
+        this.scene.remove(ring);
+        ring.material.dispose();
+        this.rings.delete(id);
+      }
+    }
+    if (nc || this.cmds.geometry.drawRange.count) cpos.needsUpdate = true;
+    this.cmds.geometry.setDrawRange(0, 2 * nc);
+    st.vectors = nc;
     // Truth.
     for (const t of s.truth.values()) {
       const o = this.truthObj(t.id);

@@ -9,6 +9,7 @@ const TRAIL_LEN = 300;
 const DETECTION_TTL_S = 8; // wall-clock seconds a detection stays on screen (fading)
 const TRUTH_LEN = 3000;
 const SERIES_WINDOW_S = 180;
+const STANDOFF_WINDOW_S = 300;
 
 export class Store {
   constructor() {
@@ -16,7 +17,9 @@ export class Store {
     this.vehicles = new Map(); // label → VehicleState
     this.detections = []; // {at (performance.now ms), kind, vehicle, platform, z}
     this.truth = new Map(); // target id → {samples: [[t,x,y,z]], last: {t, position, velocity}}
-    this.assignments = new Map(); // id → assignment body
+    this.assignments = new Map(); // id → assignment body (AssignmentView)
+    this.standoff = new Map(); // assignment id → Map(vehicle label → {range: [[t, m]], spacing: [[t, deg]]})
+    this.vehicleEvents = []; // the last vehicle events (vehicle_event messages), newest last
     this.estimator = null;
     this.seq = 0;
     this.t = null;
@@ -77,9 +80,23 @@ export class Store {
     this.version += 1;
   }
 
-  /** `vehicles` (issue 9) or GET /vehicles: either shape. */
+  /** `vehicles` (issue 9) or GET /vehicles: either shape; the stream's message also has the assignments. */
   applyVehicles(body) {
     for (const v of body.vehicles || []) this.upsertVehicle(v);
+    if (Array.isArray(body.assignments)) this.applyAssignments(body.assignments);
+    this.version += 1;
+  }
+
+  /** `vehicle_event`: connected, lost, recovered, mode, armed, disarmed. */
+  applyVehicleEvent(e) {
+    this.vehicleEvents.push({ ...e, at: Date.now() });
+    if (this.vehicleEvents.length > 50) this.vehicleEvents.splice(0, this.vehicleEvents.length - 50);
+    const v = this.vehicles.get(String(e.vehicle));
+    if (v && v.link) {
+      if (e.event === "lost") v.link = { ...v.link, state: "lost" };
+      else if (e.event === "recovered" || e.event === "connected") v.link = { ...v.link, state: "connected" };
+      if (e.mode) v.link = { ...v.link, mode: e.mode };
+    }
     this.version += 1;
   }
 
@@ -263,9 +280,69 @@ export class Store {
     this.version += 1;
   }
 
+  /** The whole list (GET /assignments, the `vehicles` message). */
   applyAssignments(list) {
     this.assignments = new Map(list.map((a) => [a.id, a]));
+    for (const a of list) this.scoreAssignment(a);
+    for (const id of [...this.standoff.keys()]) if (!this.assignments.has(id)) this.standoff.delete(id);
     this.version += 1;
+  }
+
+  /** One assignment (the `assignment` message: created, a vehicle's state changed, ended). */
+  applyAssignment(a) {
+    this.assignments.set(a.id, a);
+    this.scoreAssignment(a);
+    this.version += 1;
+  }
+
+  /** The active assignment a vehicle flies, with its slot: {assignment, slot} or null. */
+  slotOf(label) {
+    for (const a of this.assignments.values()) {
+      if (a.state !== "active") continue;
+      const slot = (a.vehicles || []).find((x) => String(x.vehicle) === label);
+      if (slot) return { assignment: a, slot };
+    }
+    return null;
+  }
+
+  /**
+   * Standoff figures of an active assignment, per vehicle, against wall-clock time (s): the range
+   * error r − R, and the spacing error: the phase gap from the vehicle before it on the ring (the
+   * vehicles in orbit order, as the guidance orders them) minus the assignment's spacing. When the
+   * vehicles do not fill the circle (n × spacing < 360°) the open gap is not an error.
+   */
+  scoreAssignment(a) {
+    if (a.state !== "active") return;
+    const t = Date.now() / 1000;
+    let per = this.standoff.get(a.id);
+    if (!per) {
+      per = new Map();
+      this.standoff.set(a.id, per);
+    }
+    const sign = a.orbit === "cw" ? -1 : 1;
+    const flying = [];
+    for (const slot of a.vehicles || []) {
+      const label = String(slot.vehicle);
+      let f = per.get(label);
+      if (!f) {
+        f = { range: [], spacing: [] };
+        per.set(label, f);
+      }
+      if (slot.state !== "offboard") continue;
+      if (Number.isFinite(slot.range_error_m)) pushSeries(f.range, t, slot.range_error_m, STANDOFF_WINDOW_S);
+      if (Number.isFinite(slot.phase_deg)) flying.push({ f, phase: sign * slot.phase_deg });
+    }
+    const n = flying.length;
+    if (n < 2) return;
+    flying.sort((x, y) => x.phase - y.phase);
+    const gaps = flying.map((x, k) => {
+      const prev = flying[(k + n - 1) % n];
+      return (((x.phase - prev.phase) % 360) + 360) % 360;
+    });
+    const open = n * a.spacing_deg < 359.5 ? gaps.indexOf(Math.max(...gaps)) : -1;
+    flying.forEach((x, k) => {
+      if (k !== open) pushSeries(x.f.spacing, t, gaps[k] - a.spacing_deg, STANDOFF_WINDOW_S);
+    });
   }
 
   /** Forgets what is too old to draw; called once per frame. */
@@ -298,10 +375,11 @@ export class Store {
   }
 }
 
-function pushSeries(series, t, v) {
+function pushSeries(series, t, v, window = SERIES_WINDOW_S) {
   if (!Number.isFinite(v)) return;
   const last = series[series.length - 1];
   if (last && last[0] >= t) return;
   series.push([t, v]);
-  while (series.length && t - series[0][0] > SERIES_WINDOW_S) series.shift();
+  while (series.length && t - series[0][0] > window) series.shift();
 }
+
