@@ -141,6 +141,13 @@ pub fn target_system(m: &MavMessage) -> Option<u8> {
     (t != 0).then_some(t)
 }
 
+/// `msg` as one MAVLink 2 frame from `header` (`None` if it cannot be serialised).
+pub fn encode(header: MavHeader, msg: &MavMessage) -> Option<Vec<u8>> {
+    let mut buf = Vec::with_capacity(MAX_FRAME_SIZE);
+    mavlink::write_v2_msg(&mut buf, header, msg).ok()?;
+    Some(buf)
+}
+
 /// What one [`StreamParser::push`] or [`parse_datagram`] produced.
 #[derive(Debug, Default)]
 pub struct Parsed {
@@ -255,18 +262,12 @@ mod tests {
     use mavlink::dialects::common::{COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd};
 
     fn frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
-        let mut frame = Vec::new();
-        mavlink::write_v2_msg(
-            &mut frame,
-            MavHeader {
-                system_id: 255,
-                component_id: 190,
-                sequence,
-            },
-            msg,
-        )
-        .expect("serialise");
-        frame
+        let header = MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence,
+        };
+        encode(header, msg).expect("serialise")
     }
 
     fn heartbeat() -> MavMessage {

@@ -397,11 +397,16 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             (token, live::TokenSource::Generated) => token.to_owned(),
             (_, source) => format!("(from {source:?})"),
         };
+        let (gcs, router) = demo
+            .server()
+            .link()
+            .map_or_else(Default::default, crate::live::gcs::GcsLink::describe);
         let _ = writeln!(
             std::io::stdout().lock(),
             "harrier demo: ready\n  dashboard  http://{addr}/\n  API        http://{addr}/api/v1 \
              (e.g. /api/v1/tracks)\n  API token  {token} (`Authorization: Bearer <token>` on \
-             mutating requests)\n  zenoh      {}\n  UAVs       {}\nPress Ctrl-C to stop.",
+             mutating requests)\n  zenoh      {}\n  UAVs       {}\n  MAVLink    GCS link {gcs}; \
+             router (QGroundControl, MAVProxy, MAVSDK) {router}\nPress Ctrl-C to stop.",
             demo.zenoh_endpoints().join(", "),
             mavlink.join(", ")
         );

@@ -232,15 +232,8 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
         .build()?;
     runtime.block_on(async {
         let server = live::start(&config).await?;
-        if let Some(link) = server.link() {
-            let list = |it: &mut dyn Iterator<Item = &harrier_link::frame::Endpoint>| {
-                it.map(ToString::to_string).collect::<Vec<_>>().join(", ")
-            };
-            eprintln!(
-                "harrier serve: MAVLink GCS link {}; router {}",
-                list(&mut link.gcs()),
-                list(&mut link.router())
-            );
+        if let Some((gcs, router)) = server.link().map(live::gcs::GcsLink::describe) {
+            eprintln!("harrier serve: MAVLink GCS link {gcs}; router {router}");
         }
         eprintln!(
             "harrier serve: ready: http://{}/api/v1 (estimator {}, zenoh {} listen {:?} connect {:?})",

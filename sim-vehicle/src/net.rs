@@ -20,7 +20,6 @@ use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
-use mavlink::consts::MAX_FRAME_SIZE;
 use mavlink::dialects::common::MavMessage;
 use mavlink::{MavHeader, MavlinkReader};
 
@@ -250,9 +249,7 @@ impl Link {
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
-        let mut buf = Vec::with_capacity(MAX_FRAME_SIZE);
-        mavlink::write_v2_msg(&mut buf, header, msg).ok()?;
-        Some(buf)
+        harrier_link::frame::encode(header, msg)
     }
 
     fn send(&mut self, sysid: u8, msg: &MavMessage, to: Peer) {
@@ -513,18 +510,12 @@ mod tests {
     };
 
     fn gcs_frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
-        let mut frame = Vec::new();
-        mavlink::write_v2_msg(
-            &mut frame,
-            MavHeader {
-                system_id: 255,
-                component_id: 190,
-                sequence,
-            },
-            msg,
-        )
-        .expect("serialise");
-        frame
+        let header = MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence,
+        };
+        harrier_link::frame::encode(header, msg).expect("serialise")
     }
 
     fn command(command: MavCmd, param1: f32, param2: f32) -> MavMessage {

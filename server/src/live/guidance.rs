@@ -195,14 +195,14 @@ impl GuidanceMetrics {
             let _ = writeln!(
                 out,
                 "harrier_guidance_tick_late_seconds_bucket{{le=\"{}\"}} {cum}",
-                *b as f64 * 1e-6
+                *b as f64 / 1e6
             );
         }
         cum += v(&self.late[5]);
         let _ = writeln!(
             out,
             "harrier_guidance_tick_late_seconds_bucket{{le=\"+Inf\"}} {cum}\nharrier_guidance_tick_late_seconds_count {cum}\n# HELP harrier_guidance_tick_late_max_seconds Latest tick start seen.\n# TYPE harrier_guidance_tick_late_max_seconds gauge\nharrier_guidance_tick_late_max_seconds {}",
-            v(&self.max_late_us) as f64 * 1e-6
+            v(&self.max_late_us) as f64 / 1e6
         );
     }
 

@@ -410,6 +410,15 @@ impl GcsLink {
             .map(|e| &e.endpoint)
     }
 
+    /// The bound GCS and router endpoints as connection strings, comma-separated (for the
+    /// operator).
+    pub fn describe(&self) -> (String, String) {
+        let list = |it: &mut dyn Iterator<Item = &Endpoint>| {
+            it.map(ToString::to_string).collect::<Vec<_>>().join(", ")
+        };
+        (list(&mut self.gcs()), list(&mut self.router()))
+    }
+
     /// Appends the link's counters to a Prometheus text.
     pub fn render_metrics(&self, out: &mut String) {
         let vehicles = self.vehicles.borrow().clone();
@@ -742,8 +751,7 @@ impl Actor {
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
-        let mut buf = Vec::with_capacity(280);
-        harrier_link::mavlink::write_v2_msg(&mut buf, header, msg).ok()?;
+        let buf = harrier_link::frame::encode(header, msg)?;
         self.log(&buf);
         Some(Arc::from(buf))
     }
