@@ -12,7 +12,8 @@ forwarded frames. Reports:
 
 - frames sent by the vehicles, received by the server (its /metrics) and forwarded to the client;
 - router added latency: vehicle send → client receive of each ATTITUDE (its time_boot_ms carries
-  a per-vehicle counter), p50/p99/p99.9/max: an upper bound (it includes both Python sides);
+  a per-vehicle counter), p50/p99/p99.9/max: an upper bound (it includes both Python sides;
+  `--baseline` sends straight to the client, without Harrier, to measure those);
 - the server's CPU share (utime + stime from /proc over the measured window);
 - the guidance loop's tick lateness histogram at 20 Hz from /metrics.
 
@@ -72,6 +73,8 @@ def main():
     ap.add_argument("--hz", type=float, default=50.0)
     ap.add_argument("--seconds", type=float, default=60.0)
     ap.add_argument("--warmup", type=float, default=3.0)
+    ap.add_argument("--baseline", action="store_true",
+                    help="send straight to the client socket (no Harrier): the Python sides' own latency")
     a = ap.parse_args()
 
     gcs, router, zport = free_port(), free_port(), free_port(socket.SOCK_STREAM)
@@ -133,7 +136,7 @@ def main():
         s.bind(("127.0.0.1", 0))
         socks.append(s)
         mavs.append(mavlink2.MAVLink(None, srcSystem=i + 1, srcComponent=1))
-    dest = ("127.0.0.1", gcs)
+    dest = client.getsockname() if a.baseline else ("127.0.0.1", gcs)
     period = 1.0 / a.hz
     sent = {"frames": 0, "attitude": 0}
     start = time.perf_counter()
@@ -196,6 +199,7 @@ def main():
                                         if l.startswith("harrier_vehicle_frames_lost_total{"))),
         "attitude_sent": attitude_sent,
         "attitude_forwarded": received["attitude"],
+        "baseline_without_harrier": a.baseline,
         "router_lost": attitude_sent - received["attitude"],
         "router_latency_ms": {q: round(percentile(latencies, p) * 1e3, 3)
                               for q, p in [("p50", 0.5), ("p99", 0.99), ("p99.9", 0.999), ("max", 1.0)]},
