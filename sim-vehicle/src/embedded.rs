@@ -4,9 +4,10 @@
 //! This is what `harrier-sim` runs as a program, as a library: `harrier demo` and the end-to-end
 //! tests start a [`SimWorld`] beside the ground station in their own process.
 //!
-//! - Every vehicle runs on its own thread ([`crate::net::spawn`]) with one MAVLink link,
+//! - Every vehicle runs on its own thread ([`crate::net::spawn`]) with a MAVLink link
 //!   `udpin:{mavlink_ip}:0`: it answers whoever sends to [`SimWorld::mavlink_addrs`], so a ground
-//!   station can connect to it.
+//!   station can connect to it; with [`WorldConfig::gcs`] set it also sends its telemetry to that
+//!   ground station (`udpout:`, as PX4 sends to UDP 14550) and takes its commands.
 //! - The live sensor loop ([`crate::live`]) scans every vehicle from its real pose and publishes
 //!   detections and truth on a session opened from [`WorldConfig::zenoh`].
 //! - A vehicle given a station is launched like a client would do it, through its MAVLink
