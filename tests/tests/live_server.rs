@@ -409,6 +409,147 @@ fn the_demo_flies_its_uavs_around_a_car() {
     }));
 }
 
+/// The [BOT] formation as a live law: the demo's three UAVs (not assigned by the demo) are
+/// assigned through the API to hold LOS ranges around the slower car, R from it and 120° apart
+/// (so √3 R from each other). Measured from their telemetry against the simulator's truth.
+#[test]
+fn a_formation_holds_its_ranges_around_a_car() {
+    const R: f64 = 80.0;
+    runtime().block_on(within(300, "the formation test", async {
+        let config = DemoConfig {
+            speedup: 5.0,
+            seed: 4,
+            no_assign: true,
+            ..DemoConfig::ephemeral(SocketAddr::from(([127, 0, 0, 1], 0)))
+        };
+        let demo = within(30, "start the demo", demo::start(&config))
+            .await
+            .expect("start the demo");
+        let addr = demo.server().local_addr();
+        let token = demo.server().token().0.to_owned();
+        let started = Instant::now();
+        let track = loop {
+            let (_, t) = get_json(addr, "/api/v1/tracks").await;
+            let slowest = t["tracks"].as_array().and_then(|ts| {
+                ts.iter()
+                    .filter(|k| k["age"].as_u64().unwrap_or(0) >= 5)
+                    .min_by(|a, b| {
+                        let v = |k: &Value| {
+                            let s = &k["state"];
+                            s[3].as_f64()
+                                .unwrap_or(0.0)
+                                .hypot(s[4].as_f64().unwrap_or(0.0))
+                        };
+                        v(a).total_cmp(&v(b))
+                    })
+                    .map(|k| k["id"].clone())
+            });
+            if let Some(id) = slowest {
+                break id;
+            }
+            assert!(started.elapsed() < Duration::from_secs(60), "no track");
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        };
+        let body = serde_json::json!({
+            "vehicles": [1, 2, 3], "track": track, "law": "formation",
+            "radius_m": R, "height_m": 60.0,
+        });
+        let (status, text) = send(
+            addr,
+            "POST",
+            "/api/v1/assignments",
+            Some(&token),
+            Some(&body),
+        )
+        .await;
+        assert_eq!(status, 201, "{text}");
+        let sample = || async {
+            let (_, k) = get_json(addr, &format!("/api/v1/tracks/{track}")).await;
+            let (_, truth) = get_json(addr, "/api/v1/truth").await;
+            let (_, vehicles) = get_json(addr, "/api/v1/vehicles").await;
+            let est = k.get("state")?.clone();
+            let car = truth["targets"]
+                .as_array()?
+                .iter()
+                .min_by(|x, y| {
+                    polar(&x["position"], &est)
+                        .0
+                        .total_cmp(&polar(&y["position"], &est).0)
+                })?
+                .clone();
+            let uavs: Vec<Value> = vehicles["vehicles"]
+                .as_array()?
+                .iter()
+                .filter_map(|v| v["link"].get("position").cloned())
+                .collect();
+            Some((car["position"].clone(), uavs))
+        };
+        let errors = |car: &Value, uavs: &[Value]| {
+            let leader: Vec<f64> = uavs.iter().map(|u| polar(u, car).0 - R).collect();
+            let mut mutual = Vec::new();
+            for i in 0..uavs.len() {
+                for j in 0..i {
+                    mutual.push(polar(&uavs[i], &uavs[j]).0 - 3f64.sqrt() * R);
+                }
+            }
+            (leader, mutual)
+        };
+        // Formed: every range within 20 % for 2 s.
+        let mut settled = 0;
+        while settled < 8 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            settled = match sample().await {
+                Some((car, uavs)) if uavs.len() == 3 => {
+                    let (l, m) = errors(&car, &uavs);
+                    if l.iter().chain(&m).all(|e| e.abs() < 0.2 * R) {
+                        settled + 1
+                    } else {
+                        0
+                    }
+                }
+                _ => 0,
+            };
+            assert!(
+                started.elapsed() < Duration::from_secs(180),
+                "the formation did not form: {:?}",
+                sample().await.map(|(c, u)| errors(&c, &u))
+            );
+        }
+        eprintln!(
+            "formation: formed after {:.1} s",
+            started.elapsed().as_secs_f64()
+        );
+        let (mut l2, mut m2, mut nl, mut nm) = (0.0, 0.0, 0usize, 0usize);
+        for _ in 0..80 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            let Some((car, uavs)) = sample().await else {
+                continue;
+            };
+            let (l, m) = errors(&car, &uavs);
+            l2 += l.iter().map(|e| e * e).sum::<f64>();
+            m2 += m.iter().map(|e| e * e).sum::<f64>();
+            nl += l.len();
+            nm += m.len();
+        }
+        let leader_rms = (l2 / nl as f64).sqrt();
+        let mutual_rms = (m2 / nm as f64).sqrt();
+        eprintln!(
+            "formation: range to the car RMS error {leader_rms:.2} m (R = {R} m), between UAVs \
+             {mutual_rms:.2} m (√3 R = {:.1} m)",
+            3f64.sqrt() * R
+        );
+        assert!(
+            leader_rms <= 0.1 * R,
+            "range to the car RMS error {leader_rms} m"
+        );
+        assert!(
+            mutual_rms <= 0.1 * 3f64.sqrt() * R,
+            "mutual RMS error {mutual_rms} m"
+        );
+        demo.stop().await;
+    }));
+}
+
 #[test]
 fn the_demo_tracks_its_road_targets() {
     let started = Instant::now();

@@ -101,6 +101,20 @@ pub struct GuidanceConfig {
     pub speed_m_s: f64,
     /// Takeoff height above home (m) of a vehicle assigned on the ground.
     pub takeoff_height_m: f64,
+    /// Obstacles (ENU discs) the `formation` law steers around.
+    pub obstacles: Vec<ObstacleConfig>,
+}
+
+/// A disc to keep out of.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObstacleConfig {
+    /// Centre east (m, the server's ENU frame).
+    pub x_m: f64,
+    /// Centre north (m).
+    pub y_m: f64,
+    /// Radius (m).
+    pub radius_m: f64,
 }
 
 impl Default for GuidanceConfig {
@@ -110,6 +124,7 @@ impl Default for GuidanceConfig {
             airframe: "multirotor".into(),
             speed_m_s: 10.0,
             takeoff_height_m: 30.0,
+            obstacles: Vec::new(),
         }
     }
 }
@@ -415,6 +430,13 @@ impl Config {
             return bad(format!(
                 "guidance.speed_m_s must be > 0, got {}",
                 g.speed_m_s
+            ));
+        }
+        if let Some(o) = g.obstacles.iter().find(|o| {
+            !(o.x_m.is_finite() && o.y_m.is_finite() && o.radius_m.is_finite() && o.radius_m > 0.0)
+        }) {
+            return bad(format!(
+                "guidance.obstacles: {o:?} needs finite x_m, y_m and radius_m > 0"
             ));
         }
         if !(g.takeoff_height_m.is_finite() && g.takeoff_height_m > 0.0) {

@@ -280,7 +280,7 @@ fn no_guidance(s: &ApiState) -> Response {
     )
 }
 
-/// Ties vehicles to a track with a standoff law.
+/// Ties vehicles to a track with a law (standoff or formation).
 #[utoipa::path(post, path = "/api/v1/assignments", tag = "guidance",
     request_body = AssignmentRequest,
     responses(

@@ -1,11 +1,14 @@
-//! The guidance loop (an actor): assignments tie vehicles to a track with a standoff law, and at
+//! The guidance loop (an actor): assignments tie vehicles to a track with a law, and at
 //! `guidance.rate_hz` each assigned vehicle gets a velocity setpoint computed by harrier-core's
 //! law from the track predicted to now and the vehicle's **measured** state (its
 //! GLOBAL_POSITION_INT, in the server's ENU frame).
 //!
 //! - Laws: `togvf` (time-optimal guidance vector field, [CIMM] §4.1–4.2) and `lgvf` (the Lyapunov
 //!   baseline), both with the phase coordination of [CIMM] §4.3 when several vehicles share the
-//!   target (ring order from the current phases, spacing `spacing_deg`, default 360°/n).
+//!   target (ring order from the current phases, spacing `spacing_deg`, default 360°/n); and
+//!   `formation` ([BOT] §III): the track leads, the vehicles hold the LOS ranges of a shape (each
+//!   at R from the leader, `spacing_deg` apart around it) with the range regulator of eqs.
+//!   (5)–(6), steered around `guidance.obstacles` (§III.B).
 //! - Each vehicle flies harrier-link's [`OffboardSequence`]: arm and take off if needed, stream
 //!   setpoints, then OFFBOARD (PX4 refuses OFFBOARD before setpoints arrive), and OFFBOARD again
 //!   whenever it is seen out of it. COMMAND_ACKs come from the link's ACK broadcast.
@@ -16,16 +19,20 @@
 //!   is sent to Hold (AUTO.LOITER) and the assignment is `ended` with the reason.
 //!
 //! [CIMM]: the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
+//! [BOT]: Calise et al., *Estimation and Guidance Strategies for Vision-based Target Tracking*
+//! (`shared/papers/002_*.txt`).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use harrier_core::guidance::formation::{PairState, RangeRegulator, vector_sum};
 use harrier_core::guidance::lgvf::Lgvf;
+use harrier_core::guidance::obstacle::{Avoidance, Obstacle, avoid};
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::togvf::Togvf;
-use harrier_core::guidance::{Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
 use harrier_link::command::set_mode;
 use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase};
 use harrier_link::px4::FlightMode;
@@ -50,7 +57,7 @@ pub struct AssignmentRequest {
     pub vehicles: Vec<u8>,
     /// The track to follow (a live track id).
     pub track: u64,
-    /// `togvf` or `lgvf`.
+    /// `togvf`, `lgvf` or `formation`.
     pub law: String,
     /// Standoff radius R (m).
     #[serde(default)]
@@ -252,7 +259,7 @@ impl Guidance {
 }
 
 /// Settings of the loop.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GuidanceSettings {
     /// Setpoint rate (Hz).
     pub rate_hz: f64,
@@ -262,6 +269,113 @@ pub struct GuidanceSettings {
     pub speed: f64,
     /// Takeoff height above home (m).
     pub takeoff_height: f64,
+    /// Obstacles the `formation` law steers around (ENU).
+    pub obstacles: Vec<Obstacle>,
+}
+
+/// Look-ahead and margin of the formation's obstacle avoidance ([BOT] §III.B), scaled to
+/// multirotor speeds.
+const AVOIDANCE: Avoidance = Avoidance {
+    lookahead: 120.0,
+    margin: 15.0,
+};
+
+/// The [BOT] range regulators of a formation: one per ordered pair of members (0 = the leader).
+#[derive(Debug, Default)]
+struct FormationState {
+    pairs: Vec<Vec<PairState>>,
+    last_t: Option<f64>,
+}
+
+/// Desired LOS range between members `i` and `j` of the shape: the leader (0) at the centre,
+/// follower `k` at `R (cos((k−1)Δ), sin((k−1)Δ))`.
+fn shape_range(i: usize, j: usize, radius: f64, spacing: f64) -> f64 {
+    let at = |k: usize| {
+        if k == 0 {
+            Vector2::zeros()
+        } else {
+            let a = (k - 1) as f64 * spacing;
+            Vector2::new(a.cos(), a.sin()) * radius
+        }
+    };
+    (at(i) - at(j)).norm()
+}
+
+/// The formation's commands at tracker time `t`, one per vehicle (`None` without telemetry):
+/// [BOT] eq. (6), the vector sum of eq. (5)'s pseudo-controls along every line of sight to the
+/// leader (the track estimate) and to the other vehicles, then §III.B's silhouette-edge
+/// avoidance (a regulator is hedged, not advanced, while its vehicle avoids); vertically
+/// [CIMM] §4.1's climb to H above the target.
+#[allow(clippy::too_many_arguments)]
+fn formation_commands(
+    f: &mut FormationState,
+    states: &[Option<UavState>],
+    target: &TargetEstimate,
+    radius: f64,
+    height: f64,
+    spacing: f64,
+    t: f64,
+    limits: &Limits,
+    obstacles: &[Obstacle],
+) -> Vec<Option<Command>> {
+    let reg = RangeRegulator::default();
+    let n = states.len() + 1;
+    let pos = |j: usize| {
+        if j == 0 {
+            Some(target.position.xy())
+        } else {
+            states[j - 1].as_ref().map(UavState::horizontal_position)
+        }
+    };
+    if f.pairs.len() != n {
+        f.pairs = (0..n)
+            .map(|i| {
+                (0..n)
+                    .map(|j| {
+                        let r = match (pos(i), pos(j)) {
+                            (Some(a), Some(b)) => (a - b).norm(),
+                            _ => shape_range(i, j, radius, spacing),
+                        };
+                        PairState::start(r)
+                    })
+                    .collect()
+            })
+            .collect();
+    }
+    let dt = f.last_t.map_or(0.0, |last| (t - last).clamp(0.0, 1.0));
+    f.last_t = Some(t);
+    (1..n)
+        .map(|k| {
+            let u = states[k - 1].as_ref()?;
+            let p = u.horizontal_position();
+            let lines: Vec<(usize, Vector2<f64>, f64)> = (0..n)
+                .filter(|&j| j != k)
+                .filter_map(|j| {
+                    let rel = pos(j)? - p;
+                    let r = rel.norm();
+                    Some((j, rel / r.max(1e-9), r))
+                })
+                .collect();
+            // Eq. (6) with û along the line of sight to the neighbour, as in `guidance-sim`.
+            let desired = vector_sum(lines.iter().map(|&(j, los, r)| {
+                (
+                    los,
+                    reg.pseudo_control(&f.pairs[k][j], r, shape_range(k, j, radius, spacing)),
+                )
+            }));
+            let (vh, avoiding) = avoid(p, u.horizontal_velocity(), desired, obstacles, &AVOIDANCE);
+            for &(j, _, r) in &lines {
+                let r_com = shape_range(k, j, radius, spacing);
+                f.pairs[k][j] = if avoiding {
+                    reg.hedge(&f.pairs[k][j], r)
+                } else {
+                    reg.advance(&f.pairs[k][j], r, r_com, dt)
+                };
+            }
+            let vz = Togvf::vertical_speed(u.position.z - target.position.z - height, limits);
+            Some(Command::new(vh, vz).or_hold(u, limits))
+        })
+        .collect()
 }
 
 #[derive(Debug)]
@@ -288,6 +402,7 @@ struct Assignment {
     created_unix: f64,
     ended: Option<String>,
     slots: Vec<Slot>,
+    formation: FormationState,
 }
 
 impl Assignment {
@@ -492,8 +607,11 @@ impl Actor {
         if ids.len() != r.vehicles.len() || ids.contains(&0) {
             return bad("vehicles: ids must be 1-255 and distinct".into());
         }
-        if !matches!(r.law.as_str(), "togvf" | "lgvf") {
-            return bad(format!("law {:?}: expected togvf or lgvf", r.law));
+        if !matches!(r.law.as_str(), "togvf" | "lgvf" | "formation") {
+            return bad(format!(
+                "law {:?}: expected togvf, lgvf or formation",
+                r.law
+            ));
         }
         let radius = r.radius_m.unwrap_or(DEFAULT_RADIUS_M);
         let height = r.height_m.unwrap_or(DEFAULT_HEIGHT_M);
@@ -571,6 +689,7 @@ impl Actor {
             orbit,
             created_unix: unix_now(),
             ended: None,
+            formation: FormationState::default(),
             slots: r
                 .vehicles
                 .iter()
@@ -690,6 +809,21 @@ impl Actor {
             ring.sort_by(|x, y| (sign * x.1).total_cmp(&(sign * y.1)));
             let phases: Vec<f64> = ring.iter().map(|r| r.1).collect();
             let n_slots = a.slots.len();
+            let formation = (a.law == "formation").then(|| {
+                let uavs: Vec<Option<UavState>> =
+                    states.iter().map(|s| s.as_ref().map(|(u, _)| *u)).collect();
+                formation_commands(
+                    &mut a.formation,
+                    &uavs,
+                    &target,
+                    a.radius,
+                    a.height,
+                    a.spacing,
+                    snapshot.t.unwrap_or(track.t),
+                    &limits,
+                    &self.settings.obstacles,
+                )
+            });
             for (i, slot) in a.slots.iter_mut().enumerate() {
                 let before = (slot.state, slot.error.clone());
                 let known = vehicles.iter().find(|v| v.view.id == slot.vehicle);
@@ -720,9 +854,12 @@ impl Actor {
                                 nb
                             })
                         });
-                        let cmd = law
-                            .command(uav, Some(&target), &limits, neighbours.as_ref())
-                            .or_hold(uav, &limits);
+                        let cmd = match formation.as_ref().and_then(|c| c[i]) {
+                            Some(c) => c,
+                            None => law
+                                .command(uav, Some(&target), &limits, neighbours.as_ref())
+                                .or_hold(uav, &limits),
+                        };
                         let status = v.status.unwrap_or(harrier_link::px4::VehicleStatus {
                             armed: false,
                             mode: None,
@@ -795,6 +932,44 @@ impl Actor {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A follower south of the leader closes in along the line of sight; with an obstacle on that
+    /// line it is steered around it (§III.B), and its regulators are hedged meanwhile.
+    #[test]
+    fn the_formation_closes_in_and_steers_around_an_obstacle() {
+        let limits = Limits::multirotor();
+        let target = TargetEstimate::fixed(Vector3::zeros());
+        let uav = UavState::new(Vector3::new(0.0, -300.0, 60.0), Vector3::new(0.0, 5.0, 0.0));
+        let run = |obstacles: &[Obstacle]| {
+            let mut f = FormationState::default();
+            let mut cmd = None;
+            for k in 0..5 {
+                cmd = formation_commands(
+                    &mut f,
+                    &[Some(uav)],
+                    &target,
+                    80.0,
+                    60.0,
+                    std::f64::consts::TAU,
+                    f64::from(k) * 0.1,
+                    &limits,
+                    obstacles,
+                )[0];
+            }
+            cmd.expect("a command").velocity
+        };
+        let free = run(&[]);
+        assert!(free.y > 1.0 && free.x.abs() < 1e-6, "{free:?}");
+        let blocked = run(&[Obstacle {
+            center: Vector2::new(0.0, -220.0),
+            radius: 20.0,
+        }]);
+        assert!(blocked.x.abs() > 0.5, "{blocked:?}");
+        // Three followers 120° apart on R = 80 m: √3 R from each other, R from the leader.
+        let third = std::f64::consts::TAU / 3.0;
+        assert!((shape_range(1, 2, 80.0, third) - 80.0 * 3f64.sqrt()).abs() < 1e-9);
+        assert!((shape_range(3, 0, 80.0, third) - 80.0).abs() < 1e-9);
+    }
 
     #[test]
     fn prediction_is_bounded() {

@@ -387,6 +387,14 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
                 },
                 speed: g.speed_m_s,
                 takeoff_height: g.takeoff_height_m,
+                obstacles: g
+                    .obstacles
+                    .iter()
+                    .map(|o| harrier_core::guidance::obstacle::Obstacle {
+                        center: nalgebra::Vector2::new(o.x_m, o.y_m),
+                        radius: o.radius_m,
+                    })
+                    .collect(),
             };
             let (guidance, task) =
                 guidance::start(settings, link.clone(), snap_rx.clone(), stop_rx.clone());
