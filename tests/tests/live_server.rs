@@ -290,6 +290,28 @@ fn polar(p: &Value, c: &Value) -> (f64, f64) {
     (dx.hypot(dy), dy.atan2(dx))
 }
 
+/// The simulator's truth position of the target track `track` follows (the truth target nearest
+/// its estimate), and the MAVLink view (`link`) of every vehicle heard on the GCS link.
+async fn car_and_uavs(addr: SocketAddr, track: &Value) -> Option<(Value, Vec<Value>)> {
+    let (_, k) = get_json(addr, &format!("/api/v1/tracks/{track}")).await;
+    let (_, truth) = get_json(addr, "/api/v1/truth").await;
+    let (_, vehicles) = get_json(addr, "/api/v1/vehicles").await;
+    let est = k.get("state")?.clone();
+    let car = truth["targets"].as_array()?.iter().min_by(|x, y| {
+        polar(&x["position"], &est)
+            .0
+            .total_cmp(&polar(&y["position"], &est).0)
+    })?["position"]
+        .clone();
+    let links = vehicles["vehicles"]
+        .as_array()?
+        .iter()
+        .filter(|v| v["link"].get("position").is_some())
+        .map(|v| v["link"].clone())
+        .collect();
+    Some((car, links))
+}
+
 /// The demo's whole loop: the UAVs, on the ground at first, are assigned by the demo to the
 /// slowest car's track; the guidance arms them, takes them off and flies TOGVF with phase
 /// spacing from the live track over MAVLink. Measured from the vehicles' own telemetry
@@ -316,25 +338,12 @@ fn the_demo_flies_its_uavs_around_a_car() {
         let sample = || async {
             let (_, a) = get_json(addr, "/api/v1/assignments").await;
             let a = a["assignments"].get(0)?.clone();
-            let (_, k) = get_json(addr, &format!("/api/v1/tracks/{}", a["track"])).await;
-            let (_, truth) = get_json(addr, "/api/v1/truth").await;
-            let (_, vehicles) = get_json(addr, "/api/v1/vehicles").await;
-            let est = k.get("state")?.clone();
-            let car = truth["targets"]
-                .as_array()?
+            let (car, links) = car_and_uavs(addr, &a["track"]).await?;
+            let uavs: Vec<(f64, f64, String)> = links
                 .iter()
-                .min_by(|x, y| {
-                    polar(&x["position"], &est)
-                        .0
-                        .total_cmp(&polar(&y["position"], &est).0)
-                })?
-                .clone();
-            let uavs: Vec<(f64, f64, String)> = vehicles["vehicles"]
-                .as_array()?
-                .iter()
-                .filter_map(|v| {
-                    let (r, phase) = polar(v["link"].get("position")?, &car["position"]);
-                    Some((r, phase, v["link"]["mode"].as_str()?.to_owned()))
+                .filter_map(|l| {
+                    let (r, phase) = polar(&l["position"], &car);
+                    Some((r, phase, l["mode"].as_str()?.to_owned()))
                 })
                 .collect();
             Some((a, uavs))
@@ -464,25 +473,9 @@ fn a_formation_holds_its_ranges_around_a_car() {
         .await;
         assert_eq!(status, 201, "{text}");
         let sample = || async {
-            let (_, k) = get_json(addr, &format!("/api/v1/tracks/{track}")).await;
-            let (_, truth) = get_json(addr, "/api/v1/truth").await;
-            let (_, vehicles) = get_json(addr, "/api/v1/vehicles").await;
-            let est = k.get("state")?.clone();
-            let car = truth["targets"]
-                .as_array()?
-                .iter()
-                .min_by(|x, y| {
-                    polar(&x["position"], &est)
-                        .0
-                        .total_cmp(&polar(&y["position"], &est).0)
-                })?
-                .clone();
-            let uavs: Vec<Value> = vehicles["vehicles"]
-                .as_array()?
-                .iter()
-                .filter_map(|v| v["link"].get("position").cloned())
-                .collect();
-            Some((car["position"].clone(), uavs))
+            let (car, links) = car_and_uavs(addr, &track).await?;
+            let uavs: Vec<Value> = links.iter().map(|l| l["position"].clone()).collect();
+            Some((car, uavs))
         };
         let errors = |car: &Value, uavs: &[Value]| {
             let leader: Vec<f64> = uavs.iter().map(|u| polar(u, car).0 - R).collect();

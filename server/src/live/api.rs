@@ -587,11 +587,7 @@ async fn put_estimator(
 ) -> Response {
     let change = match body {
         Ok(Json(c)) => c,
-        Err(e) => {
-            let status = e.status();
-            s.metrics.http_refused("json", status.as_u16());
-            return error(status, e.body_text());
-        }
+        Err(e) => return bad_json(&s, &e),
     };
     let (reply, answer) = oneshot::channel();
     let to = EstimatorState {
@@ -816,6 +812,14 @@ async fn with_file<T: Send + 'static>(
         Ok(Err(e)) => Err(error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
         Err(e) => Err(error(StatusCode::INTERNAL_SERVER_ERROR, e.to_string())),
     }
+}
+
+/// The answer to a body axum's `Json` refused (400 syntax, 415 content type, 422 data), counted
+/// under `json`.
+pub(super) fn bad_json(s: &ApiState, e: &JsonRejection) -> Response {
+    let status = e.status();
+    s.metrics.http_refused("json", status.as_u16());
+    error(status, e.body_text())
 }
 
 /// The 400 of a session id that is not a number.

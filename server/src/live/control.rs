@@ -13,7 +13,7 @@ use harrier_link::px4::FlightMode;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::api::{ApiState, ErrorBody, error};
+use super::api::{ApiState, ErrorBody, bad_json, error};
 use super::gcs::vehicle::VehicleLinkView;
 use super::gcs::{CommandError, CommandOutcome};
 use super::guidance::{AssignError, AssignmentRequest, AssignmentView};
@@ -85,12 +85,6 @@ pub async fn vehicles(State(s): State<ApiState>) -> Json<VehicleList> {
 fn bad_path(s: &ApiState, e: &PathRejection) -> Response {
     s.metrics.http_refused("path", 400);
     error(StatusCode::BAD_REQUEST, e.body_text())
-}
-
-fn bad_json(s: &ApiState, e: &JsonRejection) -> Response {
-    let status = e.status();
-    s.metrics.http_refused("body", status.as_u16());
-    error(status, e.body_text())
 }
 
 /// One vehicle.

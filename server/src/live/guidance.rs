@@ -762,7 +762,7 @@ impl Actor {
         }
         let t = self.t(now);
         let snapshot = self.snapshot.borrow().clone();
-        let vehicles: Vec<VehicleSample> = self.link.vehicles.borrow().as_ref().clone();
+        let vehicles = Arc::clone(&self.link.vehicles.borrow());
         let limits = self.settings.limits;
         let takeoff_height = self.settings.takeoff_height;
         let mut to_end = Vec::new();

@@ -688,7 +688,7 @@ impl Actor {
             return;
         };
         let Some(s) = v.status() else { return };
-        let mode = v.view(&self.config.frame, Instant::now()).mode;
+        let mode = v.mode();
         let now = (s.armed, mode.clone());
         let before = self.flight.insert(id, now);
         match before {

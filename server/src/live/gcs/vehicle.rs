@@ -151,6 +151,11 @@ impl VehicleLink {
         self.state
     }
 
+    /// The PX4 mode name of the last HEARTBEAT, once one was heard.
+    pub fn mode(&self) -> Option<String> {
+        self.status.map(|s| mode_name(s.mode, self.custom_mode))
+    }
+
     /// Mode and armed state from the last HEARTBEAT (`at` in seconds since the link started).
     pub fn status(&self) -> Option<VehicleStatus> {
         self.status
@@ -267,7 +272,7 @@ impl VehicleLink {
             id: self.id,
             state: self.state,
             address: self.peer.to_string(),
-            mode: self.status.map(|s| mode_name(s.mode, self.custom_mode)),
+            mode: self.mode(),
             armed: self.status.is_some_and(|s| s.armed),
             system_status: self.system_status.clone(),
             position: kin.map(|(p, _)| p.into()),
