@@ -17,6 +17,9 @@ import websockets
 URL = os.environ["HARRIER_URL"]
 TOKEN = os.environ["HARRIER_TOKEN"]
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
+# A second, named token of `[[api.tokens]]`, and one whose `expires` is in the past.
+SECOND_TOKEN = os.environ["HARRIER_SECOND_TOKEN"]
+EXPIRED_TOKEN = os.environ["HARRIER_EXPIRED_TOKEN"]
 
 
 @pytest.fixture(scope="module")
@@ -93,6 +96,65 @@ def test_changing_the_estimator_needs_the_token_and_keeps_the_tracks(api):
     assert before & after, f"the tracks {before} were not handed over: {after}"
     r = api.put("/api/v1/estimator", json=original, headers=AUTH)
     assert r.status_code == 200 and r.json()["name"] == original["name"]
+
+
+def mutating_routes(api):
+    """Every (method, path) of the OpenAPI document that is not a read, path parameters set."""
+    doc = api.get("/api/openapi.json").json()
+    routes = []
+    for path, item in doc["paths"].items():
+        for method in item:
+            if method in ("post", "put", "patch", "delete"):
+                routes.append((method.upper(), path.replace("{id}", "1")))
+    return routes
+
+
+def test_every_mutating_route_refuses_missing_wrong_and_expired_tokens(api):
+    routes = mutating_routes(api)
+    # The estimator, assignments, vehicle commands and sessions routes at least.
+    assert len(routes) >= 4, routes
+    for method, path in routes:
+        cases = {
+            "missing": {},
+            "wrong": {"Authorization": "Bearer not-the-token-at-all"},
+            "expired": {"Authorization": f"Bearer {EXPIRED_TOKEN}"},
+            "malformed": {"Authorization": f"Bearer{TOKEN}"},
+        }
+        for case, headers in cases.items():
+            r = api.request(method, path, json={}, headers=headers)
+            assert r.status_code == 401, f"{method} {path} with a {case} token: {r.status_code} {r.text}"
+            assert r.headers["www-authenticate"].startswith("Bearer"), (method, path, case)
+            if case == "expired":
+                assert "expired" in r.json()["error"] and '"ci"' in r.json()["error"], r.text
+                assert 'error="invalid_token"' in r.headers["www-authenticate"]
+        # Both valid tokens pass the guard (the body `{}` is then refused or served by the route).
+        for token in (TOKEN, SECOND_TOKEN):
+            r = api.request(method, path, json={}, headers={"Authorization": f"Bearer {token}"})
+            assert r.status_code != 401, f"{method} {path} with a valid token: {r.text}"
+    # Reads need no token by default; the WebSocket takes no commands (client messages are
+    # ignored), so the mutating routes are all there is to guard.
+    assert api.get("/api/v1/tracks").status_code == 200
+    metrics = api.get("/api/v1/metrics").text
+    for reason in ("auth_missing", "auth_wrong", "auth_expired"):
+        assert f'reason="{reason}"' in metrics, reason
+
+
+def test_cors_is_locked_to_the_served_origin(api):
+    """No `Access-Control-Allow-Origin` for another site's page: its browser refuses to read the
+    response and to send a mutating request after the preflight."""
+    evil = "http://evil.example:8000"
+    r = api.get("/api/v1/tracks", headers={"Origin": evil})
+    assert r.status_code == 200 and "access-control-allow-origin" not in r.headers
+    preflight = api.options(
+        "/api/v1/estimator",
+        headers={
+            "Origin": evil,
+            "Access-Control-Request-Method": "PUT",
+            "Access-Control-Request-Headers": "authorization,content-type",
+        },
+    )
+    assert "access-control-allow-origin" not in preflight.headers, preflight.headers
+    assert "access-control-allow-methods" not in preflight.headers, preflight.headers
 
 
 def test_the_websocket_streams_a_snapshot_then_every_scan():

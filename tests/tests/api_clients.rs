@@ -4,7 +4,9 @@
 //! - `tests/python/test_api_client.py` (pytest + httpx + websockets), a user's script: lists
 //!   tracks, reads one, changes the estimator (401 without or with a wrong token, 400 on a body
 //!   that is not JSON, 422 naming the field or the unknown estimator, 200 with the token and the
-//!   tracks kept), watches the WebSocket (a snapshot, then scan messages with consecutive `seq`),
+//!   tracks kept), sends every mutating route of the OpenAPI document without, with a wrong, a
+//!   malformed and an expired token (401 each, counted by reason) and with both valid tokens,
+//!   checks that CORS gives another origin nothing, watches the WebSocket (a snapshot, then scan messages with consecutive `seq`),
 //!   subscribes to the tracks on Zenoh with eclipse-zenoh, and publishes bad payloads (garbage,
 //!   NaN, negative noise, a short `z`) that `/metrics` must count by reason while tracking goes on,
 //!   and reads the session being recorded (its scans, tracks and the API actions) and its export
@@ -27,7 +29,7 @@ use std::time::{Duration, Instant};
 
 use harrier_server::live::{
     self,
-    config::{Config, MavlinkConfig},
+    config::{Config, MavlinkConfig, TokenConfig},
 };
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
@@ -35,6 +37,10 @@ use harrier_sim::setup::SimScenario;
 use harrier_tests::{free_tcp_port, kill_group, require_python_module, wait_with_deadline};
 
 const TOKEN: &str = "api-clients-test-token";
+/// A second token of `[[api.tokens]]`, valid until 2100.
+const SECOND_TOKEN: &str = "api-clients-second-token";
+/// A token of `[[api.tokens]]` that expired in 2020.
+const EXPIRED_TOKEN: &str = "api-clients-expired-token";
 
 /// Runs `cmd` (in its own process group) to completion within `timeout`; returns its output,
 /// panicking with it when it fails.
@@ -118,6 +124,19 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     config.tracker.motion = scenario.estimator.motion.clone().expect("motion hints");
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.token = TOKEN.into();
+    config.api.tokens = vec![
+        TokenConfig {
+            name: "ops".into(),
+            token: SECOND_TOKEN.into(),
+            expires: Some("2100-01-01T00:00:00Z".into()),
+        },
+        TokenConfig {
+            name: "ci".into(),
+            token: EXPIRED_TOKEN.into(),
+            expires: Some("2020-01-01T00:00:00Z".into()),
+        },
+    ];
+    config.check().expect("valid config");
     config.tracker.bound.enabled = true;
     let recording = tempfile::tempdir().expect("tempdir");
     config.recorder.path = recording
@@ -160,6 +179,8 @@ fn python_clients_and_schemathesis_use_the_live_api() {
         .arg(tests_dir.join("python/test_api_client.py"))
         .env("HARRIER_URL", &url)
         .env("HARRIER_TOKEN", TOKEN)
+        .env("HARRIER_SECOND_TOKEN", SECOND_TOKEN)
+        .env("HARRIER_EXPIRED_TOKEN", EXPIRED_TOKEN)
         .env("HARRIER_ZENOH", &server_endpoint);
     let out = run_client(
         pytest,
@@ -195,7 +216,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
 
     let m = metrics(addr);
     assert!(
-        metric_sum(&m, "harrier_http_refused_total", "reason=\"auth\"") >= 2.0,
+        metric_sum(&m, "harrier_http_refused_total", "reason=\"auth_expired\"") >= 4.0,
         "{m}"
     );
     assert!(

@@ -16,14 +16,16 @@
 //!
 //! Every error is JSON `{"error": "…"}` with its status: a body that is not JSON 400, JSON of
 //! the wrong shape 422 (naming the field), no or a wrong token 401, an unknown id or route 404.
-//! Every mutating request needs `Authorization: Bearer <token>`; reads need it too with
-//! `api.auth_reads` (the WebSocket, which browsers cannot give headers, also takes `?token=`).
+//! Every mutating request needs `Authorization: Bearer <token>`: `api.token`, or one of the
+//! named `[[api.tokens]]` before its expiry (a missing, wrong or expired token: 401, counted as
+//! `auth_missing`, `auth_wrong`, `auth_expired`); reads need it too with `api.auth_reads` (the
+//! WebSocket, which browsers cannot give headers, also takes `?token=`).
 //! CORS is same-origin unless `api.cors_origins` lists origins. [`app`] builds the router from
 //! an [`ApiState`], so tests can serve it on any listener.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Instant, SystemTime};
 
 use axum::Json;
 use axum::Router;
@@ -78,16 +80,42 @@ pub struct ApiState {
 /// The API's access rule.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Auth {
-    /// The bearer token of mutating requests.
-    pub token: String,
-    /// Reads need it too.
+    /// The tokens accepted: `api.token` (named `main`, no expiry) and `api.tokens`.
+    pub tokens: Vec<ApiToken>,
+    /// Reads need a token too.
     pub reads: bool,
 }
 
+/// One accepted bearer token.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ApiToken {
+    /// Who holds it.
+    pub name: String,
+    /// The secret.
+    pub secret: String,
+    /// When it stops being accepted.
+    pub expires: Option<SystemTime>,
+}
+
+/// What [`Auth::check`] found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+enum Verdict {
+    Accepted,
+    /// No `Authorization: Bearer` header (or WebSocket `token=`).
+    Missing,
+    /// A token no entry has.
+    Wrong,
+    /// A known token past its expiry.
+    Expired {
+        name: String,
+        at: SystemTime,
+    },
+}
+
 impl Auth {
-    /// Whether `req` carries the token (header, or `token=` in the query of a WebSocket
-    /// upgrade). Compared in constant time.
-    fn accepts(&self, req: &Request) -> bool {
+    /// What `req` carries (header, or `token=` in the query of a WebSocket upgrade), judged at
+    /// `now`. Every token is compared, each in constant time.
+    fn check(&self, req: &Request, now: SystemTime) -> Verdict {
         let header = req
             .headers()
             .get(header::AUTHORIZATION)
@@ -98,9 +126,26 @@ impl Auth {
                 .find_map(|kv| kv.strip_prefix("token="))
                 .filter(|_| req.uri().path().ends_with("/ws"))
         });
-        header
-            .or(query)
-            .is_some_and(|given| constant_time_eq(given.as_bytes(), self.token.as_bytes()))
+        let Some(given) = header.or(query) else {
+            return Verdict::Missing;
+        };
+        let found = self.tokens.iter().fold(None, |found, t| {
+            if constant_time_eq(given.as_bytes(), t.secret.as_bytes()) {
+                Some(t)
+            } else {
+                found
+            }
+        });
+        match found {
+            None => Verdict::Wrong,
+            Some(t) => match t.expires {
+                Some(at) if now >= at => Verdict::Expired {
+                    name: t.name.clone(),
+                    at,
+                },
+                _ => Verdict::Accepted,
+            },
+        }
     }
 }
 
@@ -246,12 +291,17 @@ const MAX_BODY: usize = 64 * 1024;
 /// mutating request (method, path, body, status), refused or not, when recording.
 async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response {
     let mutating = !matches!(*req.method(), Method::GET | Method::HEAD | Method::OPTIONS);
-    let allowed = !(mutating || s.auth.reads) || s.auth.accepts(&req);
+    let verdict = if mutating || s.auth.reads {
+        s.auth.check(&req, SystemTime::now())
+    } else {
+        Verdict::Accepted
+    };
+    let allowed = verdict == Verdict::Accepted;
     let Some(recorder) = s.recorder.as_ref().filter(|_| mutating) else {
         return if allowed {
             next.run(req).await
         } else {
-            unauthorized(&s)
+            unauthorized(&s, verdict)
         };
     };
     let method = req.method().to_string();
@@ -272,7 +322,7 @@ async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response 
                 next.run(Request::from_parts(parts, axum::body::Body::from(bytes)))
                     .await
             } else {
-                unauthorized(&s)
+                unauthorized(&s, verdict)
             };
             (r, text)
         }
@@ -287,15 +337,35 @@ async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response 
     response
 }
 
-/// 401 with `WWW-Authenticate: Bearer`, counted.
-fn unauthorized(s: &ApiState) -> Response {
-    s.metrics.http_refused("auth", 401);
-    let mut r = error(
-        StatusCode::UNAUTHORIZED,
-        "this request needs the API token: Authorization: Bearer <token>",
+/// 401 with `WWW-Authenticate: Bearer` (RFC 6750: `error="invalid_token"` for a wrong or expired
+/// one), counted by reason (`auth_missing`, `auth_wrong`, `auth_expired`).
+fn unauthorized(s: &ApiState, verdict: Verdict) -> Response {
+    let (reason, message, challenge) = match verdict {
+        Verdict::Missing | Verdict::Accepted => (
+            "auth_missing",
+            "this request needs the API token: Authorization: Bearer <token>".to_owned(),
+            "Bearer",
+        ),
+        Verdict::Wrong => (
+            "auth_wrong",
+            "the API token is not valid".to_owned(),
+            "Bearer error=\"invalid_token\"",
+        ),
+        Verdict::Expired { name, at } => (
+            "auth_expired",
+            format!(
+                "the API token {name:?} expired at {}",
+                humantime::format_rfc3339_seconds(at)
+            ),
+            "Bearer error=\"invalid_token\", error_description=\"expired\"",
+        ),
+    };
+    s.metrics.http_refused(reason, 401);
+    let mut r = error(StatusCode::UNAUTHORIZED, message);
+    r.headers_mut().insert(
+        header::WWW_AUTHENTICATE,
+        HeaderValue::from_static(challenge),
     );
-    r.headers_mut()
-        .insert(header::WWW_AUTHENTICATE, HeaderValue::from_static("Bearer"));
     r
 }
 
@@ -554,10 +624,10 @@ async fn get_estimator(State(s): State<ApiState>) -> Json<EstimatorState> {
 pub struct EstimatorChange {
     /// Track estimator name (`GET /api/v1/estimators`).
     #[schema(schema_with = estimator_names)]
-    name: String,
+    pub name: String,
     /// Parameters, name → value (the others default).
     #[serde(default)]
-    params: BTreeMap<String, f64>,
+    pub params: BTreeMap<String, f64>,
 }
 
 /// The schema of an estimator name: one of [`TRACK_ENGINES`].

@@ -178,6 +178,10 @@ pub struct ApiConfig {
     /// generated and printed at start. Never recorded.
     #[serde(skip_serializing)]
     pub token: String,
+    /// More tokens, each with a name and an optional expiry (`[[api.tokens]]`): for a script, a
+    /// second operator, a CI job. Accepted like `token` until they expire. Never recorded.
+    #[serde(skip_serializing)]
+    pub tokens: Vec<TokenConfig>,
     /// Require the token for reads too (GET routes and the WebSocket).
     pub auth_reads: bool,
     /// Origins other than the server's own allowed to call the API from a browser (CORS);
@@ -187,6 +191,37 @@ pub struct ApiConfig {
     pub web_dir: String,
     /// Messages queued per WebSocket client before it is dropped to the latest state.
     pub ws_queue: usize,
+}
+
+/// One `[[api.tokens]]` entry.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TokenConfig {
+    /// Who holds it (logs, refusals).
+    pub name: String,
+    /// The secret (at least 16 characters).
+    pub token: String,
+    /// When it stops being accepted: RFC 3339 UTC, e.g. `"2026-12-31T23:59:59Z"`; absent: never.
+    #[serde(default)]
+    pub expires: Option<String>,
+}
+
+impl TokenConfig {
+    /// The expiry as a time, if any.
+    pub fn expiry(&self) -> Result<Option<std::time::SystemTime>, String> {
+        self.expires
+            .as_deref()
+            .map(|e| {
+                humantime::parse_rfc3339_weak(e).map_err(|err| {
+                    format!(
+                        "api.tokens {:?}: expires {e:?} is not an RFC 3339 UTC time \
+                         (e.g. \"2026-12-31T23:59:59Z\"): {err}",
+                        self.name
+                    )
+                })
+            })
+            .transpose()
+    }
 }
 
 /// The SQLite recording of the session.
@@ -259,6 +294,7 @@ impl Default for ApiConfig {
         Self {
             listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
             token: String::new(),
+            tokens: Vec::new(),
             auth_reads: false,
             cors_origins: Vec::new(),
             web_dir: String::new(),
@@ -344,6 +380,22 @@ impl Config {
         }
         if !self.frame.plane_z.is_finite() {
             return bad("frame.plane_z must be finite".into());
+        }
+        let mut names = std::collections::HashSet::new();
+        for tok in &self.api.tokens {
+            if tok.name.is_empty() || !names.insert(tok.name.as_str()) {
+                return bad(format!(
+                    "api.tokens: every token needs a distinct, non-empty name, got {:?}",
+                    tok.name
+                ));
+            }
+            if tok.token.chars().count() < 16 {
+                return bad(format!(
+                    "api.tokens {:?}: the token must have at least 16 characters",
+                    tok.name
+                ));
+            }
+            tok.expiry().map_err(ConfigError::Invalid)?;
         }
         let t = &self.tracker;
         if !(t.reorder_window_s.is_finite() && (0.0..=60.0).contains(&t.reorder_window_s)) {
@@ -550,5 +602,33 @@ mod tests {
         assert!(e.to_string().starts_with("f: "), "{e}");
         let e = Config::parse("[nonsense]\n", "f").unwrap_err();
         assert!(e.to_string().contains("nonsense"), "{e}");
+    }
+
+    #[test]
+    fn named_tokens_need_a_long_secret_and_a_real_expiry() {
+        let tokens = |entry: &str| format!("[[api.tokens]]\n{entry}\n");
+        let c = Config::parse(
+            &tokens(
+                "name = \"ci\"\ntoken = \"0123456789abcdef\"\nexpires = \"2026-12-31T23:59:59Z\"",
+            ),
+            "f",
+        )
+        .expect("valid token");
+        let at = c.api.tokens[0].expiry().expect("expiry").expect("some");
+        let unix = at
+            .duration_since(std::time::UNIX_EPOCH)
+            .expect("after 1970");
+        assert_eq!(unix.as_secs(), 1_798_761_599);
+        let e = Config::parse(&tokens("name = \"ci\"\ntoken = \"short\""), "f").unwrap_err();
+        assert!(e.to_string().contains("16 characters"), "{e}");
+        let e = Config::parse(
+            &tokens("name = \"ci\"\ntoken = \"0123456789abcdef\"\nexpires = \"next week\""),
+            "f",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("RFC 3339"), "{e}");
+        let twice = tokens("name = \"a\"\ntoken = \"0123456789abcdef\"").repeat(2);
+        let e = Config::parse(&twice, "f").unwrap_err();
+        assert!(e.to_string().contains("distinct"), "{e}");
     }
 }

@@ -54,7 +54,7 @@ use harrier_link::geo::LocalFrame;
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
-use self::api::{ApiState, Auth};
+use self::api::{ApiState, ApiToken, Auth};
 use self::config::{Config, ConfigError};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
@@ -418,7 +418,23 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             commands: command_tx,
             metrics: Arc::clone(&metrics),
             auth: Arc::new(Auth {
-                token: token.0.clone(),
+                tokens: std::iter::once(ApiToken {
+                    name: "main".into(),
+                    secret: token.0.clone(),
+                    expires: None,
+                })
+                .chain(config.api.tokens.iter().map(|t| {
+                    ApiToken {
+                        name: t.name.clone(),
+                        secret: t.token.clone(),
+                        // `Config::check` refuses a bad expiry; were one to get here, the token
+                        // is refused rather than accepted forever.
+                        expires: t
+                            .expiry()
+                            .unwrap_or(Some(std::time::SystemTime::UNIX_EPOCH)),
+                    }
+                }))
+                .collect(),
                 reads: config.api.auth_reads,
             }),
             started,
