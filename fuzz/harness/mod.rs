@@ -48,6 +48,8 @@ pub(crate) const TARGETS: &[Target] = &[
     ("stream", stream),
     ("sim_scenario", sim_scenario),
     ("link", link),
+    ("gcs", gcs),
+    ("rest", rest),
 ];
 
 /// Reads input bytes front to back; past the end every read is 0.
@@ -626,6 +628,212 @@ pub(crate) fn link(data: &[u8]) {
                     let _ = VehicleStatus::from_heartbeat(&hb, f64::from(b.u8()));
                 }
             }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 7. The ground station's MAVLink link: what a vehicle's frames do to its state.
+
+/// Frames from the wire (`parse_datagram`, as the GCS endpoint tasks do) or decoded from fuzzed
+/// payloads, fed to the server's per-vehicle link state (`VehicleLink::on_frame`) with fuzzed
+/// headers and times, then `check` (lost detection) and `view` (what `/vehicles` serves): every
+/// number in the view is finite (JSON has no NaN), the rate and loss are within their ranges,
+/// and a lost vehicle that speaks again is connected.
+pub(crate) fn gcs(data: &[u8]) {
+    use harrier_server::live::gcs::transport::Peer;
+    use harrier_server::live::gcs::vehicle::{LinkState, VehicleLink};
+    use std::time::{Duration, Instant};
+
+    let mut b = Bytes { data };
+    let start = Instant::now();
+    let mut now = start;
+    let peer = Peer::Udp(std::net::SocketAddr::from(([127, 0, 0, 1], 14540)));
+    let mut v = VehicleLink::new(1, 0, peer, now);
+    let frame = LocalFrame::new(GeoPoint::new(47.397_742, 8.545_594, 488.0));
+    let mut steps = 0;
+    while !b.is_empty() && steps < 256 {
+        steps += 1;
+        let mut frames: Vec<(MavHeader, MavMessage)> = Vec::new();
+        match b.u8() % 4 {
+            0 => {
+                let len = usize::from(b.u8()) + usize::from(b.u8());
+                let datagram = b.take(len);
+                let parsed = parse_datagram(datagram);
+                frames.extend(parsed.frames.into_iter().map(|f| (f.header, f.message)));
+            }
+            1 => {
+                let header = MavHeader {
+                    system_id: 1,
+                    component_id: b.u8(),
+                    sequence: b.u8(),
+                };
+                if let Some(m) = message(&mut b, MavlinkVersion::V2) {
+                    frames.push((header, m));
+                }
+            }
+            2 => {
+                now += match b.u8() {
+                    255 => Duration::from_secs(3600),
+                    d => Duration::from_millis(u64::from(d) * 20),
+                };
+                let was = v.state();
+                let lost = v.check(now, 3.0);
+                assert!(!lost || was != LinkState::Lost, "lost twice");
+            }
+            _ => {
+                let _ = v.kinematics(&frame);
+            }
+        }
+        for (header, m) in frames {
+            let was = v.state();
+            let t = now.duration_since(start).as_secs_f64();
+            let back = v.on_frame(&header, &m, (0, peer), now, t);
+            assert_eq!(back, was == LinkState::Lost, "recovered flag wrong");
+            assert_eq!(v.state(), LinkState::Connected);
+        }
+        let view = v.view(&frame, now);
+        let json = serde_json::to_value(&view).expect("a view serialises");
+        assert_no_null_numbers(&json, &view);
+        assert!((0.0..=100.0).contains(&view.loss_pct), "{view:?}");
+        assert!(view.rate_hz >= 0.0 && view.last_seen_s >= 0.0, "{view:?}");
+    }
+}
+
+/// Every number of the view is finite: `serde_json` writes a NaN or an infinity as `null`,
+/// which is not a number to the API's clients.
+fn assert_no_null_numbers(
+    json: &serde_json::Value,
+    view: &harrier_server::live::gcs::vehicle::VehicleLinkView,
+) {
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    let opt = |x: Option<f64>| x.is_none_or(f64::is_finite);
+    assert!(
+        view.position.is_none_or(|p| finite(&p))
+            && view.velocity.is_none_or(|p| finite(&p))
+            && view.attitude_deg.is_none_or(|p| finite(&p))
+            && opt(view.heading_deg)
+            && opt(view.relative_alt_m)
+            && opt(view.battery_pct)
+            && opt(view.battery_v)
+            && view.geodetic.is_none_or(|g| g.lat_deg.is_finite()
+                && g.lon_deg.is_finite()
+                && g.alt_m.is_finite()),
+        "non-finite number in the vehicle view: {json}"
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// 8. REST request bodies.
+
+/// The JSON bodies of the mutating routes through the functions their handlers call:
+/// `POST /assignments` (`AssignmentRequest::plan`: an accepted plan is finite and inside the
+/// envelope), `POST /vehicles/{id}/commands` (`CommandRequest::message`: an accepted command
+/// frames and parses back to itself) and `PUT /estimator` (the estimator built from the name and
+/// parameters, as the tracker does, then run on a scan: finite tracks or an error).
+pub(crate) fn rest(data: &[u8]) {
+    use harrier_server::live::api::EstimatorChange;
+    use harrier_server::live::control::CommandRequest;
+    use harrier_server::live::guidance::{AssignmentRequest, GuidanceSettings};
+
+    let Some((&which, body)) = data.split_first() else {
+        return;
+    };
+    match which % 3 {
+        0 => {
+            let Ok(r) = serde_json::from_slice::<AssignmentRequest>(body) else {
+                return;
+            };
+            let settings = GuidanceSettings {
+                rate_hz: 20.0,
+                limits: harrier_core::guidance::Limits::multirotor(),
+                speed: 10.0,
+                takeoff_height: 30.0,
+                obstacles: Vec::new(),
+            };
+            if let Ok(p) = r.plan(&settings) {
+                assert!(
+                    p.radius.is_finite()
+                        && p.radius > 0.0
+                        && p.height.is_finite()
+                        && p.height > 0.0,
+                    "{p:?}"
+                );
+                assert!(p.speed.is_finite() && p.speed > 0.0 && p.speed <= settings.limits.v_max);
+                assert!(p.spacing.is_finite() && p.spacing > 0.0);
+                assert!(!r.vehicles.is_empty() && !r.vehicles.contains(&0));
+            }
+        }
+        1 => {
+            let Ok(r) = serde_json::from_slice::<CommandRequest>(body) else {
+                return;
+            };
+            for home in [None, Some(488.0)] {
+                if let Ok(m) = r.message(7, home) {
+                    let bytes = frame(&m, MavlinkVersion::V2, 0);
+                    let parsed = parse_datagram(&bytes);
+                    assert_eq!((parsed.frames.len(), parsed.malformed), (1, 0));
+                    // NaN parameters (MAVLink's "unset") make `==` useless: compare the bytes.
+                    assert_eq!(
+                        frame(&parsed.frames[0].message, MavlinkVersion::V2, 0),
+                        bytes
+                    );
+                    assert_eq!(harrier_link::frame::target_system(&m), Some(7));
+                }
+            }
+        }
+        _ => {
+            let Ok(change) = serde_json::from_slice::<EstimatorChange>(body) else {
+                return;
+            };
+            estimator_change(&change);
+        }
+    }
+}
+
+/// Builds the estimator of a `PUT /estimator` body as the tracker does and runs it on two scans.
+fn estimator_change(change: &harrier_server::live::api::EstimatorChange) {
+    use harrier_server::engine::{Params, SensorScan};
+    static DEPLOYMENT: OnceLock<Scenario> = OnceLock::new();
+    let sc = DEPLOYMENT.get_or_init(|| {
+        harrier_server::live::config::Config::default()
+            .scenario()
+            .expect("the default deployment")
+    });
+    let params = change
+        .params
+        .iter()
+        .fold(Params::default(), |p, (k, v)| p.with(k, *v));
+    let Ok(mut engine) = harrier_server::registry::build_track_engine(&change.name, sc, &params)
+    else {
+        return;
+    };
+    let sensor = harrier_core::measurement::SensorModel::new(
+        harrier_core::scenario::MeasKind::Position,
+        Geometry::planar(0.0),
+        nalgebra::Vector3::zeros(),
+        &[5.0, 5.0],
+        None,
+    )
+    .expect("a position sensor");
+    for (k, t) in [0.0, 0.5, 1.0].into_iter().enumerate() {
+        let scan = SensorScan {
+            t,
+            sensor,
+            detections: vec![vec![100.0 + 5.0 * k as f64, -20.0]],
+        };
+        let _ = engine.ingest(&scan);
+        for track in engine.snapshot() {
+            assert!(
+                track
+                    .state
+                    .iter()
+                    .chain(track.cov.iter().flatten())
+                    .all(|x| x.is_finite()),
+                "{}: non-finite track {track:?} with {:?}",
+                change.name,
+                change.params
+            );
         }
     }
 }

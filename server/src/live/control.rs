@@ -9,6 +9,7 @@ use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use harrier_link::command::{arm, disarm, land, set_mode, takeoff};
+use harrier_link::mavlink::dialects::common::MavMessage;
 use harrier_link::px4::FlightMode;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -129,6 +130,56 @@ pub struct CommandRequest {
     pub force: Option<bool>,
 }
 
+impl CommandRequest {
+    /// The COMMAND_LONG for vehicle `id` (`home`: its home altitude AMSL, when known), or an
+    /// error naming the bad field.
+    pub fn message(&self, id: u8, home: Option<f64>) -> Result<MavMessage, String> {
+        Ok(match self.command.as_str() {
+            "arm" => arm(id),
+            "disarm" => disarm(id, self.force.unwrap_or(false)),
+            "land" => land(id),
+            "hold" => set_mode(id, FlightMode::Hold),
+            "takeoff" => {
+                let amsl = match (self.altitude_m, home) {
+                    (None, _) => None,
+                    (Some(h), Some(home)) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
+                        Some((home + h) as f32)
+                    }
+                    (Some(h), None) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
+                        return Err(format!(
+                            "vehicle {id}: home altitude unknown yet (no GLOBAL_POSITION_INT); omit altitude_m"
+                        ));
+                    }
+                    (Some(h), _) => {
+                        return Err(format!("altitude_m must be in (0, 10000], got {h}"));
+                    }
+                };
+                takeoff(id, amsl)
+            }
+            "set_mode" => {
+                let mode = match self.mode.as_deref() {
+                    Some("hold") => FlightMode::Hold,
+                    Some("position") => FlightMode::Position,
+                    Some("offboard") => FlightMode::Offboard,
+                    Some("takeoff") => FlightMode::Takeoff,
+                    Some("land") => FlightMode::Land,
+                    m => {
+                        return Err(format!(
+                            "mode {m:?}: expected hold, position, offboard, takeoff or land"
+                        ));
+                    }
+                };
+                set_mode(id, mode)
+            }
+            c => {
+                return Err(format!(
+                    "command {c:?}: expected arm, disarm, takeoff, land, hold or set_mode"
+                ));
+            }
+        })
+    }
+}
+
 /// Sends a command and answers with the vehicle's COMMAND_ACK.
 #[utoipa::path(post, path = "/api/v1/vehicles/{id}/commands", tag = "vehicles",
     params(("id" = u8, Path, description = "MAVLink system id")),
@@ -165,57 +216,17 @@ pub async fn command(
             "no MAVLink link: set mavlink.gcs",
         );
     };
-    let invalid = |m: String| {
-        s.metrics.http_refused("invalid", 422);
-        error(StatusCode::UNPROCESSABLE_ENTITY, m)
-    };
-    let message = match req.command.as_str() {
-        "arm" => arm(id),
-        "disarm" => disarm(id, req.force.unwrap_or(false)),
-        "land" => land(id),
-        "hold" => set_mode(id, FlightMode::Hold),
-        "takeoff" => {
-            let amsl = match req.altitude_m {
-                None => None,
-                Some(h) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
-                    let home = link
-                        .vehicles
-                        .borrow()
-                        .iter()
-                        .find(|v| v.view.id == id)
-                        .and_then(|v| v.home_amsl);
-                    match home {
-                        Some(home) => Some((home + h) as f32),
-                        None => {
-                            return invalid(format!(
-                                "vehicle {id}: home altitude unknown yet (no GLOBAL_POSITION_INT); omit altitude_m"
-                            ));
-                        }
-                    }
-                }
-                Some(h) => return invalid(format!("altitude_m must be in (0, 10000], got {h}")),
-            };
-            takeoff(id, amsl)
-        }
-        "set_mode" => {
-            let mode = match req.mode.as_deref() {
-                Some("hold") => FlightMode::Hold,
-                Some("position") => FlightMode::Position,
-                Some("offboard") => FlightMode::Offboard,
-                Some("takeoff") => FlightMode::Takeoff,
-                Some("land") => FlightMode::Land,
-                m => {
-                    return invalid(format!(
-                        "mode {m:?}: expected hold, position, offboard, takeoff or land"
-                    ));
-                }
-            };
-            set_mode(id, mode)
-        }
-        c => {
-            return invalid(format!(
-                "command {c:?}: expected arm, disarm, takeoff, land, hold or set_mode"
-            ));
+    let home = link
+        .vehicles
+        .borrow()
+        .iter()
+        .find(|v| v.view.id == id)
+        .and_then(|v| v.home_amsl);
+    let message = match req.message(id, home) {
+        Ok(m) => m,
+        Err(m) => {
+            s.metrics.http_refused("invalid", 422);
+            return error(StatusCode::UNPROCESSABLE_ENTITY, m);
         }
     };
     let outcome = link.command(id, message).await;

@@ -81,6 +81,90 @@ pub const DEFAULT_RADIUS_M: f64 = 60.0;
 /// Default observation height (m).
 pub const DEFAULT_HEIGHT_M: f64 = 40.0;
 
+/// An assignment's checked geometry: what [`AssignmentRequest::plan`] makes of a request.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plan {
+    /// Standoff radius (m).
+    pub radius: f64,
+    /// Observation height (m).
+    pub height: f64,
+    /// Phase spacing (rad).
+    pub spacing: f64,
+    /// Speed relative to the target (m/s).
+    pub speed: f64,
+    /// Direction of the orbit.
+    pub orbit: Orbit,
+}
+
+impl AssignmentRequest {
+    /// Checks the request against the flight envelope and fills in the defaults: every value
+    /// finite and in range, or an error naming the field. (Whether the vehicles and the track
+    /// exist is the guidance loop's to say.)
+    pub fn plan(&self, settings: &GuidanceSettings) -> Result<Plan, String> {
+        let bad = |m: String| Err(m);
+        if self.vehicles.is_empty() || self.vehicles.len() > 16 {
+            return bad("vehicles: give 1 to 16 system ids".into());
+        }
+        let mut ids = self.vehicles.clone();
+        ids.sort_unstable();
+        ids.dedup();
+        if ids.len() != self.vehicles.len() || ids.contains(&0) {
+            return bad("vehicles: ids must be 1-255 and distinct".into());
+        }
+        if !matches!(self.law.as_str(), "togvf" | "lgvf" | "formation") {
+            return bad(format!(
+                "law {:?}: expected togvf, lgvf or formation",
+                self.law
+            ));
+        }
+        let radius = self.radius_m.unwrap_or(DEFAULT_RADIUS_M);
+        let height = self.height_m.unwrap_or(DEFAULT_HEIGHT_M);
+        let speed = self.speed_m_s.unwrap_or(settings.speed);
+        let n = self.vehicles.len();
+        let spacing = self.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
+        let limits = settings.limits;
+        if !(radius.is_finite() && radius > 0.0 && radius <= 10_000.0) {
+            return bad(format!("radius_m must be in (0, 10000], got {radius}"));
+        }
+        let r_min = limits.min_turn_radius(speed);
+        if radius < r_min {
+            return bad(format!(
+                "radius_m {radius} is below the vehicles' turning radius {r_min:.1} m at {speed} m/s"
+            ));
+        }
+        if !(height.is_finite() && height > 0.0 && height <= 5_000.0) {
+            return bad(format!("height_m must be in (0, 5000], got {height}"));
+        }
+        if !(speed.is_finite() && speed > 0.0 && speed <= limits.v_max) {
+            return bad(format!(
+                "speed_m_s must be in (0, {}], got {speed}",
+                limits.v_max
+            ));
+        }
+        if !(spacing.is_finite()
+            && spacing > 0.0
+            && spacing * n as f64 <= std::f64::consts::TAU + 1e-9)
+        {
+            return bad(format!(
+                "spacing_deg must be > 0 with n × spacing ≤ 360, got {}",
+                spacing.to_degrees()
+            ));
+        }
+        let orbit = match self.orbit.as_deref() {
+            None | Some("ccw") => Orbit::Ccw,
+            Some("cw") => Orbit::Cw,
+            Some(o) => return bad(format!("orbit {o:?}: expected ccw or cw")),
+        };
+        Ok(Plan {
+            radius,
+            height,
+            spacing,
+            speed,
+            orbit,
+        })
+    }
+}
+
 /// Where one vehicle of an assignment is.
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
 pub struct SlotView {
@@ -597,60 +681,13 @@ impl Actor {
     }
 
     fn create(&mut self, r: AssignmentRequest) -> Result<AssignmentView, AssignError> {
-        let bad = |m: String| Err(AssignError::Invalid(m));
-        if r.vehicles.is_empty() || r.vehicles.len() > 16 {
-            return bad("vehicles: give 1 to 16 system ids".into());
-        }
-        let mut ids = r.vehicles.clone();
-        ids.sort_unstable();
-        ids.dedup();
-        if ids.len() != r.vehicles.len() || ids.contains(&0) {
-            return bad("vehicles: ids must be 1-255 and distinct".into());
-        }
-        if !matches!(r.law.as_str(), "togvf" | "lgvf" | "formation") {
-            return bad(format!(
-                "law {:?}: expected togvf, lgvf or formation",
-                r.law
-            ));
-        }
-        let radius = r.radius_m.unwrap_or(DEFAULT_RADIUS_M);
-        let height = r.height_m.unwrap_or(DEFAULT_HEIGHT_M);
-        let speed = r.speed_m_s.unwrap_or(self.settings.speed);
-        let n = r.vehicles.len();
-        let spacing = r.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
-        let limits = self.settings.limits;
-        if !(radius.is_finite() && radius > 0.0 && radius <= 10_000.0) {
-            return bad(format!("radius_m must be in (0, 10000], got {radius}"));
-        }
-        let r_min = limits.min_turn_radius(speed);
-        if radius < r_min {
-            return bad(format!(
-                "radius_m {radius} is below the vehicles' turning radius {r_min:.1} m at {speed} m/s"
-            ));
-        }
-        if !(height.is_finite() && height > 0.0 && height <= 5_000.0) {
-            return bad(format!("height_m must be in (0, 5000], got {height}"));
-        }
-        if !(speed.is_finite() && speed > 0.0 && speed <= limits.v_max) {
-            return bad(format!(
-                "speed_m_s must be in (0, {}], got {speed}",
-                limits.v_max
-            ));
-        }
-        if !(spacing.is_finite()
-            && spacing > 0.0
-            && spacing * n as f64 <= std::f64::consts::TAU + 1e-9)
-        {
-            return bad(format!(
-                "spacing_deg must be > 0 with n × spacing ≤ 360, got {}",
-                spacing.to_degrees()
-            ));
-        }
-        let orbit = match r.orbit.as_deref() {
-            None | Some("ccw") => Orbit::Ccw,
-            Some("cw") => Orbit::Cw,
-            Some(o) => return bad(format!("orbit {o:?}: expected ccw or cw")),
-        };
+        let Plan {
+            radius,
+            height,
+            spacing,
+            speed,
+            orbit,
+        } = r.plan(&self.settings).map_err(AssignError::Invalid)?;
         let vehicles = self.link.vehicles.borrow().clone();
         for id in &r.vehicles {
             if !vehicles.iter().any(|s| s.view.id == *id) {

@@ -217,7 +217,9 @@ impl VehicleLink {
                 ));
                 self.heading = (p.hdg != u16::MAX).then(|| f64::from(p.hdg) * 0.01);
             }
-            MavMessage::ATTITUDE(a) => {
+            // A NaN or infinite angle (the wire allows them) keeps the last good attitude:
+            // JSON has no NaN, and the API would serve `null` for a number.
+            MavMessage::ATTITUDE(a) if [a.roll, a.pitch, a.yaw].iter().all(|x| x.is_finite()) => {
                 self.attitude = Some([
                     f64::from(a.roll).to_degrees(),
                     f64::from(a.pitch).to_degrees(),
