@@ -126,7 +126,7 @@ $("follow").addEventListener("change", () => {
 
 // --- panels -------------------------------------------------------------------------------------
 
-let feats = { truth: false, assignments: false, commands: false, estimator: true, metrics: true };
+let feats = { truth: false, world: false, assignments: false, commands: false, estimator: true, metrics: true };
 
 /** A MAVLink command's name as the operator knows it (`MAV_CMD_DO_SET_MODE` → `set mode`). */
 function commandName(c) {
@@ -468,6 +468,8 @@ async function poll() {
     jobs.push(get("vehicles").then((b) => store.applyVehicles(b)).catch(() => {}));
   }
   if (feats.truth) jobs.push(get("truth").then((b) => store.applyTruth(b)).catch(() => {}));
+  // The world is static; asked again now and then in case the server was restarted with another.
+  if (feats.world && pollTick % 30 === 1) jobs.push(get("world").then((b) => store.applyWorld(b)).catch(() => {}));
   if (feats.metrics && pollTick % 2 === 1 && servicePanel) {
     jobs.push(
       getText("metrics")

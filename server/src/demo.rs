@@ -17,7 +17,7 @@ use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{ScenarioError, SensorModel, SimScenario, TargetMotion};
 
-use crate::live::config::Config;
+use crate::live::config::{Config, ObstacleConfig};
 use crate::live::{self, LiveError, LiveServer};
 
 /// Arguments of `harrier demo`.
@@ -58,6 +58,29 @@ pub struct DemoArgs {
     /// Height H (m) above the target of the demo's assignment.
     #[arg(long, default_value_t = 300.0)]
     pub height: f64,
+    /// A no-fly circle `EAST,NORTH,RADIUS` (m, in the demo's frame) that the `formation` law
+    /// steers around and the map draws (repeatable).
+    #[arg(long = "obstacle", value_name = "X,Y,R", value_parser = parse_obstacle)]
+    pub obstacles: Vec<ObstacleConfig>,
+}
+
+/// `X,Y,R` of `--obstacle`.
+fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: expected EAST,NORTH,RADIUS in metres: {e}"))?;
+    match v[..] {
+        [x_m, y_m, radius_m]
+            if x_m.is_finite() && y_m.is_finite() && radius_m.is_finite() && radius_m > 0.0 =>
+        {
+            Ok(ObstacleConfig { x_m, y_m, radius_m })
+        }
+        _ => Err(format!(
+            "{s:?}: expected EAST,NORTH,RADIUS with finite numbers and RADIUS > 0"
+        )),
+    }
 }
 
 /// What [`start`] runs (the command's arguments).
@@ -93,6 +116,7 @@ impl Default for DemoConfig {
             no_assign: false,
             radius: 150.0,
             height: 300.0,
+            obstacles: Vec::new(),
         }
     }
 }
@@ -234,6 +258,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         .estimator
         .clone_from(&config.estimator);
     server_config.tracker.roads.clone_from(&scenario.roads);
+    server_config
+        .guidance
+        .obstacles
+        .clone_from(&config.obstacles);
     if let Some(motion) = &scenario.estimator.motion {
         server_config.tracker.motion = motion.clone();
     }

@@ -141,6 +141,14 @@ def test_page_loads_and_draws_tracks_and_uavs_in_map_and_3d(session):
     assert page.locator("#tracks .card").count() >= 1
     assert page.locator("#vehicles .card").count() >= 3
 
+    # The static world: the demo's road and the no-fly disc it was started with (GET /world),
+    # drawn on the map.
+    world = httpx.get(f"{URL}/api/v1/world", timeout=5).json()
+    assert len(world["roads"]) >= 1 and len(world["roads"][0]["points"]) >= 2, world
+    assert len(world["obstacles"]) == 1 and world["obstacles"][0]["radius_m"] == 40, world
+    state = wait_for(page, lambda s: s["map"].get("roads", 0) >= 1 and s["map"].get("obstacles", 0) == 1, 10.0, "the road and the no-fly disc drawn")
+    print(f"world drawn: {state['map']['roads']} road(s), {state['map']['obstacles']} obstacle(s)", flush=True)
+
     # Smoothness: frames per second of the page as it runs (rAF-driven drawing).
     time.sleep(2.5)
     fps = hook(page)["fps"]
@@ -306,7 +314,7 @@ def test_assign_from_the_page_then_end_it(session):
     page.click(f"{card} button[data-action=end]")
     page.wait_for_selector(f"{card} .result[data-state=ok]", timeout=10_000)
     deadline = time.monotonic() + 5
-    while rest_assignments()[0]["state"] != "ended" and time.monotonic() < deadline:
+    while next(x for x in rest_assignments() if x["id"] == aid)["state"] != "ended" and time.monotonic() < deadline:
         time.sleep(0.2)
     a = next(x for x in rest_assignments() if x["id"] == aid)
     print(f"ended: {a['state']} ({a['ended_reason']}); vehicles {[s['state'] for s in a['vehicles']]}", flush=True)
@@ -314,6 +322,28 @@ def test_assign_from_the_page_then_end_it(session):
     page.wait_for_selector(f"{card}[data-state=ended]", timeout=5_000)
     assert page.is_hidden(f"{card} button[data-action=end]")
     wait_for(page, lambda s: s["map"].get("standoff", 0) == 0, 5.0, "the standoff circle gone")
+
+    # A formation ([BOT]) of the three UAVs around the track, from the form: the map draws its
+    # links (3 between the UAVs, 3 to the track); ended from the page, they go.
+    for v in ("1", "2", "3"):
+        page.check(f'#assign-vehicles input[value="{v}"]')
+    page.select_option("#assign-track", str(track))
+    page.select_option("#assign-law", "formation")
+    page.fill("#assign-r", "80")
+    page.fill("#assign-h", "120")
+    page.click("#assign-submit")
+    page.wait_for_selector("#assign-result[data-state=ok]", timeout=10_000)
+    fid = page.evaluate("() => window.harrier.lastAssignment")
+    f = next(x for x in rest_assignments() if x["id"] == fid)
+    assert f["law"] == "formation" and f["radius_m"] == 80, f
+    assert [s["vehicle"] for s in f["vehicles"]] == [1, 2, 3], f
+    state = wait_for(page, lambda s: s["map"].get("links", 0) >= 6, 10.0, "the formation's links drawn")
+    print(f"formation #{fid}: {state['map']['links']} links drawn", flush=True)
+    page.locator("#map-pane").screenshot(path=str(SHOTS / "formation.png"))
+    fcard = f'#assignments [data-assignment="{fid}"]'
+    page.click(f"{fcard} button[data-action=end]")
+    page.wait_for_selector(f"{fcard}[data-state=ended]", timeout=10_000)
+    wait_for(page, lambda s: s["map"].get("links", 0) == 0, 5.0, "the formation's links gone")
     # Chromium logs every refused request (the 401s, 422 and 409 these tests provoked) as a
     # console error; anything else is the page's.
     provoked = "Failed to load resource: the server responded with a status of "

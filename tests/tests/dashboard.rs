@@ -15,7 +15,9 @@
 //!   right one UAVs 1 and 2 are assigned to a track (TOGVF, R 150 m, H 120 m), which
 //!   `GET /api/v1/assignments` lists as asked, the page shows it with its vehicles leaving
 //!   `waiting` and draws its standoff circle (map and 3-D); assigning a busy vehicle shows the
-//!   409; ending it from the page makes it `ended` in REST and on the page;
+//!   409; ending it from the page makes it `ended` in REST and on the page; then a `formation`
+//!   of the three UAVs from the form, whose links the map draws until it is ended;
+//! - the map draws the demo's road and the no-fly disc it was started with (`GET /api/v1/world`);
 //! - a vehicle whose link is lost (messages fed to the page as the stream would send them: the
 //!   demo cannot silence a UAV) gets a LINK LOST card, a banner and a toast, gone when it recovers;
 //! - the server is stopped and a new one started on the same port: the page reconnects by itself
@@ -36,7 +38,9 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use harrier_core::scenario::Segment;
 use harrier_server::demo::{self, Demo, DemoConfig};
+use harrier_server::live::config::ObstacleConfig;
 use harrier_tests::{kill_group, require_python_module};
 
 /// Where the screenshots go: `$CARGO_TARGET_DIR/screenshots`, else the workspace's
@@ -51,8 +55,18 @@ fn screenshots_dir() -> PathBuf {
 }
 
 fn config(listen: SocketAddr) -> DemoConfig {
+    // A no-fly disc of 40 m beside the start of the demo's road, where the map is looking.
+    let road = &demo::scenario().expect("the demo's scenario").roads[0];
+    let [x, y] = match &road.segments[0] {
+        Segment::Line { start, .. } | Segment::Arc { start, .. } => *start,
+    };
     DemoConfig {
         listen,
+        obstacles: vec![ObstacleConfig {
+            x_m: x + 60.0,
+            y_m: y + 60.0,
+            radius_m: 40.0,
+        }],
         // Twice real time: tracks confirm sooner, and the page still sees every scan.
         speedup: 2.0,
         // The UAVs wait on the ground: the page assigns them.

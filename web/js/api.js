@@ -100,7 +100,7 @@ export async function getText(path) {
  * 404; asking the document instead keeps the console clean).
  */
 export async function features() {
-  const f = { truth: false, assignments: false, commands: false, estimator: true, metrics: true };
+  const f = { truth: false, world: false, assignments: false, commands: false, estimator: true, metrics: true };
   try {
     const res = await fetch("api/openapi.json", { cache: "no-store" });
     if (!res.ok) return f;
@@ -108,6 +108,7 @@ export async function features() {
     const paths = Object.keys(doc.paths || {});
     const has = (p) => paths.includes(p);
     f.truth = has("/api/v1/truth");
+    f.world = has("/api/v1/world");
     f.assignments = has("/api/v1/assignments");
     f.commands = paths.some((p) => /^\/api\/v1\/vehicles\/\{[^}]+\}\/commands$/.test(p));
     f.estimator = has("/api/v1/estimator");

@@ -16,7 +16,7 @@ export class MapView {
     this.scale = 0.25; // px per m
     this.userMoved = false; // the operator panned or zoomed: no more automatic fitting
     this.follow = null; // track id
-    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true, standoff: true };
+    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true, standoff: true, world: true };
     this.stats = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, frames: 0 };
     this.cursor = null;
     this.dpr = 1;
@@ -148,9 +148,10 @@ export class MapView {
     ctx.setTransform(this.dpr, 0, 0, this.dpr, 0, 0);
     ctx.fillStyle = BG;
     ctx.fillRect(0, 0, this.width, this.height);
-    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, standoff: 0, vectors: 0, frames: this.stats.frames + 1 };
+    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, standoff: 0, vectors: 0, roads: 0, obstacles: 0, links: 0, frames: this.stats.frames + 1 };
 
     this.drawGrid(ctx);
+    if (this.layers.world) this.drawWorld(ctx, st);
     if (this.layers.standoff) this.drawStandoff(ctx, st);
     if (this.layers.truth) this.drawTruth(ctx);
     if (this.layers.detections) this.drawDetections(ctx, now, st);
@@ -366,6 +367,108 @@ export class MapView {
   }
 
   /**
+   * The static world (GET /world): roads as bands of their width (at least 3 px) with a dashed
+   * centre line, obstacles as hatched red discs with their radius.
+   */
+  drawWorld(ctx, st) {
+    const { roads, obstacles } = this.store.world;
+    for (const road of roads) {
+      if (!road.points || road.points.length < 2) continue;
+      const path = () => {
+        ctx.beginPath();
+        road.points.forEach((p, i) => {
+          const [x, y] = this.toScreen(p[0], p[1]);
+          if (i) ctx.lineTo(x, y);
+          else ctx.moveTo(x, y);
+        });
+      };
+      ctx.lineJoin = "round";
+      ctx.lineCap = "round";
+      ctx.strokeStyle = "rgba(150,160,175,0.22)";
+      ctx.lineWidth = Math.max(3, (road.width_m ?? 6) * this.scale);
+      path();
+      ctx.stroke();
+      ctx.strokeStyle = "rgba(220,225,235,0.35)";
+      ctx.lineWidth = 1;
+      ctx.setLineDash([6, 8]);
+      path();
+      ctx.stroke();
+      ctx.setLineDash([]);
+      st.roads += 1;
+    }
+    for (const o of obstacles) {
+      const [px, py] = this.toScreen(o.x_m, o.y_m);
+      const r = Math.max(3, o.radius_m * this.scale);
+      if (!this.visible(px, py, r)) continue;
+      ctx.save();
+      ctx.beginPath();
+      ctx.arc(px, py, r, 0, 2 * Math.PI);
+      ctx.fillStyle = "rgba(255,93,93,0.10)";
+      ctx.fill();
+      ctx.clip();
+      ctx.strokeStyle = "rgba(255,93,93,0.35)";
+      ctx.lineWidth = 1;
+      for (let d = -r; d < r; d += 7) {
+        ctx.beginPath();
+        ctx.moveTo(px + d, py - r);
+        ctx.lineTo(px + d + 2 * r, py + r);
+        ctx.stroke();
+      }
+      ctx.restore();
+      ctx.strokeStyle = "rgba(255,93,93,0.8)";
+      ctx.lineWidth = 1.3;
+      ctx.beginPath();
+      ctx.arc(px, py, r, 0, 2 * Math.PI);
+      ctx.stroke();
+      ctx.fillStyle = "rgba(255,140,140,0.9)";
+      ctx.font = "10.5px system-ui, sans-serif";
+      ctx.fillText(`no-fly ${fmtDist(o.radius_m)}`, px + r * 0.72 + 4, py - r * 0.72);
+      st.obstacles += 1;
+    }
+  }
+
+  /**
+   * A formation's links ([BOT]: one range regulator per line of sight): between every two of its
+   * vehicles (solid, with the distance) and from each to the track it surrounds (dashed).
+   */
+  drawFormationLinks(ctx, a, k, st) {
+    const pts = (a.vehicles || [])
+      .map((slot) => this.store.vehicles.get(String(slot.vehicle)))
+      .filter((v) => v && v.position)
+      .map((v) => v.position);
+    ctx.font = "10px system-ui, sans-serif";
+    for (let i = 0; i < pts.length; i += 1) {
+      for (let j = i + 1; j < pts.length; j += 1) {
+        const [x0, y0] = this.toScreen(pts[i][0], pts[i][1]);
+        const [x1, y1] = this.toScreen(pts[j][0], pts[j][1]);
+        ctx.strokeStyle = "rgba(255,200,90,0.7)";
+        ctx.lineWidth = 1.4;
+        ctx.beginPath();
+        ctx.moveTo(x0, y0);
+        ctx.lineTo(x1, y1);
+        ctx.stroke();
+        const d = Math.hypot(pts[j][0] - pts[i][0], pts[j][1] - pts[i][1]);
+        ctx.fillStyle = "rgba(255,210,120,0.9)";
+        ctx.fillText(fmtDist(d), (x0 + x1) / 2 + 4, (y0 + y1) / 2 - 4);
+        st.links += 1;
+      }
+      if (k) {
+        const [x0, y0] = this.toScreen(pts[i][0], pts[i][1]);
+        const [x1, y1] = this.toScreen(k.view.state[0], k.view.state[1]);
+        ctx.strokeStyle = "rgba(255,200,90,0.4)";
+        ctx.lineWidth = 1;
+        ctx.setLineDash([3, 5]);
+        ctx.beginPath();
+        ctx.moveTo(x0, y0);
+        ctx.lineTo(x1, y1);
+        ctx.stroke();
+        ctx.setLineDash([]);
+        st.links += 1;
+      }
+    }
+  }
+
+  /**
    * Each active assignment: its standoff circle (radius R around the assigned track's estimate)
    * and the velocity last commanded to each of its vehicles (an arrow of 10 s of flight).
    */
@@ -373,6 +476,7 @@ export class MapView {
     for (const a of this.store.assignments.values()) {
       if (a.state !== "active") continue;
       const k = this.store.tracks.get(a.track);
+      if (a.law === "formation") this.drawFormationLinks(ctx, a, k, st);
       const r = a.radius_m;
       if (k && Number.isFinite(r)) {
         const [px, py] = this.toScreen(k.view.state[0], k.view.state[1]);

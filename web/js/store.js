@@ -18,6 +18,7 @@ export class Store {
     this.detections = []; // {at (performance.now ms), kind, vehicle, platform, z}
     this.truth = new Map(); // target id → {samples: [[t,x,y,z]], last: {t, position, velocity}}
     this.assignments = new Map(); // id → assignment body (AssignmentView)
+    this.world = { roads: [], obstacles: [] }; // GET /world: the deployment's roads and obstacles
     this.standoff = new Map(); // assignment id → Map(vehicle label → {range: [[t, m]], spacing: [[t, deg]]})
     this.vehicleEvents = []; // the last vehicle events (vehicle_event messages), newest last
     this.estimator = null;
@@ -277,6 +278,12 @@ export class Store {
       }
       target.last = s;
     }
+    this.version += 1;
+  }
+
+  /** GET /world: roads (polylines) and obstacles (discs) of the server's configuration. */
+  applyWorld(body) {
+    this.world = { roads: body.roads || [], obstacles: body.obstacles || [] };
     this.version += 1;
   }
 

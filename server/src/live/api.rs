@@ -75,6 +75,8 @@ pub struct ApiState {
     pub guidance: Option<super::guidance::Guidance>,
     /// The latest simulation truth.
     pub truth: watch::Receiver<Arc<super::control::TruthBody>>,
+    /// Roads and obstacles of the configuration.
+    pub world: Arc<super::control::WorldBody>,
 }
 
 /// The API's access rule.
@@ -190,6 +192,7 @@ pub fn error(status: StatusCode, message: impl Into<String>) -> Response {
         super::control::assignment,
         super::control::end_assignment,
         super::control::truth,
+        super::control::world,
         get_estimator,
         put_estimator,
         estimators,
@@ -246,6 +249,7 @@ pub fn app(state: ApiState, web_dir: Option<&std::path::Path>, cors_origins: &[S
             get(super::control::assignment).delete(super::control::end_assignment),
         )
         .route("/truth", get(super::control::truth))
+        .route("/world", get(super::control::world))
         .route("/estimator", get(get_estimator).put(put_estimator))
         .route("/estimators", get(estimators))
         .route("/health", get(health))

@@ -418,3 +418,109 @@ pub struct TruthBody {
 pub async fn truth(State(s): State<ApiState>) -> Json<TruthBody> {
     Json((*s.truth.borrow()).as_ref().clone())
 }
+
+/// A road's centre line as a polyline (ENU, m).
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct RoadView {
+    /// Road id.
+    pub id: String,
+    /// Physical width (m), when given.
+    pub width_m: Option<f64>,
+    /// Centre-line points in travel order, arcs sampled at most every 5° or 10 m.
+    pub points: Vec<[f64; 2]>,
+}
+
+/// An obstacle the `formation` law steers around.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct ObstacleView {
+    /// Centre east (m).
+    pub x_m: f64,
+    /// Centre north (m).
+    pub y_m: f64,
+    /// Radius (m).
+    pub radius_m: f64,
+}
+
+/// The static world of the deployment: what the map draws under the live picture.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, ToSchema)]
+pub struct WorldBody {
+    /// The road network of the configuration (`tracker.roads`).
+    pub roads: Vec<RoadView>,
+    /// The obstacles of the configuration (`guidance.obstacles`).
+    pub obstacles: Vec<ObstacleView>,
+}
+
+impl WorldBody {
+    /// The world of a configuration.
+    pub fn of(config: &super::config::Config) -> Self {
+        Self {
+            roads: config
+                .tracker
+                .roads
+                .iter()
+                .map(|r| RoadView {
+                    id: r.id.clone(),
+                    width_m: r.width_m,
+                    points: polyline(&r.segments),
+                })
+                .collect(),
+            obstacles: config
+                .guidance
+                .obstacles
+                .iter()
+                .map(|o| ObstacleView {
+                    x_m: o.x_m,
+                    y_m: o.y_m,
+                    radius_m: o.radius_m,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The centre line of road `segments`: line ends, and arcs sampled at most every 5° or 10 m.
+fn polyline(segments: &[harrier_core::scenario::Segment]) -> Vec<[f64; 2]> {
+    use harrier_core::scenario::Segment;
+    let mut points: Vec<[f64; 2]> = Vec::new();
+    let mut push = |p: [f64; 2]| {
+        if points.last() != Some(&p) {
+            points.push(p);
+        }
+    };
+    for seg in segments {
+        match seg {
+            Segment::Line { start, end } => {
+                push(*start);
+                push(*end);
+            }
+            Segment::Arc {
+                center,
+                radius,
+                start,
+                sweep_rad,
+                ..
+            } => {
+                let a0 = (start[1] - center[1]).atan2(start[0] - center[0]);
+                let step = 5f64.to_radians().min(10.0 / radius.max(1e-3));
+                // At most 720 points an arc whatever the configuration says.
+                let n = ((sweep_rad.abs() / step).ceil() as usize).clamp(1, 720);
+                for k in 0..=n {
+                    let a = a0 + sweep_rad * k as f64 / n as f64;
+                    push([center[0] + radius * a.cos(), center[1] + radius * a.sin()]);
+                }
+            }
+        }
+    }
+    points
+}
+
+/// The static world: roads and obstacles of the configuration, for the map.
+#[utoipa::path(get, path = "/api/v1/world", tag = "tracks",
+    responses(
+        (status = 200, body = WorldBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+pub async fn world(State(s): State<ApiState>) -> Json<WorldBody> {
+    Json(s.world.as_ref().clone())
+}

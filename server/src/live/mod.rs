@@ -443,6 +443,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             link: link.clone(),
             guidance: guidance.clone(),
             truth: truth_rx,
+            world: Arc::new(control::WorldBody::of(config)),
         },
         web_dir(config).as_deref(),
         &config.api.cors_origins,
