@@ -128,7 +128,8 @@ impl Netns {
         let name = format!("harrier-{pid}-{k}");
         let root_side = format!("hz{}r{k}", pid % 100_000);
         let ns_side = format!("hz{}n{k}", pid % 100_000);
-        // 10.(200 + pid mod 50).(k + 4·(pid mod 60 / …)): one /30 per namespace.
+        // 10.(200 + pid mod 50).(4 ((pid / 50) mod 60) + k).0/30: one /30 per namespace, the
+        // same for no two test processes running at once (unless their pids collide mod 3000).
         let net = format!("10.{}.{}", 200 + pid % 50, (pid / 50) % 60 * 4 + k);
         let ns = Self {
             name: name.clone(),
