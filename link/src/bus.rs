@@ -1,6 +1,9 @@
 //! How a Harrier process joins the Zenoh network: peer or client mode, explicit endpoints,
-//! multicast scouting off unless asked for (so nothing leaks onto the LAN), and only the TCP
-//! transport compiled in (the workspace's `zenoh` dependency enables `transport_tcp` alone).
+//! multicast scouting off unless asked for (so nothing leaks onto the LAN), and only the TCP and
+//! TLS transports compiled in (the workspace's `zenoh` dependency enables `transport_tcp` and
+//! `transport_tls`). [`TlsConfig`] holds the certificates of `tls/HOST:PORT` endpoints, under
+//! Zenoh's own names (`transport/link/tls/*`); with `enable_mtls` the process also presents its
+//! certificate, whose common name a router's access control can name (`docs/deploy.md`).
 //!
 //! The simulator publishes detections with a session opened from a [`BusConfig`]; the ground
 //! station subscribes with one. Keys and payloads are [`harrier_core::detection`]'s.
@@ -57,6 +60,68 @@ pub struct BusConfig {
     pub listen: Vec<String>,
     /// Multicast scouting (off by default).
     pub multicast_scouting: bool,
+    /// Certificates for `tls/…` endpoints.
+    pub tls: TlsConfig,
+}
+
+/// Certificates and keys of the TLS transport (PEM files), Zenoh's `transport/link/tls/*`.
+/// `None`: not set (Zenoh's default).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct TlsConfig {
+    /// The certificate authority that signs the other side's certificate (`root_ca_certificate`).
+    pub root_ca_certificate: Option<String>,
+    /// This process's certificate when it listens on a `tls/` endpoint (`listen_certificate`).
+    pub listen_certificate: Option<String>,
+    /// Its private key (`listen_private_key`).
+    pub listen_private_key: Option<String>,
+    /// This process's certificate when it connects to a `tls/` endpoint, presented with
+    /// `enable_mtls` (`connect_certificate`).
+    pub connect_certificate: Option<String>,
+    /// Its private key (`connect_private_key`).
+    pub connect_private_key: Option<String>,
+    /// Mutual TLS: a listener asks for the client's certificate, a client presents its own
+    /// (`enable_mtls`).
+    pub enable_mtls: bool,
+}
+
+impl TlsConfig {
+    /// The settings as (Zenoh key, JSON value) pairs, unset paths left out.
+    fn entries(&self) -> Vec<(&'static str, String)> {
+        let paths = [
+            (
+                "transport/link/tls/root_ca_certificate",
+                &self.root_ca_certificate,
+            ),
+            (
+                "transport/link/tls/listen_certificate",
+                &self.listen_certificate,
+            ),
+            (
+                "transport/link/tls/listen_private_key",
+                &self.listen_private_key,
+            ),
+            (
+                "transport/link/tls/connect_certificate",
+                &self.connect_certificate,
+            ),
+            (
+                "transport/link/tls/connect_private_key",
+                &self.connect_private_key,
+            ),
+        ];
+        let mut out: Vec<(&'static str, String)> = paths
+            .into_iter()
+            .filter_map(|(k, v)| {
+                v.as_ref()
+                    .map(|p| (k, serde_json::Value::from(p.as_str()).to_string()))
+            })
+            .collect();
+        out.push((
+            "transport/link/tls/enable_mtls",
+            self.enable_mtls.to_string(),
+        ));
+        out
+    }
 }
 
 /// Errors from opening a Zenoh session or declaring publishers and subscribers on it.
@@ -97,6 +162,9 @@ impl BusConfig {
         if !self.listen.is_empty() {
             set("listen/endpoints", list(&self.listen))?;
         }
+        for (key, value) in self.tls.entries() {
+            set(key, value)?;
+        }
         Ok(c)
     }
 
@@ -129,6 +197,13 @@ mod tests {
             connect: vec!["tcp/127.0.0.1:7447".into()],
             listen: vec!["tcp/127.0.0.1:0".into()],
             multicast_scouting: false,
+            tls: TlsConfig {
+                root_ca_certificate: Some("/etc/harrier/ca.pem".into()),
+                connect_certificate: Some("/etc/harrier/gcs.pem".into()),
+                connect_private_key: Some("/etc/harrier/gcs.key".into()),
+                enable_mtls: true,
+                ..TlsConfig::default()
+            },
         }
         .to_zenoh()
         .expect("config");
@@ -137,6 +212,12 @@ mod tests {
         assert_eq!(get("scouting/multicast/enabled"), "false");
         assert_eq!(get("connect/endpoints"), r#"["tcp/127.0.0.1:7447"]"#);
         assert_eq!(get("listen/endpoints"), r#"["tcp/127.0.0.1:0"]"#);
+        let tls = |k: &str| get(&format!("transport/link/tls/{k}"));
+        assert_eq!(tls("root_ca_certificate"), r#""/etc/harrier/ca.pem""#);
+        assert_eq!(tls("connect_certificate"), r#""/etc/harrier/gcs.pem""#);
+        assert_eq!(tls("connect_private_key"), r#""/etc/harrier/gcs.key""#);
+        assert_eq!(tls("listen_certificate"), "null");
+        assert_eq!(tls("enable_mtls"), "true");
     }
 
     #[test]

@@ -4,13 +4,15 @@
 //! harrier-sim                        # vehicle 1: GCS udpout:127.0.0.1:14550, API udpin:0.0.0.0:14540
 //! harrier-sim --count 3              # vehicles 1-3, API ports 14540-14542
 //! harrier-sim --airframe fixed-wing --gcs none --api udpin:127.0.0.1:14600
+//! harrier-sim --zenoh-mode client --zenoh-connect tls/router.example:7447 \
+//!     --zenoh-tls-root-ca ca.pem --zenoh-tls-cert uav1.pem --zenoh-tls-key uav1.key  # docs/deploy.md
 //! harrier-sim record --scenario cimm-road --seed 1 --duration 300 --out /tmp/run   # offline
 //! ```
 
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
-use harrier_link::bus::{BusConfig, Mode};
+use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_link::geo::Geodetic;
 use harrier_sim::bus::Bus;
 use harrier_sim::live::{LiveConfig, LiveHandle};
@@ -94,6 +96,17 @@ struct Args {
     /// Enable Zenoh multicast scouting (off by default: nothing leaks onto the LAN).
     #[arg(long)]
     zenoh_scouting: bool,
+    /// For tls/HOST:PORT endpoints: the certificate authority (PEM file) that signed the
+    /// router's certificate.
+    #[arg(long, value_name = "PEM")]
+    zenoh_tls_root_ca: Option<String>,
+    /// Mutual TLS: this companion's certificate (PEM), presented to the router, whose access
+    /// control names it by common name (needs --zenoh-tls-key).
+    #[arg(long, value_name = "PEM", requires = "zenoh_tls_key")]
+    zenoh_tls_cert: Option<String>,
+    /// The private key (PEM) of --zenoh-tls-cert.
+    #[arg(long, value_name = "PEM", requires = "zenoh_tls_cert")]
+    zenoh_tls_key: Option<String>,
     #[command(subcommand)]
     command: Option<SubCommand>,
 }
@@ -198,6 +211,13 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         connect: args.zenoh_connect.clone(),
         listen: args.zenoh_listen.clone(),
         multicast_scouting: args.zenoh_scouting,
+        tls: TlsConfig {
+            root_ca_certificate: args.zenoh_tls_root_ca.clone(),
+            connect_certificate: args.zenoh_tls_cert.clone(),
+            connect_private_key: args.zenoh_tls_key.clone(),
+            enable_mtls: args.zenoh_tls_cert.is_some(),
+            ..TlsConfig::default()
+        },
     })
     .map_err(|e| e.to_string())?;
     let config = LiveConfig {

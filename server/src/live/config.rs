@@ -10,7 +10,7 @@ use std::path::Path;
 
 use harrier_core::detection::GeoPoint;
 use harrier_core::scenario::{Motion, Road, Scenario};
-use harrier_link::bus::{BusConfig, Mode};
+use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use serde::{Deserialize, Serialize};
 
 use crate::engine::Params;
@@ -250,6 +250,20 @@ pub struct ZenohConfig {
     pub connect: Vec<String>,
     /// Multicast scouting.
     pub multicast_scouting: bool,
+    /// TLS (`tls/HOST:PORT` endpoints): the certificate authority's certificate (PEM file) that
+    /// signed the router's; empty: not set. The names are Zenoh's (`transport/link/tls/*`).
+    pub root_ca_certificate: String,
+    /// This server's certificate (PEM), presented to the router with `enable_mtls`.
+    pub connect_certificate: String,
+    /// Its private key (PEM).
+    pub connect_private_key: String,
+    /// This server's certificate (PEM) on its own `tls/` listen endpoints.
+    pub listen_certificate: String,
+    /// Its private key (PEM).
+    pub listen_private_key: String,
+    /// Mutual TLS: present `connect_certificate` when connecting, ask clients for theirs when
+    /// listening (a router's access control names them by certificate common name).
+    pub enable_mtls: bool,
     /// Key the confirmed tracks are published on (TRACKS.md); empty: not published.
     pub tracks_key: String,
     /// Rate (Hz) of the track publication.
@@ -321,6 +335,12 @@ impl Default for ZenohConfig {
             listen: vec!["tcp/127.0.0.1:7447".into()],
             connect: Vec::new(),
             multicast_scouting: false,
+            root_ca_certificate: String::new(),
+            connect_certificate: String::new(),
+            connect_private_key: String::new(),
+            listen_certificate: String::new(),
+            listen_private_key: String::new(),
+            enable_mtls: false,
             tracks_key: harrier_core::detection::TRACKS_KEY.into(),
             tracks_hz: 10.0,
         }
@@ -539,12 +559,32 @@ impl Config {
 
     /// The Zenoh session configuration.
     pub fn bus(&self) -> Result<BusConfig, ConfigError> {
-        let mode: Mode = self.zenoh.mode.parse().map_err(ConfigError::Invalid)?;
+        let z = &self.zenoh;
+        let mode: Mode = z.mode.parse().map_err(ConfigError::Invalid)?;
+        let path = |p: &String| (!p.is_empty()).then(|| p.clone());
+        if z.enable_mtls
+            && z.connect.iter().any(|e| e.starts_with("tls/"))
+            && (z.connect_certificate.is_empty() || z.connect_private_key.is_empty())
+        {
+            return Err(ConfigError::Invalid(
+                "zenoh.enable_mtls with a tls/ connect endpoint needs zenoh.connect_certificate \
+                 and zenoh.connect_private_key"
+                    .into(),
+            ));
+        }
         Ok(BusConfig {
             mode,
-            connect: self.zenoh.connect.clone(),
-            listen: self.zenoh.listen.clone(),
-            multicast_scouting: self.zenoh.multicast_scouting,
+            connect: z.connect.clone(),
+            listen: z.listen.clone(),
+            multicast_scouting: z.multicast_scouting,
+            tls: TlsConfig {
+                root_ca_certificate: path(&z.root_ca_certificate),
+                listen_certificate: path(&z.listen_certificate),
+                listen_private_key: path(&z.listen_private_key),
+                connect_certificate: path(&z.connect_certificate),
+                connect_private_key: path(&z.connect_private_key),
+                enable_mtls: z.enable_mtls,
+            },
         })
     }
 
@@ -598,6 +638,12 @@ mod tests {
         assert!(e.to_string().contains("reorder_window_s"), "{e}");
         let e = Config::parse("[zenoh]\nmode = \"router\"\n", "f").unwrap_err();
         assert!(e.to_string().contains("router"), "{e}");
+        let e = Config::parse(
+            "[zenoh]\nconnect = [\"tls/10.0.0.1:7447\"]\nenable_mtls = true\n",
+            "f",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("connect_certificate"), "{e}");
         let e = Config::parse("[api]\nlisten = 3\n", "f").unwrap_err();
         assert!(e.to_string().starts_with("f: "), "{e}");
         let e = Config::parse("[nonsense]\n", "f").unwrap_err();
