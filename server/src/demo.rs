@@ -17,7 +17,7 @@ use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{ScenarioError, SensorModel, SimScenario, TargetMotion};
 
-use crate::live::config::Config;
+use crate::live::config::{Config, SigningConfig};
 use crate::live::{self, LiveError, LiveServer};
 
 /// Arguments of `harrier demo`.
@@ -58,6 +58,10 @@ pub struct DemoArgs {
     /// Height H (m) above the target of the demo's assignment.
     #[arg(long, default_value_t = 300.0)]
     pub height: f64,
+    /// MAVLink 2 signing, `signed_only`, of the GCS link, the router and the simulated UAVs, with
+    /// this key file (64 hex characters or 32 raw bytes; docs/mavlink-signing.md).
+    #[arg(long, value_name = "PATH")]
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// What [`start`] runs (the command's arguments).
@@ -93,6 +97,7 @@ impl Default for DemoConfig {
             no_assign: false,
             radius: 150.0,
             height: 300.0,
+            signing_key_file: None,
         }
     }
 }
@@ -249,6 +254,18 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         .filter(|r| r.as_str() != "none")
         .cloned()
         .collect();
+    if let Some(key_file) = &config.signing_key_file {
+        server_config.mavlink.signing = SigningConfig {
+            mode: "signed_only".into(),
+            key_file: key_file.display().to_string(),
+            ..SigningConfig::default()
+        };
+    }
+    let signing = server_config
+        .mavlink
+        .signing
+        .resolve()
+        .map_err(|e| DemoError::Invalid(e.to_string()))?;
     // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
     server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
     let server = live::start(&server_config).await?;
@@ -272,6 +289,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     world_config.zenoh.connect = vec![server_endpoint.clone()];
     world_config.zenoh.listen = vec![sim_endpoint.clone()];
     world_config.gcs = Some(gcs);
+    world_config.signing = signing;
     let world = match tokio::task::spawn_blocking(move || SimWorld::start(&world_config)).await {
         Ok(Ok(w)) => w,
         Ok(Err(e)) => {
