@@ -14,6 +14,8 @@
 //!   caller's clock and transport.
 //! - [`frame`]: connection strings ([`frame::Endpoint`]) and MAVLink frames reassembled from
 //!   bytes with their headers and raw bytes ([`frame::StreamParser`], [`frame::parse_datagram`]).
+//! - [`signing`]: MAVLink 2 message signing ([`signing::Signer`]: sign outgoing frames, refuse
+//!   unsigned, wrongly signed and replayed incoming ones by mode, each refusal with its reason).
 //! - [`detections`]: a `DetectionScan` re-expressed in a consumer's ENU frame, and the
 //!   harrier-core measurement model for it.
 //! - [`scenario_out`]: writing `gcs-scenario/1` directories from scans (sensor and platform ids,
@@ -41,5 +43,6 @@ pub mod geo;
 pub mod offboard;
 pub mod px4;
 pub mod scenario_out;
+pub mod signing;
 
 pub use mavlink;

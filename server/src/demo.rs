@@ -17,7 +17,7 @@ use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{ScenarioError, SensorModel, SimScenario, TargetMotion};
 
-use crate::live::config::{Config, ObstacleConfig};
+use crate::live::config::{Config, ObstacleConfig, SigningConfig};
 use crate::live::{self, LiveError, LiveServer};
 
 /// Arguments of `harrier demo`.
@@ -62,6 +62,10 @@ pub struct DemoArgs {
     /// steers around and the map draws (repeatable).
     #[arg(long = "obstacle", value_name = "X,Y,R", value_parser = parse_obstacle)]
     pub obstacles: Vec<ObstacleConfig>,
+    /// MAVLink 2 signing, `signed_only`, of the GCS link, the router and the simulated UAVs, with
+    /// this key file (64 hex characters or 32 raw bytes; docs/mavlink-signing.md).
+    #[arg(long, value_name = "PATH")]
+    pub signing_key_file: Option<PathBuf>,
 }
 
 /// `X,Y,R` of `--obstacle`.
@@ -117,6 +121,7 @@ impl Default for DemoConfig {
             radius: 150.0,
             height: 300.0,
             obstacles: Vec::new(),
+            signing_key_file: None,
         }
     }
 }
@@ -277,6 +282,18 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         .filter(|r| r.as_str() != "none")
         .cloned()
         .collect();
+    if let Some(key_file) = &config.signing_key_file {
+        server_config.mavlink.signing = SigningConfig {
+            mode: "signed_only".into(),
+            key_file: key_file.display().to_string(),
+            ..SigningConfig::default()
+        };
+    }
+    let signing = server_config
+        .mavlink
+        .signing
+        .resolve()
+        .map_err(|e| DemoError::Invalid(e.to_string()))?;
     // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
     server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
     let server = live::start(&server_config).await?;
@@ -300,6 +317,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     world_config.zenoh.connect = vec![server_endpoint.clone()];
     world_config.zenoh.listen = vec![sim_endpoint.clone()];
     world_config.gcs = Some(gcs);
+    world_config.signing = signing;
     let world = match tokio::task::spawn_blocking(move || SimWorld::start(&world_config)).await {
         Ok(Ok(w)) => w,
         Ok(Err(e)) => {

@@ -48,7 +48,7 @@ use nalgebra::Vector3;
 
 use crate::bus::{Bus, BusConfig, BusCounters, BusError};
 use crate::live::{LiveConfig, LiveError, LiveHandle};
-use crate::net::{LinkConfig, LinkError, SimHandle, spawn};
+use crate::net::{LinkConfig, LinkError, Signing, SimHandle, spawn};
 use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
 use crate::worker::Worker;
 
@@ -92,6 +92,8 @@ pub struct WorldConfig {
     /// A ground station every vehicle also sends its telemetry to (`udpout:` this address, as
     /// PX4 sends to UDP 14550), and takes commands from; `None`: only the `udpin` link.
     pub gcs: Option<SocketAddr>,
+    /// MAVLink 2 signing on every vehicle's links (`None`: off).
+    pub signing: Option<Signing>,
 }
 
 impl WorldConfig {
@@ -105,6 +107,7 @@ impl WorldConfig {
             mavlink_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
             zenoh: BusConfig::default(),
             gcs: None,
+            signing: None,
         }
     }
 }
@@ -178,7 +181,10 @@ impl SimWorld {
                 let mut endpoints =
                     vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))];
                 endpoints.extend(config.gcs.map(|g| format!("udpout:{g}")));
-                let link = LinkConfig { endpoints };
+                let link = LinkConfig {
+                    endpoints,
+                    signing: config.signing.clone(),
+                };
                 spawn(vc, &link).map_err(|source| WorldError::Link { id: v.id, source })
             })
             .collect::<Result<Vec<_>, _>>()?;

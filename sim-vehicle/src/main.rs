@@ -6,6 +6,7 @@
 //! harrier-sim --airframe fixed-wing --gcs none --api udpin:127.0.0.1:14600
 //! harrier-sim --zenoh-mode client --zenoh-connect tls/router.example:7447 \
 //!     --zenoh-tls-root-ca ca.pem --zenoh-tls-cert uav1.pem --zenoh-tls-key uav1.key  # docs/deploy.md
+//! harrier-sim --signing-key-file key.hex        # MAVLink 2 signing, signed frames only
 //! harrier-sim record --scenario cimm-road --seed 1 --duration 300 --out /tmp/run   # offline
 //! ```
 
@@ -14,6 +15,7 @@ use std::process::ExitCode;
 use clap::{Parser, ValueEnum};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_link::geo::Geodetic;
+use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use harrier_sim::bus::Bus;
 use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
@@ -24,6 +26,17 @@ use harrier_sim::vehicle::{Airframe, VehicleConfig};
 enum AirframeArg {
     Multirotor,
     FixedWing,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum SigningArg {
+    /// No signing.
+    Off,
+    /// Sign every frame sent; accept unsigned frames (refuse wrongly signed and replayed ones).
+    Sign,
+    /// Sign every frame sent; accept only correctly signed, fresh frames.
+    #[value(name = "signed_only", alias = "signed-only")]
+    SignedOnly,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -64,6 +77,16 @@ struct Args {
     /// by one per further vehicle. Default: udpin:0.0.0.0:{14540 + id - 1}.
     #[arg(long)]
     api: Option<String>,
+    /// MAVLink 2 signing key: a file of 64 hex characters or exactly 32 raw bytes (pymavlink's
+    /// key; from a passphrase: `printf %s PASSPHRASE | sha256sum | cut -c1-64 > key.hex`).
+    #[arg(long, value_name = "PATH")]
+    signing_key_file: Option<std::path::PathBuf>,
+    /// MAVLink 2 signing on every link. Default: signed_only with --signing-key-file, else off.
+    #[arg(long, value_enum)]
+    signing: Option<SigningArg>,
+    /// Link id written in this simulator's signatures.
+    #[arg(long, default_value_t = 0)]
+    signing_link_id: u8,
     /// Home / geodetic origin: LAT,LON,ALT_AMSL (degrees, metres). Default: the scenario's
     /// origin (PX4 SITL's Zurich home for the presets).
     #[arg(long, value_parser = parse_home)]
@@ -151,6 +174,25 @@ fn api_endpoint(args: &Args, id: u8, k: u16) -> Result<String, String> {
     Ok(endpoint.with_addr(addr).to_string())
 }
 
+/// The signing settings of the command line (`None`: off).
+fn signing(args: &Args) -> Result<Option<Signing>, String> {
+    let mode = match (args.signing, &args.signing_key_file) {
+        (Some(SigningArg::Off), _) | (None, None) => return Ok(None),
+        (Some(SigningArg::Sign), _) => SigningMode::Sign,
+        (Some(SigningArg::SignedOnly) | None, _) => SigningMode::SignedOnly,
+    };
+    let path = args
+        .signing_key_file
+        .as_ref()
+        .ok_or_else(|| format!("--signing {mode} needs --signing-key-file"))?;
+    let key = SigningKey::from_file(path).map_err(|e| e.to_string())?;
+    Ok(Some(Signing {
+        key,
+        mode,
+        link_id: args.signing_link_id,
+    }))
+}
+
 /// The scenario with the command line's overrides (home, detection rate).
 fn scenario(args: &Args) -> Result<SimScenario, String> {
     let mut scenario = SimScenario::load(&args.scenario).map_err(|e| e.to_string())?;
@@ -177,6 +219,13 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         return Err("--truth-hz must be in (0, 1000]".to_owned());
     }
     let scenario = scenario(args)?;
+    let signing = signing(args)?;
+    if let Some(s) = &signing {
+        eprintln!(
+            "harrier-sim: MAVLink signing {} (link id {})",
+            s.mode, s.link_id
+        );
+    }
     let origin = scenario.origin;
     let mut sims = Vec::new();
     for k in 0..args.count {
@@ -196,7 +245,11 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
             origin,
             speedup: args.speedup,
         };
-        let sim = spawn(config, &LinkConfig { endpoints }).map_err(|e| e.to_string())?;
+        let links = LinkConfig {
+            endpoints,
+            signing: signing.clone(),
+        };
+        let sim = spawn(config, &links).map_err(|e| e.to_string())?;
         eprintln!(
             "harrier-sim: vehicle {id} up, links {:?}",
             sim.local_addrs()
@@ -301,5 +354,46 @@ mod tests {
         assert!(api_endpoint(&a, 2, 1).is_err());
         let a = args("serial:/dev/ttyUSB0").expect("parse");
         assert!(api_endpoint(&a, 1, 0).is_err_and(|e| e.contains("tcpin:HOST:PORT")));
+    }
+
+    #[test]
+    fn signing_flags() {
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let key = dir.path().join("key.hex");
+        std::fs::write(&key, format!("{}\n", "ab".repeat(32))).expect("write key");
+        let bad = dir.path().join("bad.hex");
+        std::fs::write(&bad, "not a key").expect("write key");
+        let parse = |extra: &[&str]| {
+            let mut argv = vec!["harrier-sim"];
+            argv.extend_from_slice(extra);
+            signing(&Args::try_parse_from(argv).expect("parse"))
+        };
+        let key_arg = key.to_str().expect("utf-8 path");
+        assert_eq!(parse(&[]), Ok(None));
+        let s = parse(&["--signing-key-file", key_arg])
+            .expect("signing")
+            .expect("on");
+        assert_eq!((s.mode, s.link_id), (SigningMode::SignedOnly, 0));
+        assert_eq!(s.key.bytes(), &[0xAB; 32]);
+        let s = parse(&[
+            "--signing-key-file",
+            key_arg,
+            "--signing",
+            "sign",
+            "--signing-link-id",
+            "7",
+        ])
+        .expect("signing")
+        .expect("on");
+        assert_eq!((s.mode, s.link_id), (SigningMode::Sign, 7));
+        assert_eq!(
+            parse(&["--signing-key-file", key_arg, "--signing", "off"]),
+            Ok(None)
+        );
+        assert!(
+            parse(&["--signing", "signed_only"]).is_err_and(|e| e.contains("--signing-key-file"))
+        );
+        let bad_arg = bad.to_str().expect("utf-8 path");
+        assert!(parse(&["--signing-key-file", bad_arg]).is_err_and(|e| e.contains("64 hex")));
     }
 }

@@ -13,6 +13,13 @@
 //! from, so a GCS and an API client never see each other's replies. Sockets are non-blocking. TCP
 //! is a byte stream: each connection keeps a receive buffer and frames are parsed across reads
 //! ([`StreamParser`]), so a frame split over several segments waits for its end.
+//!
+//! With [`LinkConfig::signing`] (MAVLink 2 signing, harrier-link's [`Signer`], one per vehicle
+//! for all its links) every frame sent is signed, and every frame received is checked before the
+//! vehicle sees it: a refused frame (unsigned in `signed_only` mode, wrong signature, replay) is
+//! counted in [`Counters::rejected`](crate::vehicle::Counters::rejected) by reason, never handled,
+//! and never makes its UDP sender a peer that gets telemetry. Refusals are logged on stderr at most
+//! once per [`REJECT_LOG_EVERY`].
 
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
@@ -20,11 +27,13 @@ use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
+use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
-use mavlink::{MavHeader, MavlinkReader};
 
 pub use harrier_link::frame::{Endpoint, EndpointError, StreamParser};
+use harrier_link::frame::{Frame, parse_datagram};
 use harrier_link::px4::COMPONENT_ID;
+pub use harrier_link::signing::{Rejection, Rejections, Signer, Signing};
 
 use crate::vehicle::{Vehicle, VehicleConfig};
 use crate::worker::Worker;
@@ -63,6 +72,29 @@ struct Received {
     messages: Vec<MavMessage>,
     /// Datagrams without a valid frame, skipped stretches of a stream, undecodable frames.
     malformed: u64,
+    /// Frames refused by the signature check.
+    rejected: Vec<Rejection>,
+}
+
+impl Received {
+    fn new(from: Peer) -> Self {
+        Self {
+            from,
+            messages: Vec::new(),
+            malformed: 0,
+            rejected: Vec::new(),
+        }
+    }
+
+    /// Keeps the frames `signer` accepts (all of them without signing) and counts the others.
+    fn take(&mut self, frames: Vec<Frame>, signer: Option<&Signer>) {
+        for f in frames {
+            match signer.map_or(Ok(()), |s| s.check(&f)) {
+                Ok(()) => self.messages.push(f.message),
+                Err(r) => self.rejected.push(r),
+            }
+        }
+    }
 }
 
 /// Most bytes queued for a slow TCP peer; further frames to it are dropped (telemetry is lossy,
@@ -95,19 +127,15 @@ impl TcpConn {
 
     /// Reads what is available (at most [`MAX_TCP_READS`] buffers, so that a flooding client
     /// cannot stall the loop); `None` when the connection is closed or broken.
-    fn receive(&mut self, buf: &mut [u8]) -> Option<Received> {
-        let mut got = Received {
-            from: Peer::Tcp(self.id),
-            messages: Vec::new(),
-            malformed: 0,
-        };
+    fn receive(&mut self, buf: &mut [u8], signer: Option<&Signer>) -> Option<Received> {
+        let mut got = Received::new(Peer::Tcp(self.id));
         for _ in 0..MAX_TCP_READS {
             match self.stream.read(buf) {
                 Ok(0) => return None,
                 Ok(n) => {
                     let p = self.parser.push(&buf[..n]);
                     got.malformed += p.malformed;
-                    got.messages.extend(p.into_messages());
+                    got.take(p.frames, signer);
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => break,
@@ -176,14 +204,17 @@ pub struct Link {
     sequence: u8,
     /// Number of the next TCP connection (replies find their connection by it).
     next_conn: u64,
+    /// Signs what is sent and checks what is received (shared by the vehicle's links).
+    signer: Option<Arc<Signer>>,
 }
 
 /// Most peers a udpin link remembers (the oldest is forgotten first).
 const MAX_PEERS: usize = 8;
 
 impl Link {
-    /// Opens a link. A `tcpout` link starts connecting on the first poll.
-    pub fn open(endpoint: &Endpoint) -> Result<Self, LinkError> {
+    /// Opens a link, signing with `signer` if given. A `tcpout` link starts connecting on the
+    /// first poll.
+    pub fn open(endpoint: &Endpoint, signer: Option<Arc<Signer>>) -> Result<Self, LinkError> {
         let io = |what, source| LinkError::Io {
             what,
             address: endpoint.to_string(),
@@ -229,6 +260,7 @@ impl Link {
             transport,
             sequence: 0,
             next_conn: 0,
+            signer,
         })
     }
 
@@ -241,7 +273,8 @@ impl Link {
         }
     }
 
-    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link.
+    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link (signed when the
+    /// link signs).
     fn frame(&mut self, sysid: u8, msg: &MavMessage) -> Option<Vec<u8>> {
         let header = MavHeader {
             system_id: sysid.into(),
@@ -249,7 +282,10 @@ impl Link {
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
-        harrier_link::frame::encode(header, msg)
+        match &self.signer {
+            Some(s) => s.encode(header, msg),
+            None => harrier_link::frame::encode(header, msg),
+        }
     }
 
     fn send(&mut self, sysid: u8, msg: &MavMessage, to: Peer) {
@@ -300,25 +336,22 @@ impl Link {
     /// (re)connects `tcpout` links.
     fn poll(&mut self, buf: &mut [u8]) -> Vec<Received> {
         let mut out = Vec::new();
+        let signer = self.signer.as_deref();
         match &mut self.transport {
             Transport::Udp { socket, peers } => {
                 while let Ok((n, from)) = socket.recv_from(buf) {
-                    let mut reader = MavlinkReader::new(&buf[..n]);
-                    let mut messages = Vec::new();
-                    while let Ok((_, m)) = reader.read_any_message::<MavMessage>() {
-                        messages.push(m);
-                    }
-                    if !peers.contains(&from) && !messages.is_empty() {
+                    let parsed = parse_datagram(&buf[..n]);
+                    let mut got = Received::new(Peer::Udp(from));
+                    got.malformed = parsed.malformed;
+                    got.take(parsed.frames, signer);
+                    // Only a sender of accepted frames gets the telemetry.
+                    if !peers.contains(&from) && !got.messages.is_empty() {
                         if peers.len() >= MAX_PEERS {
                             peers.remove(0);
                         }
                         peers.push(from);
                     }
-                    out.push(Received {
-                        from: Peer::Udp(from),
-                        malformed: u64::from(messages.is_empty()),
-                        messages,
-                    });
+                    out.push(got);
                 }
             }
             Transport::TcpIn { listener, clients } => {
@@ -328,7 +361,7 @@ impl Link {
                     }
                     self.next_conn += 1;
                 }
-                clients.retain_mut(|c| match c.receive(buf) {
+                clients.retain_mut(|c| match c.receive(buf, signer) {
                     Some(r) => {
                         out.push(r);
                         c.flush()
@@ -346,7 +379,7 @@ impl Link {
                     *conn = Self::connect(*server, connecting, retry_at, &mut self.next_conn);
                 }
                 if let Some(c) = conn {
-                    match c.receive(buf) {
+                    match c.receive(buf, signer) {
                         Some(r) if c.flush() => out.push(r),
                         _ => {
                             *conn = None;
@@ -404,6 +437,8 @@ impl Link {
 pub struct LinkConfig {
     /// Connection strings, e.g. `udpout:127.0.0.1:14550` (GCS) and `udpin:0.0.0.0:14540` (API).
     pub endpoints: Vec<String>,
+    /// MAVLink 2 signing on every link (`None`: off).
+    pub signing: Option<Signing>,
 }
 
 impl LinkConfig {
@@ -415,6 +450,7 @@ impl LinkConfig {
                 "udpout:127.0.0.1:14550".to_owned(),
                 format!("udpin:0.0.0.0:{}", 14540 + u16::from(id) - 1),
             ],
+            signing: None,
         }
     }
 }
@@ -449,22 +485,32 @@ impl SimHandle {
 /// Wall-clock period of the simulation loop.
 const TICK: Duration = Duration::from_millis(5);
 
+/// Shortest time between two log lines about refused frames of one vehicle.
+pub const REJECT_LOG_EVERY: Duration = Duration::from_secs(5);
+
 /// Opens the links and runs a vehicle on a new thread.
 pub fn spawn(config: VehicleConfig, links: &LinkConfig) -> Result<SimHandle, LinkError> {
+    let signer = links
+        .signing
+        .as_ref()
+        .and_then(Signing::signer)
+        .map(Arc::new);
     let mut opened = links
         .endpoints
         .iter()
-        .map(|e| Link::open(&Endpoint::parse(e)?))
+        .map(|e| Link::open(&Endpoint::parse(e)?, signer.clone()))
         .collect::<Result<Vec<_>, _>>()?;
     let local_addrs = opened.iter().map(Link::local_addr).collect();
     let start = Instant::now();
     let vehicle = Arc::new(Mutex::new(Vehicle::new(config, 0.0)));
     let v = Arc::clone(&vehicle);
     let mut buf = vec![0u8; 65_536];
+    let mut log = RejectLog::default();
     let worker = Worker::spawn(format!("harrier-sim-{}", config.id), move || {
         {
             let mut v = v.lock().unwrap_or_else(PoisonError::into_inner);
             run_once(&mut v, &mut opened, &mut buf, start.elapsed().as_secs_f64());
+            log.maybe_log(v.id(), v.counters().rejected, Instant::now());
         }
         std::thread::sleep(TICK);
     })
@@ -480,12 +526,43 @@ pub fn spawn(config: VehicleConfig, links: &LinkConfig) -> Result<SimHandle, Lin
     })
 }
 
+/// Rate-limited log of refused frames: one line per [`REJECT_LOG_EVERY`] at most, with what was
+/// refused since the last line.
+#[derive(Debug, Default)]
+struct RejectLog {
+    logged: Rejections,
+    at: Option<Instant>,
+}
+
+impl RejectLog {
+    fn maybe_log(&mut self, id: u8, now_counts: Rejections, now: Instant) {
+        if now_counts == self.logged || self.at.is_some_and(|t| now - t < REJECT_LOG_EVERY) {
+            return;
+        }
+        let new = |r| now_counts.get(r) - self.logged.get(r);
+        eprintln!(
+            "harrier-sim: vehicle {id}: refused MAVLink frames: unsigned={} bad_signature={} replay={} (totals {} {} {})",
+            new(Rejection::Unsigned),
+            new(Rejection::BadSignature),
+            new(Rejection::Replay),
+            now_counts.unsigned,
+            now_counts.bad_signature,
+            now_counts.replay,
+        );
+        self.logged = now_counts;
+        self.at = Some(now);
+    }
+}
+
 fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
     let sysid = v.id();
     for link in links.iter_mut() {
         for r in link.poll(buf) {
             for _ in 0..r.malformed {
                 v.count_malformed();
+            }
+            for &reason in &r.rejected {
+                v.count_rejected(reason);
             }
             for m in &r.messages {
                 for reply in v.handle(now, m) {
@@ -504,10 +581,11 @@ fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mavlink::MessageData;
+    use harrier_link::signing::{SigningKey, SigningMode};
     use mavlink::dialects::common::{
         COMMAND_LONG_DATA, GLOBAL_POSITION_INT_DATA, MavCmd, MavResult, PARAM_REQUEST_READ_DATA,
     };
+    use mavlink::{MavlinkReader, MessageData};
 
     fn gcs_frame(msg: &MavMessage, sequence: u8) -> Vec<u8> {
         let header = MavHeader {
@@ -571,6 +649,7 @@ mod tests {
             VehicleConfig::new(1),
             &LinkConfig {
                 endpoints: vec![endpoint.to_owned()],
+                signing: None,
             },
         )
         .expect("spawn");
@@ -655,6 +734,7 @@ mod tests {
             VehicleConfig::new(1),
             &LinkConfig {
                 endpoints: vec![format!("tcpout:{}", server.local_addr().expect("addr"))],
+                signing: None,
             },
         )
         .expect("spawn");
@@ -691,6 +771,7 @@ mod tests {
             VehicleConfig::new(1),
             &LinkConfig {
                 endpoints: vec![format!("tcpout:127.0.0.1:{port}")],
+                signing: None,
             },
         )
         .expect("spawn");
@@ -738,5 +819,166 @@ mod tests {
         let h = got.expect("heartbeat within 5 s");
         assert_eq!((h.system_id, h.component_id), (1, 1));
         assert_eq!(sim.vehicle().counters().malformed, 2);
+    }
+
+    fn signing(key: u8, mode: SigningMode) -> Signing {
+        Signing {
+            key: SigningKey::new([key; 32]),
+            mode,
+            link_id: 0,
+        }
+    }
+
+    /// The frames of the next datagram from the vehicle (within 5 s).
+    fn recv_frames(socket: &UdpSocket) -> Vec<Frame> {
+        let deadline = Instant::now() + Duration::from_secs(5);
+        let mut buf = [0u8; 2048];
+        while Instant::now() < deadline {
+            if let Ok(n) = socket.recv(&mut buf) {
+                return parse_datagram(&buf[..n]).frames;
+            }
+        }
+        panic!("nothing from the vehicle within 5 s");
+    }
+
+    #[test]
+    fn signed_only_vehicle_refuses_unsigned_forged_and_replayed_frames() {
+        const N: u64 = 20;
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+                signing: Some(signing(1, SigningMode::SignedOnly)),
+            },
+        )
+        .expect("spawn");
+        let addr = sim.local_addrs()[0].expect("bound");
+        let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        client
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .expect("timeout");
+        client.connect(addr).expect("connect");
+        let gcs = signing(1, SigningMode::SignedOnly)
+            .signer()
+            .expect("signer");
+        let intruder = signing(2, SigningMode::SignedOnly)
+            .signer()
+            .expect("signer");
+        let header = |sequence| MavHeader {
+            system_id: 255,
+            component_id: 190,
+            sequence,
+        };
+        let arm = |on: bool| {
+            command(
+                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+                f32::from(u8::from(on)),
+                0.0,
+            )
+        };
+        // Sends a correctly signed command and returns its signed ACK: every datagram sent
+        // before it has been handled by then.
+        let confirmed = |msg: &MavMessage, sequence| {
+            let frame = gcs.encode(header(sequence), msg).expect("frame");
+            client.send(&frame).expect("send");
+            loop {
+                for f in recv_frames(&client) {
+                    if let MavMessage::COMMAND_ACK(ack) = &f.message {
+                        // The vehicle signs what it sends, with the shared key.
+                        assert_eq!(gcs.check(&f), Ok(()));
+                        assert_eq!(ack.result, MavResult::MAV_RESULT_ACCEPTED);
+                        return frame;
+                    }
+                }
+            }
+        };
+        for i in 0..N {
+            let seq = u8::try_from(i).expect("small");
+            client
+                .send(&gcs_frame(&arm(true), seq))
+                .expect("send unsigned");
+            client
+                .send(&intruder.encode(header(seq), &arm(true)).expect("frame"))
+                .expect("send forged");
+        }
+        // A refused sender is no peer: no telemetry (HEARTBEAT at 1 Hz) in 1.5 s.
+        let mut buf = [0u8; 2048];
+        let quiet = Instant::now() + Duration::from_millis(1500);
+        while Instant::now() < quiet {
+            assert!(
+                client.recv(&mut buf).is_err(),
+                "a refused sender got telemetry"
+            );
+        }
+        assert!(!sim.vehicle().armed());
+        let captured = confirmed(&arm(true), 100);
+        assert!(sim.vehicle().armed());
+        confirmed(&arm(false), 101);
+        assert!(!sim.vehicle().armed());
+        for _ in 0..N {
+            client.send(&captured).expect("replay");
+        }
+        confirmed(&command(MavCmd::MAV_CMD_REQUEST_MESSAGE, 148.0, 0.0), 102);
+        let c = sim.vehicle().counters();
+        assert!(!sim.vehicle().armed(), "a replayed arm armed the vehicle");
+        assert_eq!(
+            c.rejected,
+            Rejections {
+                unsigned: N,
+                bad_signature: N,
+                replay: N
+            }
+        );
+        assert_eq!((c.malformed, c.refused_commands), (0, 0));
+        sim.stop();
+    }
+
+    #[test]
+    fn sign_mode_vehicle_accepts_unsigned_commands_and_signs_its_replies() {
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+                signing: Some(signing(1, SigningMode::Sign)),
+            },
+        )
+        .expect("spawn");
+        let addr = sim.local_addrs()[0].expect("bound");
+        let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        client
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .expect("timeout");
+        client.connect(addr).expect("connect");
+        let intruder = signing(2, SigningMode::Sign).signer().expect("signer");
+        let arm = command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0);
+        let forged = intruder
+            .encode(
+                MavHeader {
+                    system_id: 255,
+                    component_id: 190,
+                    sequence: 0,
+                },
+                &arm,
+            )
+            .expect("frame");
+        client.send(&forged).expect("send");
+        client.send(&gcs_frame(&arm, 1)).expect("send");
+        let verify = signing(1, SigningMode::SignedOnly)
+            .signer()
+            .expect("signer");
+        loop {
+            let frames = recv_frames(&client);
+            if let Some(f) = frames
+                .iter()
+                .find(|f| matches!(f.message, MavMessage::COMMAND_ACK(_)))
+            {
+                assert_eq!(verify.check(f), Ok(()));
+                break;
+            }
+        }
+        assert!(sim.vehicle().armed());
+        let c = sim.vehicle().counters().rejected;
+        assert_eq!((c.unsigned, c.bad_signature, c.replay), (0, 1, 0));
+        sim.stop();
     }
 }

@@ -2,6 +2,7 @@
 
     python3 gcs_router_client.py --api http://127.0.0.1:8080 --token T --vehicles 1,42 --silent 42
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,42 --command 1
+    python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 7 --command 7 --signing-key HEX
     python3 gcs_router_client.py --tlog FILE.tlog --db FILE.sqlite --vehicles 1
 
 With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
@@ -11,11 +12,14 @@ ground station's HEARTBEAT (system 255, MAV_TYPE_GCS) and every listed vehicle's
 COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (disarm) to vehicle --command and waits for its
 COMMAND_ACK, which comes back through the router. With --tlog: reads a session's .tlog and checks
 it holds HEARTBEATs of the ground station and of every listed vehicle. With --db: reads the
-session file's vehicle log (telemetry, link events, command outcomes) and actions. Prints what it saw; exits
-non-zero on any failure.
+session file's vehicle log (telemetry, link events, command outcomes) and actions. With
+--signing-key (64 hex characters) the --connect client signs everything it sends (MAVLink 2
+signing, link id 1) and accepts only correctly signed messages: the router forwards the vehicles'
+signed frames unchanged. Prints what it saw; exits non-zero on any failure.
 """
 
 import argparse
+import os
 import sys
 import time
 
@@ -28,8 +32,15 @@ def fail(msg):
     sys.exit(1)
 
 
-def client(url, vehicles, command, timeout_s=20.0):
+def client(url, vehicles, command, signing_key=None, timeout_s=20.0):
+    if signing_key:
+        # Signing needs MAVLink 2 framing from the first message sent.
+        os.environ["MAVLINK20"] = "1"
+        mavutil.set_dialect("common")
     m = mavutil.mavlink_connection(url, source_system=200, source_component=191)
+    if signing_key:
+        # No allow_unsigned_callback: unsigned and wrongly signed messages are dropped.
+        m.setup_signing(bytes.fromhex(signing_key), sign_outgoing=True, link_id=1)
     seen = {}
     deadline = time.monotonic() + timeout_s
     last_hb = 0.0
@@ -40,6 +51,8 @@ def client(url, vehicles, command, timeout_s=20.0):
             last_hb = time.monotonic()
         msg = m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
         if msg is not None:
+            if signing_key and not msg.get_signed():
+                fail(f"unsigned HEARTBEAT accepted: {msg}")
             seen[msg.get_srcSystem()] = msg.type
     if not want <= set(seen):
         fail(f"{url}: heartbeats seen from {sorted(seen)}, wanted {sorted(want)}")
@@ -158,12 +171,13 @@ def main():
     p.add_argument("--token")
     p.add_argument("--silent", type=int, default=0)
     p.add_argument("--db")
+    p.add_argument("--signing-key")
     a = p.parse_args()
     vehicles = [int(v) for v in a.vehicles.split(",") if v]
     if a.api:
         rest(a.api, a.token, vehicles[0], a.silent)
     for url in a.connect:
-        client(url, vehicles, a.command)
+        client(url, vehicles, a.command, a.signing_key)
     if a.tlog:
         tlog(a.tlog, vehicles)
     if a.db:

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Flies a harrier-sim vehicle with the real pymavlink client, as a user would fly PX4 SITL.
 
-Usage: pymavlink_flight.py --port PORT [--sysid 1]
+Usage: pymavlink_flight.py --port PORT [--sysid 1] [--signing-key HEX [--expect-ignored S]]
 
 Connects to the vehicle's API link (udpout:127.0.0.1:PORT), then: heartbeat with PX4 mode
 decoding, telemetry (position, status, GPS, battery, home, autopilot version), parameters, message
@@ -9,6 +9,12 @@ intervals, an unsupported command, arm, takeoff to MIS_TAKEOFF_ALT, OFFBOARD wit
 setpoints (the vehicle must move north), fallback to Hold when setpoints stop, land and disarm.
 No sleeps: every wait is on a message, with a deadline. Exit code 0 on success; any failure raises.
 Run by tests/tests/pymavlink_client.rs.
+
+With --signing-key (64 hex characters) the client signs every message (MAVLink 2 signing,
+`setup_signing`, link id 1) and accepts only correctly signed ones: every message from the vehicle
+must carry a valid signature. With --expect-ignored S as well, it sends HEARTBEATs and arm
+commands for S seconds and succeeds only if nothing at all comes back (a vehicle with another
+key must ignore it).
 """
 
 import argparse
@@ -29,10 +35,14 @@ def log(*args):
 
 
 class Client:
-    def __init__(self, port, sysid):
+    def __init__(self, port, sysid, signing_key=None):
         self.conn = mavutil.mavlink_connection(
             f"udpout:127.0.0.1:{port}", dialect="common", source_system=255, source_component=190
         )
+        self.signed = signing_key is not None
+        if self.signed:
+            # No allow_unsigned_callback: unsigned and wrongly signed messages are dropped.
+            self.conn.setup_signing(bytes.fromhex(signing_key), sign_outgoing=True, link_id=1)
         self.sysid = sysid
         self.last_hb = None
 
@@ -47,6 +57,7 @@ class Client:
             m = self.conn.recv_match(blocking=True, timeout=min(left, 0.5))
             if m is None or m.get_srcSystem() != self.sysid:
                 continue
+            assert m.get_signed() == self.signed, f"signed {m.get_signed()}: {m}"
             if m.get_type() == "HEARTBEAT":
                 self.last_hb = m
             if on_msg is not None:
@@ -78,12 +89,30 @@ class Client:
         return m.param_value
 
 
+def ignored(c, seconds):
+    """Heartbeats and arm commands for `seconds`: nothing may come back."""
+    end = time.monotonic() + seconds
+    sent = 0
+    while time.monotonic() < end:
+        c.conn.mav.heartbeat_send(mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        c.conn.mav.command_long_send(c.sysid, 1, mavlink.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 0, 0, 0, 0, 0, 0)
+        sent += 2
+        m = c.conn.recv_match(blocking=True, timeout=0.2)
+        assert m is None, f"the vehicle answered a client with the wrong key: {m}"
+    log(f"ignored: {sent} messages sent, nothing came back in {seconds} s")
+    return 0
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--port", type=int, required=True)
     ap.add_argument("--sysid", type=int, default=1)
+    ap.add_argument("--signing-key")
+    ap.add_argument("--expect-ignored", type=float)
     args = ap.parse_args()
-    c = Client(args.port, args.sysid)
+    c = Client(args.port, args.sysid, args.signing_key)
+    if args.expect_ignored is not None:
+        return ignored(c, args.expect_ignored)
 
     # 1. Connect: announce ourselves as a GCS until the vehicle's first HEARTBEAT arrives.
     deadline = time.monotonic() + 10.0
@@ -104,7 +133,8 @@ def main():
     assert not hb.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED
     assert "OFFBOARD" in c.conn.mode_mapping()
     assert c.mode() == "LOITER", c.mode()  # PX4 AUTO.LOITER ("Hold")
-    log("heartbeat ok, mode", c.mode(), "MAVLink", c.conn.WIRE_PROTOCOL_VERSION)
+    assert hb.get_signed() == c.signed, hb
+    log("heartbeat ok, mode", c.mode(), "MAVLink", c.conn.WIRE_PROTOCOL_VERSION, "signed", c.signed)
 
     # 2. Telemetry.
     gp = c.recv("GLOBAL_POSITION_INT")

@@ -16,6 +16,13 @@
 //!   (made from detections the test publishes on Zenoh) is armed, taken off and flown in
 //!   OFFBOARD by the guidance; killed, its place in the assignment is `lost`; restarted (on the
 //!   ground, disarmed), the guidance launches it again and it flies the assignment in OFFBOARD.
+//! - `signed_only_link_refuses_unsigned_forged_and_replayed_frames`: the GCS link and router in
+//!   MAVLink 2 `signed_only` mode and a `harrier-sim` process with the same key file: commands are
+//!   ACKed, pymavlink (same key) sees the ground station and the vehicle through the router and
+//!   commands it. Over real UDP, N unsigned frames, N frames signed with another key and N replays
+//!   of captured valid frames are sent to the GCS port (HEARTBEATs of new system ids, an "armed"
+//!   HEARTBEAT of the disarmed vehicle) and to the router (arm commands): every one is refused and
+//!   counted by side and reason in `/metrics`, no vehicle appears, the vehicle stays disarmed.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -24,10 +31,14 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use harrier_server::live::config::{Config, MavlinkConfig};
+use harrier_link::frame::{Frame, parse_datagram};
+use harrier_link::signing::{Signer, Signing, SigningKey, SigningMode};
+use harrier_server::live::config::{Config, MavlinkConfig, SigningConfig};
 use harrier_server::live::{self, LiveServer};
 use harrier_sim::mavlink::MavHeader;
-use harrier_sim::mavlink::dialects::common::{HEARTBEAT_DATA, MavMessage, MavType};
+use harrier_sim::mavlink::dialects::common::{
+    COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavModeFlag, MavType,
+};
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::VehicleConfig;
 use harrier_tests::{free_tcp_port, python_script, require_python_module, wait_with_deadline};
@@ -131,6 +142,7 @@ fn commands_router_and_tlog() {
         VehicleConfig::new(1),
         &LinkConfig {
             endpoints: vec![format!("udpout:{gcs}")],
+            signing: None,
         },
     )
     .expect("start vehicle 1");
@@ -458,4 +470,262 @@ fn a_lost_vehicle_flies_its_assignment_again() {
         let _ = session.close().await;
         server.shutdown().await;
     });
+}
+
+/// The shared key of the signing test (64 hex characters).
+const KEY: &str = "c0ffee00c0ffee00c0ffee00c0ffee00c0ffee00c0ffee00c0ffee00c0ffee00";
+
+fn signer(key: &str, link_id: u8) -> Signer {
+    Signing {
+        key: SigningKey::from_hex(key).expect("key"),
+        mode: SigningMode::SignedOnly,
+        link_id,
+    }
+    .signer()
+    .expect("signer")
+}
+
+/// The next frames (one datagram) on `socket` (within 5 s).
+fn next_frames(socket: &UdpSocket) -> Vec<Frame> {
+    let deadline = Instant::now() + Duration::from_secs(5);
+    let mut buf = [0u8; 2048];
+    while Instant::now() < deadline {
+        if let Ok(n) = socket.recv(&mut buf) {
+            return parse_datagram(&buf[..n]).frames;
+        }
+    }
+    panic!("nothing received within 5 s");
+}
+
+/// The first frame on `socket` satisfying `want` (within 10 s).
+fn frame_where(socket: &UdpSocket, want: impl Fn(&Frame) -> bool) -> Frame {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while Instant::now() < deadline {
+        if let Some(f) = next_frames(socket).into_iter().find(|f| want(f)) {
+            return f;
+        }
+    }
+    panic!("no such frame within 10 s");
+}
+
+fn is_heartbeat_of(f: &Frame, id: u32) -> Option<bool> {
+    match &f.message {
+        MavMessage::HEARTBEAT(hb) if f.header.system_id == id => Some(
+            hb.base_mode
+                .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
+        ),
+        _ => None,
+    }
+}
+
+fn heartbeat(mavtype: MavType) -> MavMessage {
+    MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        mavtype,
+        ..HEARTBEAT_DATA::DEFAULT
+    })
+}
+
+fn header(system_id: u8, component_id: u8, sequence: u8) -> MavHeader {
+    MavHeader {
+        system_id: system_id.into(),
+        component_id,
+        sequence,
+    }
+}
+
+/// The value of one `/metrics` line (`name{labels}`).
+fn metric(s: &LiveServer, series: &str) -> u64 {
+    let mut out = String::new();
+    s.link().expect("link").render_metrics(&mut out);
+    out.lines()
+        .find_map(|l| l.strip_prefix(series)?.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{series} not in /metrics:\n{out}"))
+}
+
+#[test]
+fn signed_only_link_refuses_unsigned_forged_and_replayed_frames() {
+    require_python_module("pymavlink", "pymavlink==2.4.50");
+    require_python_module("httpx", "httpx==0.28.1"); // imported by gcs_router_client.py
+    const N: u64 = 25;
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let key_file = dir.path().join("mavlink.key");
+    std::fs::write(&key_file, format!("{KEY}\n")).expect("write the key file");
+    let rt = runtime();
+    let server = rt.block_on(async {
+        let mut config = Config::default();
+        config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+        config.zenoh.tracks_key = String::new();
+        config.mavlink = MavlinkConfig {
+            router: vec!["udpin:127.0.0.1:0".into()],
+            command_timeout_ms: 300,
+            signing: SigningConfig {
+                mode: "signed_only".into(),
+                key_file: key_file.display().to_string(),
+                ..SigningConfig::default()
+            },
+            ..MavlinkConfig::ephemeral()
+        };
+        within(20, "start the server", live::start(&config))
+            .await
+            .expect("start the server")
+    });
+    let link = server.link().expect("link").clone();
+    let gcs = gcs_addr(&server);
+    let router = link.router().next().expect("a router endpoint").addr();
+    let _sim = Sim(Command::new(harrier_sim_bin())
+        .args(["--id", "7", "--no-zenoh", "--gcs", &format!("udpout:{gcs}")])
+        .args(["--api", "udpin:127.0.0.1:0", "--signing-key-file"])
+        .arg(&key_file)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start harrier-sim"));
+    rt.block_on(heard(&server, 7));
+
+    // A router client signing with the key (link id 2): it becomes a peer and sees vehicle 7's
+    // frames, signed by the vehicle and forwarded unchanged.
+    let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    client
+        .set_read_timeout(Some(Duration::from_millis(200)))
+        .expect("timeout");
+    client.connect(router).expect("connect");
+    let me = signer(KEY, 2);
+    let verify = signer(KEY, 9);
+    let gcs_hb = me.encode(header(200, 191, 0), &heartbeat(MavType::MAV_TYPE_GCS));
+    client.send(&gcs_hb.expect("frame")).expect("send");
+
+    // Commands through the API are signed by the ground station and ACKed by the vehicle.
+    let arm = rt.block_on(within(
+        10,
+        "arm",
+        link.command(7, harrier_link::command::arm(7)),
+    ));
+    assert!(arm.expect("arm").ok);
+    let armed_hb = frame_where(&client, |f| is_heartbeat_of(f, 7) == Some(true));
+    assert_eq!(
+        verify.check(&armed_hb),
+        Ok(()),
+        "the vehicle's frame is not signed with the key"
+    );
+    let disarm = harrier_link::command::disarm(7, false);
+    let disarm = rt.block_on(within(10, "disarm", link.command(7, disarm)));
+    assert!(disarm.expect("disarm").ok);
+    frame_where(&client, |f| is_heartbeat_of(f, 7) == Some(false));
+
+    // To the GCS port: unsigned and wrongly signed HEARTBEATs of new vehicles, and replays of the
+    // vehicle's own "armed" HEARTBEAT; then a good HEARTBEAT of vehicle 60 marks the end (one
+    // socket, one endpoint task: handled in order).
+    let intruder = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    let forger = signer(&"11".repeat(32), 0);
+    let quad = heartbeat(MavType::MAV_TYPE_QUADROTOR);
+    for i in 0..N {
+        let seq = u8::try_from(i).expect("small");
+        let unsigned = harrier_link::frame::encode(header(50, 1, seq), &quad).expect("frame");
+        let forged = forger.encode(header(51, 1, seq), &quad).expect("frame");
+        for frame in [&unsigned, &forged, &armed_hb.bytes] {
+            intruder.send_to(frame, gcs).expect("send");
+        }
+    }
+    let last = me.encode(header(60, 1, 0), &quad).expect("frame");
+    intruder.send_to(&last, gcs).expect("send");
+    rt.block_on(heard(&server, 60));
+    for (reason, n) in [("unsigned", N), ("bad_signature", N), ("replay", N)] {
+        let series = format!("harrier_mavlink_rejected_total{{side=\"gcs\",reason=\"{reason}\"}}");
+        assert_eq!(metric(&server, &series), n, "{series}");
+    }
+    let ids: Vec<u8> = link.vehicles.borrow().iter().map(|v| v.view.id).collect();
+    assert_eq!(ids, [7, 60], "a refused HEARTBEAT made a vehicle");
+    let seven = link
+        .vehicles
+        .borrow()
+        .iter()
+        .find(|v| v.view.id == 7)
+        .map(|v| v.view.armed);
+    assert_eq!(seven, Some(false), "a replayed HEARTBEAT armed vehicle 7");
+
+    // To the router: a good arm (captured), a good disarm, then N unsigned, N forged and N
+    // replayed arms; a good request's ACK marks the end. The vehicle stays disarmed.
+    let ack_of = |cmd: MavCmd| move |f: &Frame| matches!(&f.message, MavMessage::COMMAND_ACK(a) if a.command == cmd && f.header.system_id == 7);
+    let command = |param1: f32, command: MavCmd| {
+        MavMessage::COMMAND_LONG(COMMAND_LONG_DATA {
+            target_system: 7,
+            target_component: 1,
+            command,
+            param1,
+            ..COMMAND_LONG_DATA::DEFAULT
+        })
+    };
+    let arm_cmd = MavCmd::MAV_CMD_COMPONENT_ARM_DISARM;
+    let captured = me
+        .encode(header(200, 191, 1), &command(1.0, arm_cmd))
+        .expect("frame");
+    client.send(&captured).expect("send");
+    frame_where(&client, ack_of(arm_cmd));
+    frame_where(&client, |f| is_heartbeat_of(f, 7) == Some(true));
+    client
+        .send(
+            &me.encode(header(200, 191, 2), &command(0.0, arm_cmd))
+                .expect("frame"),
+        )
+        .expect("send");
+    frame_where(&client, ack_of(arm_cmd));
+    frame_where(&client, |f| is_heartbeat_of(f, 7) == Some(false));
+    for i in 0..N {
+        let seq = u8::try_from(i).expect("small");
+        let unsigned = harrier_link::frame::encode(header(200, 191, seq), &command(1.0, arm_cmd))
+            .expect("frame");
+        let forged = forger
+            .encode(header(200, 191, seq), &command(1.0, arm_cmd))
+            .expect("frame");
+        for frame in [&unsigned, &forged, &captured] {
+            client.send(frame).expect("send");
+        }
+    }
+    let request = MavCmd::MAV_CMD_REQUEST_MESSAGE;
+    client
+        .send(
+            &me.encode(header(200, 191, 3), &command(148.0, request))
+                .expect("frame"),
+        )
+        .expect("send");
+    frame_where(&client, ack_of(request));
+    // The vehicle's next HEARTBEAT: still disarmed.
+    let hb = frame_where(&client, |f| is_heartbeat_of(f, 7).is_some());
+    assert_eq!(
+        is_heartbeat_of(&hb, 7),
+        Some(false),
+        "a refused arm reached the vehicle"
+    );
+    for (reason, n) in [("unsigned", N), ("bad_signature", N), ("replay", N)] {
+        let series =
+            format!("harrier_mavlink_rejected_total{{side=\"router\",reason=\"{reason}\"}}");
+        assert_eq!(metric(&server, &series), n, "{series}");
+    }
+
+    // pymavlink with the same key through the router: sees the ground station and vehicle 7,
+    // commands it (disarm) and gets its ACK.
+    let mut child = python_script("gcs_router_client.py")
+        .args(["--connect", &format!("udpout:{router}"), "--vehicles", "7"])
+        .args(["--command", "7", "--signing-key", KEY])
+        .spawn()
+        .expect("run gcs_router_client.py");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(60), "signed router client");
+    assert!(
+        status.success(),
+        "gcs_router_client.py --signing-key failed: {status}"
+    );
+    // Nothing of it was refused.
+    let refused: u64 = ["unsigned", "bad_signature", "replay"]
+        .iter()
+        .map(|r| {
+            metric(
+                &server,
+                &format!("harrier_mavlink_rejected_total{{side=\"router\",reason=\"{r}\"}}"),
+            )
+        })
+        .sum();
+    assert_eq!(refused, 3 * N);
+    rt.block_on(server.shutdown());
 }

@@ -57,6 +57,7 @@ fn mavproxy_logs_and_forwards_the_simulated_vehicle_over_tcp() {
         VehicleConfig::new(1),
         &LinkConfig {
             endpoints: vec!["tcpin:127.0.0.1:0".to_owned()],
+            signing: None,
         },
     )
     .expect("start the vehicle");

@@ -20,6 +20,7 @@ fn mavsdk_flies_the_simulated_vehicle() {
         VehicleConfig::new(1),
         &LinkConfig {
             endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+            signing: None,
         },
     )
     .expect("start the vehicle");

@@ -6,10 +6,16 @@
 //!
 //! A second link plays the GCS (`udpout` to a socket held here): it must receive the telemetry
 //! but none of the replies meant for the API client.
+//!
+//! `pymavlink_flies_a_signed_only_vehicle`: the same flight with MAVLink 2 signing, the vehicle
+//! in `signed_only` mode and pymavlink signing with the same key (`setup_signing`; every message
+//! it accepts from the vehicle is signed); then a pymavlink client with another key is ignored
+//! (no answer, no arming; its frames counted as `bad_signature`).
 
 use std::net::UdpSocket;
 use std::time::Duration;
 
+use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use harrier_sim::mavlink::MavlinkReader;
 use harrier_sim::mavlink::dialects::common::MavMessage;
 use harrier_sim::net::{LinkConfig, spawn};
@@ -28,6 +34,7 @@ fn pymavlink_flies_the_simulated_vehicle() {
                 format!("udpout:127.0.0.1:{gcs_port}"),
                 "udpin:127.0.0.1:0".to_owned(),
             ],
+            signing: None,
         },
     )
     .expect("start the vehicle");
@@ -70,5 +77,73 @@ fn pymavlink_flies_the_simulated_vehicle() {
     }
     assert!(heartbeats >= 5, "GCS saw {heartbeats} heartbeats");
     assert_eq!(replies, 0, "replies leaked to the GCS link");
+    sim.stop();
+}
+
+#[test]
+fn pymavlink_flies_a_signed_only_vehicle() {
+    require_python_module("pymavlink", "pymavlink==2.4.50");
+    let key = "5f".repeat(8) + &"a3".repeat(24);
+    let sim = spawn(
+        VehicleConfig::new(1),
+        &LinkConfig {
+            endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+            signing: Some(Signing {
+                key: SigningKey::from_hex(&key).expect("key"),
+                mode: SigningMode::SignedOnly,
+                link_id: 0,
+            }),
+        },
+    )
+    .expect("start the vehicle");
+    let port = sim.local_addrs()[0]
+        .expect("API link bound")
+        .port()
+        .to_string();
+    let mut child = python_script("pymavlink_flight.py")
+        .args(["--port", &port, "--signing-key", &key])
+        .spawn()
+        .expect("run pymavlink_flight.py");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(120), "signed flight");
+    assert!(
+        status.success(),
+        "signed pymavlink_flight.py failed: {status}"
+    );
+    {
+        let v = sim.vehicle();
+        assert!(v.state().position.y > 8.0, "{:?}", v.state()); // flew north (ENU y)
+        assert!(!v.armed());
+        // Only the flight's deliberate bad input; nothing of pymavlink's was refused.
+        assert_eq!(
+            (v.counters().rejected_setpoints, v.counters().malformed),
+            (1, 1)
+        );
+        assert_eq!(v.counters().rejected.total(), 0, "{:?}", v.counters());
+    }
+
+    let wrong = "00".repeat(31) + "01";
+    let mut child = python_script("pymavlink_flight.py")
+        .args([
+            "--port",
+            &port,
+            "--signing-key",
+            &wrong,
+            "--expect-ignored",
+            "3",
+        ])
+        .spawn()
+        .expect("run pymavlink_flight.py --expect-ignored");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(60), "wrong-key client");
+    assert!(
+        status.success(),
+        "the wrong-key client was answered: {status}"
+    );
+    let v = sim.vehicle();
+    assert!(!v.armed(), "armed by a client with the wrong key");
+    let r = v.counters().rejected;
+    // At least 2 frames per 0.2 s for 3 s, all refused for their signature.
+    assert!(r.bad_signature >= 20, "{r:?}");
+    assert_eq!((r.unsigned, r.replay), (0, 0));
+    drop(v);
     sim.stop();
 }

@@ -11,6 +11,7 @@ use std::path::Path;
 use harrier_core::detection::GeoPoint;
 use harrier_core::scenario::{Motion, Road, Scenario};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
+use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use serde::{Deserialize, Serialize};
 
 use crate::engine::Params;
@@ -60,6 +61,62 @@ pub struct MavlinkConfig {
     /// Raw MAVLink log (`.tlog`, read by pymavlink and MAVExplorer). Empty: beside the
     /// recording (`FILE.sqlite` → `FILE-session-N.tlog`) when recording, else none.
     pub tlog: String,
+    /// MAVLink 2 message signing on every GCS and router endpoint.
+    pub signing: SigningConfig,
+}
+
+/// MAVLink 2 signing of the GCS link and router (`[mavlink.signing]`; docs/mavlink-signing.md).
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SigningConfig {
+    /// `off`; `sign` (sign every frame sent, accept unsigned frames but refuse wrongly signed
+    /// and replayed ones); `signed_only` (accept only correctly signed, fresh frames).
+    pub mode: String,
+    /// File holding the 32-byte secret key: 64 hex characters, or exactly 32 raw bytes.
+    pub key_file: String,
+    /// The key as 64 hex characters, instead of `key_file`. Never written back out (the
+    /// configuration recorded with a session leaves it out).
+    #[serde(skip_serializing)]
+    pub key: String,
+    /// Link id in the ground station's signatures.
+    pub link_id: u8,
+}
+
+impl Default for SigningConfig {
+    fn default() -> Self {
+        Self {
+            mode: "off".into(),
+            key_file: String::new(),
+            key: String::new(),
+            link_id: 0,
+        }
+    }
+}
+
+impl SigningConfig {
+    /// The settings, `None` when the mode is `off`; reads the key file.
+    pub fn resolve(&self) -> Result<Option<Signing>, ConfigError> {
+        let bad = |m: String| ConfigError::Invalid(format!("mavlink.signing: {m}"));
+        let mode: SigningMode = self.mode.parse().map_err(bad)?;
+        if mode == SigningMode::Off {
+            return Ok(None);
+        }
+        let key = match (self.key.is_empty(), self.key_file.is_empty()) {
+            (false, true) => SigningKey::from_hex(&self.key),
+            (true, false) => SigningKey::from_file(Path::new(&self.key_file)),
+            _ => {
+                return Err(bad(format!(
+                    "mode {mode} needs exactly one of key_file and key"
+                )));
+            }
+        }
+        .map_err(|e| bad(e.to_string()))?;
+        Ok(Some(Signing {
+            key,
+            mode,
+            link_id: self.link_id,
+        }))
+    }
 }
 
 impl Default for MavlinkConfig {
@@ -73,6 +130,7 @@ impl Default for MavlinkConfig {
             command_timeout_ms: 1000,
             command_attempts: 3,
             tlog: String::new(),
+            signing: SigningConfig::default(),
         }
     }
 }
@@ -485,6 +543,7 @@ impl Config {
                     .into(),
             );
         }
+        m.signing.resolve()?;
         let g = &self.guidance;
         if !(g.rate_hz.is_finite() && g.rate_hz > 0.0 && g.rate_hz <= 100.0) {
             return bad(format!(
@@ -554,6 +613,7 @@ impl Config {
             command_attempts: m.command_attempts,
             frame: harrier_link::geo::LocalFrame::new(self.frame.origin),
             tlog,
+            signing: m.signing.resolve()?,
         }))
     }
 
@@ -676,5 +736,55 @@ mod tests {
         let twice = tokens("name = \"a\"\ntoken = \"0123456789abcdef\"").repeat(2);
         let e = Config::parse(&twice, "f").unwrap_err();
         assert!(e.to_string().contains("distinct"), "{e}");
+    }
+
+    #[test]
+    fn signing_keys_from_hex_or_file_and_never_written_out() {
+        let hex = "ab".repeat(32);
+        let c = Config::parse(
+            &format!("[mavlink.signing]\nmode = \"signed_only\"\nkey = \"{hex}\"\nlink_id = 4\n"),
+            "f",
+        )
+        .expect("hex key");
+        let s = c.mavlink.signing.resolve().expect("valid").expect("on");
+        assert_eq!(
+            (s.mode, s.link_id, *s.key.bytes()),
+            (SigningMode::SignedOnly, 4, [0xAB; 32])
+        );
+        assert!(c.gcs(None).expect("gcs").expect("on").signing.is_some());
+        // The configuration recorded with a session does not hold the key.
+        let json = serde_json::to_string(&c).expect("json");
+        assert!(!json.contains(&hex), "{json}");
+        let dir = tempfile::tempdir().expect("temporary directory");
+        let file = dir.path().join("key");
+        std::fs::write(&file, [7u8; 32]).expect("write");
+        let text = format!(
+            "[mavlink.signing]\nmode = \"sign\"\nkey_file = {:?}\n",
+            file.display().to_string()
+        );
+        let s = Config::parse(&text, "f")
+            .expect("key file")
+            .mavlink
+            .signing
+            .resolve()
+            .expect("valid")
+            .expect("on");
+        assert_eq!((s.mode, *s.key.bytes()), (SigningMode::Sign, [7; 32]));
+        assert_eq!(
+            Config::default().mavlink.signing.resolve().expect("off"),
+            None
+        );
+        for (bad, says) in [
+            ("mode = \"on\"", "off, sign or signed_only"),
+            ("mode = \"signed_only\"", "exactly one of key_file and key"),
+            ("mode = \"sign\"\nkey = \"abcd\"", "64 hex characters"),
+            (
+                "mode = \"sign\"\nkey_file = \"/nonexistent/key\"",
+                "/nonexistent/key",
+            ),
+        ] {
+            let e = Config::parse(&format!("[mavlink.signing]\n{bad}\n"), "f").unwrap_err();
+            assert!(e.to_string().contains(says), "{bad}: {e}");
+        }
     }
 }

@@ -66,6 +66,8 @@ pub struct Counters {
     pub rejected_params: u64,
     /// Commands answered with anything but MAV_RESULT_ACCEPTED.
     pub refused_commands: u64,
+    /// Frames refused by MAVLink 2 signing, by reason (never handled).
+    pub rejected: harrier_link::signing::Rejections,
 }
 
 /// Configuration of one vehicle.
@@ -200,6 +202,10 @@ impl Vehicle {
     /// Counts malformed input (see [`Counters::malformed`]).
     pub fn count_malformed(&mut self) {
         self.counters.malformed += 1;
+    }
+    /// Counts a frame refused by signing (see [`Counters::rejected`]).
+    pub fn count_rejected(&mut self, reason: harrier_link::signing::Rejection) {
+        self.counters.rejected.count(reason);
     }
     /// A parameter's value.
     pub fn param(&self, name: &str) -> Option<f32> {

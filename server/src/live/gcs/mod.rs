@@ -22,6 +22,15 @@
 //!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
 //!   routed (counted as malformed).
 //! - Garbage datagrams and undecodable frames are counted per endpoint and skipped.
+//! - MAVLink 2 signing (`[mavlink.signing]`, harrier-link's [`Signer`], one for the whole link):
+//!   the ground station signs its own frames; every frame received on any endpoint is checked
+//!   before the actor sees it, and a refused one (`unsigned` in `signed_only` mode,
+//!   `bad_signature`, `replay`) is counted by side and reason, logged at a bounded rate, and goes
+//!   nowhere: not to the vehicle table, the ACKs, the guidance, the `.tlog` or the router.
+//!   The router forwards accepted frames unchanged: a vehicle's frames keep the vehicle's
+//!   signature, a client's keep the client's (so in `signed_only` mode clients must sign with the
+//!   same key, and the vehicle checks the client's signature itself). It never re-signs: an
+//!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
 pub mod transport;
 pub mod vehicle;
@@ -41,6 +50,7 @@ use harrier_link::mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType,
 };
 use harrier_link::px4::VehicleStatus;
+use harrier_link::signing::{Rejection, Signer, Signing};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::ToSchema;
@@ -70,6 +80,8 @@ pub struct GcsConfig {
     pub frame: LocalFrame,
     /// Raw MAVLink log (`.tlog`: each frame after its 8-byte big-endian UNIX time in µs).
     pub tlog: Option<PathBuf>,
+    /// MAVLink 2 signing (`None`: off).
+    pub signing: Option<Signing>,
 }
 
 /// Why the link cannot start.
@@ -199,6 +211,8 @@ pub struct LinkMetrics {
     acks: Mutex<BTreeMap<String, u64>>,
     vehicles_lost: AtomicU64,
     tlog_dropped: AtomicU64,
+    /// Frames refused by the signing: [GCS side, router side] × [`Rejection::ALL`].
+    rejected: [[AtomicU64; 3]; 2],
 }
 
 impl LinkMetrics {
@@ -231,6 +245,21 @@ impl LinkMetrics {
                 ("{side=\"gcs\"}".into(), v(&self.malformed_gcs)),
                 ("{side=\"router\"}".into(), v(&self.malformed_router)),
             ],
+        );
+        let mut rejected = Vec::new();
+        for (side, counts) in ["gcs", "router"].iter().zip(&self.rejected) {
+            for (reason, n) in Rejection::ALL.iter().zip(counts) {
+                rejected.push((
+                    format!("{{side=\"{side}\",reason=\"{}\"}}", reason.as_str()),
+                    v(n),
+                ));
+            }
+        }
+        family(
+            "harrier_mavlink_rejected_total",
+            "counter",
+            "Frames refused by MAVLink 2 signing, by side and reason (unsigned in signed_only mode, bad_signature, replay).",
+            &rejected,
         );
         family(
             "harrier_mavlink_frames_sent_total",
@@ -344,6 +373,11 @@ impl LinkMetrics {
                 let _ = writeln!(out, "{name}{r}");
             }
         }
+    }
+
+    fn reject(&self, gcs: bool, reason: Rejection) {
+        // `Rejection::ALL` lists the reasons in declaration order.
+        self.rejected[usize::from(!gcs)][reason as usize].fetch_add(1, Ordering::Relaxed);
     }
 
     fn result(&self, result: &str) {
@@ -513,7 +547,14 @@ struct Actor {
     last_heartbeat: Option<Instant>,
     /// Last (armed, mode) per vehicle, for the events.
     flight: HashMap<u8, (bool, Option<String>)>,
+    /// Signs the ground station's frames (the endpoints check the incoming ones).
+    signer: Option<Arc<Signer>>,
+    /// Last log line about refused frames per (GCS side, reason), and the refusals since.
+    reject_log: HashMap<(bool, Rejection), (Instant, u64)>,
 }
+
+/// Shortest time between two log lines about refused frames of one side and reason.
+const REJECT_LOG_EVERY: Duration = Duration::from_secs(5);
 
 /// Opens every endpoint and starts the actor.
 pub async fn start(
@@ -521,9 +562,17 @@ pub async fn start(
     stop: watch::Receiver<bool>,
 ) -> Result<(GcsLink, tokio::task::JoinHandle<()>), GcsError> {
     let (inbound_tx, inbound_rx) = mpsc::channel(4096);
+    let signer = config
+        .signing
+        .as_ref()
+        .and_then(Signing::signer)
+        .map(Arc::new);
+    if let Some(s) = &config.signing {
+        tracing::info!(mode = %s.mode, link_id = s.link_id, "mavlink signing");
+    }
     let mut endpoints = Vec::new();
     for (i, e) in config.gcs.iter().chain(&config.router).enumerate() {
-        let h = transport::open(i, *e, inbound_tx.clone(), stop.clone())
+        let h = transport::open(i, *e, inbound_tx.clone(), stop.clone(), signer.clone())
             .await
             .map_err(|source| GcsError::Open {
                 endpoint: *e,
@@ -570,6 +619,8 @@ pub async fn start(
         tlog,
         last_heartbeat: None,
         flight: HashMap::new(),
+        signer,
+        reject_log: HashMap::new(),
     };
     let task = tokio::spawn(actor.run(inbound_rx, requests_rx, stop));
     Ok((link, task))
@@ -620,6 +671,10 @@ impl Actor {
             };
             c.fetch_add(i.parsed.malformed, Ordering::Relaxed);
         }
+        for r in &i.rejected {
+            self.metrics.reject(gcs, r.reason);
+            self.log_rejected(gcs, i.peer, r);
+        }
         for f in i.parsed.frames {
             self.log(&f.bytes);
             if gcs {
@@ -627,6 +682,29 @@ impl Actor {
                 self.on_vehicle_frame(i.endpoint, i.peer, i.at, &f);
             } else {
                 self.on_client_frame(&f);
+            }
+        }
+    }
+
+    /// Logs a refused frame, at most once per [`REJECT_LOG_EVERY`] per side and reason.
+    fn log_rejected(&mut self, gcs: bool, peer: Peer, r: &transport::Rejected) {
+        let now = Instant::now();
+        match self.reject_log.get_mut(&(gcs, r.reason)) {
+            Some((at, suppressed)) if now.duration_since(*at) < REJECT_LOG_EVERY => {
+                *suppressed += 1;
+            }
+            entry => {
+                let suppressed = entry.map_or(0, |(_, s)| *s);
+                tracing::warn!(
+                    side = if gcs { "gcs" } else { "router" },
+                    reason = r.reason.as_str(),
+                    %peer,
+                    system_id = r.system_id,
+                    component_id = r.component_id,
+                    suppressed,
+                    "refused a MAVLink frame (signing)"
+                );
+                self.reject_log.insert((gcs, r.reason), (now, 0));
             }
         }
     }
@@ -743,7 +821,7 @@ impl Actor {
         }
     }
 
-    /// Serialises `msg` as the ground station's next frame.
+    /// Serialises `msg` as the ground station's next frame (signed when signing is on).
     fn frame(&mut self, msg: &MavMessage) -> Option<Arc<[u8]>> {
         let header = MavHeader {
             system_id: self.config.system_id.into(),
@@ -751,7 +829,10 @@ impl Actor {
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
-        let buf = harrier_link::frame::encode(header, msg)?;
+        let buf = match &self.signer {
+            Some(s) => s.encode(header, msg)?,
+            None => harrier_link::frame::encode(header, msg)?,
+        };
         self.log(&buf);
         Some(Arc::from(buf))
     }

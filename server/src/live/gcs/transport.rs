@@ -9,7 +9,9 @@
 //!   that does not read loses frames (counted), it never slows the link.
 //!
 //! A datagram is parsed on its own ([`parse_datagram`]), a TCP stream across reads
-//! ([`StreamParser`]).
+//! ([`StreamParser`]). With MAVLink 2 signing every frame is checked here, before anything else
+//! sees it ([`screen`]): a refused frame goes no further than the [`Inbound::rejected`] count,
+//! and a UDP sender of refused frames only does not become a peer (it gets no telemetry).
 
 use std::collections::HashMap;
 use std::io;
@@ -19,6 +21,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
 use harrier_link::frame::{Endpoint, Parsed, StreamParser, parse_datagram};
+use harrier_link::signing::{Rejection, Signer};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream, UdpSocket};
 use tokio::sync::{mpsc, watch};
@@ -55,10 +58,43 @@ pub struct Inbound {
     pub endpoint: usize,
     /// The sender.
     pub peer: Peer,
-    /// Its frames and malformed stretches.
+    /// Its frames (those the signing accepted) and malformed stretches.
     pub parsed: Parsed,
+    /// Frames refused by the signing.
+    pub rejected: Vec<Rejected>,
     /// When it was read.
     pub at: Instant,
+}
+
+/// A frame refused by the signing.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Rejected {
+    /// Why.
+    pub reason: Rejection,
+    /// The system id it claims.
+    pub system_id: u32,
+    /// The component id it claims.
+    pub component_id: u8,
+}
+
+/// Keeps the frames `signer` accepts (every frame without signing) and returns the others.
+pub fn screen(signer: Option<&Signer>, parsed: &mut Parsed) -> Vec<Rejected> {
+    let Some(signer) = signer else {
+        return Vec::new();
+    };
+    let mut rejected = Vec::new();
+    parsed.frames.retain(|f| match signer.check(f) {
+        Ok(()) => true,
+        Err(reason) => {
+            rejected.push(Rejected {
+                reason,
+                system_id: f.header.system_id,
+                component_id: f.header.component_id,
+            });
+            false
+        }
+    });
+    rejected
 }
 
 /// Bytes to send on an endpoint.
@@ -90,14 +126,20 @@ pub struct EndpointHandle {
     pub counters: Arc<EndpointCounters>,
 }
 
-/// Opens `endpoint`; frames read go to `inbound` tagged with `index`. Runs until `stop` turns
-/// true or the link actor goes away.
+/// Opens `endpoint`; frames read (those `signer` accepts) go to `inbound` tagged with `index`.
+/// Runs until `stop` turns true or the link actor goes away.
 pub async fn open(
     index: usize,
     endpoint: Endpoint,
     inbound: mpsc::Sender<Inbound>,
     stop: watch::Receiver<bool>,
+    signer: Option<Arc<Signer>>,
 ) -> io::Result<EndpointHandle> {
+    let input = Input {
+        index,
+        inbound,
+        signer,
+    };
     let (tx, rx) = mpsc::channel(TCP_QUEUE);
     let counters = Arc::new(EndpointCounters::default());
     let bound = match endpoint {
@@ -105,7 +147,7 @@ pub async fn open(
             let socket = UdpSocket::bind(addr).await?;
             let bound = Endpoint::UdpIn(socket.local_addr()?);
             let c = Arc::clone(&counters);
-            tokio::spawn(udp(index, socket, None, inbound, rx, stop, c));
+            tokio::spawn(udp(input, socket, None, rx, stop, c));
             bound
         }
         Endpoint::UdpOut(remote) => {
@@ -116,19 +158,19 @@ pub async fn open(
             };
             let socket = UdpSocket::bind(any).await?;
             let c = Arc::clone(&counters);
-            tokio::spawn(udp(index, socket, Some(remote), inbound, rx, stop, c));
+            tokio::spawn(udp(input, socket, Some(remote), rx, stop, c));
             endpoint
         }
         Endpoint::TcpIn(addr) => {
             let listener = TcpListener::bind(addr).await?;
             let bound = Endpoint::TcpIn(listener.local_addr()?);
             let c = Arc::clone(&counters);
-            tokio::spawn(tcp_in(index, listener, inbound, rx, stop, c));
+            tokio::spawn(tcp_in(input, listener, rx, stop, c));
             bound
         }
         Endpoint::TcpOut(remote) => {
             let c = Arc::clone(&counters);
-            tokio::spawn(tcp_out(index, remote, inbound, rx, stop, c));
+            tokio::spawn(tcp_out(input, remote, rx, stop, c));
             endpoint
         }
     };
@@ -139,11 +181,39 @@ pub async fn open(
     })
 }
 
-async fn udp(
+/// Where an endpoint's input goes, and what screens it.
+#[derive(Debug, Clone)]
+struct Input {
+    /// The endpoint's index.
     index: usize,
+    /// The link actor.
+    inbound: mpsc::Sender<Inbound>,
+    /// The signing, if on.
+    signer: Option<Arc<Signer>>,
+}
+
+impl Input {
+    /// Screens `parsed` and hands what is left to the actor; `false` when the actor is gone.
+    async fn send(&self, peer: Peer, mut parsed: Parsed) -> bool {
+        let rejected = screen(self.signer.as_deref(), &mut parsed);
+        if parsed.frames.is_empty() && parsed.malformed == 0 && rejected.is_empty() {
+            return true;
+        }
+        let msg = Inbound {
+            endpoint: self.index,
+            peer,
+            parsed,
+            rejected,
+            at: Instant::now(),
+        };
+        self.inbound.send(msg).await.is_ok()
+    }
+}
+
+async fn udp(
+    input: Input,
     socket: UdpSocket,
     remote: Option<SocketAddr>,
-    inbound: mpsc::Sender<Inbound>,
     mut rx: mpsc::Receiver<Outbound>,
     mut stop: watch::Receiver<bool>,
     counters: Arc<EndpointCounters>,
@@ -162,19 +232,27 @@ async fn udp(
                     Ok(r) => r,
                     // ICMP port unreachable of an earlier send, and the like.
                     Err(e) => {
-                        tracing::trace!("udp endpoint {index}: {e}");
+                        tracing::trace!("udp endpoint {}: {e}", input.index);
                         continue;
                     }
                 };
-                let parsed = parse_datagram(&buf[..n]);
+                let mut parsed = parse_datagram(&buf[..n]);
+                let rejected = screen(input.signer.as_deref(), &mut parsed);
+                // Only a sender of accepted frames becomes a peer.
                 if remote.is_none() && !parsed.frames.is_empty() && !peers.contains(&from) {
                     if peers.len() >= MAX_UDP_PEERS {
                         peers.remove(0);
                     }
                     peers.push(from);
                 }
-                let msg = Inbound { endpoint: index, peer: Peer::Udp(from), parsed, at: Instant::now() };
-                if inbound.send(msg).await.is_err() {
+                let msg = Inbound {
+                    endpoint: input.index,
+                    peer: Peer::Udp(from),
+                    parsed,
+                    rejected,
+                    at: Instant::now(),
+                };
+                if input.inbound.send(msg).await.is_err() {
                     return;
                 }
             }
@@ -196,10 +274,9 @@ async fn udp(
 /// Reads frames from one TCP connection and writes what its queue holds, until either side
 /// closes.
 async fn connection(
-    index: usize,
+    input: Input,
     id: u64,
     stream: TcpStream,
-    inbound: mpsc::Sender<Inbound>,
     mut rx: mpsc::Receiver<Arc<[u8]>>,
     counters: Arc<EndpointCounters>,
 ) {
@@ -214,12 +291,7 @@ async fn connection(
                     Ok(0) | Err(_) => return,
                     Ok(n) => n,
                 };
-                let parsed = parser.push(&buf[..n]);
-                if parsed.frames.is_empty() && parsed.malformed == 0 {
-                    continue;
-                }
-                let msg = Inbound { endpoint: index, peer: Peer::Tcp(id), parsed, at: Instant::now() };
-                if inbound.send(msg).await.is_err() {
+                if !input.send(Peer::Tcp(id), parser.push(&buf[..n])).await {
                     return;
                 }
             }
@@ -237,9 +309,8 @@ async fn connection(
 }
 
 async fn tcp_in(
-    index: usize,
+    input: Input,
     listener: TcpListener,
-    inbound: mpsc::Sender<Inbound>,
     mut rx: mpsc::Receiver<Outbound>,
     mut stop: watch::Receiver<bool>,
     counters: Arc<EndpointCounters>,
@@ -260,10 +331,10 @@ async fn tcp_in(
             a = listener.accept() => {
                 let Ok((stream, from)) = a else { continue };
                 next += 1;
-                tracing::debug!("tcp endpoint {index}: client #{next} from {from}");
+                tracing::debug!("tcp endpoint {}: client #{next} from {from}", input.index);
                 let (tx, crx) = mpsc::channel(TCP_QUEUE);
                 clients.insert(next, tx);
-                tokio::spawn(connection(index, next, stream, inbound.clone(), crx, Arc::clone(&counters)));
+                tokio::spawn(connection(input.clone(), next, stream, crx, Arc::clone(&counters)));
             }
             o = rx.recv() => match o {
                 Some(Outbound::To(Peer::Tcp(id), bytes)) => {
@@ -281,9 +352,8 @@ async fn tcp_in(
 }
 
 async fn tcp_out(
-    index: usize,
+    input: Input,
     remote: SocketAddr,
-    inbound: mpsc::Sender<Inbound>,
     mut rx: mpsc::Receiver<Outbound>,
     mut stop: watch::Receiver<bool>,
     counters: Arc<EndpointCounters>,
@@ -315,16 +385,9 @@ async fn tcp_out(
             continue;
         };
         id += 1;
-        tracing::info!("tcp endpoint {index}: connected to {remote}");
+        tracing::info!("tcp endpoint {}: connected to {remote}", input.index);
         let (tx, crx) = mpsc::channel(TCP_QUEUE);
-        let conn = connection(
-            index,
-            id,
-            stream,
-            inbound.clone(),
-            crx,
-            Arc::clone(&counters),
-        );
+        let conn = connection(input.clone(), id, stream, crx, Arc::clone(&counters));
         tokio::pin!(conn);
         loop {
             tokio::select! {
@@ -340,7 +403,10 @@ async fn tcp_out(
                 () = stopped(&mut stop) => return,
             }
         }
-        tracing::info!("tcp endpoint {index}: {remote} closed the connection; reconnecting");
+        tracing::info!(
+            "tcp endpoint {}: {remote} closed the connection; reconnecting",
+            input.index
+        );
     }
 }
 
