@@ -459,6 +459,36 @@ function pollNow() {
   poll();
 }
 
+// The top bar's loss badges, from /metrics: detection scans the server dropped (every reason
+// but `sensor_filtered`, a deliberate filter; red while the count grows, amber once it stops),
+// and a recording that is off or failing.
+const dropsPill = document.getElementById("drops");
+const recordingPill = document.getElementById("recording");
+let droppedBefore = null;
+function showLosses(m) {
+  const byReason = new Map();
+  for (const x of m) {
+    if (x.name !== "harrier_scans_dropped_total" || x.labels.reason === "sensor_filtered") continue;
+    byReason.set(x.labels.reason, (byReason.get(x.labels.reason) || 0) + x.value);
+  }
+  const total = [...byReason.values()].reduce((a, n) => a + n, 0);
+  const rising = droppedBefore !== null && total > droppedBefore;
+  droppedBefore = total;
+  dropsPill.hidden = total === 0;
+  dropsPill.dataset.dropped = String(total);
+  dropsPill.dataset.rising = String(rising);
+  dropsPill.textContent = `dropped ${total} scan${total === 1 ? "" : "s"}`;
+  dropsPill.className = `pill ${rising ? "pill-closed" : "pill-connecting"}`;
+  dropsPill.title =
+    "Detection scans the server dropped, by reason: " +
+    [...byReason].filter(([, n]) => n > 0).map(([r, n]) => `${r} ${n}`).join(", ") +
+    (rising ? " (dropping now)" : "");
+  const up = m.find((x) => x.name === "harrier_recorder_up");
+  const errors = m.filter((x) => x.name === "harrier_recorder_errors_total").reduce((a, x) => a + x.value, 0);
+  recordingPill.hidden = !(up && (up.value === 0 || errors > 0));
+  recordingPill.textContent = up && up.value === 0 ? "recording OFF" : `recording: ${errors} failed writes`;
+}
+
 async function poll() {
   pollTick += 1;
   if (stream.state !== "open") return; // the server is away: nothing to ask
@@ -476,6 +506,7 @@ async function poll() {
         .then((t) => {
           servicePanel.metrics = parseMetrics(t);
           servicePanel.metricsError = null;
+          showLosses(servicePanel.metrics);
         })
         .catch((e) => {
           servicePanel.metricsError = e instanceof ApiError ? e.describe() : String(e);

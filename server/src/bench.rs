@@ -5,6 +5,7 @@
 //! harrier bench --vehicles 10 --rate-hz 1 --ws-clients 500
 //! harrier bench --rest-connections 32 --rest-duration-s 10 --duration-s 10 --ws-clients 0
 //! harrier bench --url http://127.0.0.1:8080 --zenoh-connect tcp/127.0.0.1:7447 --server-pid 4242
+//! harrier bench --duration-s 30 --overload-factor 10 --overload-s 60 --recovery-s 30 --ws-clients 0
 //! ```
 //!
 //! By default the service runs in this process ([`crate::live::start`], API on a free loopback
@@ -23,7 +24,10 @@
 //! A run is a warm-up (publishing, not measured), then the measured steady state (rates,
 //! latency, resident memory at its start and end, REST load from its start), then the drain:
 //! the publishers stop and the tool waits until the server has processed or dropped every
-//! payload it received and every WebSocket client has the last scan. Progress goes to stderr
+//! payload it received and every WebSocket client has the last scan. With `--overload-s`, the
+//! steady state is followed by an overload (every vehicle at `--overload-factor` × its rate) and
+//! a nominal phase again, both sampled each second: drops by reason, tracker lag, resident
+//! memory, and when the service recovered (lag back under `--recovered-lag-ms`, no more drops). Progress goes to stderr
 //! every `--progress-s`; the summary to stdout, as a table or (`--json`) as JSON.
 
 mod publish;
@@ -118,6 +122,20 @@ pub struct BenchArgs {
     /// With `--url`: the server's process id, to measure its resident memory.
     #[arg(long, requires = "url")]
     pub server_pid: Option<u32>,
+    /// Overload after the steady state: every vehicle publishes at this factor × `--rate-hz`
+    /// for `--overload-s`, then at `--rate-hz` again for `--recovery-s` (1: no overload).
+    #[arg(long, default_value_t = 1.0)]
+    pub overload_factor: f64,
+    /// Length of the overload (s; 0: none).
+    #[arg(long, default_value_t = 0.0)]
+    pub overload_s: f64,
+    /// Length of the nominal phase after the overload, measured for recovery (s).
+    #[arg(long, default_value_t = 30.0)]
+    pub recovery_s: f64,
+    /// Recovered: from the first sample after the overload whose tracker lag is at most this
+    /// (ms), no more drops and no larger lag until the end.
+    #[arg(long, default_value_t = 250.0)]
+    pub recovered_lag_ms: f64,
 }
 
 impl BenchArgs {
@@ -163,6 +181,21 @@ impl BenchArgs {
         bad(
             self.rest_path.starts_with('/'),
             "--rest-path must start with /",
+        )?;
+        bad(
+            self.overload_factor.is_finite()
+                && self.overload_factor >= 1.0
+                && self.rate_hz * self.overload_factor <= 10_000.0,
+            "--overload-factor must be ≥ 1, and --rate-hz × --overload-factor ≤ 10000",
+        )?;
+        bad(
+            self.overload_s.is_finite()
+                && self.overload_s >= 0.0
+                && self.recovery_s.is_finite()
+                && self.recovery_s > 0.0
+                && self.recovered_lag_ms.is_finite()
+                && self.recovered_lag_ms > 0.0,
+            "--overload-s must be ≥ 0, --recovery-s and --recovered-lag-ms > 0",
         )?;
         if self.url.is_some() {
             bad(
@@ -232,6 +265,8 @@ pub struct Setup {
     pub warmup_s: f64,
     /// Measured steady state (s).
     pub duration_s: f64,
+    /// Lag (ms) below which the service counts as recovered after an overload.
+    pub recovered_lag_ms: f64,
 }
 
 /// What the vehicles published.
@@ -286,6 +321,45 @@ pub struct RssReport {
     pub growth_kib: Option<i64>,
 }
 
+/// One phase of an overload run, sampled about once a second.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseReport {
+    /// Scans per second asked of each vehicle.
+    pub rate_hz: f64,
+    /// Length (s).
+    pub seconds: f64,
+    /// Scans published in it (`put` accepted).
+    pub published: u64,
+    /// Scans processed per second.
+    pub scans_per_s: f64,
+    /// Drops in it, by reason (`harrier_scans_dropped_total`).
+    pub dropped: std::collections::BTreeMap<String, u64>,
+    /// Largest tracker lag at a sample (ms): wall time − time of the last processed scan.
+    pub max_lag_ms: f64,
+    /// Tracker lag at its last sample (ms).
+    pub end_lag_ms: f64,
+    /// Largest resident memory at a sample (KiB).
+    pub rss_max_kib: Option<u64>,
+}
+
+/// The overload: 10× (say) the nominal rate for a while, then the nominal rate again.
+#[derive(Debug, Clone, Serialize)]
+pub struct OverloadReport {
+    /// Rate factor of the overload.
+    pub factor: f64,
+    /// Resident memory at the end of the steady state, before the overload (KiB).
+    pub rss_before_kib: Option<u64>,
+    /// The overload phase.
+    pub overload: PhaseReport,
+    /// The nominal phase after it.
+    pub recovery: PhaseReport,
+    /// Seconds from the end of the overload to the first sample from which on the lag stays
+    /// ≤ `--recovered-lag-ms` and nothing is dropped (`None`: not within `--recovery-s`).
+    pub recovered_after_s: Option<f64>,
+    /// Drops from that sample to the end (0 when recovered).
+    pub dropped_after_recovery: u64,
+}
+
 /// Everything a run measured.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -306,6 +380,8 @@ pub struct Report {
     /// CPU over the steady state: the measured processes (this one, and the server's with
     /// `--server-pid`), the machine, everything else (unknown without `/proc`).
     pub cpu: Option<CpuUse>,
+    /// The overload and the recovery after it (`--overload-s`).
+    pub overload: Option<OverloadReport>,
 }
 
 /// Runs the load test and prints its figures.
@@ -538,6 +614,64 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
         c.stats().record(false);
     }
 
+    // The overload, then the nominal rate again.
+    let overload = if args.overload_s > 0.0 {
+        let sample = async || -> anyhow::Result<Sample> {
+            let c = counters().await?;
+            Ok(Sample {
+                at: Instant::now(),
+                lag_s: c.last_scan_t.map_or(0.0, |t| now_unix() - t),
+                rss_kib: rss_kib(target.rss_pid),
+                published: publishers.scans(),
+                counters: c,
+            })
+        };
+        let every = Duration::from_secs_f64(args.progress_s.min(1.0));
+        let mut phases: Vec<(f64, Vec<Sample>)> = Vec::new();
+        for (factor, seconds) in [
+            (args.overload_factor, args.overload_s),
+            (1.0, args.recovery_s),
+        ] {
+            publishers.set_rate_factor(factor);
+            // A phase starts where the one before ended, so that no drop falls between them.
+            let start = match phases.last() {
+                Some((_, samples)) => samples[samples.len() - 1].clone(),
+                None => sample().await?,
+            };
+            let end = start.at + Duration::from_secs_f64(seconds);
+            let mut samples = vec![start];
+            loop {
+                tokio::time::sleep_until((Instant::now() + every).min(end)).await;
+                let s = sample().await?;
+                let last = samples.last().map_or(&s, |l| l);
+                eprintln!(
+                    "[{:5.1} s at {factor}×] published {:.0} scans/s  processed {:.0} scans/s  \
+                     lag {:.1} ms  dropped {}{}",
+                    (s.at - samples[0].at).as_secs_f64(),
+                    s.published.saturating_sub(last.published) as f64
+                        / (s.at - last.at).as_secs_f64().max(1e-9),
+                    s.counters.ingested.saturating_sub(last.counters.ingested) as f64
+                        / (s.at - last.at).as_secs_f64().max(1e-9),
+                    s.lag_s * 1e3,
+                    s.counters.since(&base).dropped_total(),
+                    s.rss_kib.map_or(String::new(), |k| format!(
+                        "  rss {:.1} MiB",
+                        k as f64 / 1024.0
+                    )),
+                );
+                let done = s.at >= end;
+                samples.push(s);
+                if done {
+                    break;
+                }
+            }
+            phases.push((args.rate_hz * factor, samples));
+        }
+        Some(overload_report(args, rss_end, &phases))
+    } else {
+        None
+    };
+
     // The drain.
     let (published, failed) = publishers.stop().await;
     let publish_s = started.elapsed().as_secs_f64();
@@ -608,6 +742,7 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
             detections: args.detections,
             warmup_s: args.warmup_s,
             duration_s: args.duration_s,
+            recovered_lag_ms: args.recovered_lag_ms,
         },
         machine,
         publish: PublishReport {
@@ -639,7 +774,78 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
             },
         },
         cpu,
+        overload,
     })
+}
+
+/// One sample of an overload phase.
+#[derive(Debug, Clone)]
+struct Sample {
+    at: Instant,
+    lag_s: f64,
+    rss_kib: Option<u64>,
+    published: u64,
+    counters: Counters,
+}
+
+/// A phase's figures from its samples (the first at its start).
+fn phase_report(rate_hz: f64, samples: &[Sample]) -> PhaseReport {
+    let (first, last) = (&samples[0], &samples[samples.len() - 1]);
+    let seconds = (last.at - first.at).as_secs_f64();
+    let d = last.counters.since(&first.counters);
+    PhaseReport {
+        rate_hz,
+        seconds,
+        published: last.published.saturating_sub(first.published),
+        scans_per_s: d.ingested as f64 / seconds.max(1e-9),
+        dropped: d.dropped.into_iter().filter(|(_, n)| *n > 0).collect(),
+        max_lag_ms: samples.iter().map(|s| s.lag_s).fold(0.0, f64::max) * 1e3,
+        end_lag_ms: last.lag_s * 1e3,
+        rss_max_kib: samples.iter().filter_map(|s| s.rss_kib).max(),
+    }
+}
+
+/// The overload report from the samples of the overload and of the recovery phase.
+fn overload_report(
+    args: &BenchArgs,
+    rss_before: Option<u64>,
+    phases: &[(f64, Vec<Sample>)],
+) -> OverloadReport {
+    let (over, after) = (&phases[0], &phases[1]);
+    let samples = &after.1;
+    let ok = |k: usize| {
+        samples[k].lag_s * 1e3 <= args.recovered_lag_ms
+            && (k == 0
+                || samples[k]
+                    .counters
+                    .since(&samples[k - 1].counters)
+                    .dropped_total()
+                    == 0)
+    };
+    // The first sample from which on every sample is fine.
+    let mut from = samples.len();
+    while from > 0 && ok(from - 1) {
+        from -= 1;
+    }
+    let end = &samples[samples.len() - 1];
+    let (recovered_after_s, dropped_after_recovery) = match samples.get(from) {
+        Some(s) => (
+            Some((s.at - samples[0].at).as_secs_f64()),
+            end.counters.since(&s.counters).dropped_total(),
+        ),
+        None => (
+            None,
+            end.counters.since(&samples[0].counters).dropped_total(),
+        ),
+    };
+    OverloadReport {
+        factor: args.overload_factor,
+        rss_before_kib: rss_before,
+        overload: phase_report(over.0, &over.1),
+        recovery: phase_report(after.0, samples),
+        recovered_after_s,
+        dropped_after_recovery,
+    }
 }
 
 /// Formats a percentile set (ms).
@@ -752,6 +958,43 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
         ));
     }
     let mib = |k: Option<u64>| k.map_or("?".to_string(), |k| format!("{:.1}", k as f64 / 1024.0));
+    if let Some(o) = &r.overload {
+        let drops = |p: &PhaseReport| {
+            if p.dropped.is_empty() {
+                "none".to_string()
+            } else {
+                p.dropped
+                    .iter()
+                    .map(|(r, n)| format!("{r} {n}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            }
+        };
+        for (name, p) in [("overload", &o.overload), ("after", &o.recovery)] {
+            out.push(format!(
+                "{name:<12} {:.0} Hz per vehicle for {:.1} s: published {}, processed {:.0} scans/s; \
+                 dropped: {}; lag max {:.1} ms, at the end {:.1} ms; rss max {} MiB",
+                p.rate_hz,
+                p.seconds,
+                p.published,
+                p.scans_per_s,
+                drops(p),
+                p.max_lag_ms,
+                p.end_lag_ms,
+                mib(p.rss_max_kib)
+            ));
+        }
+        out.push(format!(
+            "recovery     {} ({} drops after); rss before the overload {} MiB",
+            o.recovered_after_s
+                .map_or("NOT recovered".to_string(), |s| format!(
+                    "lag ≤ {} ms and no drop from {s:.1} s after the overload on",
+                    r.setup.recovered_lag_ms
+                )),
+            o.dropped_after_recovery,
+            mib(o.rss_before_kib)
+        ));
+    }
     out.push(format!(
         "rss          {} → {} MiB, growth {} MiB ({})",
         mib(r.rss.start_kib),
@@ -807,6 +1050,76 @@ mod tests {
         }
         assert!(Cli::try_parse_from(["bench", "--url", "http://x:1"]).is_err());
         assert!(Cli::try_parse_from(["bench", "--vehicles", "0"]).is_err());
+    }
+
+    /// Overload: 2 vehicles × 10 Hz × 100 detections, then 50× that (1 000 scans/s of 100
+    /// detections: 100 000 detections/s, past what the GNN assignment of 100 tracks keeps up
+    /// with) for 3 s into a queue of 8, then 10 Hz again for 6 s (a reorder window of 0.3 s, so
+    /// that the two vehicles' scans wait for each other): the overload's drops are
+    /// counted by reason in `/metrics` (`queue_full`), memory stops growing, and the service
+    /// recovers within 4 s (lag back under 250 ms, no drop after).
+    #[test]
+    fn an_overload_drops_and_counts_then_recovers() {
+        let a = args(&[
+            "--vehicles",
+            "2",
+            "--rate-hz",
+            "10",
+            "--detections",
+            "100",
+            "--reorder-window-s",
+            "0.3",
+            "--duration-s",
+            "1",
+            "--warmup-s",
+            "1",
+            "--ws-clients",
+            "0",
+            "--queue",
+            "8",
+            "--overload-factor",
+            "50",
+            "--overload-s",
+            "3",
+            "--recovery-s",
+            "6",
+        ]);
+        let r = measure(&a).expect("bench run");
+        let o = r.overload.as_ref().expect("overload report");
+        eprintln!("{}", summary_lines(&r).join("\n"));
+        let queue_full = o.overload.dropped.get("queue_full").copied().unwrap_or(0);
+        assert!(queue_full > 0, "no queue_full drop in the overload: {o:?}");
+        assert!(
+            r.server.counters.dropped.get("queue_full").copied() >= Some(queue_full),
+            "{:?}",
+            r.server.counters
+        );
+        let rate = |p: &PhaseReport| p.published as f64 / p.seconds;
+        assert!(rate(&o.overload) > 5.0 * rate(&o.recovery), "{o:?}");
+        let after = o.recovered_after_s.expect("recovered");
+        assert!(after <= 4.0, "recovered {after} s after the overload");
+        assert_eq!(o.dropped_after_recovery, 0);
+        assert!(o.recovery.end_lag_ms <= 250.0, "{o:?}");
+        // Every drop is in the overload or in the backlog it left (Zenoh's buffers drain into
+        // the first second or two after it).
+        assert_eq!(
+            r.server.counters.dropped_total(),
+            o.overload.dropped.values().sum::<u64>() + o.recovery.dropped.values().sum::<u64>(),
+            "{:?}",
+            r.server.counters
+        );
+        // Bounded memory: the queues are bounded; what the overload grew (allocator, tracks,
+        // Zenoh buffers of the publishers in this process) stops growing after it.
+        let (before, max, after) = (
+            o.rss_before_kib.expect("rss"),
+            o.overload.rss_max_kib.expect("rss"),
+            o.recovery.rss_max_kib.expect("rss"),
+        );
+        assert!(max < before + 128 * 1024, "rss {before} → {max} KiB");
+        assert!(
+            after <= max + 16 * 1024,
+            "rss {max} → {after} KiB after the overload"
+        );
     }
 
     /// 2 vehicles × 20 Hz for 1 s, every part in: every published scan is processed, and every

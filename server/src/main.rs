@@ -173,7 +173,8 @@ struct ServeArgs {
     /// Track engine: ekf, cdkf, imm or cimm (`tracker.estimator`; default ekf).
     #[arg(long, short)]
     estimator: Option<String>,
-    /// Record the session into this SQLite file (`recorder.path`; see RECORDING.md).
+    /// Record the session into this SQLite file (`recorder.path`; see RECORDING.md). If it
+    /// cannot be opened (read-only, full), the service logs why and tracks without recording.
     #[arg(long, value_name = "FILE")]
     record: Option<PathBuf>,
     /// MAVLink GCS endpoint the vehicles send to, e.g. udpin:0.0.0.0:14550 (repeatable; replaces

@@ -1,7 +1,8 @@
 """The web dashboard in a real browser: headless Chromium (Debian's /usr/bin/chromium) driven by
 Playwright for Python, against a running `harrier demo` (HARRIER_URL, HARRIER_TOKEN). Run by
 tests/tests/dashboard.rs, which also restarts the server when this script asks for it (a line
-`HARRIER-RESTART` on stdout; the answer `restarted` on stdin).
+`HARRIER-RESTART` on stdout; the answer `restarted` on stdin) and makes it drop scans (a line
+`HARRIER-DROPS`; the answer `dropped N`).
 
 Assertions are on what the page says it drew (`window.harrier`, data attributes), cross-checked
 with the REST API; screenshots of the live page go to HARRIER_SCREENSHOTS (map.png, 3d.png,
@@ -385,6 +386,41 @@ def test_a_lost_link_shows_a_warning(session):
     )
     page.wait_for_selector("#alerts", state="hidden", timeout=5_000)
     assert page.get_attribute('#vehicles [data-vehicle="99"]', "data-link") == "connected"
+
+
+def dropped_scans():
+    """Scans the server dropped, every reason but sensor_filtered, per GET /api/v1/metrics."""
+    total = 0.0
+    for line in httpx.get(f"{URL}/api/v1/metrics", timeout=5).text.splitlines():
+        if line.startswith("harrier_scans_dropped_total{") and 'reason="sensor_filtered"' not in line:
+            total += float(line.rsplit(" ", 1)[1])
+    return int(total)
+
+
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to make the server drop scans")
+def test_dropped_scans_show_a_badge(session):
+    """The server drops scans (tests/tests/dashboard.rs publishes malformed payloads on vehicle
+    9's key when asked with a line `HARRIER-DROPS`): the top bar's badge shows the count
+    /metrics has, in red while it grows, with the reason."""
+    page, console = session
+    before = dropped_scans()
+    print("\nHARRIER-DROPS", flush=True)
+    answer = sys.__stdin__.readline().strip()
+    assert answer.startswith("dropped "), f"drop control said {answer!r}"
+    n = int(answer.split()[1])
+    after = dropped_scans()
+    assert after >= before + n, f"/metrics: {before} then {after} after {n} bad payloads"
+    page.wait_for_function(
+        "n => Number(document.getElementById('drops').dataset.dropped) >= n", arg=after, timeout=10_000
+    )
+    text = page.inner_text("#drops")
+    title = page.get_attribute("#drops", "title")
+    shown = int(page.get_attribute("#drops", "data-dropped"))
+    print(f"drops: {n} bad payloads; /metrics {before} -> {after}; badge {text!r} ({title!r})", flush=True)
+    assert page.is_visible("#drops")
+    assert text == f"dropped {shown} scans" and shown >= after, text
+    assert "json" in title, title
+    page.screenshot(path=str(SHOTS / "drops.png"))
 
 
 @pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to restart the server")

@@ -177,3 +177,21 @@ pub fn free_tcp_port() -> u16 {
         .expect("free port")
         .port()
 }
+
+/// `target/<profile>/<name>`, a binary of the workspace beside the running test executable's
+/// `deps/` directory: `cargo test --workspace` builds them; run alone, build it first (`cargo
+/// build -p harrier-server` for `harrier`, `-p harrier-sim` for `harrier-sim`).
+pub fn target_bin(name: &str) -> PathBuf {
+    let exe = std::env::current_exe().expect("test executable");
+    let bin = exe
+        .parent()
+        .and_then(Path::parent)
+        .map(|d| d.join(name))
+        .expect("target directory");
+    assert!(
+        bin.is_file(),
+        "{} not found: build it with `cargo build` (cargo test --workspace does)",
+        bin.display()
+    );
+    bin
+}

@@ -20,6 +20,9 @@
 //! - the map draws the demo's road and the no-fly disc it was started with (`GET /api/v1/world`);
 //! - a vehicle whose link is lost (messages fed to the page as the stream would send them: the
 //!   demo cannot silence a UAV) gets a LINK LOST card, a banner and a toast, gone when it recovers;
+//! - malformed payloads published on vehicle 9's key (when the script asks with a line
+//!   `HARRIER-DROPS`, answered `dropped N`) are dropped and counted; the top bar's badge shows
+//!   the count `/metrics` has, with the reason (screenshot `drops.png`);
 //! - the server is stopped and a new one started on the same port: the page reconnects by itself
 //!   and draws again, without a reload. The script asks for the restart with a line
 //!   `HARRIER-RESTART` on its stdout and waits for `restarted` on its stdin;
@@ -153,6 +156,34 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
                 output.push_str(&line);
                 output.push('\n');
                 // pytest's progress dots may precede it on the line.
+                if line.trim_end().ends_with("HARRIER-DROPS") {
+                    // Malformed payloads on vehicle 9's key, from the server's own Zenoh
+                    // session: each is dropped and counted (`json`).
+                    let n: u64 = 30;
+                    runtime.block_on(async {
+                        let session = demo.as_ref().expect("demo").server().session();
+                        let key = harrier_core::detection::detections_key(9);
+                        for i in 0..n {
+                            session
+                                .put(&key, format!("{{not a scan {i}"))
+                                .await
+                                .expect("put a malformed payload");
+                        }
+                        let m = demo.as_ref().expect("demo").server().metrics();
+                        let dropped = || m.vehicle_counters("9").dropped.values().sum::<u64>();
+                        let from = Instant::now();
+                        while dropped() < n {
+                            assert!(
+                                from.elapsed() < Duration::from_secs(10),
+                                "{} of {n} bad payloads counted",
+                                dropped()
+                            );
+                            tokio::time::sleep(Duration::from_millis(20)).await;
+                        }
+                    });
+                    writeln!(stdin, "dropped {n}").expect("answer the script");
+                    stdin.flush().expect("flush");
+                }
                 if line.trim_end().ends_with("HARRIER-RESTART") {
                     let t = Instant::now();
                     runtime.block_on(async {
@@ -196,7 +227,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     );
     assert_eq!(restarts, 1, "the script asked for one restart");
     assert!(
-        output.contains("7 passed"),
+        output.contains("8 passed"),
         "every test ran (none skipped):\n{output}"
     );
     for name in ["dashboard.png", "map.png", "3d.png"] {

@@ -830,3 +830,311 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
         radars.rmse()
     );
 }
+
+/// A `harrier-sim` process, killed (SIGKILL) and reaped when dropped.
+struct SimProcess(std::process::Child);
+
+impl SimProcess {
+    /// `harrier-sim` as vehicle `id` in the `cimm-road` world at real time: its camera sees the
+    /// road target 10 times a second (published on Zenoh to `zenoh`), telemetry to `gcs`.
+    fn start(id: u8, gcs: SocketAddr, zenoh: &str) -> Self {
+        let bin = harrier_tests::target_bin("harrier-sim");
+        let child = std::process::Command::new(&bin)
+            .args(["--id", &id.to_string(), "--scenario", "cimm-road"])
+            .args(["--detection-hz", "10", "--seed", "3"])
+            .args([
+                "--gcs",
+                &format!("udpout:{gcs}"),
+                "--api",
+                "udpin:127.0.0.1:0",
+            ])
+            .args(["--zenoh-connect", zenoh])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("start {}: {e}", bin.display()));
+        Self(child)
+    }
+
+    fn kill(&mut self) {
+        self.0.kill().expect("SIGKILL harrier-sim");
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Publishes `position` scans of a target standing at `at` (server frame, m) from vehicle
+/// `vehicle`'s key, ten times a second, stamped with the wall time, until aborted.
+async fn publish_standing_target(
+    session: &zenoh::Session,
+    vehicle: u8,
+    at: [f64; 2],
+) -> tokio::task::JoinHandle<()> {
+    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose};
+    let key = harrier_core::detection::detections_key(vehicle);
+    let publisher = within(10, "declare a publisher", session.declare_publisher(key))
+        .await
+        .expect("publisher");
+    let origin = live::config::DEFAULT_ORIGIN;
+    tokio::spawn(async move {
+        let frame = harrier_link::geo::LocalFrame::new(origin);
+        let pos = nalgebra::Vector3::new(at[0], at[1] - 200.0, 100.0);
+        let mut tick = tokio::time::interval(Duration::from_millis(100));
+        for seq in 0u64.. {
+            tick.tick().await;
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64());
+            let scan = DetectionScan {
+                schema: DETECTIONS_SCHEMA.into(),
+                t: seq as f64 * 0.1,
+                time_unix: Some(now),
+                vehicle,
+                seq,
+                sensor: "cam".into(),
+                kind: harrier_core::scenario::MeasKind::Position,
+                origin,
+                platform: PlatformPose {
+                    pos: pos.into(),
+                    vel: [0.0; 3],
+                    attitude: [0.0; 3],
+                    geodetic: frame.from_enu(&pos),
+                },
+                noise_std: vec![2.0, 2.0],
+                detections: vec![Detection {
+                    z: vec![at[0] + (seq % 3) as f64, at[1] - (seq % 5) as f64 * 0.5],
+                }],
+            };
+            if publisher.put(scan.to_json()).await.is_err() {
+                return;
+            }
+        }
+    })
+}
+
+/// The confirmed track of `/api/v1/tracks` nearest `p` within `gate` m: its JSON.
+fn track_near(tracks: &Value, p: [f64; 2], gate: f64) -> Option<Value> {
+    let xy = |k: &Value| {
+        [
+            k["state"][0].as_f64().unwrap_or(f64::NAN),
+            k["state"][1].as_f64().unwrap_or(f64::NAN),
+        ]
+    };
+    tracks["tracks"]
+        .as_array()?
+        .iter()
+        .filter(|k| k["status"] == "confirmed" && dist(xy(k), p) <= gate)
+        .min_by(|a, b| dist(xy(a), p).total_cmp(&dist(xy(b), p)))
+        .cloned()
+}
+
+/// The road target's position now (`/api/v1/truth`, published by the harrier-sim process).
+async fn road_target(addr: SocketAddr) -> Option<[f64; 2]> {
+    let (_, truth) = get_json(addr, "/api/v1/truth").await;
+    let p = &truth["targets"].as_array()?.first()?["position"];
+    Some([p[0].as_f64()?, p[1].as_f64()?])
+}
+
+/// The MAVLink link state (`connected`, `lost`) of vehicle `id` in `/api/v1/vehicles`.
+async fn link_state(addr: SocketAddr, id: u8) -> Option<String> {
+    let (_, v) = get_json(addr, "/api/v1/vehicles").await;
+    v["vehicles"].as_array()?.iter().find(|v| v["id"] == id)?["link"]["state"]
+        .as_str()
+        .map(str::to_owned)
+}
+
+/// Polls until a confirmed track lies within 30 m of the road target; returns its id.
+async fn road_track(addr: SocketAddr) -> u64 {
+    within(60, "a confirmed track on the road target", async {
+        loop {
+            if let Some(p) = road_target(addr).await {
+                let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
+                if let Some(k) = track_near(&tracks, p, 30.0) {
+                    return k["id"].as_u64().expect("id");
+                }
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    })
+    .await
+}
+
+/// Fault: a vehicle falls silent. A real `harrier-sim` process (vehicle 7: MAVLink to the
+/// server's GCS link, its camera's detections of the `cimm-road` target over Zenoh at 10 Hz) is
+/// the only one to see the road target; this test publishes vehicle 8's detections of a second,
+/// standing target at 10 Hz (its scans keep the tracker stepping, as other vehicles' would).
+/// Vehicle 7 is killed with SIGKILL, then, timed against the kill instant from REST
+/// (`/api/v1/tracks`, `/api/v1/vehicles`) and `/metrics`: its track coasts (`updated` false,
+/// kept for 1.5 s and more without a detection), is deleted by the tracker's policy (`misses` = 20
+/// consecutive scans without a detection: ≈ 2 s of vehicle 8's scans), the link marks vehicle 7
+/// `lost` 3 ± 0.5 s after the kill, vehicle 8's track stays confirmed and updated throughout, and
+/// no payload of vehicle 7 arrives any more. Restarted, vehicle 7 is `connected` again and a
+/// confirmed track sits on the road target again.
+#[test]
+fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() {
+    const MISSES: f64 = 20.0;
+    const STANDING: [f64; 2] = [-400.0, -300.0];
+    runtime().block_on(within(240, "the silent-vehicle test", async {
+        let zenoh_port = free_tcp_port();
+        let zenoh = format!("tcp/127.0.0.1:{zenoh_port}");
+        let mut config = Config::default();
+        config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        config.zenoh.listen = vec![zenoh.clone()];
+        config.zenoh.tracks_key = String::new();
+        config.mavlink = live::config::MavlinkConfig::ephemeral();
+        config.tracker.params.insert("misses".into(), MISSES);
+        let server = within(20, "start the server", live::start(&config))
+            .await
+            .expect("start the server");
+        let addr = server.local_addr();
+        let gcs = server
+            .link()
+            .and_then(|l| l.gcs().next().map(|e| e.addr()))
+            .expect("a GCS endpoint");
+        let session = open_session(vec![zenoh.clone()]).await;
+        let publisher = publish_standing_target(&session, 8, STANDING).await;
+        let mut sim = SimProcess::start(7, gcs, &zenoh);
+
+        let road = road_track(addr).await;
+        let standing = within(30, "a confirmed track on vehicle 8's target", async {
+            loop {
+                let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
+                if let Some(k) = track_near(&tracks, STANDING, 20.0) {
+                    return k["id"].as_u64().expect("id");
+                }
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+        })
+        .await;
+        assert_eq!(link_state(addr, 7).await.as_deref(), Some("connected"));
+
+        sim.kill();
+        let killed = Instant::now();
+        let (_, m0) = get(addr, "/api/v1/metrics").await;
+        let received = |m: &str| metric(m, "harrier_payloads_received_total{vehicle=\"7\"}");
+        let (mut coasting, mut deleted, mut lost) = (None, None, None);
+        let mut standing_misses = 0;
+        let mut coasted_s: f64 = 0.0;
+        while lost.is_none() || deleted.is_none() {
+            assert!(
+                killed.elapsed() < Duration::from_secs(20),
+                "after 20 s: coasting {coasting:?}, deleted {deleted:?}, lost {lost:?}"
+            );
+            let (_, tracks) = get_json(addr, "/api/v1/tracks?all=true").await;
+            let list = tracks["tracks"].as_array().expect("tracks");
+            let at = killed.elapsed().as_secs_f64();
+            match list.iter().find(|k| k["id"] == road) {
+                Some(k) => {
+                    assert!(
+                        deleted.is_none() && k["status"] == "confirmed",
+                        "the road track came back or changed: {k}"
+                    );
+                    // Coasting: no detection for 0.5 s (5 of vehicle 8's scans), still kept.
+                    let since = k["t"].as_f64().unwrap_or(0.0)
+                        - k["last_update"].as_f64().unwrap_or(f64::INFINITY);
+                    if k["updated"] == false && since >= 0.5 {
+                        coasting.get_or_insert(at);
+                        coasted_s = coasted_s.max(since);
+                    }
+                }
+                None if deleted.is_none() => deleted = Some(at),
+                None => {}
+            }
+            match list.iter().find(|k| k["id"] == standing) {
+                Some(k) if k["status"] == "confirmed" => {
+                    // Once vehicle 7's last scans are through (reorder window 0.1 s), every
+                    // scan is vehicle 8's and updates its track.
+                    if k["updated"] == false && at > 0.5 {
+                        standing_misses += 1;
+                    }
+                }
+                k => panic!("vehicle 8's track {standing} is gone or unconfirmed: {k:?}"),
+            }
+            if lost.is_none() && link_state(addr, 7).await.as_deref() == Some("lost") {
+                lost = Some(killed.elapsed().as_secs_f64());
+            }
+            tokio::time::sleep(Duration::from_millis(50)).await;
+        }
+        let (coasting, deleted, lost) = (
+            coasting.expect("seen coasting before its deletion"),
+            deleted.expect("deleted"),
+            lost.expect("lost"),
+        );
+        eprintln!(
+            "vehicle 7 SIGKILLed: its track coasting (0.5 s without a detection) at \
+             {coasting:.2} s, seen coasting up to {coasted_s:.2} s, deleted at {deleted:.2} s \
+             ({MISSES} misses), link lost at {lost:.2} s; vehicle 8's track updated throughout"
+        );
+        assert!(
+            coasting < deleted,
+            "coasts ({coasting}) before deletion ({deleted})"
+        );
+        assert!(
+            coasted_s >= 1.5,
+            "coasted at most {coasted_s:.2} s before its deletion"
+        );
+        // 20 scans of vehicle 8 at 10 Hz, plus polling and the reorder window.
+        assert!(
+            (1.5..=3.5).contains(&deleted),
+            "deleted {deleted:.2} s after the kill"
+        );
+        assert!(
+            (2.5..=3.5).contains(&lost),
+            "lost {lost:.2} s after the kill"
+        );
+        assert_eq!(standing_misses, 0, "vehicle 8's track coasted after 0.5 s");
+        let (_, m1) = get(addr, "/api/v1/metrics").await;
+        assert!(
+            received(&m1) - received(&m0) <= 2.0,
+            "payloads of the dead vehicle 7: {} then {}",
+            received(&m0),
+            received(&m1)
+        );
+        assert_eq!(
+            metric(&m1, "harrier_tracks{status=\"confirmed\"}"),
+            1.0,
+            "{m1}"
+        );
+        let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
+        assert!(track_near(&tracks, STANDING, 20.0).is_some(), "{tracks}");
+
+        // Back: the link and the tracking recover.
+        let restarted = Instant::now();
+        let mut sim = SimProcess::start(7, gcs, &zenoh);
+        within(30, "vehicle 7 connected again", async {
+            while link_state(addr, 7).await.as_deref() != Some("connected") {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await;
+        let link_back = restarted.elapsed().as_secs_f64();
+        let again = road_track(addr).await;
+        let track_back = restarted.elapsed().as_secs_f64();
+        assert_ne!(again, road, "a deleted track does not come back: a new one");
+        let (_, m2) = get(addr, "/api/v1/metrics").await;
+        assert!(
+            received(&m2) > received(&m1),
+            "vehicle 7's payloads arrive again"
+        );
+        assert_eq!(
+            metric(&m2, "harrier_tracks{status=\"confirmed\"}"),
+            2.0,
+            "{m2}"
+        );
+        eprintln!(
+            "vehicle 7 restarted: link connected after {link_back:.2} s, a confirmed track on the \
+             road target after {track_back:.2} s"
+        );
+        sim.kill();
+        publisher.abort();
+        let _ = session.close().await;
+        server.shutdown().await;
+    }));
+}

@@ -75,6 +75,8 @@ pub enum Phase {
 #[derive(Debug)]
 pub(super) struct Publishers {
     scans: Arc<AtomicU64>,
+    /// The rate factor every vehicle publishes at (`f64` bits; 1: `rate_hz`).
+    factor: Arc<AtomicU64>,
     failed: Arc<AtomicU64>,
     stop: watch::Sender<bool>,
     tasks: Vec<JoinHandle<()>>,
@@ -164,6 +166,7 @@ impl Publishers {
         }
         let noise = rand_distr::Normal::new(0.0, NOISE_M).context("detection noise")?;
         let scans = Arc::new(AtomicU64::new(0));
+        let factor = Arc::new(AtomicU64::new(1.0_f64.to_bits()));
         let failed = Arc::new(AtomicU64::new(0));
         let (stop, stop_rx) = watch::channel(false);
         let period = Duration::from_secs_f64(1.0 / plan.rate_hz);
@@ -182,6 +185,7 @@ impl Publishers {
                     epoch,
                     scans: Arc::clone(&scans),
                     failed: Arc::clone(&failed),
+                    factor: Arc::clone(&factor),
                 };
                 let fraction = match plan.phase {
                     Phase::Spread => k as f64 / n,
@@ -194,6 +198,7 @@ impl Publishers {
             .collect();
         Ok(Self {
             scans,
+            factor,
             failed,
             stop,
             tasks,
@@ -204,6 +209,11 @@ impl Publishers {
     /// Scans published so far.
     pub(super) fn scans(&self) -> u64 {
         self.scans.load(Relaxed)
+    }
+
+    /// From now on every vehicle publishes at `factor` × the plan's rate (overload phases).
+    pub(super) fn set_rate_factor(&self, factor: f64) {
+        self.factor.store(factor.to_bits(), Relaxed);
     }
 
     /// Stops every vehicle, waits for them and closes the session: scans and failed puts.
@@ -229,6 +239,7 @@ struct Vehicle {
     epoch: f64,
     scans: Arc<AtomicU64>,
     failed: Arc<AtomicU64>,
+    factor: Arc<AtomicU64>,
 }
 
 impl Vehicle {
@@ -257,11 +268,19 @@ impl Vehicle {
         period: Duration,
         mut stop: watch::Receiver<bool>,
     ) {
-        let mut ticks = tokio::time::interval_at(first, period);
+        let mut next = first;
         loop {
             tokio::select! {
-                _ = ticks.tick() => {}
+                () = tokio::time::sleep_until(next) => {}
                 _ = async { stop.wait_for(|s| *s).await.is_ok() } => break,
+            }
+            // The period of the current rate; a vehicle more than a period behind (it cannot
+            // publish that fast) skips the missed instants rather than bursting later.
+            let p = period.div_f64(f64::from_bits(self.factor.load(Relaxed)));
+            next += p;
+            let now = tokio::time::Instant::now();
+            if next + p < now {
+                next = now;
             }
             match publisher.put(self.next()).await {
                 Ok(()) => self.scans.fetch_add(1, Relaxed),

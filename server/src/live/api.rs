@@ -69,6 +69,8 @@ pub struct ApiState {
     pub stop: watch::Receiver<bool>,
     /// The session recorder (records the API actions; its file serves `/sessions`).
     pub recorder: Option<Recorder>,
+    /// Why there is no recorder although `recorder.path` is set.
+    pub recording_error: Option<Arc<str>>,
     /// The MAVLink GCS link, when configured.
     pub link: Option<super::gcs::GcsLink>,
     /// The guidance loop, when the link runs.
@@ -761,6 +763,10 @@ pub struct HealthBody {
     last_scan_t: Option<f64>,
     /// Scans processed.
     scans_ingested: u64,
+    /// Why the service runs without a recording although `recorder.path` is set (the file
+    /// could not be opened: read-only, full, not a session file); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    recording_error: Option<String>,
 }
 
 /// Health.
@@ -777,6 +783,7 @@ async fn health(State(s): State<ApiState>) -> Json<HealthBody> {
         estimator: s.snapshot.borrow().estimator.name.clone(),
         last_scan_t: s.metrics.last_scan_t(),
         scans_ingested: s.metrics.scans_ingested(),
+        recording_error: s.recording_error.as_deref().map(str::to_owned),
     })
 }
 
@@ -791,6 +798,16 @@ async fn metrics(State(s): State<ApiState>) -> Response {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
     if let Some(r) = &s.recorder {
         render_recorder(&mut text, &r.stats());
+    }
+    if s.recorder.is_some() || s.recording_error.is_some() {
+        use std::fmt::Write as _;
+        let _ = writeln!(
+            text,
+            "# HELP harrier_recorder_up 1: recording; 0: recorder.path is set but the file could \
+             not be opened (see /api/v1/health).\n# TYPE harrier_recorder_up gauge\n\
+             harrier_recorder_up {}",
+            u8::from(s.recorder.is_some())
+        );
     }
     if let Some(l) = &s.link {
         l.render_metrics(&mut text);

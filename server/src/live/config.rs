@@ -286,7 +286,8 @@ impl TokenConfig {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RecorderConfig {
-    /// SQLite file (created if missing; one file holds many sessions); empty: no recording.
+    /// SQLite file (created if missing; one file holds many sessions); empty: no recording. If
+    /// it cannot be opened the service runs without a recording (RECORDING.md).
     pub path: String,
     /// Longest time (ms) between two commits: what a crash can lose.
     pub flush_ms: u64,

@@ -82,9 +82,6 @@ pub enum LiveError {
     /// The Zenoh session or subscriber cannot be opened.
     #[error("zenoh: {0}")]
     Zenoh(String),
-    /// The recording file cannot be opened.
-    #[error("recorder: {0}")]
-    Recorder(#[from] recorder::RecorderError),
     /// The MAVLink link cannot start.
     #[error(transparent)]
     Gcs(#[from] gcs::GcsError),
@@ -141,6 +138,7 @@ pub struct LiveServer {
     subscribers: Vec<zenoh::pubsub::Subscriber<()>>,
     session: zenoh::Session,
     recorder: Option<Recorder>,
+    recording_error: Option<Arc<str>>,
     link: Option<gcs::GcsLink>,
     guidance: Option<guidance::Guidance>,
     control: Vec<JoinHandle<()>>,
@@ -178,6 +176,11 @@ impl LiveServer {
     /// The session recorder, when `recorder.path` is set.
     pub fn recorder(&self) -> Option<&Recorder> {
         self.recorder.as_ref()
+    }
+    /// Why the service runs without a recording although `recorder.path` is set (the file or
+    /// its directory could not be opened: read-only, full, not a session file).
+    pub fn recording_error(&self) -> Option<&str> {
+        self.recording_error.as_deref()
     }
     /// The Zenoh session of the service (for an in-process peer, e.g. `harrier demo`).
     pub fn session(&self) -> &zenoh::Session {
@@ -244,6 +247,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         source,
     })?;
 
+    let mut recording_error = None;
     let recorder = match config.recorder.path.as_str() {
         "" => None,
         path => {
@@ -254,14 +258,24 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
                 estimator: estimator.name.clone(),
                 config_json: serde_json::to_string(config).unwrap_or_default(),
             };
-            let r = Recorder::open(
+            match Recorder::open(
                 std::path::Path::new(path),
                 &meta,
                 std::time::Duration::from_millis(config.recorder.flush_ms),
                 config.recorder.queue,
-            )?;
-            tracing::info!(path, session = r.session_id(), "recording");
-            Some(r)
+            ) {
+                Ok(r) => {
+                    tracing::info!(path, session = r.session_id(), "recording");
+                    Some(r)
+                }
+                // A read-only, full or unusable recording place must not stop live tracking:
+                // the service runs without a recording and says so (log, `/health`, `/metrics`).
+                Err(e) => {
+                    tracing::error!("recording is OFF, live tracking goes on without it: {e}");
+                    recording_error = Some(Arc::from(e.to_string()));
+                    None
+                }
+            }
         }
     };
 
@@ -440,6 +454,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             started,
             stop: stop_rx.clone(),
             recorder: recorder.clone(),
+            recording_error: recording_error.clone(),
             link: link.clone(),
             guidance: guidance.clone(),
             truth: truth_rx,
@@ -487,6 +502,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         subscribers,
         session,
         recorder,
+        recording_error,
         link,
         guidance,
         control,
