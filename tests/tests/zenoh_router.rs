@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
-use harrier_tests::free_tcp_port;
+use harrier_tests::{free_tcp_port, target_bin};
 use serde_json::Value;
 use zenoh::Wait as _;
 
@@ -70,23 +70,6 @@ fn zenohd_bin() -> PathBuf {
         "{} not found: install the router with `cargo install zenohd --version =1.10.2 --locked \
          --no-default-features --features \"zenoh/transport_tcp zenoh/transport_tls\" --root \
          ~/.cache/harrier/zenohd` (.ci/run does), or set HARRIER_ZENOHD",
-        bin.display()
-    );
-    bin
-}
-
-/// `target/<profile>/<name>`, beside this test executable's `deps/` directory.
-fn target_bin(name: &str) -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable");
-    let bin = exe
-        .parent()
-        .and_then(Path::parent)
-        .map(|d| d.join(name))
-        .expect("target directory");
-    assert!(
-        bin.is_file(),
-        "{} not found: build it with `cargo build -p harrier-server -p harrier-sim` (cargo test \
-         --workspace does)",
         bin.display()
     );
     bin
