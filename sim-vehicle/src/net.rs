@@ -821,6 +821,26 @@ mod tests {
         assert_eq!(sim.vehicle().counters().malformed, 2);
     }
 
+    /// Vehicle 1 on a loopback `udpin` link signing with key 1 in `mode`, and a UDP client
+    /// connected to it (100 ms read timeout).
+    fn signed_vehicle(mode: SigningMode) -> (SimHandle, UdpSocket) {
+        let sim = spawn(
+            VehicleConfig::new(1),
+            &LinkConfig {
+                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
+                signing: Some(signing(1, mode)),
+            },
+        )
+        .expect("spawn");
+        let addr = sim.local_addrs()[0].expect("bound");
+        let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
+        client
+            .set_read_timeout(Some(Duration::from_millis(100)))
+            .expect("timeout");
+        client.connect(addr).expect("connect");
+        (sim, client)
+    }
+
     fn signing(key: u8, mode: SigningMode) -> Signing {
         Signing {
             key: SigningKey::new([key; 32]),
@@ -844,20 +864,7 @@ mod tests {
     #[test]
     fn signed_only_vehicle_refuses_unsigned_forged_and_replayed_frames() {
         const N: u64 = 20;
-        let sim = spawn(
-            VehicleConfig::new(1),
-            &LinkConfig {
-                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
-                signing: Some(signing(1, SigningMode::SignedOnly)),
-            },
-        )
-        .expect("spawn");
-        let addr = sim.local_addrs()[0].expect("bound");
-        let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
-        client
-            .set_read_timeout(Some(Duration::from_millis(100)))
-            .expect("timeout");
-        client.connect(addr).expect("connect");
+        let (sim, client) = signed_vehicle(SigningMode::SignedOnly);
         let gcs = signing(1, SigningMode::SignedOnly)
             .signer()
             .expect("signer");
@@ -935,20 +942,7 @@ mod tests {
 
     #[test]
     fn sign_mode_vehicle_accepts_unsigned_commands_and_signs_its_replies() {
-        let sim = spawn(
-            VehicleConfig::new(1),
-            &LinkConfig {
-                endpoints: vec!["udpin:127.0.0.1:0".to_owned()],
-                signing: Some(signing(1, SigningMode::Sign)),
-            },
-        )
-        .expect("spawn");
-        let addr = sim.local_addrs()[0].expect("bound");
-        let client = UdpSocket::bind("127.0.0.1:0").expect("bind");
-        client
-            .set_read_timeout(Some(Duration::from_millis(100)))
-            .expect("timeout");
-        client.connect(addr).expect("connect");
+        let (sim, client) = signed_vehicle(SigningMode::Sign);
         let intruder = signing(2, SigningMode::Sign).signer().expect("signer");
         let arm = command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0);
         let forged = intruder

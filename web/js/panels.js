@@ -259,16 +259,9 @@ export class SeriesPanel {
 
   update() {
     const s = this.store;
-    const c = this.canvas;
-    const dpr = window.devicePixelRatio || 1;
-    const w = c.clientWidth;
-    const h = c.clientHeight;
-    if (!w || !h) return;
-    if (c.width !== Math.round(w * dpr)) c.width = Math.round(w * dpr);
-    if (c.height !== Math.round(h * dpr)) c.height = Math.round(h * dpr);
-    const ctx = c.getContext("2d");
-    ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
-    ctx.clearRect(0, 0, w, h);
+    const plot = clearedCanvas(this.canvas);
+    if (!plot) return;
+    const { ctx, w, h } = plot;
     const truth = s.truth.size > 0;
     setText(this.title, truth ? "Position error vs time" : "95 % ellipse semi-major axis vs time");
     setText(
@@ -332,16 +325,27 @@ export class SeriesPanel {
 const STANDOFF_SPAN_S = 120;
 
 /** Lines [{color, label, points: [[t, v]]}] over the last `span` s to `now`, y symmetric around 0. */
-function plotLines(c, lines, now, unit, span = STANDOFF_SPAN_S) {
+/**
+ * The 2-D context of canvas `c`, its backing store sized to its CSS size × the device pixel
+ * ratio, scaled to CSS pixels and cleared; null while it has no size (hidden).
+ */
+function clearedCanvas(c) {
   const dpr = window.devicePixelRatio || 1;
   const w = c.clientWidth;
   const h = c.clientHeight;
-  if (!w || !h) return;
+  if (!w || !h) return null;
   if (c.width !== Math.round(w * dpr)) c.width = Math.round(w * dpr);
   if (c.height !== Math.round(h * dpr)) c.height = Math.round(h * dpr);
   const ctx = c.getContext("2d");
   ctx.setTransform(dpr, 0, 0, dpr, 0, 0);
   ctx.clearRect(0, 0, w, h);
+  return { ctx, w, h };
+}
+
+function plotLines(c, lines, now, unit, span = STANDOFF_SPAN_S) {
+  const plot = clearedCanvas(c);
+  if (!plot) return;
+  const { ctx, w, h } = plot;
   const t0 = now - span;
   let ymax = 1;
   for (const l of lines) for (const [t, v] of l.points) if (t >= t0) ymax = Math.max(ymax, Math.abs(v));
