@@ -459,6 +459,16 @@ fn a_formation_holds_its_ranges_around_a_car() {
             assert!(started.elapsed() < Duration::from_secs(60), "no track");
             tokio::time::sleep(Duration::from_millis(200)).await;
         };
+        // The tracks come over Zenoh, the vehicles over MAVLink: wait for the first HEARTBEAT of
+        // each before assigning them.
+        within(60, "the three vehicles' first HEARTBEAT", async {
+            for id in 1..=3 {
+                while link_state(addr, id).await.as_deref() != Some("connected") {
+                    tokio::time::sleep(Duration::from_millis(100)).await;
+                }
+            }
+        })
+        .await;
         let body = serde_json::json!({
             "vehicles": [1, 2, 3], "track": track, "law": "formation",
             "radius_m": R, "height_m": 60.0,
