@@ -1,15 +1,16 @@
 """The web dashboard in a real browser: headless Chromium (Debian's /usr/bin/chromium) driven by
 Playwright for Python, against a running `harrier demo` (HARRIER_URL, HARRIER_TOKEN). Run by
-tests/tests/dashboard.rs, which also restarts the server when this script asks for it (a line
-`HARRIER-RESTART` on stdout; the answer `restarted` on stdin) and makes it drop scans (a line
-`HARRIER-DROPS`; the answer `dropped N`).
+tests/tests/dashboard.rs, which also acts when this script asks it with a line on stdout and
+answers on stdin (`ask`): restarts the server (`HARRIER-RESTART`, answered `restarted`), makes it
+drop scans (`HARRIER-DROPS`, answered `dropped N`), starts or SIGKILLs a real vehicle 4
+(`HARRIER-VEHICLE-START`, answered `connected 4`; `HARRIER-VEHICLE-KILL`, answered `killed 4`).
 
 Assertions are on what the page says it drew (`window.harrier`, data attributes), cross-checked
 with the REST API; screenshots of the live page go to HARRIER_SCREENSHOTS (map.png, 3d.png,
 dashboard.png).
 
     HARRIER_URL=http://127.0.0.1:8080 HARRIER_TOKEN=... python3 -m pytest -s tests/python/test_dashboard.py
-    (without tests/tests/dashboard.rs, the restart test is skipped)
+    (without tests/tests/dashboard.rs, the tests that need it are skipped)
 """
 
 import os
@@ -352,40 +353,45 @@ def test_assign_from_the_page_then_end_it(session):
     assert unexpected == [], "console errors:\n" + "\n".join(unexpected)
 
 
-LOST = """() => {
-  // A UAV 99 that the link marks lost, as the stream's `vehicles` and `vehicle_event` messages
-  // would say it (the demo cannot silence one of its UAVs on demand).
-  const link = {id: 99, state: "lost", address: "udp:127.0.0.1:9", mode: "OFFBOARD", armed: true,
-    position: [100, 100, 120], velocity: [0, 0, 0], heading_deg: 0, rate_hz: 0, loss_pct: 0,
-    received: 10, lost_frames: 0, last_seen_s: 4.2, reconnects: 0};
-  window.harrier.inject({type: "vehicle_event", event: {vehicle: 99, event: "lost", mode: "OFFBOARD", time_unix: Date.now() / 1000}});
-  window.harrier.inject({type: "vehicles", vehicles: [{id: 99, link, detections: null}]});
-}"""
+def ask(line, answer):
+    """Asks tests/tests/dashboard.rs to act (a line on stdout) and returns its answer, which must
+    start with `answer`."""
+    print(f"\n{line}", flush=True)
+    said = sys.__stdin__.readline().strip()
+    assert said.startswith(answer), f"{line}: the test said {said!r}"
+    return said
 
 
-def test_a_lost_link_shows_a_warning(session):
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to start and kill a vehicle")
+def test_a_lost_link_shows_a_warning_until_the_vehicle_speaks_again(session):
+    """A real vehicle (harrier-sim, vehicle 4) on the demo's GCS link is SIGKILLed: the server
+    marks it lost after 3 s of silence, and the page shows a LINK LOST card, a banner and a
+    toast; started again, it is `connected` on the page and the warning goes."""
     page, console = session
-    page.evaluate(LOST)
-    page.wait_for_selector('#vehicles [data-vehicle="99"][data-link=lost] .warnline:not([hidden])', timeout=5_000)
+    card = '#vehicles [data-vehicle="4"]'
+    ask("HARRIER-VEHICLE-START", "connected 4")
+    page.wait_for_selector(f"{card}[data-link=connected]", timeout=10_000)
+    assert page.is_hidden("#alerts")
+    ask("HARRIER-VEHICLE-KILL", "killed 4")
+    killed = time.monotonic()
+    page.wait_for_selector(f"{card}[data-link=lost] .warnline:not([hidden])", timeout=10_000)
     page.wait_for_selector("#alerts:not([hidden])", timeout=5_000)
+    shown = time.monotonic() - killed
     banner = page.inner_text("#alerts")
     toast = page.inner_text("#toasts")
-    print(f"lost: banner {banner!r}, toast {toast!r}", flush=True)
-    assert "UAV 99" in banner and "lost" in banner.lower(), banner
-    assert "UAV 99: link lost" in toast, toast
-    assert "LINK LOST" in page.inner_text('#vehicles [data-vehicle="99"] .head')
-    assert page.get_attribute("body", "data-lost") == "99"
+    print(f"lost: shown {shown:.1f} s after the kill; banner {banner!r}, toast {toast!r}", flush=True)
+    # The link's loss timeout is 3 s; the page hears of it with the next vehicles message.
+    assert 2.5 <= shown <= 6.0, f"the lost link shown {shown:.1f} s after the kill"
+    assert "UAV 4" in banner and "lost" in banner.lower(), banner
+    assert "UAV 4: link lost" in toast, toast
+    assert "LINK LOST" in page.inner_text(f"{card} .head")
+    assert page.get_attribute("body", "data-lost") == "4"
     page.screenshot(path=str(SHOTS / "lost.png"))
     # The vehicle speaks again: the warning goes.
-    page.evaluate(
-        """() => {
-      const v = window.harrier.store.vehicles.get("99");
-      window.harrier.inject({type: "vehicle_event", event: {vehicle: 99, event: "recovered", mode: "OFFBOARD", time_unix: 0}});
-      window.harrier.inject({type: "vehicles", vehicles: [{id: 99, link: {...v.link, state: "connected", last_seen_s: 0.1}, detections: null}]});
-    }"""
-    )
-    page.wait_for_selector("#alerts", state="hidden", timeout=5_000)
-    assert page.get_attribute('#vehicles [data-vehicle="99"]', "data-link") == "connected"
+    ask("HARRIER-VEHICLE-START", "connected 4")
+    page.wait_for_selector("#alerts", state="hidden", timeout=10_000)
+    page.wait_for_selector(f"{card}[data-link=connected]", timeout=5_000)
+    assert not page.get_attribute("body", "data-lost")
 
 
 def dropped_scans():
@@ -404,10 +410,7 @@ def test_dropped_scans_show_a_badge(session):
     /metrics has, in red while it grows, with the reason."""
     page, console = session
     before = dropped_scans()
-    print("\nHARRIER-DROPS", flush=True)
-    answer = sys.__stdin__.readline().strip()
-    assert answer.startswith("dropped "), f"drop control said {answer!r}"
-    n = int(answer.split()[1])
+    n = int(ask("HARRIER-DROPS", "dropped ").split()[1])
     after = dropped_scans()
     assert after >= before + n, f"/metrics: {before} then {after} after {n} bad payloads"
     page.wait_for_function(
@@ -430,9 +433,7 @@ def test_the_page_reconnects_after_a_server_restart_without_a_reload(session):
     before = hook(page)["ws"]
     assert before["state"] == "open"
     t0 = time.monotonic()
-    print("\nHARRIER-RESTART", flush=True)
-    answer = sys.__stdin__.readline().strip()
-    assert answer == "restarted", f"restart control said {answer!r}"
+    ask("HARRIER-RESTART", "restarted")
     t1 = time.monotonic()
     print(f"server stopped and started again in {t1 - t0:.1f} s", flush=True)
     # The page lost its stream (a new connection was opened) and is live again.

@@ -195,3 +195,44 @@ pub fn target_bin(name: &str) -> PathBuf {
     );
     bin
 }
+
+/// A `harrier-sim` process, killed with SIGKILL and reaped when dropped (so a failing test leaves
+/// none behind).
+#[derive(Debug)]
+pub struct SimProcess(Child);
+
+impl SimProcess {
+    /// `harrier-sim` as vehicle `id` sending its telemetry to the GCS link at `gcs`
+    /// (`--gcs udpout:GCS`), its API link on a port of the OS's choice, silent (stdio null),
+    /// started with the further arguments `args` (a world, `--no-zenoh`, signing …).
+    pub fn start<I, S>(id: u8, gcs: std::net::SocketAddr, args: I) -> Self
+    where
+        I: IntoIterator<Item = S>,
+        S: AsRef<std::ffi::OsStr>,
+    {
+        let bin = target_bin("harrier-sim");
+        let child = Command::new(&bin)
+            .args(["--id", &id.to_string(), "--gcs", &format!("udpout:{gcs}")])
+            .args(["--api", "udpin:127.0.0.1:0"])
+            .args(args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap_or_else(|e| panic!("start {}: {e}", bin.display()));
+        Self(child)
+    }
+
+    /// SIGKILL, and reap.
+    pub fn kill(&mut self) {
+        self.0.kill().expect("SIGKILL harrier-sim");
+        let _ = self.0.wait();
+    }
+}
+
+impl Drop for SimProcess {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}

@@ -18,8 +18,10 @@
 //!   409; ending it from the page makes it `ended` in REST and on the page; then a `formation`
 //!   of the three UAVs from the form, whose links the map draws until it is ended;
 //! - the map draws the demo's road and the no-fly disc it was started with (`GET /api/v1/world`);
-//! - a vehicle whose link is lost (messages fed to the page as the stream would send them: the
-//!   demo cannot silence a UAV) gets a LINK LOST card, a banner and a toast, gone when it recovers;
+//! - a vehicle whose link is lost gets a LINK LOST card, a banner and a toast, gone when it
+//!   recovers: a real `harrier-sim` process (vehicle 4, MAVLink only) that this test starts to the
+//!   demo's GCS link (a line `HARRIER-VEHICLE-START`, answered `connected 4` once the link has it),
+//!   SIGKILLs (`HARRIER-VEHICLE-KILL`, answered `killed 4`) and starts again;
 //! - malformed payloads published on vehicle 9's key (when the script asks with a line
 //!   `HARRIER-DROPS`, answered `dropped N`) are dropped and counted; the top bar's badge shows
 //!   the count `/metrics` has, with the reason (screenshot `drops.png`);
@@ -44,7 +46,11 @@ use std::time::{Duration, Instant};
 use harrier_core::scenario::Segment;
 use harrier_server::demo::{self, Demo, DemoConfig};
 use harrier_server::live::config::ObstacleConfig;
-use harrier_tests::{kill_group, require_python_module};
+use harrier_server::live::gcs::vehicle::LinkState;
+use harrier_tests::{SimProcess, kill_group, require_python_module};
+
+/// The vehicle whose link the page sees lost: a `harrier-sim` process this test starts and kills.
+const LOST_VEHICLE: u8 = 4;
 
 /// Where the screenshots go: `$CARGO_TARGET_DIR/screenshots`, else the workspace's
 /// `target/screenshots`.
@@ -150,6 +156,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     let deadline = Instant::now() + Duration::from_secs(150);
     let mut output = String::new();
     let mut restarts = 0;
+    let mut vehicle: Option<SimProcess> = None;
     let status = loop {
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(line) => {
@@ -182,6 +189,33 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
                         }
                     });
                     writeln!(stdin, "dropped {n}").expect("answer the script");
+                    stdin.flush().expect("flush");
+                }
+                if line.trim_end().ends_with("HARRIER-VEHICLE-START") {
+                    // A real vehicle 4 (harrier-sim, MAVLink only) to the demo's GCS link,
+                    // answered once the link has it `connected`.
+                    let server = demo.as_ref().expect("demo").server();
+                    let link = server.link().expect("the demo's GCS link");
+                    let gcs = link.gcs().next().expect("a GCS endpoint").addr();
+                    vehicle = Some(SimProcess::start(LOST_VEHICLE, gcs, ["--no-zenoh"]));
+                    let mut rx = link.vehicles.clone();
+                    runtime.block_on(async {
+                        tokio::time::timeout(Duration::from_secs(20), async {
+                            while !rx.borrow_and_update().iter().any(|v| {
+                                v.view.id == LOST_VEHICLE && v.view.state == LinkState::Connected
+                            }) {
+                                rx.changed().await.expect("the GCS link runs");
+                            }
+                        })
+                        .await
+                        .expect("vehicle 4 connected within 20 s");
+                    });
+                    writeln!(stdin, "connected {LOST_VEHICLE}").expect("answer the script");
+                    stdin.flush().expect("flush");
+                }
+                if line.trim_end().ends_with("HARRIER-VEHICLE-KILL") {
+                    vehicle.as_mut().expect("vehicle 4 started").kill();
+                    writeln!(stdin, "killed {LOST_VEHICLE}").expect("answer the script");
                     stdin.flush().expect("flush");
                 }
                 if line.trim_end().ends_with("HARRIER-RESTART") {

@@ -29,7 +29,7 @@ use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorModel, SimScenario};
-use harrier_tests::free_tcp_port;
+use harrier_tests::{SimProcess, free_tcp_port};
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
 use serde_json::Value;
@@ -841,43 +841,19 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
     );
 }
 
-/// A `harrier-sim` process, killed (SIGKILL) and reaped when dropped.
-struct SimProcess(std::process::Child);
-
-impl SimProcess {
-    /// `harrier-sim` as vehicle `id` in the `cimm-road` world at real time: its camera sees the
-    /// road target 10 times a second (published on Zenoh to `zenoh`), telemetry to `gcs`.
-    fn start(id: u8, gcs: SocketAddr, zenoh: &str) -> Self {
-        let bin = harrier_tests::target_bin("harrier-sim");
-        let child = std::process::Command::new(&bin)
-            .args(["--id", &id.to_string(), "--scenario", "cimm-road"])
-            .args(["--detection-hz", "10", "--seed", "3"])
-            .args([
-                "--gcs",
-                &format!("udpout:{gcs}"),
-                "--api",
-                "udpin:127.0.0.1:0",
-            ])
-            .args(["--zenoh-connect", zenoh])
-            .stdin(std::process::Stdio::null())
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::null())
-            .spawn()
-            .unwrap_or_else(|e| panic!("start {}: {e}", bin.display()));
-        Self(child)
-    }
-
-    fn kill(&mut self) {
-        self.0.kill().expect("SIGKILL harrier-sim");
-        let _ = self.0.wait();
-    }
-}
-
-impl Drop for SimProcess {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
+/// The arguments of a `harrier-sim` ([`SimProcess`]) in the `cimm-road` world at real time: its
+/// camera sees the road target 10 times a second, published on Zenoh to `zenoh`.
+fn cimm_road(zenoh: &str) -> [&str; 8] {
+    [
+        "--scenario",
+        "cimm-road",
+        "--detection-hz",
+        "10",
+        "--seed",
+        "3",
+        "--zenoh-connect",
+        zenoh,
+    ]
 }
 
 /// Publishes `position` scans of a target standing at `at` (server frame, m) from vehicle
@@ -1010,7 +986,7 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
             .expect("a GCS endpoint");
         let session = open_session(vec![zenoh.clone()]).await;
         let publisher = publish_standing_target(&session, 8, STANDING).await;
-        let mut sim = SimProcess::start(7, gcs, &zenoh);
+        let mut sim = SimProcess::start(7, gcs, cimm_road(&zenoh));
 
         let road = road_track(addr).await;
         let standing = within(30, "a confirmed track on vehicle 8's target", async {
@@ -1117,7 +1093,7 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
 
         // Back: the link and the tracking recover.
         let restarted = Instant::now();
-        let mut sim = SimProcess::start(7, gcs, &zenoh);
+        let mut sim = SimProcess::start(7, gcs, cimm_road(&zenoh));
         within(30, "vehicle 7 connected again", async {
             while link_state(addr, 7).await.as_deref() != Some("connected") {
                 tokio::time::sleep(Duration::from_millis(50)).await;

@@ -24,9 +24,9 @@
 //!   HEARTBEAT of the disarmed vehicle) and to the router (arm commands): every one is refused and
 //!   counted by side and reason in `/metrics`, no vehicle appears, the vehicle stays disarmed.
 
+use std::ffi::OsStr;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -41,7 +41,9 @@ use harrier_sim::mavlink::dialects::common::{
 };
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::VehicleConfig;
-use harrier_tests::{free_tcp_port, python_script, require_python_module, wait_with_deadline};
+use harrier_tests::{
+    SimProcess, free_tcp_port, python_script, require_python_module, wait_with_deadline,
+};
 
 fn runtime() -> tokio::runtime::Runtime {
     tokio::runtime::Builder::new_multi_thread()
@@ -213,57 +215,9 @@ fn commands_router_and_tlog() {
     assert!(status.success(), "the .tlog did not read back: {status}");
 }
 
-/// `target/<profile>/harrier-sim`, beside this test executable's `deps/` directory.
-fn harrier_sim_bin() -> PathBuf {
-    let exe = std::env::current_exe().expect("test executable");
-    let bin = exe
-        .parent()
-        .and_then(Path::parent)
-        .map(|d| d.join("harrier-sim"))
-        .expect("target directory");
-    assert!(
-        bin.is_file(),
-        "{} not found: build it with `cargo build -p harrier-sim` (cargo test --workspace does)",
-        bin.display()
-    );
-    bin
-}
-
-/// A `harrier-sim` process, killed and reaped when dropped (so a failing test leaves none).
-struct Sim(Child);
-
-impl Sim {
-    /// SIGKILL, and reap.
-    fn kill(&mut self) {
-        self.0.kill().expect("SIGKILL harrier-sim");
-        let _ = self.0.wait();
-    }
-}
-
-impl Drop for Sim {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
-
 /// `harrier-sim` as vehicle `id`, telemetry to `gcs`, no Zenoh.
-fn sim_process(id: u8, gcs: SocketAddr) -> Sim {
-    Sim(Command::new(harrier_sim_bin())
-        .args([
-            "--id",
-            &id.to_string(),
-            "--no-zenoh",
-            "--gcs",
-            &format!("udpout:{gcs}"),
-            "--api",
-            "udpin:127.0.0.1:0",
-        ])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start harrier-sim"))
+fn sim_process(id: u8, gcs: SocketAddr) -> SimProcess {
+    SimProcess::start(id, gcs, ["--no-zenoh"])
 }
 
 #[test]
@@ -573,15 +527,15 @@ fn signed_only_link_refuses_unsigned_forged_and_replayed_frames() {
     let link = server.link().expect("link").clone();
     let gcs = gcs_addr(&server);
     let router = link.router().next().expect("a router endpoint").addr();
-    let _sim = Sim(Command::new(harrier_sim_bin())
-        .args(["--id", "7", "--no-zenoh", "--gcs", &format!("udpout:{gcs}")])
-        .args(["--api", "udpin:127.0.0.1:0", "--signing-key-file"])
-        .arg(&key_file)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("start harrier-sim"));
+    let _sim = SimProcess::start(
+        7,
+        gcs,
+        [
+            OsStr::new("--no-zenoh"),
+            OsStr::new("--signing-key-file"),
+            key_file.as_os_str(),
+        ],
+    );
     rt.block_on(heard(&server, 7));
 
     // A router client signing with the key (link id 2): it becomes a peer and sees vehicle 7's
