@@ -607,9 +607,6 @@ async function start() {
   setInterval(updatePanels, 250);
   setInterval(poll, 1000);
   requestAnimationFrame(frame);
-  // Tests feed messages as the server would send them (a vehicle's link lost, which the demo
-  // cannot do on demand).
-  hook.inject = (msg) => stream.onMessage(msg);
   hook.ready = true;
   document.body.dataset.ready = "true";
 }
