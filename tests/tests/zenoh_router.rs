@@ -19,7 +19,8 @@
 //!   only, asks for client certificates (mTLS), and its access control lets the companion
 //!   (`CN=harrier-sim`) put only on the detections and truth keys and the ground station
 //!   (`CN=harrier-gcs`) subscribe; the server tracks through it; a plain-TCP session to the TLS
-//!   port fails; a client with a certificate of the same CA but another name (`CN=intruder`), whose
+//!   port fails, and so does one with a certificate of another CA (even named `CN=harrier-sim`);
+//!   a client with a certificate of the same CA but another name (`CN=intruder`), whose
 //!   publisher sees the server's subscriber, puts on a detections key and the server receives
 //!   nothing of it, while the same puts from the companion's certificate arrive; the server's
 //!   tracks reach the test's client on `harrier/v1/tracks`.
@@ -906,6 +907,22 @@ fn tls_and_access_control() {
     // Plain TCP to the TLS port: no session.
     let plain = client_session(&format!("tcp/127.0.0.1:{port}"), TlsConfig::default());
     assert!(plain.is_err(), "a plain-TCP session opened on the TLS port");
+    // A client certificate of another CA, even with the companion's name: no session.
+    let rogue = d.join("rogue");
+    std::fs::create_dir(&rogue).expect("mkdir rogue");
+    certificates(&rogue, &["harrier-sim"]);
+    let forged = client_session(
+        &endpoint,
+        TlsConfig {
+            connect_certificate: Some(rogue.join("harrier-sim.pem").display().to_string()),
+            connect_private_key: Some(rogue.join("harrier-sim.key").display().to_string()),
+            ..tls_of("harrier-sim")
+        },
+    );
+    assert!(
+        forged.is_err(),
+        "a session opened with a certificate of another CA"
+    );
 
     let (scenario_path, scenario) = scenario_file(d);
     let targets = scenario.targets.len();
