@@ -1,7 +1,7 @@
 //! Cost of one guidance evaluation per UAV (target: ≤ 1 µs).
 //!
 //! Run with `cargo bench -p harrier-core --bench guidance`; GUIDANCE.md records the figures.
-//! Every law is evaluated on a fixed set of UAV states around the target of the [CIMM] §5.2 case
+//! Every law is evaluated on a fixed set of UAV states around the target of the \[CIMM\] §5.2 case
 //! (outside, inside and on the circle), so that every branch is timed.
 
 use std::hint::black_box;

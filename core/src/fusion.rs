@@ -1,6 +1,6 @@
-//! Track-to-track fusion of Gaussian estimates of one target from several platforms ([CIMM] §3.3).
+//! Track-to-track fusion of Gaussian estimates of one target from several platforms (\[CIMM\] §3.3).
 //!
-//! * [`state_vector_fusion`]: the state-vector fusion of [CIMM] §3.3 (after Ng, Tan & Ng 2005),
+//! * [`state_vector_fusion`]: the state-vector fusion of \[CIMM\] §3.3 (after Ng, Tan & Ng 2005),
 //!   which ignores the cross-covariance between the tracks, in information form:
 //!   `P = (Σ_t P_t⁻¹)⁻¹`, `x = P Σ_t P_t⁻¹ x_t`. For two tracks this is the paper's
 //!   `x = x_t + P_t (P_t + P_q)⁻¹ (x_q − x_t)`, `P = P_t − P_t (P_t + P_q)⁻¹ P_t` (with `x_q, P_q`
@@ -15,7 +15,7 @@
 //! Every inverse goes through a Cholesky solve; nothing allocates.
 //!
 //! # References
-//! * [CIMM] `shared/papers/003`, §3.3.
+//! * \[CIMM\] `shared/papers/003`, §3.3.
 //! * G. W. Ng, C. H. Tan, T. P. Ng, "Tracking ground targets using state vector fusion", Fusion 2005.
 //! * S. J. Julier, J. K. Uhlmann, "A non-divergent estimation algorithm in the presence of unknown
 //!   correlations", ACC 1997.
@@ -63,7 +63,7 @@ fn nonempty<const N: usize>(tracks: &[Gaussian<N>]) -> Result<()> {
     Ok(())
 }
 
-/// State-vector fusion ignoring cross-covariances ([CIMM] §3.3), see the module docs.
+/// State-vector fusion ignoring cross-covariances (\[CIMM\] §3.3), see the module docs.
 pub fn state_vector_fusion<const N: usize>(tracks: &[Gaussian<N>]) -> Result<Gaussian<N>> {
     nonempty(tracks)?;
     if let [only] = tracks {

@@ -1,6 +1,6 @@
 //! Measurement models `z = h(x) + v`, `v ~ N(0, R)`, for the four kinds of FORMAT.md §3:
 //! [`Position`], [`RangeBearing`], [`AzEl`] and [`BearingSize`] (with the subtended-angle model
-//! `2·atan(S / 2ρ)` of [BOT] §II.C).
+//! `2·atan(S / 2ρ)` of \[BOT\] §II.C).
 //!
 //! Angles follow FORMAT.md §1: azimuth `atan2(dE, dN)`, clockwise from North, wrapped to `[-π, π)`;
 //! elevation `atan2(dU, hypot(dE, dN))`. Azimuth residuals are always wrapped.
@@ -123,7 +123,7 @@ impl<const N: usize, const M: usize> LinearMeasurement<N, M> for Position<M> {
 }
 
 /// Direct observation of the first M state components (the position block of a kinematic layout):
-/// `z = [I 0] x + v`, `v ~ N(0, diag(std²))` — [ESE] eqs. (6) and (12) for one or more angle axes.
+/// `z = [I 0] x + v`, `v ~ N(0, diag(std²))` — \[ESE\] eqs. (6) and (12) for one or more angle axes.
 /// Components are plain differences (unwrap angles before using it).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DirectPosition<const M: usize> {
@@ -262,11 +262,11 @@ impl<const N: usize> MeasurementModel<N, 2> for AzEl {
 pub enum TargetSize {
     /// Known size (m), `target.size_m` of the scenario.
     Known(f64),
-    /// Size is the state component at this index (estimated, [BOT] §II.C).
+    /// Size is the state component at this index (estimated, \[BOT\] §II.C).
     State(usize),
 }
 
-/// `[azimuth, elevation, subtended]` with `subtended = 2·atan(S / 2ρ)` ([BOT] §II.C, FORMAT.md §3
+/// `[azimuth, elevation, subtended]` with `subtended = 2·atan(S / 2ρ)` (\[BOT\] §II.C, FORMAT.md §3
 /// `bearing_size`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BearingSize {

@@ -12,7 +12,7 @@
 //! discretised exactly (Bar-Shalom, Li & Kirubarajan 2001, §6.2.2 and §6.2.3).
 //!
 //! # References
-//! * [BLK01] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 
 use nalgebra::{SMatrix, SVector};
@@ -44,7 +44,7 @@ pub trait LinearTransition<const N: usize>: TransitionModel<N> {
     fn matrix(&self, dt: f64) -> SMatrix<f64, N, N>;
 }
 
-/// Nearly-constant velocity with continuous white-noise acceleration ([BLK01] §6.2.2):
+/// Nearly-constant velocity with continuous white-noise acceleration (\[BLK01\] §6.2.2):
 ///
 /// ```text
 /// F = [I  Δt·I]      Q = q [Δt³/3·I  Δt²/2·I]
@@ -100,8 +100,8 @@ impl<const N: usize> LinearTransition<N> for ConstantVelocity<N> {
     }
 }
 
-/// Nearly-constant acceleration with continuous white-noise jerk ([BLK01] §6.2.3; the CA model of
-/// [ESE] §4):
+/// Nearly-constant acceleration with continuous white-noise jerk (\[BLK01\] §6.2.3; the CA model of
+/// \[ESE\] §4):
 ///
 /// ```text
 /// F = [I  Δt·I  Δt²/2·I]      Q = q [Δt⁵/20  Δt⁴/8  Δt³/6]
@@ -140,7 +140,7 @@ impl<const N: usize> LinearTransition<N> for ConstantAcceleration<N> {
     }
 }
 
-/// Coordinated turn at a known rate ω in the horizontal plane ([BLK01] §11.7.1, eq. (11.7.1-4)),
+/// Coordinated turn at a known rate ω in the horizontal plane (\[BLK01\] §11.7.1, eq. (11.7.1-4)),
 /// straight flight along z for N = 6. ω > 0 turns left (counter-clockwise seen from above).
 ///
 /// ```text
@@ -149,7 +149,7 @@ impl<const N: usize> LinearTransition<N> for ConstantAcceleration<N> {
 /// ```
 ///
 /// The process noise is the CV model's white-noise acceleration `Q` (a common approximation for
-/// known-rate turns, [BLK01] §11.7.1).
+/// known-rate turns, \[BLK01\] §11.7.1).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ConstantTurn<const N: usize> {
     /// Turn rate ω, rad/s, positive counter-clockwise.
@@ -255,8 +255,8 @@ impl<const N: usize> LinearTransition<N> for ConstantTurn<N> {
     }
 }
 
-/// Nearly-constant acceleration in the discrete Wiener-process acceleration form ([BLK01] §6.3.3),
-/// the CA model of [ESE] §4. State `[p; v; a]` in blocks of D = N/3 axes, as in
+/// Nearly-constant acceleration in the discrete Wiener-process acceleration form (\[BLK01\] §6.3.3),
+/// the CA model of \[ESE\] §4. State `[p; v; a]` in blocks of D = N/3 axes, as in
 /// [`ConstantAcceleration`]:
 ///
 /// ```text

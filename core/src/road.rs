@@ -1,4 +1,4 @@
-//! Road networks (FORMAT.md §2 `roads`) and the road constraint of [CIMM] §3.1 as a
+//! Road networks (FORMAT.md §2 `roads`) and the road constraint of \[CIMM\] §3.1 as a
 //! pseudo-measurement.
 //!
 //! A road is a centre line of [`RoadSegment`]s (lines and circular arcs) in travel order.
@@ -10,17 +10,17 @@
 //! along its tangent, so the constraint stays defined (and smooth) before the first and after the
 //! last segment.
 //!
-//! [`RoadConstraint`] is the pseudo-measurement of [CIMM] §3.1 (Tahk & Speyer's "constraint as
+//! [`RoadConstraint`] is the pseudo-measurement of \[CIMM\] §3.1 (Tahk & Speyer's "constraint as
 //! an additional fictitious measurement"): `z^r = 0 = h_r(x) + v^r`. The paper writes the constraint
 //! per segment (a line `y = tan θ·x + b` or an arc `(x − x_c)² + (y − y_c)² = R²`) with noise
 //! variance `σ_road²`; here `h_r` is the signed distance to the centre line (which is that
 //! constraint normalised to metres, on whichever segment is nearest) with std `sigma_m`, stacked
 //! with the velocity component normal to the road (velocity along the tangent) with std
 //! `sigma_v`. Both are nonlinear in the state; the EKF linearises them at each mode's predicted
-//! mean (the CEKF of [CIMM] §3.1).
+//! mean (the CEKF of \[CIMM\] §3.1).
 //!
 //! # References
-//! * [CIMM] `shared/papers/003`, §3.1.
+//! * \[CIMM\] `shared/papers/003`, §3.1.
 //! * M. Tahk, J. L. Speyer, "Target tracking problems subject to kinematic constraints", IEEE TAC
 //!   35(3), 1990.
 
@@ -479,7 +479,7 @@ impl RoadNetwork {
 }
 
 /// The road traced by a piecewise constant-turn trajectory (FORMAT.md §2 `roads`): one straight
-/// line per run of straight legs and one arc per turning leg, as the road of [CIMM] §5.1 is built
+/// line per run of straight legs and one arc per turning leg, as the road of \[CIMM\] §5.1 is built
 /// from its target's trajectory.
 ///
 /// The trajectory is at `start` with `velocity` (non-zero; its speed is kept) when the first leg
@@ -577,7 +577,7 @@ pub fn road_from_turn_legs(
     })
 }
 
-/// The road pseudo-measurement of [CIMM] §3.1 for a CV-layout state (`[p; v]`, planar or 3-D):
+/// The road pseudo-measurement of \[CIMM\] §3.1 for a CV-layout state (`[p; v]`, planar or 3-D):
 /// `h_r(x) = [offset(p), n(p)·v]`, measured as `z^r = [0, 0]` with noise
 /// `diag(sigma_m², sigma_v²)`: the target is on the centre line (lateral offset 0, std `sigma_m`)
 /// and moves along its tangent (normal velocity 0, std `sigma_v`).

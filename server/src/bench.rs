@@ -14,10 +14,10 @@
 //! sockets either way:
 //!
 //! - simulated vehicles publish `DetectionScan`s on their Zenoh keys from a session of their own
-//!   ([`publish`]);
+//!   (`publish`);
 //! - WebSocket clients follow `/api/v1/ws`, check that `seq` has no gap and measure publication
-//!   → receipt latency ([`ws`]);
-//! - keep-alive HTTP/1 connections load a REST route ([`rest`]);
+//!   → receipt latency (`ws`);
+//! - keep-alive HTTP/1 connections load a REST route (`rest`);
 //! - the server's counters (`GET /api/v1/metrics`) say what it received, processed and dropped,
 //!   compared at the end with what was published.
 //!

@@ -17,7 +17,7 @@
 //!   own thread over real sockets (bind port 0 and read [`net::SimHandle::local_addrs`] in tests).
 //! - [`setup`]: [`setup::SimScenario`], the world, sensors and vehicle behaviour of a
 //!   simulation — built-in presets by name or a JSON file.
-//! - [`world`]: seeded, deterministic targets (road vehicles, CV/CT segments, the [BOT] leader).
+//! - [`world`]: seeded, deterministic targets (road vehicles, CV/CT segments, the \[BOT\] leader).
 //! - [`sensors`]: gimbal cameras and radars of one vehicle ([`sensors::SensorSuite`]) producing
 //!   harrier-core's [`DetectionScan`](harrier_core::detection::DetectionScan)s.
 //! - [`record`]: `harrier-sim record`, a whole run written as a `gcs-scenario/1` directory.

@@ -9,7 +9,7 @@
 //! SET_POSITION_TARGET_LOCAL_NED velocity setpoint every physics step, computed from the true
 //! target state by the scenario's [`Behaviour`] (LGVF standoff orbit, leader–follower offset,
 //! hold, cruise). Vehicle `k` (ids 1…K) launches `3 (k − 1)` s after the first, which also breaks the symmetry of several
-//! vehicles orbiting one target (phase coordination then spreads them, [CIMM] §4.3). During the
+//! vehicles orbiting one target (phase coordination then spreads them, \[CIMM\] §4.3). During the
 //! scenario's pre-roll the targets wait at their t = 0 state and nothing is recorded.
 //!
 //! Time runs on a 50 Hz grid; every sensor rate must divide 50 Hz, so scan times are exact

@@ -1,5 +1,5 @@
 //! The sensors a vehicle carries: gimbal cameras (`az_el`, `bearing_size`, or ground
-//! `position` by geolocation) and radars (`range_bearing` with the bias models of [ICDKF]), each
+//! `position` by geolocation) and radars (`range_bearing` with the bias models of \[ICDKF\]), each
 //! scanning at its own rate and producing one [`DetectionScan`] per scan.
 //!
 //! Per scan and sensor: every target inside the field of view (a cone of half-angle `fov/2`
@@ -231,7 +231,7 @@ impl SensorState {
         }
     }
 
-    /// Bias `(scale, offset)` at `t` ([ICDKF] eq. (9)); draws two normals per scan for Markov.
+    /// Bias `(scale, offset)` at `t` (\[ICDKF\] eq. (9)); draws two normals per scan for Markov.
     fn bias(&mut self, t: f64) -> ([f64; 2], [f64; 2]) {
         let SensorModel::Radar { bias } = self.spec.model else {
             return ([0.0; 2], [0.0; 2]);

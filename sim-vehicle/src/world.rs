@@ -1,5 +1,5 @@
 //! The simulated world: targets moving in closed form (roads, CV/CT segments) or by a
-//! fixed-step integration on a fixed time grid (the [BOT] leader), so the state at a time never
+//! fixed-step integration on a fixed time grid (the \[BOT\] leader), so the state at a time never
 //! depends on how often [`World::advance`] was called. Seeded (ChaCha8) perturbations of the
 //! initial conditions and of the lateral wander on a road make a seed reproduce a world exactly.
 
@@ -142,7 +142,7 @@ fn pieces(p0: Vector2<f64>, v0: Vector2<f64>, segments: &[MotionSegment]) -> Vec
 }
 
 /// Leader velocity at time `t`: speed along heading `χ(t) = χ₀ + A sin(2π t / T)` clockwise from
-/// North ([BOT] §IV).
+/// North (\[BOT\] §IV).
 fn leader_velocity(speed: f64, chi0: f64, amp: f64, period: f64, t: f64) -> Vector2<f64> {
     let chi = chi0 + amp * (TAU * t / period).sin();
     Vector2::new(chi.sin(), chi.cos()) * speed

@@ -1,4 +1,4 @@
-//! Acceptance of the modified-polar EKF of [BOT] §II (`mpekf`) and its adaptive-network
+//! Acceptance of the modified-polar EKF of \[BOT\] §II (`mpekf`) and its adaptive-network
 //! augmentation of §II.D (`mpekf-nn`) on the leader–follower camera scenarios
 //! (`shared/scenarios/bearings_leader{,_known}`), against the Cartesian `ekf`/`cdkf`, scored by
 //! harrier-core's metrics and cross-checked with the independent `score.py`.

@@ -1,4 +1,4 @@
-//! Acceptance on the [CIMM] road scenarios (`shared/scenarios/cimm_road_{1uav,3uav}`): IMM, the
+//! Acceptance on the \[CIMM\] road scenarios (`shared/scenarios/cimm_road_{1uav,3uav}`): IMM, the
 //! road-constrained CIMM and the multi-UAV fusion variants, scored by harrier-core's metrics and
 //! cross-checked with the independent `score.py`.
 //!
@@ -36,7 +36,7 @@ fn one_uav_imm_and_cimm_meet_the_reference() {
 }
 
 /// Centralised sequential updates (`cimm`) vs per-UAV CIMM with state-vector fusion
-/// (`cimm-fusion`, [CIMM] §3.3) vs per-UAV CIMM with covariance intersection (`cimm-ci`).
+/// (`cimm-fusion`, \[CIMM\] §3.3) vs per-UAV CIMM with covariance intersection (`cimm-ci`).
 ///
 /// State-vector fusion ignores the correlation of the local tracks (common process noise, prior,
 /// and the road pseudo-measurement applied in every local filter, so the road is counted once per

@@ -1,6 +1,6 @@
-//! Acceptance tests of the guidance issue: TOGVF vs LGVF on the [CIMM] §5.2 case, time-optimal
-//! vertical profile, standoff on the [CIMM] §5.1 moving target with the road-constrained IMM
-//! (CIMM) estimate from simulated camera fixes (a CV Kalman filter as the comparison), phase spacing of three UAVs, the [BOT] formation with four obstacles,
+//! Acceptance tests of the guidance issue: TOGVF vs LGVF on the \[CIMM\] §5.2 case, time-optimal
+//! vertical profile, standoff on the \[CIMM\] §5.1 moving target with the road-constrained IMM
+//! (CIMM) estimate from simulated camera fixes (a CV Kalman filter as the comparison), phase spacing of three UAVs, the \[BOT\] formation with four obstacles,
 //! the observability maneuver, the flight limits, and the safe "hold" command.
 //!
 //! Every figure is printed (`cargo test -p harrier-tests --test guidance -- --nocapture`);

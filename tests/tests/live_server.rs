@@ -418,7 +418,7 @@ fn the_demo_flies_its_uavs_around_a_car() {
     }));
 }
 
-/// The [BOT] formation as a live law: the demo's three UAVs (not assigned by the demo) are
+/// The \[BOT\] formation as a live law: the demo's three UAVs (not assigned by the demo) are
 /// assigned through the API to hold LOS ranges around the slower car, R from it and 120° apart
 /// (so √3 R from each other). Measured from their telemetry against the simulator's truth.
 #[test]

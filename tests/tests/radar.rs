@@ -1,4 +1,4 @@
-//! Acceptance on the [ICDKF] radar scenarios (`shared/scenarios/radar_bias_*`), scored by
+//! Acceptance on the \[ICDKF\] radar scenarios (`shared/scenarios/radar_bias_*`), scored by
 //! harrier-core's metrics and cross-checked with the independent `score.py`.
 //!
 //! Reference (independent implementations): EKF/UKF 12.3 m on `_none`; CDKF 96.4 / 98.8 m on

@@ -1,4 +1,4 @@
-//! Set-membership acceptance on `bounded_linear` ([ELL], FORMAT.md §2.1): the OBE filters must
+//! Set-membership acceptance on `bounded_linear` (\[ELL\], FORMAT.md §2.1): the OBE filters must
 //! contain the truth at every step, the minimum-volume one with a mean volume close to the
 //! reference implementation's (5.42), and the independent scorer must agree with Harrier's.
 

@@ -143,7 +143,7 @@ fn rms(traces: impl Iterator<Item = f64>) -> f64 {
     (v.iter().sum::<f64>() / v.len() as f64).sqrt()
 }
 
-/// (a) [CIMM] §5.1 road target, three orbiting UAVs, camera geolocation 10 m at 1 Hz. On the
+/// (a) \[CIMM\] §5.1 road target, three orbiting UAVs, camera geolocation 10 m at 1 Hz. On the
 /// straight part of the road (the first 140 s) the truth is exactly the KF's CV model, so the
 /// expected position MSE is the trace of the true error covariance of the KF's gains: the
 /// pooled RMSE of several seeds must match it, and the NEES must be consistent (the filter's
@@ -211,7 +211,7 @@ fn cimm_on_recorded_road_matches_the_reference_generator() {
     }
 }
 
-/// (a) [ICDKF] radar without bias: the EKF's error matches the covariance its own model claims
+/// (a) \[ICDKF\] radar without bias: the EKF's error matches the covariance its own model claims
 /// along the true geometry (range 5 m, azimuth 5 mrad ≈ 25 m cross-range at 5 km, q = 1 m²/s³),
 /// as it does on the independent reference recording.
 #[test]

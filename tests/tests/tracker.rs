@@ -504,7 +504,7 @@ fn cameras_and_radar_fuse_into_one_track_per_target() {
     }
 }
 
-/// The live service's track engines, built by name from the registry, on the [CIMM] reference
+/// The live service's track engines, built by name from the registry, on the \[CIMM\] reference
 /// scenario with three UAV cameras: one confirmed track on the target, and the road constraint
 /// pays off as it does for the single-target estimators (`cimm.rs`).
 #[test]

@@ -1,4 +1,4 @@
-//! Acceptance test for paper 004 ([ESE]) on `zenith_pass`: one-step-ahead azimuth prediction of the
+//! Acceptance test for paper 004 (\[ESE\]) on `zenith_pass`: one-step-ahead azimuth prediction of the
 //! error-space estimate method against the CA Kalman filter and the strong tracking filter, scored
 //! in-process and cross-checked with `score.py`.
 

@@ -1,19 +1,19 @@
 //! A bias-robust radar estimator of Harrier's own design: CDKF on a state augmented with additive
 //! measurement-bias states, plus a bias-jump hypothesis test.
 //!
-//! **Why.** [ICDKF] cancels a slowly varying bias by differencing, but increments carry no
+//! **Why.** \[ICDKF\] cancels a slowly varying bias by differencing, but increments carry no
 //! absolute position, so its position random-walks (see [`super::IncrementalCdkf`]). Estimating
-//! the bias as a state (Friedland's augmentation, which [ICDKF] §1 discusses) keeps the absolute
+//! the bias as a state (Friedland's augmentation, which \[ICDKF\] §1 discusses) keeps the absolute
 //! information; the difficulty is that a bias which is present from the start is indistinguishable
-//! from a shifted target, while a bias that *switches* (abrupt on/off, [ICDKF] type 2) is
+//! from a shifted target, while a bias that *switches* (abrupt on/off, \[ICDKF\] type 2) is
 //! detectable as a step in the innovations that no admissible target motion explains.
 //!
 //! **Model.** State `[x; b]`, x the kinematic state (CV), `b ∈ R^M` an additive offset per
-//! measurement component (the scale error `s·h` of [ICDKF] eq. (9) varies slowly with range and is
+//! measurement component (the scale error `s·h` of \[ICDKF\] eq. (9) varies slowly with range and is
 //! absorbed by b):
 //!
 //! ```text
-//! z_k = h(x_k) + b_k + v_k                      ([ICDKF] eq. (10) with Γ_k = I)
+//! z_k = h(x_k) + b_k + v_k                      (\[ICDKF\] eq. (10) with Γ_k = I)
 //! b_k = φ b_{k−1} + η_k,  φ = exp(−Δt/τ)      (first-order Markov, or a random walk for τ = ∞)
 //! ```
 //!
@@ -25,7 +25,7 @@
 //! hypothesis is kept; its innovation and likelihood are returned so callers can log the decision.
 //!
 //! # References
-//! * [ICDKF] Q. Wang, `shared/papers/001`.
+//! * \[ICDKF\] Q. Wang, `shared/papers/001`.
 //! * A. S. Willsky, H. L. Jones, "A generalized likelihood ratio approach to the detection and
 //!   estimation of jumps in linear systems", *IEEE TAC* 21(1), 1976.
 //! * B. Friedland, "Treatment of bias in recursive filtering", *IEEE TAC* 14(4), 1969.

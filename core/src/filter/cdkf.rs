@@ -1,11 +1,11 @@
-//! Central-difference Kalman filter (CDKF), the baseline of [ICDKF].
+//! Central-difference Kalman filter (CDKF), the baseline of \[ICDKF\].
 //!
 //! Second-order Stirling interpolation with interval `h` (h² = 3 is optimal for Gaussian priors),
-//! in the form of [NPR00] §3.3 / [VdM04] §3.3.2 with additive noise. With `sⱼ` the columns of the
+//! in the form of \[NPR00\] §3.3 / \[VdM04\] §3.3.2 with additive noise. With `sⱼ` the columns of the
 //! lower Cholesky factor of P and `yⱼ± = g(x ± h sⱼ)` (g = f or h):
 //!
 //! ```text
-//! ȳ   = (h² − n)/h² · g(x) + 1/(2h²) Σⱼ (yⱼ⁺ + yⱼ⁻)                         [VdM04] eq. (3.98)
+//! ȳ   = (h² − n)/h² · g(x) + 1/(2h²) Σⱼ (yⱼ⁺ + yⱼ⁻)                         \[VdM04\] eq. (3.98)
 //! Pyy = 1/(4h²) Σⱼ (yⱼ⁺ − yⱼ⁻)(…)ᵀ + (h² − 1)/(4h⁴) Σⱼ (yⱼ⁺ + yⱼ⁻ − 2g(x))(…)ᵀ   eq. (3.99)
 //! Pxy = 1/(2h) Σⱼ sⱼ (yⱼ⁺ − yⱼ⁻)ᵀ                                            eq. (3.102)
 //! ```
@@ -19,11 +19,11 @@
 //! On linear models the CDKF reproduces the KF exactly (the second-order terms vanish).
 //!
 //! # References
-//! * [NPR00] M. Nørgaard, N. K. Poulsen, O. Ravn, "New developments in state estimation for
+//! * \[NPR00\] M. Nørgaard, N. K. Poulsen, O. Ravn, "New developments in state estimation for
 //!   nonlinear systems", *Automatica* 36(11), 2000.
-//! * [VdM04] R. van der Merwe, *Sigma-Point Kalman Filters for Probabilistic Inference in Dynamic
+//! * \[VdM04\] R. van der Merwe, *Sigma-Point Kalman Filters for Probabilistic Inference in Dynamic
 //!   State-Space Models*, PhD thesis, OGI 2004.
-//! * [ICDKF] Q. Wang, "Research on target tracking technology of multi-rotor aircraft based on
+//! * \[ICDKF\] Q. Wang, "Research on target tracking technology of multi-rotor aircraft based on
 //!   ICDKF" (`shared/papers/001`).
 #![allow(non_snake_case)]
 
@@ -61,7 +61,7 @@ impl CentralDifference {
         }
     }
 
-    /// Central-difference moments of `g` about `Gaussian(x, P)` ([VdM04] eqs. (3.98)–(3.102)):
+    /// Central-difference moments of `g` about `Gaussian(x, P)` (\[VdM04\] eqs. (3.98)–(3.102)):
     /// returns `(ȳ, Pyy, Pxy)`. `diff(a, b)` is `a ⊖ b` (wrapped for angles).
     pub fn moments<const N: usize, const Y: usize>(
         &self,
@@ -85,7 +85,7 @@ impl CentralDifference {
     }
 
     /// Moments of a function with non-additive noise, `y = g(x, w)`, `w ~ N(0, W)`: the noise is
-    /// augmented into the sigma points ([NPR00] §4, "general" form). The interval points perturb the
+    /// augmented into the sigma points (\[NPR00\] §4, "general" form). The interval points perturb the
     /// state with w = 0 and the noise with x = x̂; `Pxy` is the cross-covariance with the state only.
     pub fn moments_with_noise<const N: usize, const W: usize, const Y: usize>(
         &self,
@@ -120,7 +120,7 @@ impl CentralDifference {
     }
 }
 
-/// Accumulates the Stirling-interpolation sums of [VdM04] eqs. (3.98)–(3.102) from the deviations
+/// Accumulates the Stirling-interpolation sums of \[VdM04\] eqs. (3.98)–(3.102) from the deviations
 /// `dⱼ± = g(x̂ ± h sⱼ) ⊖ g(x̂)`.
 struct Stirling<const N: usize, const Y: usize> {
     mean_dev: SVector<f64, Y>,
@@ -172,7 +172,7 @@ impl<const N: usize, const Y: usize> Stirling<N, Y> {
 
 impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for CentralDifference {
     type State = Gaussian<N>;
-    /// `x⁻ = ȳ`, `P⁻ = Pyy + Q` with g = f ([VdM04] eqs. (3.98)–(3.99)).
+    /// `x⁻ = ȳ`, `P⁻ = Pyy + Q` with g = f (\[VdM04\] eqs. (3.98)–(3.99)).
     fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
         let (mean, Pyy, _) = self.moments(
             &prior.mean,
@@ -188,7 +188,7 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for CentralDifferenc
 
 impl CentralDifference {
     /// The measurement moments of `predicted` under `model`: `ẑ = z̄`, `S = Pzz + R` (symmetrised)
-    /// and `Pxz` ([VdM04] eqs. (3.98)–(3.102) on h, then (3.100)): what the update and the
+    /// and `Pxz` (\[VdM04\] eqs. (3.98)–(3.102) on h, then (3.100)): what the update and the
     /// measurement prediction share.
     fn measurement_moments<H: MeasurementModel<N, M>, const N: usize, const M: usize>(
         &self,
@@ -210,7 +210,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
 {
     type State = Gaussian<N>;
     /// `ẑ = ȳ`, `S = Pzz + R`, `K = Pxz S⁻¹`, Joseph-form covariance through `H̃ = Pxzᵀ P⁻⁻¹`
-    /// ([VdM04] eqs. (3.100)–(3.105)).
+    /// (\[VdM04\] eqs. (3.100)–(3.105)).
     fn update(
         &self,
         model: &H,
@@ -227,7 +227,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
     for CentralDifference
 {
     type State = Gaussian<N>;
-    /// `ẑ = ȳ`, `S = Pzz + R` ([VdM04] eqs. (3.98)–(3.99) on h, then (3.100)).
+    /// `ẑ = ȳ`, `S = Pzz + R` (\[VdM04\] eqs. (3.98)–(3.99) on h, then (3.100)).
     fn predict_measurement(
         &self,
         model: &H,
@@ -242,7 +242,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
 /// The measurement update shared by the sigma-point filters (CDKF, ICDKF), given the innovation
 /// covariance `S`, the cross-covariance `Pxz` and the innovation `ν`:
 /// `K = Pxz S⁻¹`, `x = x⁻ + K ν`, and the Joseph form through the statistically linearised
-/// `H̃ = Pxzᵀ P⁻⁻¹` and `R̃ = S − H̃ Pxz` ([VdM04] eqs. (3.103)–(3.105) with the covariance written
+/// `H̃ = Pxzᵀ P⁻⁻¹` and `R̃ = S − H̃ Pxz` (\[VdM04\] eqs. (3.103)–(3.105) with the covariance written
 /// as `(I − K H̃) P⁻ (I − K H̃)ᵀ + K R̃ Kᵀ`).
 pub(crate) fn sigma_point_update<const N: usize, const M: usize>(
     predicted: &Gaussian<N>,

@@ -1,11 +1,11 @@
-//! Error-space estimate method (ESE) of [ESE] §3.3: two Kalman filters working concurrently, one on
+//! Error-space estimate method (ESE) of \[ESE\] §3.3: two Kalman filters working concurrently, one on
 //! the *guide data* and one on the *guide error*, whose outputs are added to predict the next
 //! measurement of an optical tracker.
 //!
 //! # Time indices
 //!
 //! `Z(k)` is the measurement at time `t_k`. For an equivalent generalised synergic target the guide
-//! data of time k is the previous measurement, `L(k) = Z(k−1)` ([ESE] eq. (3)). After `Z(k)` has
+//! data of time k is the previous measurement, `L(k) = Z(k−1)` (\[ESE\] eq. (3)). After `Z(k)` has
 //! been processed the method holds
 //!
 //! * filter 1 — the target kinematic model (eqs. (5)–(6)) run on the guide-data sequence `L(·)`:
@@ -21,13 +21,13 @@
 //!
 //! `e(k)` is, up to filter 1's small lag, the increment `Z(k) − Z(k−1)`: it varies slowly even when
 //! `Z` manoeuvres hard, which is why a CA model on it predicts much better than a CA model on `Z`
-//! (the point of [ESE] §3.2).
+//! (the point of \[ESE\] §3.2).
 //!
-//! # Models of [ESE] §4
+//! # Models of \[ESE\] §4
 //!
 //! The paper uses "the CA model" of its ref. [2] for both filters with process-noise std q and
 //! measurement-noise std r. [`WienerAcceleration`](crate::motion::WienerAcceleration) is that model in the discrete Wiener-process
-//! acceleration form ([BLK01] §6.3.3): `X(k) = Φ X(k−1) + Γ W(k−1)` with `Γ = [T²/2, T, 1]ᵀ` and
+//! acceleration form (\[BLK01\] §6.3.3): `X(k) = Φ X(k−1) + Γ W(k−1)` with `Γ = [T²/2, T, 1]ᵀ` and
 //! `W` the acceleration increment over one sample, std q (eq. (5) with this Γ). [`DirectPosition`](crate::measurement::DirectPosition)
 //! is the observation eq. (6)/(12) with `H = [I 0 0]`. The paper gives q = r = 2·10⁻⁶ without
 //! units; this reading of q (per-axis CA, T = 0.02 s) reproduces the independent reference figures
@@ -40,16 +40,16 @@
 //! # Start-up
 //!
 //! [`ErrorSpacePredictor`] starts each filter by polynomial differencing ([`difference_start`], the
-//! three-point extension of the two-point differencing of [BLK01] §5.5): filter 1 from its first
+//! three-point extension of the two-point differencing of \[BLK01\] §5.5): filter 1 from its first
 //! three guide data `L(1..3) = Z(0..2)`, filter 2 from its first three guide errors `e(3..5)`. No
 //! prior is guessed, so there is no start-up transient beyond the measurement noise. While filter 2
 //! is starting, the prediction is filter 1's own `H Φ x̂_L` — exactly the CA-KF's eq. (8).
 //!
 //! # References
-//! * [ESE] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
+//! * \[ESE\] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
 //!   target tracking", Higher Education Press & Springer 2008, translated from *J. Univ. Electron.
 //!   Sci. Technol. China* 36(2), 2007 (`shared/papers/004`).
-//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 #![allow(non_snake_case)]
 
@@ -71,7 +71,7 @@ use crate::{EstimationError, Result};
 ///
 /// (Newton divided differences; for equal steps T: `v = (3z₂ − 4z₁ + z₀)/2T`, `a = (z₂ − 2z₁ + z₀)/T²`).
 /// Its covariance is that of the linear map `A` applied to independent noises of covariance `r`:
-/// `P = (A Aᵀ) ⊗ r`. The three-point extension of [BLK01] §5.5's two-point differencing; exact
+/// `P = (A Aᵀ) ⊗ r`. The three-point extension of \[BLK01\] §5.5's two-point differencing; exact
 /// for noise-free constant-acceleration data.
 pub fn difference_start<const N: usize, const M: usize>(
     t: [f64; 3],
@@ -172,8 +172,8 @@ impl<const M: usize> DifferenceStart<M> {
     }
 }
 
-/// The two models of the ESE: the target kinematic model for filter 1 ([ESE] eqs. (5)–(6)) and the
-/// guide-error model for filter 2 (eqs. (11)–(12)). [ESE] §4 uses the same CA model and the same
+/// The two models of the ESE: the target kinematic model for filter 1 (\[ESE\] eqs. (5)–(6)) and the
+/// guide-error model for filter 2 (eqs. (11)–(12)). \[ESE\] §4 uses the same CA model and the same
 /// q, r for both.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ErrorSpace<T, H> {
@@ -199,7 +199,7 @@ pub struct EseState<const N: usize> {
 }
 
 impl<T, H> ErrorSpace<T, H> {
-    /// The same model for both filters, as in [ESE] §4.
+    /// The same model for both filters, as in \[ESE\] §4.
     pub fn symmetric(motion: T, measurement: H) -> Self
     where
         T: Clone,

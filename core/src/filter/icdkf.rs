@@ -1,8 +1,8 @@
-//! Incremental central-difference Kalman filter (ICDKF), faithfully after [ICDKF] §3.
+//! Incremental central-difference Kalman filter (ICDKF), faithfully after \[ICDKF\] §3.
 //!
 //! A radar whose measurements carry an unknown, slowly varying bias,
-//! `z_k = h(x_k) + Γ_k b_k + v_k` ([ICDKF] eqs. (9)–(10)), is differenced between consecutive
-//! samples so that the bias cancels ([ICDKF] eq. (11)):
+//! `z_k = h(x_k) + Γ_k b_k + v_k` (\[ICDKF\] eqs. (9)–(10)), is differenced between consecutive
+//! samples so that the bias cancels (\[ICDKF\] eq. (11)):
 //!
 //! ```text
 //! Δz_k = z_k ⊖ z_{k−1} = h_k(x_k) ⊖ h_{k−1}(x_{k−1}) + v*_k,      v*_k = v_k − v_{k−1}   (eqs. (11)–(12))
@@ -14,7 +14,7 @@
 //! Since Δz depends on two consecutive states, the filter carries the augmented state
 //! `[x_k; x_{k−1}]` (stochastic cloning). Each cycle clones the posterior of `x_{k−1}` and predicts
 //! the pair, `[x_k; x_{k−1}] = [f(x_{k−1}) + w; x_{k−1}]`, with central differences, then updates
-//! the pair with Δz_k by the CDKF equations ([ICDKF] eqs. (13)–(14); [NPR00]).
+//! the pair with Δz_k by the CDKF equations (\[ICDKF\] eqs. (13)–(14); \[NPR00\]).
 //!
 //! Two forms, as in the paper:
 //! * [`IcdkfForm::General`]: process and measurement noise are augmented into the sigma points
@@ -28,9 +28,9 @@
 //! `BENCHMARKS.md` and the bias-robust estimator in [`super::BiasAwareCdkf`] for what does.
 //!
 //! # References
-//! * [ICDKF] Q. Wang, "Research on target tracking technology of multi-rotor aircraft based on
+//! * \[ICDKF\] Q. Wang, "Research on target tracking technology of multi-rotor aircraft based on
 //!   ICDKF" (`shared/papers/001`).
-//! * [NPR00] M. Nørgaard, N. K. Poulsen, O. Ravn, *Automatica* 36(11), 2000.
+//! * \[NPR00\] M. Nørgaard, N. K. Poulsen, O. Ravn, *Automatica* 36(11), 2000.
 #![allow(non_snake_case)]
 
 use nalgebra::SVector;
@@ -43,7 +43,7 @@ use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
 use crate::state::{Gaussian, Posterior};
 
-/// Which ICDKF form of [ICDKF] §3 to run.
+/// Which ICDKF form of \[ICDKF\] §3 to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum IcdkfForm {
     /// Noise augmented into the sigma points (general, non-additive noise).
@@ -73,7 +73,7 @@ pub fn current<const N: usize, const N2: usize>(aug: &Gaussian<N2>) -> Gaussian<
 
 impl IncrementalCdkf {
     /// Clone-and-predict: from the posterior of `x_{k−1}` to the augmented prediction
-    /// `[x_k; x_{k−1}] = [f(x_{k−1}) + w; x_{k−1}]` ([ICDKF] eqs. (13)–(14)).
+    /// `[x_k; x_{k−1}] = [f(x_{k−1}) + w; x_{k−1}]` (\[ICDKF\] eqs. (13)–(14)).
     pub fn predict<T: TransitionModel<N>, const N: usize, const N2: usize>(
         &self,
         model: &T,

@@ -1,32 +1,32 @@
 //! Interacting multiple model (IMM) estimator over any Gaussian mode filter, and its
-//! road-constrained form (CIMM, [CIMM] §3.2).
+//! road-constrained form (CIMM, \[CIMM\] §3.2).
 //!
-//! The recursion is the standard IMM of [BLK01] §11.6.6 (the equations of [CIMM] §3.2 are the same
-//! algorithm but are garbled in our copy of the paper, so the [BLK01] form is the one implemented).
+//! The recursion is the standard IMM of \[BLK01\] §11.6.6 (the equations of \[CIMM\] §3.2 are the same
+//! algorithm but are garbled in our copy of the paper, so the \[BLK01\] form is the one implemented).
 //! With `p_ij` the Markov transition probability from mode i to mode j and `μ_i` the mode
 //! probabilities at k−1:
 //!
 //! ```text
 //! 1. mixing probabilities  c̄_j = Σ_i p_ij μ_i,  μ_{i|j} = p_ij μ_i / c̄_j
-//!                          ([BLK01] §11.6.6 step 1; [CIMM] §3.2 step 1, "input interaction")
+//!                          (\[BLK01\] §11.6.6 step 1; \[CIMM\] §3.2 step 1, "input interaction")
 //! 2. mixing                x⁰ʲ = Σ_i μ_{i|j} xⁱ,  P⁰ʲ = Σ_i μ_{i|j} [Pⁱ + (xⁱ − x⁰ʲ)(xⁱ − x⁰ʲ)ᵀ]
-//!                          ([BLK01] step 2; [CIMM] eqs. (18)–(19))
+//!                          (\[BLK01\] step 2; \[CIMM\] eqs. (18)–(19))
 //! 3. mode-matched filters  predict x⁰ʲ with mode j's model, update with z;
 //!                          Λ_j = N(ν_j; 0, S_j) from the innovation (Posterior::log_likelihood)
-//!                          ([BLK01] step 3; [CIMM] §3.2 steps 2–3, the likelihood Λ_k^j)
+//!                          (\[BLK01\] step 3; \[CIMM\] §3.2 steps 2–3, the likelihood Λ_k^j)
 //! 4. mode probabilities    μ_j = Λ_j c̄_j / Σ_t Λ_t c̄_t
-//!                          ([BLK01] step 4; [CIMM] §3.2 step 3, normalising factor c)
+//!                          (\[BLK01\] step 4; \[CIMM\] §3.2 step 3, normalising factor c)
 //! 5. combination           x = Σ_j μ_j xʲ,  P = Σ_j μ_j [Pʲ + (xʲ − x)(xʲ − x)ᵀ]
-//!                          ([BLK01] step 5; [CIMM] §3.2 step 4, "estimation fusion")
+//!                          (\[BLK01\] step 5; \[CIMM\] §3.2 step 4, "estimation fusion")
 //! ```
 //!
 //! The recursion is split into [`Imm::predict`] (steps 1–2 and the prediction of step 3; the
 //! predicted mode probabilities are `c̄_j`) and [`Imm::update`] (the update of step 3 and step 4),
 //! so several measurements of one time are applied sequentially: each update multiplies the mode
 //! probabilities by that measurement's likelihood, which is the joint likelihood of independent
-//! measurements. The CIMM of [CIMM] §3.2 is this IMM with the road pseudo-measurement of
+//! measurements. The CIMM of \[CIMM\] §3.2 is this IMM with the road pseudo-measurement of
 //! [`crate::road::RoadConstraint`] applied as one more update in every mode filter (the augmented
-//! measurement `z^a = [z; z^r]` of [CIMM] §3.1, applied sequentially), see [`Imm::update`].
+//! measurement `z^a = [z; z^r]` of \[CIMM\] §3.1, applied sequentially), see [`Imm::update`].
 //!
 //! Mode probabilities are updated in the log domain (log-sum-exp) and floored at
 //! [`PROB_FLOOR`], so a mode never underflows to zero and can come back.
@@ -34,9 +34,9 @@
 //! Everything is on the stack: `[Gaussian<N>; R]` arrays, no heap allocation per step.
 //!
 //! # References
-//! * [BLK01] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001, §11.6.6.
-//! * [CIMM] `shared/papers/003`: constrained IMM for multi-UAV standoff tracking, §3.
+//! * \[CIMM\] `shared/papers/003`: constrained IMM for multi-UAV standoff tracking, §3.
 
 use nalgebra::{SMatrix, SVector};
 
@@ -124,7 +124,7 @@ impl<const N: usize, const R: usize> ImmState<N, R> {
         })
     }
 
-    /// The moment-matched single Gaussian ([BLK01] §11.6.6 step 5, [CIMM] §3.2 step 4).
+    /// The moment-matched single Gaussian (\[BLK01\] §11.6.6 step 5, \[CIMM\] §3.2 step 4).
     pub fn combined(&self) -> Gaussian<N> {
         moment_match(&self.modes, &self.probs)
     }
@@ -199,7 +199,7 @@ impl<F, T, const R: usize> Imm<F, T, R> {
         &self.models
     }
 
-    /// Mixing and mode-matched prediction over `dt` ([BLK01] §11.6.6 steps 1–3, [CIMM] §3.2
+    /// Mixing and mode-matched prediction over `dt` (\[BLK01\] §11.6.6 steps 1–3, \[CIMM\] §3.2
     /// step 1 and eqs. (18)–(19)). The returned probabilities are the predicted mode probabilities
     /// `c̄_j = Σ_i p_ij μ_i`. `state` is left untouched on error.
     pub fn predict<const N: usize>(&self, state: &ImmState<N, R>, dt: f64) -> Result<ImmState<N, R>>
@@ -227,8 +227,8 @@ impl<F, T, const R: usize> Imm<F, T, R> {
         combinable(out)
     }
 
-    /// Mode-matched update with one measurement and mode-probability update ([BLK01] §11.6.6
-    /// steps 3–4, [CIMM] §3.2 steps 2–3): `μ_j ∝ μ_j⁻ Λ_j`, `Λ_j` from each mode's innovation
+    /// Mode-matched update with one measurement and mode-probability update (\[BLK01\] §11.6.6
+    /// steps 3–4, \[CIMM\] §3.2 steps 2–3): `μ_j ∝ μ_j⁻ Λ_j`, `Λ_j` from each mode's innovation
     /// ([`crate::state::Posterior::log_likelihood`]), normalised with log-sum-exp and floored at
     /// [`PROB_FLOOR`]. Applying it once per measurement of a time step is the sequential form of
     /// the stacked update. `predicted` is left untouched on error.
@@ -260,7 +260,7 @@ impl<F, T, const R: usize> Imm<F, T, R> {
     }
 
     /// Predicted measurement of the mixture: each mode's `ẑ_j`, `S_j` moment-matched with the
-    /// mode probabilities, `ẑ = Σ μ_j ẑ_j`, `S = Σ μ_j [S_j + (ẑ_j ⊖ ẑ)(ẑ_j ⊖ ẑ)ᵀ]` ([BLK01]
+    /// mode probabilities, `ẑ = Σ μ_j ẑ_j`, `S = Σ μ_j [S_j + (ẑ_j ⊖ ẑ)(ẑ_j ⊖ ẑ)ᵀ]` (\[BLK01\]
     /// §11.6.6 step 5 applied in measurement space), residuals through the model's `⊖`.
     pub fn predict_measurement_with<H, const N: usize, const M: usize>(
         &self,

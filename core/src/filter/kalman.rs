@@ -1,17 +1,17 @@
 //! Kalman filter and extended Kalman filter.
 //!
 //! ```text
-//! predict:  x⁻ = f(x),             P⁻ = F P Fᵀ + Q                    [BLK01] eq. (5.2.3-5), (5.2.3-9)
-//! update:   ν  = z ⊖ h(x⁻),        S  = H P⁻ Hᵀ + R                   [BLK01] eq. (5.2.3-13), (5.2.3-15)
+//! predict:  x⁻ = f(x),             P⁻ = F P Fᵀ + Q                    \[BLK01\] eq. (5.2.3-5), (5.2.3-9)
+//! update:   ν  = z ⊖ h(x⁻),        S  = H P⁻ Hᵀ + R                   \[BLK01\] eq. (5.2.3-13), (5.2.3-15)
 //!           K  = P⁻ Hᵀ S⁻¹  (S⁻¹ from the Cholesky factor of S)         eq. (5.2.3-11)
 //!           x  = x⁻ + K ν
 //!           P  = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ  (Joseph form)      eq. (5.2.3-18)
 //! ```
 //! The Joseph form keeps P symmetric positive semi-definite for any gain; P is symmetrised after
-//! every step. For the EKF, F and H are the Jacobians at x and x⁻ ([BLK01] §10.3.2).
+//! every step. For the EKF, F and H are the Jacobians at x and x⁻ (\[BLK01\] §10.3.2).
 //!
 //! # References
-//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 #![allow(non_snake_case)]
 
@@ -46,7 +46,7 @@ fn propagate<const N: usize>(
 
 impl<T: LinearTransition<N>, const N: usize> Predictor<T, N> for Kalman {
     type State = Gaussian<N>;
-    /// `x⁻ = F x`, `P⁻ = F P Fᵀ + Q` ([BLK01] eq. (5.2.3-5), (5.2.3-9)).
+    /// `x⁻ = F x`, `P⁻ = F P Fᵀ + Q` (\[BLK01\] eq. (5.2.3-5), (5.2.3-9)).
     fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
         let FPFt = model.propagate_cov(&prior.mean, &prior.cov, dt);
         propagate(model.matrix(dt) * prior.mean, &FPFt, &model.covar(dt))
@@ -55,7 +55,7 @@ impl<T: LinearTransition<N>, const N: usize> Predictor<T, N> for Kalman {
 
 impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for Extended {
     type State = Gaussian<N>;
-    /// `x⁻ = f(x)`, `P⁻ = F P Fᵀ + Q` with `F = ∂f/∂x(x)` ([BLK01] §10.3.2).
+    /// `x⁻ = f(x)`, `P⁻ = F P Fᵀ + Q` with `F = ∂f/∂x(x)` (\[BLK01\] §10.3.2).
     fn predict(&self, model: &T, prior: &Gaussian<N>, dt: f64) -> Result<Gaussian<N>> {
         let FPFt = model.propagate_cov(&prior.mean, &prior.cov, dt);
         propagate(model.function(&prior.mean, dt), &FPFt, &model.covar(dt))
@@ -67,7 +67,7 @@ impl<T: TransitionModel<N>, const N: usize> Predictor<T, N> for Extended {
 /// Given the predicted state, the innovation `ν = z ⊖ ẑ`, the (linearised) measurement matrix `H`
 /// and the noise covariance `R`:
 /// `S = H P⁻ Hᵀ + R`, `K = P⁻ Hᵀ S⁻¹` (S⁻¹ from the Cholesky factor), `x = x⁻ + K ν`,
-/// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ` ([BLK01] eq. (5.2.3-18)), symmetrised.
+/// `P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ` (\[BLK01\] eq. (5.2.3-18)), symmetrised.
 pub fn joseph_update<const N: usize, const M: usize>(
     predicted: &Gaussian<N>,
     innovation: SVector<f64, M>,
@@ -116,7 +116,7 @@ impl<H: LinearMeasurement<N, M>, const N: usize, const M: usize> Updater<H, N, M
 
 impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M> for Extended {
     type State = Gaussian<N>;
-    /// EKF update: `ν = z ⊖ h(x⁻)`, `H = ∂h/∂x(x⁻)`, then [`joseph_update`] ([BLK01] §10.3.2).
+    /// EKF update: `ν = z ⊖ h(x⁻)`, `H = ∂h/∂x(x⁻)`, then [`joseph_update`] (\[BLK01\] §10.3.2).
     fn update(
         &self,
         model: &H,
@@ -134,7 +134,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> Updater<H, N, M>
 }
 
 /// `ẑ = h(x⁻)`, `S = H P⁻ Hᵀ + R` with `H` the model's matrix or Jacobian at `x⁻`
-/// ([BLK01] eq. (5.2.3-13), (5.2.3-15)), symmetrised and checked.
+/// (\[BLK01\] eq. (5.2.3-13), (5.2.3-15)), symmetrised and checked.
 fn linearised_prediction<const N: usize, const M: usize>(
     zhat: SVector<f64, M>,
     H: &SMatrix<f64, M, N>,
@@ -151,7 +151,7 @@ impl<H: LinearMeasurement<N, M>, const N: usize, const M: usize> MeasurementPred
     for Kalman
 {
     type State = Gaussian<N>;
-    /// `ẑ = H x⁻`, `S = H P⁻ Hᵀ + R` ([BLK01] eq. (5.2.3-13), (5.2.3-15)).
+    /// `ẑ = H x⁻`, `S = H P⁻ Hᵀ + R` (\[BLK01\] eq. (5.2.3-13), (5.2.3-15)).
     fn predict_measurement(
         &self,
         model: &H,
@@ -166,7 +166,7 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
     for Extended
 {
     type State = Gaussian<N>;
-    /// `ẑ = h(x⁻)`, `S = H P⁻ Hᵀ + R`, `H = ∂h/∂x(x⁻)` ([BLK01] §10.3.2).
+    /// `ẑ = h(x⁻)`, `S = H P⁻ Hᵀ + R`, `H = ∂h/∂x(x⁻)` (\[BLK01\] §10.3.2).
     fn predict_measurement(
         &self,
         model: &H,

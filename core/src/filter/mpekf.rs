@@ -1,6 +1,6 @@
 //! Modified-polar (modified-spherical) coordinate EKF for bearings-only tracking from a moving
-//! platform, [BOT] §II.A eq. (1) extended to 3-D, with the subtended-angle measurement and the
-//! target-size state of [BOT] §II.C.
+//! platform, \[BOT\] §II.A eq. (1) extended to 3-D, with the subtended-angle measurement and the
+//! target-size state of \[BOT\] §II.C.
 //!
 //! # State
 //!
@@ -10,13 +10,13 @@
 //!
 //! ```text
 //! y = [β̇, ε̇, ṙ/r, β, ε, 1/r]            (N = 6, size known)
-//! y = [β̇, ε̇, ṙ/r, β, ε, 1/r, S]         (N = 7, size S estimated, [BOT] §II.C)
+//! y = [β̇, ε̇, ṙ/r, β, ε, 1/r, S]         (N = 7, size S estimated, \[BOT\] §II.C)
 //! ```
 //!
-//! The planar part `[β̇, ṙ/r, β, 1/r]` is [BOT] eq. (1); elevation and its rate are the 3-D
+//! The planar part `[β̇, ṙ/r, β, 1/r]` is \[BOT\] eq. (1); elevation and its rate are the 3-D
 //! extension the paper mentions. The paper's text is garbled in places, so the form used is the
-//! modified-polar coordinates of Aidala & Hammel 1983 [AH83] with the modified-spherical extension of
-//! Stallard 1987 [ST87]. With `u = (cε sβ, cε cβ, sε)` the line-of-sight unit vector, `s = ṙ/r`,
+//! modified-polar coordinates of Aidala & Hammel 1983 \[AH83\] with the modified-spherical extension of
+//! Stallard 1987 \[ST87\]. With `u = (cε sβ, cε cβ, sε)` the line-of-sight unit vector, `s = ṙ/r`,
 //! `w = 1/r` and `a` the relative acceleration (target minus platform):
 //!
 //! ```text
@@ -26,15 +26,15 @@
 //! d/dt β = β̇,  d/dt ε = ε̇,  d/dt 1/r = −s w
 //! ```
 //!
-//! At ε = 0 this is [BOT] eq. (1) with the paper's `(a_x, a_y)` = (North, East): the paper
+//! At ε = 0 this is \[BOT\] eq. (1) with the paper's `(a_x, a_y)` = (North, East): the paper
 //! measures β from its x axis towards its y axis, which is FORMAT.md's clockwise-from-North
 //! azimuth when x = North and y = East ([`mp_derivative`]).
 //!
 //! # Prediction
 //!
-//! As in [AH83] §III the prediction is the *exact* discrete solution of these dynamics, computed
+//! As in \[AH83\] §III the prediction is the *exact* discrete solution of these dynamics, computed
 //! through relative Cartesian coordinates: `x = g(y)` ([`mp_to_relative`]), the target moves with
-//! constant velocity plus a known acceleration `a_t` (the adaptive network's estimate, [BOT] §II.D,
+//! constant velocity plus a known acceleration `a_t` (the adaptive network's estimate, \[BOT\] §II.D,
 //! zero without it), the platform's motion is the measured one (FORMAT.md §3: platform position and
 //! velocity are exact at every measurement), and `y⁻ = g⁻¹(x⁻)` ([`relative_to_mp`]):
 //!
@@ -45,22 +45,22 @@
 //! ```
 //!
 //! `Φ`, `Q_x` are the nearly-constant-velocity transition and continuous white-noise acceleration
-//! covariance ([BLK01] §6.2.2) of the target; S is constant.
+//! covariance (\[BLK01\] §6.2.2) of the target; S is constant.
 //!
 //! # Update
 //!
 //! In these coordinates the angle measurements are linear and the subtended angle
-//! `2·atan(S/2ρ) = 2·atan(S w / 2)` ([BOT] §II.C) depends on `w` and S only. The update is the EKF
+//! `2·atan(S/2ρ) = 2·atan(S w / 2)` (\[BOT\] §II.C) depends on `w` and S only. The update is the EKF
 //! update of [`super::Extended`] (Joseph form, Cholesky solve, wrapped azimuth residual).
 //!
 //! # References
-//! * [BOT] "Vision-based estimation and formation control of multiple aircraft"
+//! * \[BOT\] "Vision-based estimation and formation control of multiple aircraft"
 //!   (`shared/papers/002`), §II.
-//! * [AH83] V. J. Aidala, S. E. Hammel, "Utilization of modified polar coordinates for
+//! * \[AH83\] V. J. Aidala, S. E. Hammel, "Utilization of modified polar coordinates for
 //!   bearings-only tracking", *IEEE Trans. Automatic Control* 28(3), 1983.
-//! * [ST87] D. V. Stallard, "An angle-only tracking filter in modified spherical coordinates",
+//! * \[ST87\] D. V. Stallard, "An angle-only tracking filter in modified spherical coordinates",
 //!   AIAA GNC 1987.
-//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 #![allow(non_snake_case)]
 
@@ -98,7 +98,7 @@ fn los(beta: f64, eps: f64) -> (Vector3<f64>, Vector3<f64>, Vector3<f64>) {
 }
 
 /// `x = g(y)`: modified-spherical `[β̇, ε̇, ṙ/r, β, ε, 1/r]` to relative Cartesian `[d; ḋ]` (ENU):
-/// `d = u/w`, `ḋ = (s u + β̇ ∂u/∂β + ε̇ ∂u/∂ε)/w` ([AH83] eq. (8), spherical form of [ST87]).
+/// `d = u/w`, `ḋ = (s u + β̇ ∂u/∂β + ε̇ ∂u/∂ε)/w` (\[AH83\] eq. (8), spherical form of \[ST87\]).
 pub fn mp_to_relative(y: &Vector6<f64>) -> Vector6<f64> {
     let (u, ub, ue) = los(y[AZ], y[EL]);
     let r = 1.0 / y[INV_RANGE];
@@ -140,7 +140,7 @@ pub fn mp_to_relative_jacobian(y: &Vector6<f64>) -> SMatrix<f64, 6, 6> {
     j
 }
 
-/// `y = g⁻¹(x)`: relative Cartesian `[d; ḋ]` to modified-spherical coordinates ([AH83] eq. (9)):
+/// `y = g⁻¹(x)`: relative Cartesian `[d; ḋ]` to modified-spherical coordinates (\[AH83\] eq. (9)):
 /// `β = atan2(dE, dN)`, `ε = atan2(dU, h)`, `1/r`, `ṙ/r = d·ḋ/r²`,
 /// `β̇ = (dN ḋE − dE ḋN)/h²`, `ε̇ = (h ḋU − dU (dE ḋE + dN ḋN)/h)/r²`, `h = hypot(dE, dN)`.
 /// Fails when the target is on the platform or straight above/below it.
@@ -179,8 +179,8 @@ pub fn relative_to_mp_jacobian(y: &Vector6<f64>) -> Result<SMatrix<f64, 6, 6>> {
 }
 
 /// Time derivative of the modified-spherical state under relative acceleration `a` (ENU): the 3-D
-/// extension of [BOT] eq. (1) given in the module docs. The filter propagates with the exact
-/// discrete solution instead ([AH83] §III); this is its continuous-time counterpart.
+/// extension of \[BOT\] eq. (1) given in the module docs. The filter propagates with the exact
+/// discrete solution instead (\[AH83\] §III); this is its continuous-time counterpart.
 pub fn mp_derivative(y: &Vector6<f64>, a: &Vector3<f64>) -> Vector6<f64> {
     let (u, ub, ue) = los(y[AZ], y[EL]);
     let ce = y[EL].cos();
@@ -249,7 +249,7 @@ impl ModifiedPolarEkf {
         }
     }
 
-    /// Relative Cartesian process noise `Q_x` over `dt` ([BLK01] eq. (6.2.2-12) per axis).
+    /// Relative Cartesian process noise `Q_x` over `dt` (\[BLK01\] eq. (6.2.2-12) per axis).
     fn cartesian_noise(&self, dt: f64) -> SMatrix<f64, 6, 6> {
         let mut q = SMatrix::<f64, 6, 6>::zeros();
         for (a, qa) in [self.q_horizontal, self.q_horizontal, self.q_vertical]
@@ -340,7 +340,7 @@ impl ModifiedPolarEkf {
 /// Enforces `x[index] ≥ min` on a Gaussian by estimate projection (Simon & Chia 2002, with the
 /// covariance as weight): `x ← x − P eᵢ (xᵢ − min) / Pᵢᵢ` when violated, covariance unchanged. Used
 /// to keep 1/r (and S) positive after an angles-only update has overshot through infinite range,
-/// the known failure of linear updates in these coordinates ([AH83] §IV).
+/// the known failure of linear updates in these coordinates (\[AH83\] §IV).
 pub fn project_lower_bound<const N: usize>(
     g: &Gaussian<N>,
     index: usize,
@@ -393,7 +393,7 @@ pub fn to_cartesian<const N: usize>(
 
 /// Modified-spherical Gaussian of an absolute Cartesian Gaussian `cart` seen from the platform:
 /// mean `g⁻¹(x − platform)`, covariance `J⁻¹ P J⁻ᵀ` (first-order transform). With N = 7 the size
-/// component is appended from `size = (mean, variance)`, uncorrelated ([BOT] §II.C).
+/// component is appended from `size = (mean, variance)`, uncorrelated (\[BOT\] §II.C).
 pub fn from_cartesian<const N: usize>(
     cart: &Gaussian<6>,
     platform_pos: &Vector3<f64>,
@@ -437,7 +437,7 @@ fn diag_sq<const M: usize>(std: [f64; M]) -> SMatrix<f64, M, M> {
 }
 
 /// `[azimuth, elevation, subtended]` on a modified-spherical state: `z = [β, ε, 2·atan(S w/2)]`
-/// ([BOT] §II.C, FORMAT.md §3 `bearing_size`). S is known or the state component [`SIZE`].
+/// (\[BOT\] §II.C, FORMAT.md §3 `bearing_size`). S is known or the state component [`SIZE`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MpBearingSize {
     size: TargetSize,

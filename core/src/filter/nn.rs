@@ -1,8 +1,8 @@
-//! The adaptive neural-network element of [BOT] §II.D: a single-hidden-layer network, trained
+//! The adaptive neural-network element of \[BOT\] §II.D: a single-hidden-layer network, trained
 //! online on the filter residuals, that estimates the unknown target acceleration the estimator's
 //! motion model leaves out.
 //!
-//! [BOT] follows the NN-augmented estimators of its refs. [14], [15] (Hovakimyan, Calise et al.):
+//! \[BOT\] follows the NN-augmented estimators of its refs. \[14\], \[15\] (Hovakimyan, Calise et al.):
 //! the network output `â = Ŵᵀ σ(V̂ᵀ x̄)` enters the process model, and its weights follow a
 //! gradient adaptive law driven by the training signal the filter residuals produce, with an
 //! e-modification leak for boundedness:
@@ -24,10 +24,10 @@
 //! matrix, not tuned). All arrays are fixed-size; a step does not allocate.
 //!
 //! # References
-//! * [BOT] "Vision-based estimation and formation control of multiple aircraft"
+//! * \[BOT\] "Vision-based estimation and formation control of multiple aircraft"
 //!   (`shared/papers/002`), §II.D.
 //! * N. Hovakimyan, A. J. Calise, V. Madyastha, "An adaptive observer design methodology for
-//!   bounded nonlinear processes", IEEE CDC 2002 (the paper's ref. [14]).
+//!   bounded nonlinear processes", IEEE CDC 2002 (the paper's ref. \[14\]).
 
 use nalgebra::{SMatrix, SVector};
 

@@ -1,5 +1,5 @@
 //! Set-membership state bounding with ellipsoids: the optimal bounding ellipsoid (OBE) filter for
-//! linear systems with unknown-but-bounded noise (FORMAT.md §2.1, [ELL] §III–IV):
+//! linear systems with unknown-but-bounded noise (FORMAT.md §2.1, \[ELL\] §III–IV):
 //!
 //! ```text
 //! x_{k+1} = A x_k + B w_k,   ‖w_k‖₂ ≤ r
@@ -21,7 +21,7 @@
 //! ([`EstimationError::EmptyIntersection`]), a strip that covers the support changes nothing, and
 //! otherwise `y ← (lo + hi)/2`, `σ ← (hi − lo)/2` leaves the intersection unchanged but gives a
 //! tighter bound. Adding ρ ≥ 0 times the strip inequality `(y − aᵀx)²/σ² ≤ 1` to the ellipsoid's
-//! and completing the square (Sherman–Morrison) gives the family of [Sch68], [FH82], [MN96]:
+//! and completing the square (Sherman–Morrison) gives the family of \[Sch68\], \[FH82\], [MN96]:
 //!
 //! ```text
 //! e = y − aᵀc
@@ -30,7 +30,7 @@
 //! det P⁺ = δⁿ det P · σ² / (σ² + ρ g)
 //! ```
 //!
-//! *Minimum volume* ([FH82]): `d/dρ [n ln δ − ln(σ² + ρg)] = Q(ρ) / (δ (σ² + ρg)²)` with
+//! *Minimum volume* (\[FH82\]): `d/dρ [n ln δ − ln(σ² + ρg)] = Q(ρ) / (δ (σ² + ρg)²)` with
 //!
 //! ```text
 //! Q(ρ) = (n − 1) g² ρ² + g [(2n − 1) σ² − g + e²] ρ + σ² [n (σ² − e²) − g]
@@ -41,7 +41,7 @@
 //! enough to help). For n = 1 the intersection of two intervals is an interval and is returned
 //! exactly.
 //!
-//! *Minimum trace* ([MN96]): minimise `T(ρ) = δ(ρ) (tr P − ρ aᵀP²a / (σ² + ρg))` over ρ ≥ 0.
+//! *Minimum trace* (\[MN96\]): minimise `T(ρ) = δ(ρ) (tr P − ρ aᵀP²a / (σ² + ρg))` over ρ ≥ 0.
 //! T is a cubic over `(1 + qρ)²` (`q = g/σ²`), so `T′ = R / (1 + qρ)³` with a cubic R whose ρ² and
 //! ρ³ coefficients are ≥ 0 (because `aᵀP²a ≤ tr P · aᵀPa`): R is convex on ρ ≥ 0. After the
 //! tightening (`g ≥ σ²`), `R(0) ≥ 0` forces `e² < σ²` and then a non-negative linear coefficient,
@@ -60,7 +60,7 @@
 //! # Prediction: linear image ⊕ noise ellipsoid
 //!
 //! `A E(c, P) = E(A c, A P Aᵀ)` exactly; the noise set `{B w : ‖w‖ ≤ r} = E(0, r² B Bᵀ)` may be
-//! degenerate (B is n × W). [ELL] Theorem 2 (a Schur-complement inequality) gives Theorem 3, the
+//! degenerate (B is n × W). \[ELL\] Theorem 2 (a Schur-complement inequality) gives Theorem 3, the
 //! family of outer ellipsoids of a Minkowski sum `W₁ + … + W_m`, and in the proof of Theorem 4 its
 //! sub-family `Λᵢ = λᵢ I`, `λ` on the unit simplex, with shape `Σ Qᵢ / λᵢ`. With m = 2:
 //!
@@ -72,7 +72,7 @@
 //! (the theorems assume full-dimensional ellipsoids; a degenerate noise set is the limit of
 //! `E(0, r²BBᵀ + εI)` as ε → 0, and containment passes to the limit because `A P Aᵀ` is positive
 //! definite). *Minimum trace*: `tr P⁺ = t₁/λ + t₂/(1 − λ)` is minimal at
-//! `λ = √t₁ / (√t₁ + √t₂)`, i.e. `κ = √(t₁/t₂)`. *Minimum volume* ([ELL] Theorem 4 restricted to
+//! `λ = √t₁ / (√t₁ + √t₂)`, i.e. `κ = √(t₁/t₂)`. *Minimum volume* (\[ELL\] Theorem 4 restricted to
 //! this family): with `H = rB` and `K = Hᵀ (A P Aᵀ)⁻¹ H` (W × W, from one Cholesky factorisation),
 //! the matrix determinant lemma gives
 //!
@@ -87,9 +87,9 @@
 //! min-trace κ when γ is still ≤ 0 at it) climbs monotonically to the unique root, the global
 //! minimiser: a few scalar evaluations, no n × n factorisation per trial.
 //!
-//! # Not implemented: [ELL] Theorem 1
+//! # Not implemented: \[ELL\] Theorem 1
 //!
-//! [ELL] Theorem 1 claims that the intersection of an ellipsoid and a strip is again an ellipsoid
+//! \[ELL\] Theorem 1 claims that the intersection of an ellipsoid and a strip is again an ellipsoid
 //! and gives it in closed form. That is false: a disc cut by a strip has two flat sides, and the
 //! formula needs `C A₁` to be invertible, which a single measurement row never is. This module
 //! computes outer ellipsoids of the intersection instead, as above.
@@ -99,13 +99,13 @@
 //! matrices: no step allocates.
 //!
 //! # References
-//! * [ELL] Dong Liushuan, "Ellipsoidal Method for UAVs Target Tracking and Recognition", *IEEE
+//! * \[ELL\] Dong Liushuan, "Ellipsoidal Method for UAVs Target Tracking and Recognition", *IEEE
 //!   Access* 10, 2022, doi:10.1109/ACCESS.2022.3216883 (`shared/papers/000`).
-//! * [Sch68] F. C. Schweppe, "Recursive state estimation: unknown but bounded errors and system
+//! * \[Sch68\] F. C. Schweppe, "Recursive state estimation: unknown but bounded errors and system
 //!   inputs", *IEEE Trans. Automatic Control* 13(1), 22–28, 1968.
-//! * [FH82] E. Fogel, Y. F. Huang, "On the value of information in system identification — bounded
+//! * \[FH82\] E. Fogel, Y. F. Huang, "On the value of information in system identification — bounded
 //!   noise case", *Automatica* 18(2), 229–238, 1982.
-//! * [MN96] D. G. Maksarov, J. P. Norton, "State bounding with ellipsoidal set description of the
+//! * \[MN96\] D. G. Maksarov, J. P. Norton, "State bounding with ellipsoidal set description of the
 //!   uncertainty", *Int. J. Control* 65(5), 847–866, 1996.
 #![allow(non_snake_case)]
 
@@ -139,11 +139,11 @@ const MIN_STRIP_FRACTION: f64 = 1e-9;
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub enum ObeCriterion {
     /// Minimum volume (`det P`): Fogel & Huang's closed form for the update, a convex
-    /// one-dimensional root search for the prediction ([FH82], [ELL] Theorem 4).
+    /// one-dimensional root search for the prediction (\[FH82\], \[ELL\] Theorem 4).
     #[default]
     MinVolume,
     /// Minimum trace (sum of squared semi-axes): closed form for the prediction, a bounded
-    /// one-dimensional root search for the update ([MN96]).
+    /// one-dimensional root search for the update (\[MN96\]).
     MinTrace,
 }
 
@@ -227,7 +227,7 @@ impl<const N: usize, const M: usize> BoundedLinearMeasurement<N, M> {
     }
 }
 
-/// Fogel–Huang minimum-volume weight ([FH82]) in normalised form: with `q = g/σ²`, `ε = e²/σ²`,
+/// Fogel–Huang minimum-volume weight (\[FH82\]) in normalised form: with `q = g/σ²`, `ε = e²/σ²`,
 /// the positive root of `(n−1) q² ρ² + q [(2n−1) − q + ε] ρ + [n (1 − ε) − q]`, or 0 if none.
 fn rho_min_volume(n: f64, q: f64, eps: f64) -> f64 {
     let alpha = (n - 1.0) * q * q;
@@ -246,7 +246,7 @@ fn rho_min_volume(n: f64, q: f64, eps: f64) -> f64 {
     }
 }
 
-/// Minimum-trace weight ([MN96]), see the module docs: `T(ρ) = N₁ N₂ / D²` with `D = 1 + qρ`,
+/// Minimum-trace weight (\[MN96\]), see the module docs: `T(ρ) = N₁ N₂ / D²` with `D = 1 + qρ`,
 /// `N₁ = 1 + (1 + q − ε)ρ + qρ²`, `N₂ = t + (tq − η)ρ` (`t = tr P`, `η = aᵀP²a/σ²`);
 /// `T′ = R / D³` with the cubic `R = r₀ + r₁ρ + r₂ρ² + r₃ρ³`, convex on ρ ≥ 0. Returns 0 when
 /// `R(0) ≥ 0`, else the positive root of R by Newton's method from the right of it, starting at
@@ -383,7 +383,7 @@ fn kappa_min_volume<const W: usize>(n: f64, k: &SVector<f64, W>, start: f64) -> 
 }
 
 /// Outer ellipsoid of `E(c, P) ∩ {x : |y − aᵀx| ≤ σ}` minimising `criterion` (module docs,
-/// [Sch68], [FH82], [MN96]). Returns `e` unchanged when the strip covers it, and
+/// \[Sch68\], \[FH82\], \[MN96\]). Returns `e` unchanged when the strip covers it, and
 /// [`EstimationError::EmptyIntersection`] when the strip misses it.
 pub fn intersect_strip<const N: usize>(
     e: &Ellipsoid<N>,
@@ -480,7 +480,7 @@ fn finite<const N: usize>(
 }
 
 /// Outer ellipsoid of the Minkowski sum `A E(c, P) ⊕ {H w : ‖w‖₂ ≤ 1}` (`H = r B`) minimising
-/// `criterion` within the family of [ELL] Theorems 3–4 (module docs). Needs `A P Aᵀ` positive
+/// `criterion` within the family of \[ELL\] Theorems 3–4 (module docs). Needs `A P Aᵀ` positive
 /// definite (A invertible).
 pub fn minkowski_outer<const N: usize, const W: usize>(
     e: &Ellipsoid<N>,
@@ -544,7 +544,7 @@ fn measurement_set_shape<const N: usize, const M: usize>(
 impl<const N: usize, const W: usize> Predictor<BoundedLinearTransition<N, W>, N> for Obe {
     type State = Ellipsoid<N>;
     /// One step `k → k + 1` of the discrete-time system (`dt` is not used): the outer ellipsoid of
-    /// `A E(c, P) ⊕ E(0, r² B Bᵀ)`, see [`minkowski_outer`] ([ELL] Theorems 2–4).
+    /// `A E(c, P) ⊕ E(0, r² B Bᵀ)`, see [`minkowski_outer`] (\[ELL\] Theorems 2–4).
     fn predict(
         &self,
         model: &BoundedLinearTransition<N, W>,
@@ -558,7 +558,7 @@ impl<const N: usize, const W: usize> Predictor<BoundedLinearTransition<N, W>, N>
 
 impl<const N: usize, const M: usize> Updater<BoundedLinearMeasurement<N, M>, N, M> for Obe {
     type State = Ellipsoid<N>;
-    /// One [`intersect_strip`] per component of `z`, in order ([Sch68], [FH82], [MN96]). The
+    /// One [`intersect_strip`] per component of `z`, in order (\[Sch68\], \[FH82\], \[MN96\]). The
     /// posterior's `innovation` is `z − C c` and its `innovation_cov` the shape of an outer
     /// ellipsoid of the predicted measurement set, so `nis() ≤ 1` for consistent data.
     fn update(

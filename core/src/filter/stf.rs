@@ -1,8 +1,8 @@
 //! Strong tracking filter (STF): a Kalman filter whose predicted covariance is inflated by a
 //! suboptimal fading factor λ ≥ 1 whenever the innovations are larger than the model says they
-//! should be, the baseline filter of [ESE] §4 (its ref. [9]).
+//! should be, the baseline filter of \[ESE\] §4 (its ref. [9]).
 //!
-//! Single-fading-factor form of [ZF96] (the suboptimal fading factor of Zhou, Xi & Zhang
+//! Single-fading-factor form of \[ZF96\] (the suboptimal fading factor of Zhou, Xi & Zhang
 //! [ZXZ]), written for a linear model. With γ the innovation, β ≥ 1 the softening factor and
 //! 0 < ρ ≤ 1 the forgetting factor, one step k is:
 //!
@@ -16,13 +16,13 @@
 //! c   = tr N_k / tr M_k,   λ = max(1, c)                       suboptimal fading factor
 //! P⁻  = λ F P Fᵀ + Q
 //! S   = H P⁻ Hᵀ + R,  K = P⁻ Hᵀ S⁻¹,  x = x⁻ + K γ
-//! P   = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ                       Joseph form, [BLK01] eq. (5.2.3-18)
+//! P   = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ                       Joseph form, \[BLK01\] eq. (5.2.3-18)
 //! ```
 //!
-//! The covariance update is the **Joseph form** ([`joseph_update`], [BLK01] eq. (5.2.3-18)) rather
-//! than the short form `P = (I − K H) P⁻` of [ZF96]. The Joseph form is a sum of positive
+//! The covariance update is the **Joseph form** ([`joseph_update`], \[BLK01\] eq. (5.2.3-18)) rather
+//! than the short form `P = (I − K H) P⁻` of \[ZF96\]. The Joseph form is a sum of positive
 //! semi-definite terms, so P stays symmetric positive semi-definite for any gain and any λ; the short
-//! form relies on cancellation, which is fragile when P and R are tiny (the angle noise of [ESE] §4
+//! form relies on cancellation, which is fragile when P and R are tiny (the angle noise of \[ESE\] §4
 //! is σ = 2·10⁻⁶ rad, R = 4·10⁻¹²) and λ jumps by orders of magnitude.
 //!
 //! Because λ depends on the innovation, prediction and update cannot be split into the
@@ -31,14 +31,14 @@
 //! Kalman filter [`Kalman`](super::Kalman).
 //!
 //! # References
-//! * [ZF96] D. H. Zhou, P. M. Frank, "Strong tracking filtering of nonlinear time-varying stochastic
+//! * \[ZF96\] D. H. Zhou, P. M. Frank, "Strong tracking filtering of nonlinear time-varying stochastic
 //!   systems with coloured noise: application to parameter estimation and empirical robustness
 //!   analysis", *Int. J. Control* 65(2), 1996.
 //! * [ZXZ] D. H. Zhou, Y. G. Xi, Z. J. Zhang, the suboptimal fading extended Kalman filter (single
 //!   fading factor).
-//! * [ESE] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
+//! * \[ESE\] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
 //!   target tracking" (`shared/papers/004`), §4: β = 1, ρ = 0.95.
-//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 #![allow(non_snake_case)]
 
@@ -59,7 +59,7 @@ pub struct StrongTracking {
 }
 
 impl Default for StrongTracking {
-    /// β = 1, ρ = 0.95 ([ESE] §4).
+    /// β = 1, ρ = 0.95 (\[ESE\] §4).
     fn default() -> Self {
         Self {
             beta: 1.0,
@@ -125,7 +125,7 @@ impl StrongTracking {
         self.rho
     }
 
-    /// The suboptimal fading factor `λ = max(1, tr N / tr M)` ([ZF96]) and the updated
+    /// The suboptimal fading factor `λ = max(1, tr N / tr M)` (\[ZF96\]) and the updated
     /// innovation covariance estimate `V_k`, for innovation `gamma`, previous estimate `v_prev`
     /// (`None` on the first step), `FPFᵀ`, `Q`, `H` and `R`. When `tr M ≤ 0` (a degenerate,
     /// singular `P`) scaling `F P Fᵀ` is meaningless and λ = 1.

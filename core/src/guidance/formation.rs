@@ -1,18 +1,18 @@
-//! LOS-range formation control ([BOT] §III.A, eqs. (5)–(6); Sattigeri, Calise & Evers 2004).
+//! LOS-range formation control (\[BOT\] §III.A, eqs. (5)–(6); Sattigeri, Calise & Evers 2004).
 //!
 //! Aircraft i regulates its line-of-sight range `r_ij` to each neighbour j. The range command
 //! `R_com` is filtered through a first-order reference model (time constant τ), giving `r_c` and
-//! `ṙ_c`; the pseudo-control is ([BOT] eq. (5))
+//! `ṙ_c`; the pseudo-control is (\[BOT\] eq. (5))
 //!
 //! ```text
 //! v_(i,j) = ṙ_c + k_p (r_c − r_ij) − v_ad(i,j)
 //! ```
 //!
 //! and the commanded velocity is the vector sum along the LOS unit vectors `û_ij` (from i to j),
-//! [BOT] eq. (6): `V_FC,i = −Σ_j v_(i,j) û_ij`.
+//! \[BOT\] eq. (6): `V_FC,i = −Σ_j v_(i,j) û_ij`.
 //!
 //! The adaptive element `v_ad` compensates the unknown velocity of the neighbour along the LOS
-//! (`V_j·û_ij`). [BOT] uses a neural network fed with delayed range/angle histories; Harrier uses
+//! (`V_j·û_ij`). \[BOT\] uses a neural network fed with delayed range/angle histories; Harrier uses
 //! the simplest adaptive element that makes the loop Lyapunov-stable for a neighbour of constant
 //! velocity: with `e = r_c − r`, `ė = −k_p e + (v_ad − V_j·û)` and the update law
 //! `v̇_ad = −γ e`, `V = ½e² + (v_ad − V_j·û)²/(2γ)` has `V̇ = −k_p e² ≤ 0`. `v_ad` is clamped to
@@ -72,7 +72,7 @@ impl RangeRegulator {
         (r_com - pair.r_c) / self.tau.max(1e-9)
     }
 
-    /// Pseudo-control `v_(i,j)`, [BOT] eq. (5), for measured (or estimated) range `r`.
+    /// Pseudo-control `v_(i,j)`, \[BOT\] eq. (5), for measured (or estimated) range `r`.
     #[inline]
     pub fn pseudo_control(&self, pair: &PairState, r: f64, r_com: f64) -> f64 {
         self.r_c_dot(pair, r_com) + self.kp * (pair.r_c - r) - pair.v_ad
@@ -104,7 +104,7 @@ impl RangeRegulator {
 }
 
 impl RangeRegulator {
-    /// Pseudo-control hedging ([BOT] Fig. 2, PCH), in its simplest form: while the vehicle cannot
+    /// Pseudo-control hedging (\[BOT\] Fig. 2, PCH), in its simplest form: while the vehicle cannot
     /// follow the formation command (obstacle avoidance has replaced it), the reference model is
     /// moved to the achieved range, `r_c ← r`, and adaptation is frozen, so that neither the
     /// reference model nor the adaptive element winds up; afterwards the reference model brings
@@ -120,7 +120,7 @@ impl RangeRegulator {
     }
 }
 
-/// [BOT] eq. (6): `V_FC = −Σ v_(i,j) û_ij` over `(û_ij, v_(i,j))` pairs; non-finite terms are
+/// \[BOT\] eq. (6): `V_FC = −Σ v_(i,j) û_ij` over `(û_ij, v_(i,j))` pairs; non-finite terms are
 /// skipped.
 pub fn vector_sum(terms: impl IntoIterator<Item = (Vector2<f64>, f64)>) -> Vector2<f64> {
     terms

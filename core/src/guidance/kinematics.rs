@@ -1,4 +1,4 @@
-//! UAV kinematics for closed-loop evaluation: the 3-DOF point mass of [CIMM] §2.2 with decoupled
+//! UAV kinematics for closed-loop evaluation: the 3-DOF point mass of \[CIMM\] §2.2 with decoupled
 //! horizontal and vertical motion,
 //!
 //! ```text
@@ -36,8 +36,8 @@ pub struct Limits {
 }
 
 impl Limits {
-    /// Fixed-wing profile used by the [CIMM] cases: 12–35 m/s, 0.3 rad/s (r_min ≈ 83 m at
-    /// 25 m/s), 3 m/s² along track, 5 m/s and 1 m/s² vertically ([CIMM] §5.2: critical altitude
+    /// Fixed-wing profile used by the \[CIMM\] cases: 12–35 m/s, 0.3 rad/s (r_min ≈ 83 m at
+    /// 25 m/s), 3 m/s² along track, 5 m/s and 1 m/s² vertically (\[CIMM\] §5.2: critical altitude
     /// 312.5 m for H = 300 m).
     pub fn fixed_wing() -> Self {
         Self {
@@ -73,7 +73,7 @@ impl Limits {
         v.abs() / self.turn_rate_max.max(1e-9)
     }
     /// Altitude band, above the goal height, at which a maximum-rate descent must start braking
-    /// with the maximum deceleration: `v_z,max² / (2 a_z,max)` ([CIMM] §4.1; 12.5 m for 5 m/s and
+    /// with the maximum deceleration: `v_z,max² / (2 a_z,max)` (\[CIMM\] §4.1; 12.5 m for 5 m/s and
     /// 1 m/s²).
     #[inline]
     pub fn braking_height(&self) -> f64 {

@@ -1,4 +1,4 @@
-//! Lyapunov guidance vector field (LGVF), the baseline of [CIMM] §5 ([FLM08] eq. (9), [LFP08]).
+//! Lyapunov guidance vector field (LGVF), the baseline of \[CIMM\] §5 (\[FLM08\] eq. (9), \[LFP08\]).
 //!
 //! In the frame of the target, `d = (x, y) = p − p_t`, `r = |d|`, standoff radius R and orbit sign
 //! `s` (`+1` counter-clockwise), the desired relative velocity is
@@ -10,7 +10,7 @@
 //!
 //! It has magnitude `v₀` everywhere and the circle `r = R` as its globally attracting limit
 //! cycle; it is the gradient-plus-circulation field of the Lyapunov function `V = (r² − R²)²`.
-//! Our copy of [CIMM] gives no equation for the LGVF; this is the standard form of [FLM08].
+//! Our copy of \[CIMM\] gives no equation for the LGVF; this is the standard form of \[FLM08\].
 //! Moving target and several UAVs are handled as for [TOGVF](super::togvf): the target velocity is
 //! added and the speed corrected by the phase function.
 //!

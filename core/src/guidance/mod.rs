@@ -8,23 +8,23 @@
 //!
 //! | law | module | paper |
 //! |---|---|---|
-//! | time-optimal guidance vector field (tangent to the limit cycle, time-optimal climb/descent) | [`togvf`] | [CIMM] §4.1–4.2 |
+//! | time-optimal guidance vector field (tangent to the limit cycle, time-optimal climb/descent) | [`togvf`] | \[CIMM\] §4.1–4.2 |
 //! | Lyapunov guidance vector field (baseline) | [`lgvf`] | Frew, Lawrence & Morris 2008 |
-//! | phase spacing of several UAVs on the circle (speed correction) | [`phase`] | [CIMM] §4.3 |
-//! | LOS-range formation control with reference model, P compensator, adaptive element | [`formation`] | [BOT] §III.A eqs. (5)–(6) |
-//! | "steer towards silhouette edge" obstacle avoidance | [`obstacle`] | [BOT] §III.B |
-//! | range-observability maneuver for bearings-only followers | [`observability`] | [BOT] §II.B eqs. (2)–(4) |
+//! | phase spacing of several UAVs on the circle (speed correction) | [`phase`] | \[CIMM\] §4.3 |
+//! | LOS-range formation control with reference model, P compensator, adaptive element | [`formation`] | \[BOT\] §III.A eqs. (5)–(6) |
+//! | "steer towards silhouette edge" obstacle avoidance | [`obstacle`] | \[BOT\] §III.B |
+//! | range-observability maneuver for bearings-only followers | [`observability`] | \[BOT\] §II.B eqs. (2)–(4) |
 //!
 //! Frame: ENU metres (x East, y North, z Up), FORMAT.md §1. Phases `θ = atan2(y − y_t, x − x_t)`
-//! are measured from the x axis as in [CIMM] §4.3.
+//! are measured from the x axis as in \[CIMM\] §4.3.
 //!
 //! # References
-//! * [CIMM] the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
-//! * [BOT] Calise, Johnson, Sattigeri, Watanabe, Madyastha, *Estimation and Guidance Strategies
+//! * \[CIMM\] the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
+//! * \[BOT\] Calise, Johnson, Sattigeri, Watanabe, Madyastha, *Estimation and Guidance Strategies
 //!   for Vision-based Target Tracking* (`shared/papers/002_*.txt`).
-//! * [FLM08] E. W. Frew, D. A. Lawrence, S. Morris, "Coordinated Standoff Tracking of Moving
+//! * \[FLM08\] E. W. Frew, D. A. Lawrence, S. Morris, "Coordinated Standoff Tracking of Moving
 //!   Targets Using Lyapunov Guidance Vector Fields", JGCD 31(2), 2008.
-//! * [LFP08] D. A. Lawrence, E. W. Frew, W. J. Pisano, "Lyapunov Vector Fields for Autonomous
+//! * \[LFP08\] D. A. Lawrence, E. W. Frew, W. J. Pisano, "Lyapunov Vector Fields for Autonomous
 //!   Unmanned Aircraft Flight Control", JGCD 31(5), 2008.
 
 pub mod formation;
@@ -105,7 +105,7 @@ pub enum Orbit {
     Ccw,
     /// Clockwise (phase decreasing).
     Cw,
-    /// Whichever needs the smaller heading change now ([CIMM] §4.1; ties go to `Ccw`).
+    /// Whichever needs the smaller heading change now (\[CIMM\] §4.1; ties go to `Ccw`).
     Auto,
 }
 
@@ -175,7 +175,7 @@ pub(crate) fn valid_inputs<'a>(
 }
 
 /// Scales a relative horizontal velocity `v_rel` by the largest `α ∈ [0, 1]` such that
-/// `|α v_rel + v_t| ≤ v_max` and returns `α v_rel + v_t` ([CIMM] §4.2/§4.3: "the horizontal speed
+/// `|α v_rel + v_t| ≤ v_max` and returns `α v_rel + v_t` (\[CIMM\] §4.2/§4.3: "the horizontal speed
 /// in the relative frame is `α v₀`"). If even `α = 0` violates the bound the target is faster than
 /// the UAV and the result is `v_t` clipped to `v_max`.
 pub(crate) fn add_target_velocity(
@@ -203,7 +203,7 @@ pub(crate) fn add_target_velocity(
 /// and the tests can swap them.
 pub trait StandoffLaw {
     /// Commanded velocity for one UAV. `phase` carries the phases of its neighbours on the circle
-    /// when several UAVs share the target ([CIMM] §4.3); `None` for a single UAV.
+    /// when several UAVs share the target (\[CIMM\] §4.3); `None` for a single UAV.
     fn command(
         &self,
         uav: &UavState,

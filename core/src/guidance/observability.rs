@@ -1,4 +1,4 @@
-//! Range-observability maneuver for bearings-only followers ([BOT] §II.B, eqs. (2)–(4)).
+//! Range-observability maneuver for bearings-only followers (\[BOT\] §II.B, eqs. (2)–(4)).
 //!
 //! With bearings only, range is observable only through motion across the line of sight; the
 //! best relative motion maximises `β̇²` while keeping β near its desired value β_d and bounding β̈:
@@ -7,7 +7,7 @@
 //! min ∫ { −β̇² + K₁/2 (β − β_d)² + K₂/2 β̈² } dt
 //! ```
 //!
-//! The Euler–Lagrange equations ([BOT] eq. (2); the copy's Hamiltonian has a typo, `K₂/2 β̇²`
+//! The Euler–Lagrange equations (\[BOT\] eq. (2); the copy's Hamiltonian has a typo, `K₂/2 β̇²`
 //! for `K₂/2 β̈²`) give `β(t) = Σ Aᵢ e^{cᵢ t}` with `K₂ c⁴ + 2 c² + K₁ = 0` (eq. (3)); for
 //! `K₁ K₂ = 1` the solution is the pure oscillation `β − β_d = A cos ωt + B sin ωt`, `ω = √K₁`
 //! (eq. (4)). For `K₁K₂ < 1` the roots are `c² = (−1 ± √(1 − K₁K₂))/K₂`, two frequencies; we
@@ -22,7 +22,7 @@ use nalgebra::Vector2;
 
 use super::perp;
 
-/// The sinusoidal bearing maneuver of [BOT] eq. (4).
+/// The sinusoidal bearing maneuver of \[BOT\] eq. (4).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ObservabilityManeuver {
     /// Bearing amplitude B (rad).
@@ -32,7 +32,7 @@ pub struct ObservabilityManeuver {
 }
 
 impl ObservabilityManeuver {
-    /// The maneuver for weights `K₁`, `K₂` ([BOT] eq. (3)) with bearing amplitude `amplitude`:
+    /// The maneuver for weights `K₁`, `K₂` (\[BOT\] eq. (3)) with bearing amplitude `amplitude`:
     /// `ω² = (1 − √(1 − K₁K₂))/K₂` (`= K₁` when `K₁K₂ = 1`). `None` when `K₁K₂ > 1` (the optimal
     /// bearing then grows or decays exponentially) or a weight is not positive.
     pub fn from_weights(k1: f64, k2: f64, amplitude: f64) -> Option<Self> {

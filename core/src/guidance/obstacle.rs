@@ -1,4 +1,4 @@
-//! "Steer towards silhouette edge" static obstacle avoidance ([BOT] §III.B, after Reynolds 1988).
+//! "Steer towards silhouette edge" static obstacle avoidance (\[BOT\] §III.B, after Reynolds 1988).
 //!
 //! Obstacles are circles (bounding circles in 2-D) with known centre and radius, enlarged by a
 //! margin for the vehicle size, its turning lag and the uncertainty. An imaginary line of length

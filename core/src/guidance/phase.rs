@@ -1,12 +1,12 @@
-//! Phase coordination of several UAVs on the same limit cycle ([CIMM] §4.3).
+//! Phase coordination of several UAVs on the same limit cycle (\[CIMM\] §4.3).
 //!
-//! The phase of UAV i is `θᵢ = atan2(yᵢ − y_t, xᵢ − x_t)` (angle from the x axis, [CIMM] §4.3).
+//! The phase of UAV i is `θᵢ = atan2(yᵢ − y_t, xᵢ − x_t)` (angle from the x axis, \[CIMM\] §4.3).
 //! With n UAVs in a ring the desired gap to the neighbour ahead (in the orbit direction) is
 //! `Δ = 2π/n`. The gap errors are `e_a = gap_ahead − Δ` and `e_b = gap_behind − Δ`, gaps taken in
 //! `[0, 2π)` along the orbit so that the ring order never flips.
 //!
-//! [CIMM] eqs. (36)–(39) (the Lyapunov phase function and its derivative) are lost in our copy of
-//! the paper; we use the standard form of [FLM08] §IV with the two gains the paper names:
+//! \[CIMM\] eqs. (36)–(39) (the Lyapunov phase function and its derivative) are lost in our copy of
+//! the paper; we use the standard form of \[FLM08\] §IV with the two gains the paper names:
 //! Lyapunov phase function `V_q = ½ Σ eᵢ²` and the speed correction
 //!
 //! ```text
@@ -16,7 +16,7 @@
 //! i.e. a UAV with too large a gap ahead speeds up and one with too large a gap behind slows
 //! down. For a ring on a static target, `dV_q/dt = −Σ (k₂ e_a − k₃ e_b)(…) ≤ 0` as long as the
 //! speeds do not saturate; on a moving target the relative speed is `α v₀` instead of `v₀` and the
-//! phases oscillate about the set value, as [CIMM] §4.3 notes.
+//! phases oscillate about the set value, as \[CIMM\] §4.3 notes.
 //!
 //! [FLM08]: super#references
 
@@ -24,7 +24,7 @@ use nalgebra::Vector2;
 
 use std::f64::consts::TAU;
 
-/// Phase of a UAV around the target, `atan2(y − y_t, x − x_t)` (rad, [CIMM] §4.3).
+/// Phase of a UAV around the target, `atan2(y − y_t, x − x_t)` (rad, \[CIMM\] §4.3).
 #[inline]
 pub fn phase_of(uav: Vector2<f64>, target: Vector2<f64>) -> f64 {
     let d = uav - target;

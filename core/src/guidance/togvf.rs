@@ -1,6 +1,6 @@
-//! Time-optimal guidance vector field (TOGVF, [CIMM] §4).
+//! Time-optimal guidance vector field (TOGVF, \[CIMM\] §4).
 //!
-//! **Horizontal** ([CIMM] §4.1, Fig. 3), in the frame of the target, `d = p − p_t`, `r = |d|`:
+//! **Horizontal** (\[CIMM\] §4.1, Fig. 3), in the frame of the target, `d = p − p_t`, `r = |d|`:
 //!
 //! * outside the limit cycle (`r > R`) the shortest path is the tangent line. The two tangents
 //!   leave the line of sight to the centre at `±asin(R/r)`; the law flies the one that needs the
@@ -15,17 +15,17 @@
 //!   circle is selected again at the next step. When no inner circle passes through the UAV
 //!   (`r < |R − 2 r_min|`) the UAV flies radially outwards, the shortest way towards them.
 //!
-//! The commanded relative velocity is `v₀` along that direction ([CIMM] eq. (30), garbled here:
+//! The commanded relative velocity is `v₀` along that direction (\[CIMM\] eq. (30), garbled here:
 //! `v_d = v₀ (cos ψ_d, sin ψ_d)`).
 //!
-//! **Moving target** ([CIMM] §4.2): the target velocity is added, `v = v_rel + v_t`, with the
+//! **Moving target** (\[CIMM\] §4.2): the target velocity is added, `v = v_rel + v_t`, with the
 //! relative part scaled by the largest `α ≤ 1` that keeps `|v| ≤ v_max`.
 //!
-//! **Several UAVs** ([CIMM] §4.3): the relative speed `v₀` is corrected by
+//! **Several UAVs** (\[CIMM\] §4.3): the relative speed `v₀` is corrected by
 //! [`phase::speed_correction`](super::phase::speed_correction) (gains `k₂`, `k₃`).
 //!
-//! **Vertical** ([CIMM] §4.1, eqs. (31)–(33)): maximum climb/descent rate until the critical
-//! altitude `H + v_z,max²/(2 a_z,max)` (312.5 m for H = 300 m, 5 m/s, 1 m/s², [CIMM] §5.2), then
+//! **Vertical** (\[CIMM\] §4.1, eqs. (31)–(33)): maximum climb/descent rate until the critical
+//! altitude `H + v_z,max²/(2 a_z,max)` (312.5 m for H = 300 m, 5 m/s, 1 m/s², \[CIMM\] §5.2), then
 //! uniform deceleration with `a_z,max` so that the vertical speed is zero at H:
 //! `v_z = −sign(e) · min(v_z,max, √(2 a_z,max |e|))`, `e = z − z_t − H` (the bang-bang
 //! minimum-time law in feedback form).
@@ -94,7 +94,7 @@ impl Togvf {
     }
 
     /// Unit horizontal direction in the target frame for relative position `d`, orbit sign `s`
-    /// and minimum turning radius `r_min` ([CIMM] §4.1).
+    /// and minimum turning radius `r_min` (\[CIMM\] §4.1).
     pub fn direction(&self, d: Vector2<f64>, s: f64, r_min: f64) -> Vector2<f64> {
         let big_r = self.radius;
         let r = d.norm();
@@ -131,7 +131,7 @@ impl Togvf {
         if n > 1e-12 { best / n } else { dh }
     }
 
-    /// Vertical speed command for a height error `e = z − z_t − H` ([CIMM] §4.1).
+    /// Vertical speed command for a height error `e = z − z_t − H` (\[CIMM\] §4.1).
     pub fn vertical_speed(e: f64, limits: &Limits) -> f64 {
         let v = limits.vz_max.min((2.0 * limits.az_max * e.abs()).sqrt());
         -e.signum() * v

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! d²ᵢⱼ = νᵢⱼᵀ Sᵢ⁻¹ νᵢⱼ,   νᵢⱼ = zⱼ ⊖ ẑᵢ                 (NIS of detection j under track i)
-//! gate:  d²ᵢⱼ ≤ γ,   γ = χ²_M⁻¹(P_G)                    [BLK01] §7.4.2
+//! gate:  d²ᵢⱼ ≤ γ,   γ = χ²_M⁻¹(P_G)                    \[BLK01\] §7.4.2
 //! GNN:   min Σ cᵢⱼ,  cᵢⱼ = d²ᵢⱼ + ln det Sᵢ  (assigned),  γ + ln det Sᵢ (track i missed)
 //! ```
 //!
@@ -13,7 +13,7 @@
 //! [`assign::solve`](super::assign::solve).
 //!
 //! # References
-//! * [BLK01] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
+//! * \[BLK01\] Bar-Shalom, Li, Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001.
 //! * [BP99] S. Blackman, R. Popoli, *Design and Analysis of Modern Tracking Systems*, Artech House
 //!   1999.

@@ -1,7 +1,7 @@
 //! The filter a track runs, behind one small trait ([`TrackFilter`]) so that the tracker does not
 //! care whether a track is a single Gaussian filter ([`GaussianFilter`]: EKF, CDKF) or a mixture
 //! ([`ImmFilter`]: IMM over EKF or CDKF mode filters; [`CimmFilter`]: the road-constrained IMM of
-//! [CIMM]). The sensor is not part of the filter: every
+//! \[CIMM\]). The sensor is not part of the filter: every
 //! call takes the measurement model of the scan at hand, so one track is updated by cameras on
 //! moving UAVs and by a ground radar alike.
 
@@ -141,7 +141,7 @@ where
     }
 }
 
-/// A road-constrained IMM track ([CIMM] §3.1–3.2): the [`ImmFilter`], and after every sensor
+/// A road-constrained IMM track (\[CIMM\] §3.1–3.2): the [`ImmFilter`], and after every sensor
 /// update the road pseudo-measurement ([`RoadConstraint`]) applied in every mode filter on the
 /// road nearest to the combined estimate — when that road's centre line is within `max_offset_m`,
 /// so that a target off the network is tracked unconstrained.
@@ -158,7 +158,7 @@ pub struct CimmFilter<F, T, const R: usize> {
 }
 
 impl<F, T, const R: usize> CimmFilter<F, T, R> {
-    /// The road update of [CIMM] §3.1 on `s` (unchanged away from every road).
+    /// The road update of \[CIMM\] §3.1 on `s` (unchanged away from every road).
     pub fn constrain<const N: usize>(&self, s: &ImmState<N, R>) -> Result<ImmState<N, R>>
     where
         F: NonlinearFilter<N>,

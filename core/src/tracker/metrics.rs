@@ -1,7 +1,7 @@
 //! Multi-target metrics: GOSPA with its decomposition, and track-continuity counts (swaps, breaks,
 //! false tracks, confirmation delays).
 //!
-//! GOSPA with α = 2 ([GOSPA] Prop. 1): for estimates X = {x₁..x_m} and truths Y = {y₁..y_n},
+//! GOSPA with α = 2 (\[GOSPA\] Prop. 1): for estimates X = {x₁..x_m} and truths Y = {y₁..y_n},
 //!
 //! ```text
 //! d_p^(c,2)(X, Y) = [ min_γ ( Σ_{(i,j)∈γ} d(xᵢ, yⱼ)^p + c^p/2 · (m + n − 2|γ|) ) ]^(1/p)
@@ -13,7 +13,7 @@
 //! is found by the optimal assignment of the cost `min(d, c)^p`.
 //!
 //! # References
-//! * [GOSPA] A. S. Rahmathullah, Á. F. García-Fernández, L. Svensson, "Generalized optimal
+//! * \[GOSPA\] A. S. Rahmathullah, Á. F. García-Fernández, L. Svensson, "Generalized optimal
 //!   sub-pattern assignment metric", 20th Int. Conf. on Information Fusion (FUSION), 2017.
 
 use std::collections::BTreeMap;

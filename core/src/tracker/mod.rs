@@ -11,7 +11,7 @@
 //! | deleter | [`Deleter`]: consecutive misses or position-covariance growth |
 //! | tracker | [`Tracker::step`]: predict, associate, update or coast, confirm / delete, initiate; returns [`TrackEvent`]s |
 //!
-//! [`metrics`] has GOSPA and track-continuity counts, [`format`] reads the multi-target extension
+//! [`metrics`] has GOSPA and track-continuity counts, [`format`](mod@format) reads the multi-target extension
 //! of `gcs-scenario/1` (`FORMAT-MULTI.md`), and [`generate`] writes seeded crossing-target
 //! scenarios with clutter.
 //!

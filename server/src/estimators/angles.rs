@@ -1,13 +1,13 @@
-//! Prediction-only angle trackers of [ESE] §4 for a single `az_el` sensor: each angle axis is
+//! Prediction-only angle trackers of \[ESE\] §4 for a single `az_el` sensor: each angle axis is
 //! tracked on its own with the CA model, and every estimate line carries the one-step-ahead
 //! predicted measurement `Ẑ(k+1|k)` for the sensor's next measurement time (FORMAT.md §5, `state`
 //! is `null`).
 //!
-//! * `ca-kf` — Kalman filter, `Ẑ(k+1|k) = H Φ x̂(k|k)` ([ESE] eqs. (7)–(8));
+//! * `ca-kf` — Kalman filter, `Ẑ(k+1|k) = H Φ x̂(k|k)` (\[ESE\] eqs. (7)–(8));
 //! * `stf`   — strong tracking filter ([`StrongTracking`]), same prediction;
 //! * `ese`   — error-space estimate method ([`ErrorSpacePredictor`], eq. (14)).
 //!
-//! The CA model is [`WienerAcceleration`](harrier_core::motion::WienerAcceleration): q is the std of the acceleration increment per sample
+//! The CA model is [`WienerAcceleration`]: q is the std of the acceleration increment per sample
 //! (rad/s²), the reading of the paper's unit-less "q = 0.000002" that reproduces the reference
 //! figures on `zenith_pass` (see the ESE module docs in `harrier_core::filter`). Filters start by three-point differencing
 //! of their first samples, so the first prediction comes with the third measurement.
@@ -17,7 +17,7 @@
 //! Measurements of other sensors are ignored.
 //!
 //! # References
-//! * [ESE] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
+//! * \[ESE\] M. Cen, C. Fu, K. Chen, X. Liu, "Error-space estimate method for generalized synergic
 //!   target tracking" (`shared/papers/004`).
 
 use harrier_core::EstimationError;

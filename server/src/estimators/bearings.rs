@@ -1,11 +1,11 @@
 //! Bearings-only (angle + subtended angle) tracking from a moving platform with the modified-polar
-//! EKF of [BOT] §II (`harrier_core::filter::mpekf`), for scenarios with one `bearing_size` or
+//! EKF of \[BOT\] §II (`harrier_core::filter::mpekf`), for scenarios with one `bearing_size` or
 //! `az_el` sensor:
 //!
-//! * `mpekf` — the modified-spherical EKF relative to the platform ([BOT] eq. (1) in 3-D), with the
+//! * `mpekf` — the modified-spherical EKF relative to the platform (\[BOT\] eq. (1) in 3-D), with the
 //!   subtended-angle measurement and, when `target.size_m` is not given, a size state whose prior is
-//!   `target.size_prior` ([BOT] §II.C);
-//! * `mpekf-nn` — the same filter augmented with the adaptive neural network of [BOT] §II.D
+//!   `target.size_prior` (\[BOT\] §II.C);
+//! * `mpekf-nn` — the same filter augmented with the adaptive neural network of \[BOT\] §II.D
 //!   (`harrier_core::filter::nn`), which estimates the target acceleration online.
 //!
 //! The filter starts from the scenario's Cartesian prior transformed to modified-spherical
@@ -17,13 +17,13 @@
 //!
 //! # The network's training signal
 //!
-//! [BOT] trains the network on "the residuals produced by the EKF". The residual enters the state
+//! \[BOT\] trains the network on "the residuals produced by the EKF". The residual enters the state
 //! through the gain, and what it says about the acceleration is the velocity correction of the
 //! update over the step, `e = (ḋ⁺ − ḋ⁻)/Δt` (relative Cartesian velocity, m/s²): zero on average
 //! exactly when the acceleration the network feeds to the prediction explains the data. The network
 //! inputs are a bias, the estimated target heading `û` (unit velocity) and its change `û − ū`
-//! against a lagged heading `ū` (first-order lag `nn_lag`: the tapped-delay input of [BOT]'s
-//! refs. [14], [15], which tells a left from a right turn at the same heading), normalised by the
+//! against a lagged heading `ū` (first-order lag `nn_lag`: the tapped-delay input of \[BOT\]'s
+//! refs. \[14\], \[15\], which tells a left from a right turn at the same heading), normalised by the
 //! largest turn `nn_lag · nn_amax / speed`; the output is bounded by `nn_amax`.
 //!
 //! What the network has not learnt yet is still acceleration the CV model does not contain. Its
@@ -38,7 +38,7 @@
 //! ([`project_lower_bound`]).
 //!
 //! # References
-//! * [BOT] "Vision-based estimation and formation control of multiple aircraft"
+//! * \[BOT\] "Vision-based estimation and formation control of multiple aircraft"
 //!   (`shared/papers/002`), §II.
 
 use harrier_core::filter::mpekf::{
@@ -269,7 +269,7 @@ impl<const N: usize> MpTracker<N> {
         (v / speed.max(1e-3), speed)
     }
 
-    /// Network input ([BOT] §II.D with the tapped-delay inputs of its refs. [14], [15]): bias, the
+    /// Network input (\[BOT\] §II.D with the tapped-delay inputs of its refs. \[14\], \[15\]): bias, the
     /// heading û and its change û − ū against the lagged heading ū, normalised by the largest turn
     /// over the lag, `lag · nn_amax / speed`.
     fn nn_input(&self, tr: &Track<N>, lagged: Option<Vector3<f64>>) -> SVector<f64, 7> {

@@ -1,4 +1,4 @@
-//! The incremental CDKF of [ICDKF] (`icdkf`, `icdkf-general`): one sensor, CV model, estimates from
+//! The incremental CDKF of \[ICDKF\] (`icdkf`, `icdkf-general`): one sensor, CV model, estimates from
 //! measurement increments. The first measurement only sets the reference for the first increment.
 
 use harrier_core::filter::{CentralDifference, IcdkfForm, IncrementalCdkf, Predictor, current};

@@ -1,6 +1,6 @@
-//! Multiple-model estimators ([CIMM] §3): `imm`, the road-constrained `cimm` (centralised: one
+//! Multiple-model estimators (\[CIMM\] §3): `imm`, the road-constrained `cimm` (centralised: one
 //! CIMM updated sequentially with every UAV's measurements), and the multi-UAV variants
-//! `cimm-fusion` (one CIMM per UAV + state-vector fusion, [CIMM] §3.3) and `cimm-ci` (one CIMM
+//! `cimm-fusion` (one CIMM per UAV + state-vector fusion, \[CIMM\] §3.3) and `cimm-ci` (one CIMM
 //! per UAV + covariance intersection).
 //!
 //! Modes come from `motion.models` (`CV`, and `CT` with its known `turn_rate`), with
@@ -184,7 +184,7 @@ impl<const R: usize> SingleTargetImm<R> {
     }
 }
 
-/// The road pseudo-measurement of [CIMM] §3.1 applied once in every mode filter of `s`, on the
+/// The road pseudo-measurement of \[CIMM\] §3.1 applied once in every mode filter of `s`, on the
 /// road of `net` nearest to the combined estimate, with normal-velocity std `sigma_v` (default
 /// the road's `sigma_m / dt`, `dt` the sensor period). Without a road, `s` is returned as is.
 fn road_update<const R: usize>(

@@ -1,6 +1,6 @@
 //! Set-membership estimators `obe` (minimum volume) and `obe-trace` (minimum trace): the optimal
 //! bounding ellipsoid filter of `harrier_core::filter::Obe` on the bounded-noise linear system of
-//! `scenario.linear_system` (FORMAT.md §2.1, [ELL]).
+//! `scenario.linear_system` (FORMAT.md §2.1, \[ELL\]).
 //!
 //! Step k is the k-th distinct measurement time: the first time only updates `x0_ellipsoid` (which
 //! is the set at that time), every later time predicts one step and then updates with each

@@ -128,7 +128,7 @@ pub const ENGINE_IMM: TrackEngineInfo = TrackEngineInfo {
     build: |sc, p| imm_engine(sc, p, None),
 };
 
-/// `cimm`: road-constrained IMM tracks ([CIMM]) over `motion.models` and `roads` (planar).
+/// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
 pub const ENGINE_CIMM: TrackEngineInfo = TrackEngineInfo {
     name: "cimm",
     summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",

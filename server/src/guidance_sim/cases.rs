@@ -9,17 +9,17 @@ use super::SimError;
 /// A built-in scenario.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Case {
-    /// [CIMM] §5.2 static target, one UAV.
+    /// \[CIMM\] §5.2 static target, one UAV.
     CimmStatic,
-    /// [CIMM] §5.1 moving target, one UAV.
+    /// \[CIMM\] §5.1 moving target, one UAV.
     CimmMoving,
     /// Three UAVs on the static target.
     ThreeStatic,
     /// Three UAVs on the moving target.
     ThreeMoving,
-    /// [BOT] leader + 3 followers with four obstacles.
+    /// \[BOT\] leader + 3 followers with four obstacles.
     BotFormation,
-    /// [BOT] bearings-only follower, with and without the observability maneuver.
+    /// \[BOT\] bearings-only follower, with and without the observability maneuver.
     BotObservability,
 }
 
@@ -64,7 +64,7 @@ impl Case {
             Case::BotObservability => 300.0,
         }
     }
-    /// Whether the target moves (the [CIMM] §5.1 road target).
+    /// Whether the target moves (the \[CIMM\] §5.1 road target).
     pub fn moving(self) -> bool {
         matches!(self, Case::CimmMoving | Case::ThreeMoving)
     }
@@ -87,15 +87,15 @@ impl Case {
     }
 }
 
-/// Standoff radius and height of the [CIMM] cases (m).
+/// Standoff radius and height of the \[CIMM\] cases (m).
 pub const R: f64 = 300.0;
 /// Observation height (m).
 pub const H: f64 = 300.0;
 /// Nominal relative speed v₀ (m/s).
 pub const V0: f64 = 25.0;
-/// Static target of [CIMM] §5.2.
+/// Static target of \[CIMM\] §5.2.
 pub const STATIC_TARGET: [f64; 3] = [1500.0, 1800.0, 0.0];
-/// UAV start of [CIMM] §5.2.
+/// UAV start of \[CIMM\] §5.2.
 pub const STATIC_START: [f64; 3] = [1100.0, 1000.0, 400.0];
 
 /// The four obstacles of the formation case.

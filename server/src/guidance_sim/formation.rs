@@ -1,4 +1,4 @@
-//! The [BOT] formation case: a leader and three followers regulating their LOS ranges (eqs. (5)–(6))
+//! The \[BOT\] formation case: a leader and three followers regulating their LOS ranges (eqs. (5)–(6))
 //! while avoiding four obstacles.
 
 use std::time::Instant;

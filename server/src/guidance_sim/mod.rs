@@ -3,23 +3,23 @@
 //! A scenario is target motion ([`truth`]), N UAVs ([`harrier_core::guidance::kinematics`]), a
 //! guidance law and optionally an estimator fed with simulated measurements (seeded `ChaCha8Rng`).
 //! The run records every vehicle's [`Trajectory`], computes the figures of GUIDANCE.md
-//! ([`figures`]), and can write the trajectories as CSV or JSONL and the summary ([`output`]) and
-//! an SVG picture ([`plot`]).
+//! (`figures`), and can write the trajectories as CSV or JSONL and the summary (`output`) and
+//! an SVG picture (`plot`).
 //!
 //! Built-in cases ([`Case`]):
 //!
 //! | name | what |
 //! |---|---|
-//! | `cimm-static` | [CIMM] §5.2: static target at (1500, 1800, 0) m, UAV from (1100, 1000, 400) m, R = H = 300 m |
-//! | `cimm-moving` | [CIMM] §5.1 target (10 m/s, right turn 0.008 rad/s at 140 s, left turn 0.01 rad/s at 360 s; the road of `cimm_road_1uav`), UAV from (−500, −500, 400) m |
+//! | `cimm-static` | \[CIMM\] §5.2: static target at (1500, 1800, 0) m, UAV from (1100, 1000, 400) m, R = H = 300 m |
+//! | `cimm-moving` | \[CIMM\] §5.1 target (10 m/s, right turn 0.008 rad/s at 140 s, left turn 0.01 rad/s at 360 s; the road of `cimm_road_1uav`), UAV from (−500, −500, 400) m |
 //! | `three-static` | three UAVs, phase-coordinated, on the static target of `cimm-static` |
 //! | `three-moving` | three UAVs on the moving target of `cimm-moving` |
-//! | `bot-formation` | [BOT] §IV Fig. 8: leader + 3 followers regulating LOS ranges, four obstacles |
-//! | `bot-observability` | [BOT] §II.B: one bearings-only follower, straight following vs. the eq. (4) maneuver |
+//! | `bot-formation` | \[BOT\] §IV Fig. 8: leader + 3 followers regulating LOS ranges, four obstacles |
+//! | `bot-observability` | \[BOT\] §II.B: one bearings-only follower, straight following vs. the eq. (4) maneuver |
 //!
 //! **Estimators.** Every estimator in the loop comes from the registry
 //! ([`crate::registry::build`]) and runs on measurement lines of a small simulated scenario
-//! ([`estimate`]): the moving cases use `cimm` by default (the road-constrained IMM of [CIMM]
+//! ([`estimate`]): the moving cases use `cimm` by default (the road-constrained IMM of \[CIMM\]
 //! §3.2) on camera geolocation fixes, σ = 10 m, 1 Hz per UAV, every UAV's fix applied
 //! sequentially; `--estimator kf` is the comparison, `--estimator truth` feeds the truth, and any
 //! other registry estimator that takes position fixes can be named. The guidance sees the estimate
@@ -67,9 +67,9 @@ pub enum SimError {
 /// Standoff guidance law.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LawKind {
-    /// [`Togvf`].
+    /// TOGVF: [`harrier_core::guidance::togvf`].
     Togvf,
-    /// [`Lgvf`].
+    /// LGVF: [`harrier_core::guidance::lgvf`].
     Lgvf,
 }
 

@@ -1,4 +1,4 @@
-//! The [BOT] range-observability case: one bearings-only follower regulating its range to the
+//! The \[BOT\] range-observability case: one bearings-only follower regulating its range to the
 //! leader on the *estimated* range and LOS, straight following against the eq. (4) maneuver. The
 //! leader is tracked by the registry's `ekf` on the follower's `az_el` camera (the leader flies
 //! level with the follower, so the elevation is 0 and only the azimuth informs).

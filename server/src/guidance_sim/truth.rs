@@ -1,5 +1,5 @@
-//! True motion of the simulated targets: the [CIMM] §5.1 road target (piecewise constant turn,
-//! propagated with harrier-core's [`ConstantTurn`]) and its road, and the [BOT] leader's heading
+//! True motion of the simulated targets: the \[CIMM\] §5.1 road target (piecewise constant turn,
+//! propagated with harrier-core's [`ConstantTurn`]) and its road, and the \[BOT\] leader's heading
 //! schedule.
 
 use harrier_core::EstimationError;
@@ -8,7 +8,7 @@ use harrier_core::road::road_from_turn_legs;
 use harrier_core::scenario;
 use nalgebra::{Vector2, Vector3, Vector4};
 
-/// Legs of the [CIMM] §5.1 target: (start time s, turn rate rad/s). Straight, right turn at
+/// Legs of the \[CIMM\] §5.1 target: (start time s, turn rate rad/s). Straight, right turn at
 /// −0.008 rad/s from 140 s, left turn at 0.01 rad/s from 360 s (the `motion.models` turn rates of
 /// `cimm_road_1uav`).
 pub const ROAD_LEGS: [(f64, f64); 3] = [(0.0, 0.0), (140.0, -0.008), (360.0, 0.01)];
@@ -19,7 +19,7 @@ const ROAD_END_S: f64 = 700.0;
 /// Lateral-offset std of the road (m), as `sigma_m` of `cimm_road_1uav`.
 pub const ROAD_SIGMA_M: f64 = 2.0;
 
-/// The [CIMM] §5.1 target (the road of `cimm_road_1uav`): from (200, 300) m at (6, 8) m/s along
+/// The \[CIMM\] §5.1 target (the road of `cimm_road_1uav`): from (200, 300) m at (6, 8) m/s along
 /// [`ROAD_LEGS`].
 pub fn road_target(t: f64) -> (Vector3<f64>, Vector3<f64>) {
     let ([x, y], [vx, vy]) = ROAD_START;
@@ -50,7 +50,7 @@ pub fn road() -> Result<scenario::Road, EstimationError> {
     )
 }
 
-/// Speed of the [BOT] leader (m/s).
+/// Speed of the \[BOT\] leader (m/s).
 pub const LEADER_SPEED: f64 = 15.0;
 
 /// Leader heading schedule (rad from the x axis): left and right turns, then straight north.

@@ -1,5 +1,5 @@
 //! Set-membership bounds beside the tracks (`[tracker.bound] enabled = true`): an optimal bounding
-//! ellipsoid filter ([ELL], `harrier_core::filter::Obe`, minimum volume) per track, on the same
+//! ellipsoid filter (\[ELL\], `harrier_core::filter::Obe`, minimum volume) per track, on the same
 //! associated detections as the track's Kalman-family filter, so that the page can draw the
 //! guaranteed set next to the 95 % covariance ellipse.
 //!
@@ -115,7 +115,7 @@ impl Bounds {
         Ellipsoid::new(Vector4::new(z.x, z.y, 0.0, 0.0), shape).ok()
     }
 
-    /// The set of `prior` at `dt` later, the acceleration bounded ([ELL] Theorems 2–4 through
+    /// The set of `prior` at `dt` later, the acceleration bounded (\[ELL\] Theorems 2–4 through
     /// `Obe::predict`).
     fn predict(&self, prior: &Ellipsoid<4>, dt: f64) -> Option<Ellipsoid<4>> {
         if dt <= 0.0 {

@@ -3,10 +3,10 @@
 //! law from the track predicted to now and the vehicle's **measured** state (its
 //! GLOBAL_POSITION_INT, in the server's ENU frame).
 //!
-//! - Laws: `togvf` (time-optimal guidance vector field, [CIMM] §4.1–4.2) and `lgvf` (the Lyapunov
-//!   baseline), both with the phase coordination of [CIMM] §4.3 when several vehicles share the
+//! - Laws: `togvf` (time-optimal guidance vector field, \[CIMM\] §4.1–4.2) and `lgvf` (the Lyapunov
+//!   baseline), both with the phase coordination of \[CIMM\] §4.3 when several vehicles share the
 //!   target (ring order from the current phases, spacing `spacing_deg`, default 360°/n); and
-//!   `formation` ([BOT] §III): the track leads, the vehicles hold the LOS ranges of a shape (each
+//!   `formation` (\[BOT\] §III): the track leads, the vehicles hold the LOS ranges of a shape (each
 //!   at R from the leader, `spacing_deg` apart around it) with the range regulator of eqs.
 //!   (5)–(6), steered around `guidance.obstacles` (§III.B).
 //! - Each vehicle flies harrier-link's [`OffboardSequence`]: arm and take off if needed, stream
@@ -18,8 +18,8 @@
 //! - When the track is deleted, or the assignment is ended through the API, every vehicle of it
 //!   is sent to Hold (AUTO.LOITER) and the assignment is `ended` with the reason.
 //!
-//! [CIMM]: the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
-//! [BOT]: Calise et al., *Estimation and Guidance Strategies for Vision-based Target Tracking*
+//! \[CIMM\]: the constrained-IMM / TOGVF paper (`shared/papers/003_*.txt`).
+//! \[BOT\]: Calise et al., *Estimation and Guidance Strategies for Vision-based Target Tracking*
 //! (`shared/papers/002_*.txt`).
 
 use std::collections::BTreeMap;
@@ -357,14 +357,14 @@ pub struct GuidanceSettings {
     pub obstacles: Vec<Obstacle>,
 }
 
-/// Look-ahead and margin of the formation's obstacle avoidance ([BOT] §III.B), scaled to
+/// Look-ahead and margin of the formation's obstacle avoidance (\[BOT\] §III.B), scaled to
 /// multirotor speeds.
 const AVOIDANCE: Avoidance = Avoidance {
     lookahead: 120.0,
     margin: 15.0,
 };
 
-/// The [BOT] range regulators of a formation: one per ordered pair of members (0 = the leader).
+/// The \[BOT\] range regulators of a formation: one per ordered pair of members (0 = the leader).
 #[derive(Debug, Default)]
 struct FormationState {
     pairs: Vec<Vec<PairState>>,
@@ -386,10 +386,10 @@ fn shape_range(i: usize, j: usize, radius: f64, spacing: f64) -> f64 {
 }
 
 /// The formation's commands at tracker time `t`, one per vehicle (`None` without telemetry):
-/// [BOT] eq. (6), the vector sum of eq. (5)'s pseudo-controls along every line of sight to the
+/// \[BOT\] eq. (6), the vector sum of eq. (5)'s pseudo-controls along every line of sight to the
 /// leader (the track estimate) and to the other vehicles, then §III.B's silhouette-edge
 /// avoidance (a regulator is hedged, not advanced, while its vehicle avoids); vertically
-/// [CIMM] §4.1's climb to H above the target.
+/// \[CIMM\] §4.1's climb to H above the target.
 #[allow(clippy::too_many_arguments)]
 fn formation_commands(
     f: &mut FormationState,

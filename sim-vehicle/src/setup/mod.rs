@@ -87,7 +87,7 @@ pub struct TargetSpec {
 pub enum TargetMotion {
     /// A ground vehicle driving along a road's centre line at constant speed, straight on lines
     /// (mode `CV`) and turning on arcs (modes `left` / `right`, turn rate ±speed/R): the road
-    /// target of [CIMM] §5.1. It parks at the end of the road.
+    /// target of \[CIMM\] §5.1. It parks at the end of the road.
     Road {
         /// Id of a road of [`SimScenario::roads`].
         road: String,
@@ -101,7 +101,7 @@ pub enum TargetMotion {
         #[serde(default, deserialize_with = "non_negative")]
         lateral_std_m: f64,
     },
-    /// Piecewise constant-velocity / constant-turn motion ([CIMM] §5.1, [ICDKF] §4): each segment
+    /// Piecewise constant-velocity / constant-turn motion (\[CIMM\] §5.1, \[ICDKF\] §4): each segment
     /// turns at a constant rate (0 = straight) for a duration; after the last one it goes straight.
     Segments {
         /// Position at t = 0 (x, y) (m).
@@ -114,7 +114,7 @@ pub enum TargetMotion {
         /// Segments in time order.
         segments: Vec<MotionSegment>,
     },
-    /// The aircraft leader of [BOT] §IV: constant speed, heading
+    /// The aircraft leader of \[BOT\] §IV: constant speed, heading
     /// `χ(t) = χ₀ + A sin(2π t / T)` (clockwise from North), level flight.
     Leader {
         /// Position at t = 0 (x, y) (m).
@@ -204,7 +204,7 @@ pub enum SensorModel {
         /// Where the boresight points.
         pointing: Pointing,
     },
-    /// Radar: `range_bearing`, all around, with an optional bias ([ICDKF] eq. (9)).
+    /// Radar: `range_bearing`, all around, with an optional bias (\[ICDKF\] eq. (9)).
     Radar {
         /// Bias model.
         #[serde(default)]
@@ -218,9 +218,9 @@ pub enum SensorModel {
 pub enum CameraOutput {
     /// `az_el` angles.
     AzEl,
-    /// `bearing_size`: angles and subtended angle 2·atan(S / 2ρ) ([BOT] §II.C).
+    /// `bearing_size`: angles and subtended angle 2·atan(S / 2ρ) (\[BOT\] §II.C).
     BearingSize,
-    /// `position`: the target geolocated on its plane, `[x, y]` ([CIMM] §5.1's camera).
+    /// `position`: the target geolocated on its plane, `[x, y]` (\[CIMM\] §5.1's camera).
     Position,
 }
 
@@ -244,14 +244,14 @@ pub enum Pointing {
     },
 }
 
-/// Radar measurement bias, [ICDKF] eq. (9): `z_i = (1 + s_i) h_i + o_i + v_i`, i = range, azimuth.
+/// Radar measurement bias, \[ICDKF\] eq. (9): `z_i = (1 + s_i) h_i + o_i + v_i`, i = range, azimuth.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "model", rename_all = "snake_case", deny_unknown_fields)]
 pub enum BiasModel {
-    /// No bias ([ICDKF] §4 type 1).
+    /// No bias (\[ICDKF\] §4 type 1).
     #[default]
     None,
-    /// Switched on at `t_on`, off at `t_off` ([ICDKF] §4 type 2).
+    /// Switched on at `t_on`, off at `t_off` (\[ICDKF\] §4 type 2).
     Abrupt {
         /// Start (s).
         t_on: f64,
@@ -264,7 +264,7 @@ pub enum BiasModel {
     },
     /// Offsets follow a first-order Gauss–Markov process about `mean` with stationary std `std`
     /// and correlation time `tau_s` (drawn from the stationary law at the first scan); constant
-    /// scale ([ICDKF] §4 type 3).
+    /// scale (\[ICDKF\] §4 type 3).
     Markov {
         /// Mean offset `[o_r (m), o_az (rad)]`.
         mean: [f64; 2],
@@ -306,8 +306,8 @@ pub struct VehicleSpec {
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Behaviour {
-    /// Standoff orbit of a target with harrier-core's LGVF ([CIMM] §5 baseline), several vehicles
-    /// spaced by phase coordination ([CIMM] §4.3).
+    /// Standoff orbit of a target with harrier-core's LGVF (\[CIMM\] §5 baseline), several vehicles
+    /// spaced by phase coordination (\[CIMM\] §4.3).
     Orbit {
         /// Index of the target.
         target: usize,
@@ -321,7 +321,7 @@ pub enum Behaviour {
         #[serde(deserialize_with = "positive")]
         speed_mps: f64,
     },
-    /// Hold a position relative to a target, in its velocity frame (leader–follower, [BOT] §IV).
+    /// Hold a position relative to a target, in its velocity frame (leader–follower, \[BOT\] §IV).
     Follow {
         /// Index of the target.
         target: usize,

@@ -64,7 +64,7 @@ fn model(name: &str, turn_rate: Option<f64>) -> MotionModelSpec {
     }
 }
 
-/// [CIMM] §5.1: a ground vehicle at 10 m/s on a road, straight 140 s, right turn (−0.008 rad/s)
+/// \[CIMM\] §5.1: a ground vehicle at 10 m/s on a road, straight 140 s, right turn (−0.008 rad/s)
 /// 220 s, left turn (0.01 rad/s) 340 s; camera geolocation with 10 m noise at 1 Hz; fixed wings
 /// orbiting it at R = 300 m, 300 m above, 20 m/s (LGVF).
 fn cimm_road() -> SimScenario {
@@ -139,7 +139,7 @@ fn cimm_road() -> SimScenario {
     }
 }
 
-/// [BOT] §IV: a leader aircraft at 25 m/s with sinusoidal heading (±40°, 30 s), 10 m wing span,
+/// \[BOT\] §IV: a leader aircraft at 25 m/s with sinusoidal heading (±40°, 30 s), 10 m wing span,
 /// seen by a follower's `bearing_size` camera at 10 Hz (1 mrad noise); the follower flies 60 m
 /// left of and 120 m behind the leader.
 fn leader() -> SimScenario {
@@ -190,7 +190,7 @@ fn leader() -> SimScenario {
     }
 }
 
-/// [ICDKF] §4: a target manoeuvring in the plane (CV 80 s, left 0.05 rad/s 30 s, CV 70 s, right
+/// \[ICDKF\] §4: a target manoeuvring in the plane (CV 80 s, left 0.05 rad/s 30 s, CV 70 s, right
 /// −0.04 rad/s 30 s, CV) seen by a radar (5 m, 5 mrad, 1 Hz) on a multirotor cruising east at
 /// 5 m/s, with the given bias.
 fn radar(bias: BiasModel, name: &str) -> SimScenario {
