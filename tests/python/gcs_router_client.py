@@ -4,6 +4,7 @@
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,42 --command 1
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 7 --command 7 --signing-key HEX
     python3 gcs_router_client.py --tlog FILE.tlog --db FILE.sqlite --vehicles 1
+    python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --tracks 1
 
 With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
 accepted arm, a timeout from the --silent vehicle, assignment errors, the counters in /metrics).
@@ -15,10 +16,13 @@ it holds HEARTBEATs of the ground station and of every listed vehicle. With --db
 session file's vehicle log (telemetry, link events, command outcomes) and actions. With
 --signing-key (64 hex characters) the --connect client signs everything it sends (MAVLink 2
 signing, link id 1) and accepts only correctly signed messages: the router forwards the vehicles'
-signed frames unchanged. Prints what it saw; exits non-zero on any failure.
+signed frames unchanged. With --tracks N the --connect client also waits for N of Harrier's
+tracks as ADSB_VEHICLE messages from the ground station and prints each as a line
+`TRACK {json}`. Prints what it saw; exits non-zero on any failure.
 """
 
 import argparse
+import json
 import os
 import sys
 import time
@@ -32,7 +36,7 @@ def fail(msg):
     sys.exit(1)
 
 
-def client(url, vehicles, command, signing_key=None, timeout_s=20.0):
+def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
     if signing_key:
         # Signing needs MAVLink 2 framing from the first message sent.
         os.environ["MAVLINK20"] = "1"
@@ -70,6 +74,31 @@ def client(url, vehicles, command, signing_key=None, timeout_s=20.0):
                 break
         else:
             fail(f"{url}: no COMMAND_ACK from vehicle {command}")
+    if tracks:
+        # Harrier's confirmed tracks, as traffic from the ground station (system 255).
+        got = {}
+        end = time.monotonic() + timeout_s
+        while len(got) < tracks and time.monotonic() < end:
+            msg = m.recv_match(type="ADSB_VEHICLE", blocking=True, timeout=0.5)
+            if msg is None:
+                continue
+            if msg.get_srcSystem() != 255:
+                fail(f"ADSB_VEHICLE from system {msg.get_srcSystem()}, not the ground station")
+            callsign = msg.callsign if isinstance(msg.callsign, str) else msg.callsign.decode()
+            got[callsign] = msg
+            track = {
+                "callsign": callsign.rstrip("\x00"),
+                "icao": msg.ICAO_address,
+                "lat": msg.lat / 1e7,
+                "lon": msg.lon / 1e7,
+                "alt_m": msg.altitude / 1e3,
+                "heading_deg": msg.heading / 100,
+                "speed_m_s": msg.hor_velocity / 100,
+                "flags": msg.flags,
+            }
+            print("TRACK " + json.dumps(track), flush=True)
+        if len(got) < tracks:
+            fail(f"{url}: ADSB_VEHICLE of {sorted(got)}, wanted {tracks} tracks")
     m.close()
 
 
@@ -172,12 +201,13 @@ def main():
     p.add_argument("--silent", type=int, default=0)
     p.add_argument("--db")
     p.add_argument("--signing-key")
+    p.add_argument("--tracks", type=int, default=0, help="wait for this many tracks as ADSB_VEHICLE")
     a = p.parse_args()
     vehicles = [int(v) for v in a.vehicles.split(",") if v]
     if a.api:
         rest(a.api, a.token, vehicles[0], a.silent)
     for url in a.connect:
-        client(url, vehicles, a.command, a.signing_key)
+        client(url, vehicles, a.command, a.signing_key, a.tracks)
     if a.tlog:
         tlog(a.tlog, vehicles)
     if a.db:

@@ -14,6 +14,9 @@
 //!   `az_el` camera and a biased `range_bearing` radar; three servers on the same sim, tracking
 //!   from every sensor, the cameras only and the radars only (`tracker.sensors`); the fused
 //!   position RMSE over one time window is lower than either sensor's alone.
+//! - `pymavlink_gets_the_tracks_as_traffic_through_the_router`: a confirmed track reaches a
+//!   pymavlink client of the MAVLink router as ADSB_VEHICLE (`mavlink.tracks_hz`), where REST has
+//!   it.
 
 use std::future::IntoFuture;
 use std::net::SocketAddr;
@@ -1119,6 +1122,108 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
              road target after {track_back:.2} s"
         );
         sim.kill();
+        publisher.abort();
+        let _ = session.close().await;
+        server.shutdown().await;
+    }));
+}
+
+/// Harrier's tracks on MAVLink: pymavlink, a client of the router as QGroundControl or MAVProxy
+/// would be, gets every confirmed track as an ADSB_VEHICLE from the ground station (system 255,
+/// callsign `T<id>`), where `/api/v1/tracks` has it. The target stands still (vehicle 8's scans
+/// at 10 Hz, over Zenoh): the message and REST, read up to a second apart, differ only by the
+/// estimate's jitter between two scans (the conversion itself is exact to a centimetre: unit
+/// test in `server/src/live/gcs/traffic.rs`).
+#[test]
+fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
+    const STANDING: [f64; 2] = [250.0, -120.0];
+    harrier_tests::require_python_module("pymavlink", "pymavlink==2.4.50");
+    runtime().block_on(within(120, "the traffic test", async {
+        let zenoh = format!("tcp/127.0.0.1:{}", free_tcp_port());
+        let mut config = Config::default();
+        config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        config.zenoh.listen = vec![zenoh.clone()];
+        config.zenoh.tracks_key = String::new();
+        config.mavlink = live::config::MavlinkConfig {
+            router: vec!["udpin:127.0.0.1:0".into()],
+            tracks_hz: 5.0,
+            ..live::config::MavlinkConfig::ephemeral()
+        };
+        let server = within(20, "start the server", live::start(&config))
+            .await
+            .expect("start the server");
+        let addr = server.local_addr();
+        let session = open_session(vec![zenoh]).await;
+        let publisher = publish_standing_target(&session, 8, STANDING).await;
+        let id = within(30, "a confirmed track on the standing target", async {
+            loop {
+                let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
+                if let Some(k) = track_near(&tracks, STANDING, 20.0) {
+                    return k["id"].as_u64().expect("id");
+                }
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+        })
+        .await;
+        let router = server
+            .link()
+            .and_then(|l| l.router().next().map(|e| e.addr()))
+            .expect("a router endpoint");
+        let out = tokio::task::spawn_blocking(move || {
+            let mut child = harrier_tests::python_script("gcs_router_client.py")
+                .args(["--connect", &format!("udpout:{router}"), "--tracks", "1"])
+                .stdout(std::process::Stdio::piped())
+                .spawn()
+                .expect("run gcs_router_client.py");
+            let status = harrier_tests::wait_with_deadline(
+                &mut child,
+                Duration::from_secs(60),
+                "gcs_router_client.py --tracks",
+            );
+            let mut out = String::new();
+            std::io::Read::read_to_string(&mut child.stdout.take().expect("stdout"), &mut out)
+                .expect("read its output");
+            assert!(
+                status.success(),
+                "gcs_router_client.py failed: {status}\n{out}"
+            );
+            out
+        })
+        .await
+        .expect("the client ran");
+        let (_, k) = get_json(addr, &format!("/api/v1/tracks/{id}")).await;
+        let traffic: Vec<Value> = out
+            .lines()
+            .filter_map(|l| l.strip_prefix("TRACK "))
+            .map(|l| serde_json::from_str(l).expect("a TRACK line is JSON"))
+            .collect();
+        let t = traffic
+            .iter()
+            .find(|t| t["callsign"] == format!("T{id}"))
+            .unwrap_or_else(|| panic!("no ADSB_VEHICLE of track {id}: {out}"));
+        assert_eq!(t["icao"].as_u64(), Some(id), "{t}");
+        let frame = harrier_link::geo::LocalFrame::new(live::config::DEFAULT_ORIGIN);
+        let enu = frame.to_enu(&harrier_link::geo::Geodetic {
+            lat_deg: t["lat"].as_f64().expect("lat"),
+            lon_deg: t["lon"].as_f64().expect("lon"),
+            alt_m: t["alt_m"].as_f64().expect("alt"),
+        });
+        let rest = [
+            k["state"][0].as_f64().expect("x"),
+            k["state"][1].as_f64().expect("y"),
+        ];
+        let (to_rest, to_truth) = (dist([enu.x, enu.y], rest), dist([enu.x, enu.y], STANDING));
+        eprintln!(
+            "track {id} as ADSB_VEHICLE through the router: {t}; {to_rest:.3} m from its REST \
+             estimate, {to_truth:.2} m from the target"
+        );
+        assert!(to_rest < 3.0, "{to_rest} m from the REST estimate");
+        assert!(to_truth < MAX_ERROR_M, "{to_truth} m from the target");
+        let (_, m) = get(addr, "/api/v1/metrics").await;
+        assert!(
+            metric(&m, "harrier_router_track_messages_total") >= 1.0,
+            "the track messages are counted"
+        );
         publisher.abort();
         let _ = session.close().await;
         server.shutdown().await;

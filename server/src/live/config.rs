@@ -63,6 +63,10 @@ pub struct MavlinkConfig {
     pub tlog: String,
     /// MAVLink 2 message signing on every GCS and router endpoint.
     pub signing: SigningConfig,
+    /// Rate (Hz) at which every confirmed track goes to the router's clients as an
+    /// ADSB_VEHICLE message, callsign `T<id>` (the traffic message of MAVProxy's `adsb` module
+    /// and QGroundControl's ADS-B display; never sent to the vehicles); 0: not sent.
+    pub tracks_hz: f64,
 }
 
 /// MAVLink 2 signing of the GCS link and router (`[mavlink.signing]`; docs/mavlink-signing.md).
@@ -131,6 +135,7 @@ impl Default for MavlinkConfig {
             command_attempts: 3,
             tlog: String::new(),
             signing: SigningConfig::default(),
+            tracks_hz: 1.0,
         }
     }
 }
@@ -543,6 +548,12 @@ impl Config {
                 "mavlink.command_timeout_ms must be in [1, 60000] and mavlink.command_attempts ≥ 1"
                     .into(),
             );
+        }
+        if !(m.tracks_hz.is_finite() && (0.0..=50.0).contains(&m.tracks_hz)) {
+            return bad(format!(
+                "mavlink.tracks_hz must be in [0, 50] (0: tracks not sent), got {}",
+                m.tracks_hz
+            ));
         }
         m.signing.resolve()?;
         let g = &self.guidance;

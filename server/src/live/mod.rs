@@ -389,8 +389,19 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             if let Some(p) = &c.tlog {
                 tracing::info!(path = %p.display(), "raw MAVLink log");
             }
+            let frame = c.frame;
             let (link, task) = gcs::start(c, stop_rx.clone()).await?;
             control.push(task);
+            let hz = config.mavlink.tracks_hz;
+            if hz > 0.0 && link.router().next().is_some() {
+                control.push(tokio::spawn(gcs::traffic::run(
+                    link.clone(),
+                    snap_rx.clone(),
+                    frame,
+                    hz,
+                    stop_rx.clone(),
+                )));
+            }
             let g = &config.guidance;
             let settings = guidance::GuidanceSettings {
                 rate_hz: g.rate_hz,

@@ -32,6 +32,7 @@
 //!   same key, and the vehicle checks the client's signature itself). It never re-signs: an
 //!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
+pub mod traffic;
 pub mod transport;
 pub mod vehicle;
 
@@ -166,6 +167,9 @@ pub enum Request {
         /// The message.
         message: MavMessage,
     },
+    /// Send messages from the ground station to every router client, none to the vehicles
+    /// (Harrier's tracks as traffic: [`traffic`]).
+    ToClients(Vec<MavMessage>),
 }
 
 /// A change of a vehicle's link or flight state, on the WebSocket and in the recording.
@@ -206,6 +210,7 @@ pub struct LinkMetrics {
     unroutable: AtomicU64,
     frames_out: AtomicU64,
     heartbeats: AtomicU64,
+    track_messages: AtomicU64,
     commands: AtomicU64,
     command_retries: AtomicU64,
     acks: Mutex<BTreeMap<String, u64>>,
@@ -272,6 +277,12 @@ impl LinkMetrics {
             "counter",
             "GCS HEARTBEATs sent.",
             &one(&self.heartbeats),
+        );
+        family(
+            "harrier_router_track_messages_total",
+            "counter",
+            "Confirmed tracks sent to the router's clients as ADSB_VEHICLE (mavlink.tracks_hz).",
+            &one(&self.track_messages),
         );
         family(
             "harrier_router_frames_total",
@@ -859,6 +870,15 @@ impl Actor {
         match r {
             Request::Send { vehicle, message } => {
                 self.send_to(vehicle, &message);
+            }
+            Request::ToClients(messages) => {
+                for m in &messages {
+                    let Some(bytes) = self.frame(m) else { continue };
+                    for e in &self.endpoints[self.config.gcs.len()..] {
+                        let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
+                    }
+                    self.metrics.track_messages.fetch_add(1, Ordering::Relaxed);
+                }
             }
             Request::Command {
                 vehicle,
