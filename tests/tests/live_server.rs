@@ -939,6 +939,20 @@ async fn link_state(addr: SocketAddr, id: u8) -> Option<String> {
         .map(str::to_owned)
 }
 
+/// Polls until a confirmed track lies within 20 m of the standing target at `at`; returns its id.
+async fn standing_track(addr: SocketAddr, at: [f64; 2]) -> u64 {
+    within(30, "a confirmed track on the standing target", async {
+        loop {
+            let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
+            if let Some(k) = track_near(&tracks, at, 20.0) {
+                return k["id"].as_u64().expect("id");
+            }
+            tokio::time::sleep(Duration::from_millis(100)).await;
+        }
+    })
+    .await
+}
+
 /// Polls until a confirmed track lies within 30 m of the road target; returns its id.
 async fn road_track(addr: SocketAddr) -> u64 {
     within(60, "a confirmed track on the road target", async {
@@ -992,16 +1006,7 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
         let mut sim = SimProcess::start(7, gcs, cimm_road(&zenoh));
 
         let road = road_track(addr).await;
-        let standing = within(30, "a confirmed track on vehicle 8's target", async {
-            loop {
-                let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
-                if let Some(k) = track_near(&tracks, STANDING, 20.0) {
-                    return k["id"].as_u64().expect("id");
-                }
-                tokio::time::sleep(Duration::from_millis(100)).await;
-            }
-        })
-        .await;
+        let standing = standing_track(addr, STANDING).await;
         assert_eq!(link_state(addr, 7).await.as_deref(), Some("connected"));
 
         sim.kill();
@@ -1155,16 +1160,7 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
         let addr = server.local_addr();
         let session = open_session(vec![zenoh]).await;
         let publisher = publish_standing_target(&session, 8, STANDING).await;
-        let id = within(30, "a confirmed track on the standing target", async {
-            loop {
-                let (_, tracks) = get_json(addr, "/api/v1/tracks").await;
-                if let Some(k) = track_near(&tracks, STANDING, 20.0) {
-                    return k["id"].as_u64().expect("id");
-                }
-                tokio::time::sleep(Duration::from_millis(100)).await;
-            }
-        })
-        .await;
+        let id = standing_track(addr, STANDING).await;
         let router = server
             .link()
             .and_then(|l| l.router().next().map(|e| e.addr()))
