@@ -386,14 +386,7 @@ pub struct Report {
 
 /// Runs the load test and prints its figures.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
-    use tracing_subscriber::EnvFilter;
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(
-            EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| EnvFilter::new("warn,zenoh=error")),
-        )
-        .with_writer(std::io::stderr)
-        .try_init();
+    crate::init_logging("warn,zenoh=error");
     let report = measure(args)?;
     let text = if args.json {
         serde_json::to_string_pretty(&report)?

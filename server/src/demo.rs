@@ -420,13 +420,7 @@ async fn assign_when_ready(
 /// Runs the demo until Ctrl-C: structured logs on stderr (`RUST_LOG`), the URLs on stdout.
 pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
     use std::io::Write as _;
-    use tracing_subscriber::EnvFilter;
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info,zenoh=warn")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    crate::init_logging("info,zenoh=warn");
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;

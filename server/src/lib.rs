@@ -10,8 +10,10 @@
 //!   `Box<dyn ReplayEstimator>`).
 //! * Live service: [`live`] (`harrier serve`): Zenoh detections in ([`live::ingest`]), a track
 //!   engine from the registry fed in time order ([`live::tracker`]), tracks, health and
-//!   Prometheus metrics over HTTP ([`live::api`]); configured by a TOML file ([`live::config`]).
-//!   MAVLink links and WebSocket streams come later.
+//!   Prometheus metrics over HTTP ([`live::api`]), the WebSocket stream ([`live::ws`]), the
+//!   MAVLink GCS link and router ([`live::gcs`]) and the guidance loop ([`live::guidance`]);
+//!   configured by a TOML file ([`live::config`]). [`demo`] runs it with harrier-sim's world
+//!   in-process; [`bench`](mod@bench) loads it.
 //! * Offline tools: [`replay`] (`harrier replay`) and [`guidance_sim`] (`harrier guidance-sim`),
 //!   both getting their estimators from the registry.
 
@@ -24,3 +26,18 @@ pub mod live;
 pub mod registry;
 pub mod replay;
 pub mod sessions;
+
+/// Structured logs on stderr for the `harrier` commands: the `RUST_LOG` filter if set, else
+/// `default`; colours only when stderr is a terminal (a redirected log gets no escape codes).
+/// A second call keeps the first subscriber.
+pub fn init_logging(default: &str) {
+    use std::io::IsTerminal as _;
+    use tracing_subscriber::EnvFilter;
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(
+            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new(default)),
+        )
+        .with_ansi(std::io::stderr().is_terminal())
+        .with_writer(std::io::stderr)
+        .try_init();
+}

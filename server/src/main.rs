@@ -196,13 +196,7 @@ fn endpoints(given: &[String], configured: &mut Vec<String>) {
 
 fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
     use harrier_server::live::{self, config::Config};
-    use tracing_subscriber::EnvFilter;
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            EnvFilter::try_from_default_env().unwrap_or_else(|_| EnvFilter::new("info,zenoh=warn")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    harrier_server::init_logging("info,zenoh=warn");
     let mut config = match &a.config {
         Some(path) => Config::load(path)?,
         None => Config::default(),
