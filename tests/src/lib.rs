@@ -1,6 +1,8 @@
 //! Helpers for Harrier's end-to-end tests: where the reference scenarios are, how to replay one
-//! in-process, how to run the independent scorer (`shared/scenarios/score.py`), and how to run
-//! the real external clients (Python scripts in `tests/python`) with a deadline.
+//! in-process, how to run the independent scorer (`shared/scenarios/score.py`), how to run
+//! the real external clients (Python scripts in `tests/python`) with a deadline, and the
+//! simulated sources the live tests feed a server with (a `harrier-sim` process, a standing
+//! target's scans on Zenoh) and read its truth with.
 
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
@@ -235,4 +237,72 @@ impl Drop for SimProcess {
         let _ = self.0.kill();
         let _ = self.0.wait();
     }
+}
+
+/// Publishes `position` scans of a target standing at `at` (server frame, m), seen from a
+/// platform standing at `platform` (server frame, m), on vehicle `vehicle`'s key, `hz` times a
+/// second, stamped with the wall time, until aborted. The detections jitter by up to 2 m
+/// around the target (σ given as 2 m).
+pub async fn publish_standing_target(
+    session: &zenoh::Session,
+    vehicle: u8,
+    at: [f64; 2],
+    platform: [f64; 3],
+    hz: f64,
+) -> tokio::task::JoinHandle<()> {
+    use harrier_core::detection::{
+        DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose, detections_key,
+    };
+    let publisher = tokio::time::timeout(
+        Duration::from_secs(10),
+        session.declare_publisher(detections_key(vehicle)),
+    )
+    .await
+    .expect("a publisher within 10 s")
+    .expect("publisher");
+    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
+    tokio::spawn(async move {
+        let frame = harrier_link::geo::LocalFrame::new(origin);
+        let pos = nalgebra::Vector3::from(platform);
+        let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
+        for seq in 0u64.. {
+            tick.tick().await;
+            let now = std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0.0, |d| d.as_secs_f64());
+            let scan = DetectionScan {
+                schema: DETECTIONS_SCHEMA.into(),
+                t: seq as f64 / hz,
+                time_unix: Some(now),
+                vehicle,
+                seq,
+                sensor: "cam".into(),
+                kind: harrier_core::scenario::MeasKind::Position,
+                origin,
+                platform: PlatformPose {
+                    pos: platform,
+                    vel: [0.0; 3],
+                    attitude: [0.0; 3],
+                    geodetic: frame.from_enu(&pos),
+                },
+                noise_std: vec![2.0, 2.0],
+                detections: vec![Detection {
+                    z: vec![at[0] + (seq % 3) as f64, at[1] - (seq % 5) as f64 * 0.5],
+                }],
+            };
+            if publisher.put(scan.to_json()).await.is_err() {
+                return;
+            }
+        }
+    })
+}
+
+/// The simulator's truth target positions (server frame, m) of `s`, extrapolated with their
+/// velocities to UNIX time `t` (the server's time line). Panics if `s` has no `time_unix`.
+pub fn targets_at(s: &harrier_core::detection::TruthSample, t: f64) -> Vec<[f64; 2]> {
+    let dt = t - s.time_unix.expect("truth carries time_unix");
+    s.targets
+        .iter()
+        .map(|g| [g.state[0] + g.state[3] * dt, g.state[1] + g.state[4] * dt])
+        .collect()
 }

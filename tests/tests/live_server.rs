@@ -32,7 +32,7 @@ use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorModel, SimScenario};
-use harrier_tests::{SimProcess, free_tcp_port};
+use harrier_tests::{SimProcess, free_tcp_port, publish_standing_target, targets_at};
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
 use serde_json::Value;
@@ -175,15 +175,6 @@ impl Truth {
 /// The truth's time line: the UNIX time the server tracks on.
 fn unix(s: &TruthSample) -> f64 {
     s.time_unix.expect("truth carries time_unix")
-}
-
-/// Target positions of `s` extrapolated to time `t` (its time line).
-fn targets_at(s: &TruthSample, t: f64) -> Vec<[f64; 2]> {
-    let dt = t - unix(s);
-    s.targets
-        .iter()
-        .map(|g| [g.state[0] + g.state[3] * dt, g.state[1] + g.state[4] * dt])
-        .collect()
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -859,53 +850,9 @@ fn cimm_road(zenoh: &str) -> [&str; 8] {
     ]
 }
 
-/// Publishes `position` scans of a target standing at `at` (server frame, m) from vehicle
-/// `vehicle`'s key, ten times a second, stamped with the wall time, until aborted.
-async fn publish_standing_target(
-    session: &zenoh::Session,
-    vehicle: u8,
-    at: [f64; 2],
-) -> tokio::task::JoinHandle<()> {
-    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose};
-    let key = harrier_core::detection::detections_key(vehicle);
-    let publisher = within(10, "declare a publisher", session.declare_publisher(key))
-        .await
-        .expect("publisher");
-    let origin = live::config::DEFAULT_ORIGIN;
-    tokio::spawn(async move {
-        let frame = harrier_link::geo::LocalFrame::new(origin);
-        let pos = nalgebra::Vector3::new(at[0], at[1] - 200.0, 100.0);
-        let mut tick = tokio::time::interval(Duration::from_millis(100));
-        for seq in 0u64.. {
-            tick.tick().await;
-            let now = std::time::SystemTime::now()
-                .duration_since(std::time::UNIX_EPOCH)
-                .map_or(0.0, |d| d.as_secs_f64());
-            let scan = DetectionScan {
-                schema: DETECTIONS_SCHEMA.into(),
-                t: seq as f64 * 0.1,
-                time_unix: Some(now),
-                vehicle,
-                seq,
-                sensor: "cam".into(),
-                kind: harrier_core::scenario::MeasKind::Position,
-                origin,
-                platform: PlatformPose {
-                    pos: pos.into(),
-                    vel: [0.0; 3],
-                    attitude: [0.0; 3],
-                    geodetic: frame.from_enu(&pos),
-                },
-                noise_std: vec![2.0, 2.0],
-                detections: vec![Detection {
-                    z: vec![at[0] + (seq % 3) as f64, at[1] - (seq % 5) as f64 * 0.5],
-                }],
-            };
-            if publisher.put(scan.to_json()).await.is_err() {
-                return;
-            }
-        }
-    })
+/// Where vehicle 8's camera stands to see a target at `at`: 200 m south of it, 100 m up.
+fn standing_platform(at: [f64; 2]) -> [f64; 3] {
+    [at[0], at[1] - 200.0, 100.0]
 }
 
 /// The confirmed track of `/api/v1/tracks` nearest `p` within `gate` m: its JSON.
@@ -1002,7 +949,8 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
             .and_then(|l| l.gcs().next().map(|e| e.addr()))
             .expect("a GCS endpoint");
         let session = open_session(vec![zenoh.clone()]).await;
-        let publisher = publish_standing_target(&session, 8, STANDING).await;
+        let publisher =
+            publish_standing_target(&session, 8, STANDING, standing_platform(STANDING), 10.0).await;
         let mut sim = SimProcess::start(7, gcs, cimm_road(&zenoh));
 
         let road = road_track(addr).await;
@@ -1159,7 +1107,8 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
             .expect("start the server");
         let addr = server.local_addr();
         let session = open_session(vec![zenoh]).await;
-        let publisher = publish_standing_target(&session, 8, STANDING).await;
+        let publisher =
+            publish_standing_target(&session, 8, STANDING, standing_platform(STANDING), 10.0).await;
         let id = standing_track(addr, STANDING).await;
         let router = server
             .link()

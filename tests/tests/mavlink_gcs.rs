@@ -42,7 +42,8 @@ use harrier_sim::mavlink::dialects::common::{
 use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::VehicleConfig;
 use harrier_tests::{
-    SimProcess, free_tcp_port, python_script, require_python_module, wait_with_deadline,
+    SimProcess, free_tcp_port, publish_standing_target, python_script, require_python_module,
+    wait_with_deadline,
 };
 
 fn runtime() -> tokio::runtime::Runtime {
@@ -261,49 +262,6 @@ fn a_killed_simulator_is_lost_then_found() {
     });
 }
 
-/// Publishes a `position` detection of a target standing at (80, 0) m, from vehicle `vehicle`'s
-/// key, ten times a second until dropped.
-async fn publish_target(session: &zenoh::Session, vehicle: u8) -> tokio::task::JoinHandle<()> {
-    let key = harrier_core::detection::detections_key(vehicle);
-    let publisher = session.declare_publisher(key).await.expect("publisher");
-    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
-    tokio::spawn(async move {
-        let started = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map_or(0.0, |d| d.as_secs_f64());
-        let frame = harrier_link::geo::LocalFrame::new(origin);
-        let pos = nalgebra::Vector3::new(0.0, 0.0, 30.0);
-        for seq in 0u64.. {
-            let t = seq as f64 * 0.1;
-            let scan = harrier_core::detection::DetectionScan {
-                schema: harrier_core::detection::DETECTIONS_SCHEMA.into(),
-                t,
-                time_unix: Some(started + t),
-                vehicle,
-                seq,
-                sensor: "cam".into(),
-                kind: harrier_core::scenario::MeasKind::Position,
-                origin,
-                platform: harrier_core::detection::PlatformPose {
-                    pos: pos.into(),
-                    vel: [0.0; 3],
-                    attitude: [0.0; 3],
-                    geodetic: frame.from_enu(&pos),
-                },
-                noise_std: vec![1.0, 1.0],
-                detections: vec![harrier_core::detection::Detection {
-                    z: vec![80.0 + (seq % 3) as f64 * 0.5, (seq % 5) as f64 * 0.3],
-                }],
-            }
-            .to_json();
-            if publisher.put(scan).await.is_err() {
-                return;
-            }
-            tokio::time::sleep(Duration::from_millis(100)).await;
-        }
-    })
-}
-
 /// Waits until assignment 1's slot of `vehicle` is in `state`.
 async fn slot_state(s: &LiveServer, vehicle: u8, state: &str) {
     let mut rx = s.guidance().expect("guidance").assignments.clone();
@@ -340,7 +298,8 @@ fn a_lost_vehicle_flies_its_assignment_again() {
         let session = within(10, "open a session", zenoh::open(config))
             .await
             .expect("zenoh session");
-        let publisher = publish_target(&session, 7).await;
+        let publisher =
+            publish_standing_target(&session, 7, [80.0, 0.0], [0.0, 0.0, 30.0], 10.0).await;
         let mut sim = sim_process(7, gcs);
         heard(&server, 7).await;
         let mut snapshot = server.snapshot();

@@ -33,7 +33,7 @@ use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::SimScenario;
-use harrier_tests::free_tcp_port;
+use harrier_tests::{free_tcp_port, publish_standing_target};
 use zenoh::Wait as _;
 
 /// Simulated seconds per wall second.
@@ -447,48 +447,6 @@ fn metric(text: &str, series: &str) -> Option<f64> {
         .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
 }
 
-/// Publishes `position` scans of a target standing at (80, 40) m from vehicle 5's key, `hz`
-/// times a second, stamped with the wall time, until aborted.
-async fn publish_target(session: &zenoh::Session, hz: f64) -> tokio::task::JoinHandle<()> {
-    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose};
-    let publisher = session
-        .declare_publisher(harrier_core::detection::detections_key(5))
-        .await
-        .expect("publisher");
-    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
-    tokio::spawn(async move {
-        let frame = harrier_link::geo::LocalFrame::new(origin);
-        let pos = nalgebra::Vector3::new(0.0, 0.0, 50.0);
-        let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / hz));
-        for seq in 0u64.. {
-            tick.tick().await;
-            let scan = DetectionScan {
-                schema: DETECTIONS_SCHEMA.into(),
-                t: seq as f64 / hz,
-                time_unix: Some(unix_now()),
-                vehicle: 5,
-                seq,
-                sensor: "cam".into(),
-                kind: harrier_core::scenario::MeasKind::Position,
-                origin,
-                platform: PlatformPose {
-                    pos: pos.into(),
-                    vel: [0.0; 3],
-                    attitude: [0.0; 3],
-                    geodetic: frame.from_enu(&pos),
-                },
-                noise_std: vec![2.0, 2.0],
-                detections: vec![Detection {
-                    z: vec![80.0 + (seq % 3) as f64, 40.0 - (seq % 5) as f64 * 0.5],
-                }],
-            };
-            if publisher.put(scan.to_json()).await.is_err() {
-                return;
-            }
-        }
-    })
-}
-
 /// An in-process server recording into `path`, its Zenoh session on a free port, and a session
 /// of the test's own publishing a target at 50 Hz to it.
 async fn recording_server(
@@ -523,7 +481,8 @@ async fn recording_server(
     )
     .await
     .expect("the test's Zenoh session");
-    let publisher = publish_target(&session, 50.0).await;
+    let publisher =
+        publish_standing_target(&session, 5, [80.0, 40.0], [0.0, 0.0, 50.0], 50.0).await;
     (server, session, publisher)
 }
 

@@ -40,7 +40,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
-use harrier_tests::{free_tcp_port, target_bin};
+use harrier_tests::{free_tcp_port, target_bin, targets_at};
 use serde_json::Value;
 use zenoh::Wait as _;
 
@@ -458,12 +458,7 @@ impl Truth {
             d(a).total_cmp(&d(b))
         })?;
         let dt = t - s.time_unix?;
-        (dt.abs() < 1.0).then(|| {
-            s.targets
-                .iter()
-                .map(|g| [g.state[0] + g.state[3] * dt, g.state[1] + g.state[4] * dt])
-                .collect()
-        })
+        (dt.abs() < 1.0).then(|| targets_at(s, t))
     }
 }
 
