@@ -334,7 +334,7 @@ async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response 
         }
     };
     recorder.record(Record::Action {
-        time_unix: super::ingest::unix_now(),
+        time_unix: super::clock::unix_now(),
         method,
         path,
         body,

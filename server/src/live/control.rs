@@ -232,7 +232,7 @@ pub async fn command(
     let outcome = link.command(id, message).await;
     if let (Some(r), Ok(o)) = (&s.recorder, &outcome) {
         r.record(super::recorder::Record::Vehicle {
-            time_unix: super::ingest::unix_now(),
+            time_unix: super::clock::unix_now(),
             vehicle: Some(id),
             kind: "command",
             json: serde_json::to_string(o).unwrap_or_default(),

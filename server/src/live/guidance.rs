@@ -41,10 +41,10 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::ToSchema;
 
+use super::clock::unix_now;
 use super::gcs::transport::stopped;
 use super::gcs::vehicle::LinkState;
 use super::gcs::{GcsLink, Request, VehicleSample};
-use super::ingest::unix_now;
 use super::tracker::Snapshot;
 use crate::engine::TrackView;
 

@@ -18,16 +18,10 @@ use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use tokio::sync::mpsc;
 
+use super::clock::unix_now;
 use super::metrics::{DropReason, Metrics, vehicle_label};
 use super::recorder::{Record, Recorder};
 use crate::engine::SensorScan;
-
-/// Now as UNIX time (s).
-pub fn unix_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
-}
 
 /// A payload as it arrived: the vehicle label of its key and its bytes.
 #[derive(Debug)]

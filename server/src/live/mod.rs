@@ -32,6 +32,7 @@
 
 pub mod api;
 pub mod bound;
+pub mod clock;
 pub mod config;
 pub mod control;
 pub mod gcs;
@@ -252,7 +253,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         "" => None,
         path => {
             let meta = SessionMeta {
-                started_unix: ingest::unix_now(),
+                started_unix: clock::unix_now(),
                 origin: config.frame.origin,
                 plane_z: config.frame.plane_z,
                 estimator: estimator.name.clone(),
@@ -533,7 +534,7 @@ async fn record_vehicles(
     let mut tick = tokio::time::interval(std::time::Duration::from_secs(1));
     let row = |vehicle, kind, json: Result<String, serde_json::Error>| {
         r.record(recorder::Record::Vehicle {
-            time_unix: ingest::unix_now(),
+            time_unix: clock::unix_now(),
             vehicle,
             kind,
             json: json.unwrap_or_default(),

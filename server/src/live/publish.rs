@@ -16,7 +16,7 @@ use super::tracker::Snapshot;
 
 /// The message for `snap`.
 pub fn tracks_message(snap: &Snapshot, origin: GeoPoint, plane_z: f64) -> String {
-    let now = super::ingest::unix_now();
+    let now = super::clock::unix_now();
     let confirmed: Vec<_> = snap
         .tracks
         .iter()

@@ -23,7 +23,7 @@ use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
 use harrier_core::scenario::MeasKind;
 use rusqlite::{Connection, params};
 
-use super::ingest::unix_now;
+use super::clock::unix_now;
 use crate::engine::TrackView;
 
 /// `PRAGMA application_id` of a Harrier session file (`"HRR1"`).

@@ -58,7 +58,7 @@ use utoipa::ToSchema;
 
 use self::transport::{EndpointHandle, Inbound, Outbound, Peer, stopped};
 use self::vehicle::{LinkState, VehicleLink, VehicleLinkView};
-use super::ingest::unix_now;
+use super::clock::unix_now;
 
 /// Settings of the link (the `[mavlink]` section, checked).
 #[derive(Debug, Clone, PartialEq)]
