@@ -772,6 +772,19 @@ pub fn parse_measurements(text: &str, sc: &Scenario) -> Result<Vec<Measurement>,
                 format!("t = {} is earlier than the previous line's {last_t}", m.t),
             ));
         }
+        // No line may move the replay's clock without bound: times lie in the scenario's span
+        // (one nominal period of slack either side).
+        let (t0, t_end, slack) = (sc.time.t0, sc.time.t_end, sc.time.dt.abs());
+        if !(m.t >= t0 - slack && m.t <= t_end + slack) {
+            return Err(err(
+                f,
+                Some(ln),
+                format!(
+                    "t = {} is outside the scenario's time span [{t0}, {t_end}] (scenario.json time)",
+                    m.t
+                ),
+            ));
+        }
         last_t = m.t;
         let Some(s) = sc.sensor(&m.sensor) else {
             return Err(err(f, Some(ln), format!("unknown sensor {:?}", m.sensor)));

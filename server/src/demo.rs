@@ -272,6 +272,14 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     }
     server_config.zenoh.listen = vec![server_endpoint.clone()];
     server_config.zenoh.connect = Vec::new();
+    if config.speedup != 1.0 {
+        // The simulator's `time_unix` runs `speedup` times faster than any real clock.
+        server_config.clock.real_time = false;
+        tracing::info!(
+            speedup = config.speedup,
+            "clock.real_time = false: simulated time runs faster than the server's clock"
+        );
+    }
     if let Some(path) = &config.record {
         server_config.recorder.path = path.display().to_string();
     }
@@ -312,6 +320,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         seed: config.seed,
         speedup: config.speedup,
         truth_hz: 10.0,
+        clock: Default::default(),
     });
     world_config.vehicles = (1..=config.vehicles).map(WorldVehicle::grounded).collect();
     world_config.zenoh.connect = vec![server_endpoint.clone()];

@@ -25,6 +25,7 @@
 //!     seed: 1,
 //!     speedup: 1.0,
 //!     truth_hz: 10.0,
+//!     clock: Default::default(),
 //! };
 //! let mut config = WorldConfig::new(live);
 //! config.vehicles = vec![WorldVehicle::at(1, [0.0, 0.0, 100.0])];
@@ -385,6 +386,7 @@ mod tests {
             seed: 1,
             speedup,
             truth_hz: 1.0,
+            clock: Default::default(),
         }
     }
 

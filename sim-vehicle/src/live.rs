@@ -28,6 +28,25 @@ pub struct LiveConfig {
     pub speedup: f64,
     /// Truth publication rate (Hz of simulated time).
     pub truth_hz: f64,
+    /// How wrong the clock that stamps `time_unix` is (tests make wrong clocks with it).
+    pub clock: ClockSkew,
+}
+
+/// A wrong clock: `time_unix` = the true instant + `offset_s` + `drift_ppm`·10⁻⁶ · seconds
+/// since the start.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ClockSkew {
+    /// Offset (s); positive: the clock is ahead.
+    pub offset_s: f64,
+    /// Drift (µs per s; parts per million).
+    pub drift_ppm: f64,
+}
+
+impl ClockSkew {
+    /// The reading of this clock `elapsed` s after a start the true clock read `start_unix`.
+    pub fn read(&self, start_unix: f64, elapsed: f64) -> f64 {
+        start_unix + elapsed + self.offset_s + self.drift_ppm * 1e-6 * elapsed
+    }
 }
 
 /// The running loop; stopped when dropped.
@@ -57,6 +76,9 @@ pub enum LiveError {
     /// A rate or the speed-up is not a finite positive number.
     #[error("{0} must be a finite number > 0")]
     NotPositive(&'static str),
+    /// The clock skew is not finite.
+    #[error("{0} offset and drift must be finite numbers")]
+    NotFinite(&'static str),
     /// The thread could not be started.
     #[error("cannot start the sensor thread: {0}")]
     Thread(std::io::Error),
@@ -76,6 +98,10 @@ pub fn spawn(
         if !(v.is_finite() && v > 0.0) {
             return Err(LiveError::NotPositive(name));
         }
+    }
+    let skew = config.clock;
+    if !(skew.offset_s.is_finite() && skew.drift_ppm.is_finite()) {
+        return Err(LiveError::NotFinite("clock"));
     }
     let mut world = World::new(&config.scenario, config.seed)?;
     let mut suites = Vec::with_capacity(vehicles.len());
@@ -108,7 +134,7 @@ pub fn spawn(
         for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
             let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
             for mut scan in suite.scan(t, *id, &pose, origin, &world) {
-                scan.time_unix = Some(start_unix + t);
+                scan.time_unix = Some(skew.read(start_unix, t));
                 bus.publish_scan(&scan);
             }
         }
@@ -116,7 +142,7 @@ pub fn spawn(
             bus.publish_truth(&TruthSample {
                 schema: TRUTH_SCHEMA.into(),
                 t,
-                time_unix: Some(start_unix + t),
+                time_unix: Some(skew.read(start_unix, t)),
                 origin,
                 targets: world.truth(),
             });
@@ -144,6 +170,7 @@ mod tests {
                 seed: 1,
                 speedup,
                 truth_hz,
+                clock: Default::default(),
             };
             let e = spawn(&config, Vec::new(), bus).expect_err(what);
             assert!(e.to_string().starts_with(what), "{e}");

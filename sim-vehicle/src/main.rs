@@ -101,6 +101,13 @@ struct Args {
     /// Scan rate of every sensor (Hz), overriding the scenario's.
     #[arg(long)]
     detection_hz: Option<f64>,
+    /// Make the clock that stamps `time_unix` on detections and truth wrong by this many
+    /// seconds (positive: ahead), to test how a ground station copes with a wrong clock.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "S")]
+    clock_offset_s: f64,
+    /// Make that clock drift by this many µs per second (parts per million).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "PPM")]
+    clock_drift_ppm: f64,
     /// Rate of the simulation-only truth on harrier/v1/sim/truth (Hz).
     #[arg(long, default_value_t = 10.0)]
     truth_hz: f64,
@@ -278,6 +285,10 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         seed: args.seed,
         speedup: args.speedup,
         truth_hz: args.truth_hz,
+        clock: harrier_sim::live::ClockSkew {
+            offset_s: args.clock_offset_s,
+            drift_ppm: args.clock_drift_ppm,
+        },
     };
     let live = harrier_sim::live::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
         .map_err(|e| e.to_string())?;

@@ -118,6 +118,8 @@ fn python_clients_and_schemathesis_use_the_live_api() {
         mavlink: MavlinkConfig::ephemeral(),
         ..Config::default()
     };
+    // The simulator runs 10 times faster than the server's clock.
+    config.clock.real_time = false;
     config.frame.origin = scenario.origin;
     config.tracker.estimator = "cimm".into();
     config.tracker.roads = scenario.roads.clone();
@@ -153,6 +155,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
         seed: 5,
         speedup: 10.0,
         truth_hz: 10.0,
+        clock: Default::default(),
     });
     world.vehicles = vec![WorldVehicle::grounded(1), WorldVehicle::grounded(2)];
     world.zenoh.listen = vec![sim_endpoint];
@@ -275,6 +278,8 @@ fn a_slow_websocket_client_is_dropped_to_the_latest_snapshot() {
     use tokio_tungstenite::tungstenite::Message;
 
     let mut config = Config::default();
+    // The scans below are on a time line of their own (from 10⁹ s, 1 ms apart), not real time.
+    config.clock.real_time = false;
     config.mavlink.gcs.clear();
     config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
     config.api.ws_queue = 512;

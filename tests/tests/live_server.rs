@@ -744,6 +744,7 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
         seed: 11,
         speedup: FUSION_SPEEDUP,
         truth_hz: 5.0,
+        clock: Default::default(),
     });
     // Two UAVs 250 m up on either side of the road, looking across it: the road constraint
     // fixes the across-road position, the sensors' azimuths the along-road one.
@@ -763,6 +764,8 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
         let mut servers = Vec::new();
         for (_, sensors) in runs {
             let mut config = Config::default();
+            // The simulator runs FUSION_SPEEDUP times faster than the server's clock.
+            config.clock.real_time = false;
             config.mavlink.gcs.clear();
             config.frame.origin = scenario.origin;
             config.tracker.estimator = "cimm".into();

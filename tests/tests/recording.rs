@@ -195,6 +195,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
         seed: 5,
         speedup: SPEEDUP,
         truth_hz: 10.0,
+        clock: Default::default(),
     });
     world.vehicles = vec![WorldVehicle::grounded(1), WorldVehicle::grounded(2)];
     world.zenoh.listen = vec![sim_endpoint.clone()];
@@ -226,6 +227,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
         format!(
             "[frame]\norigin = {{ lat_deg = {:?}, lon_deg = {:?}, alt_m = {:?} }}\n\
              [tracker]\nestimator = \"ekf\"\n\
+             [clock]\nreal_time = false\n\
              [zenoh]\nlisten = [\"tcp/127.0.0.1:{}\"]\nconnect = [\"{sim_endpoint}\"]\n\
              tracks_key = \"\"\n\
              [recorder]\npath = '{}'\nflush_ms = 200\ntruth = true\n\

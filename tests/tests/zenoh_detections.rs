@@ -30,6 +30,7 @@ fn eclipse_zenoh_subscriber_decodes_the_detections() {
         seed: 7,
         speedup: 1.0,
         truth_hz: 5.0,
+        clock: Default::default(),
     });
     world.vehicles = vec![WorldVehicle::grounded(1), WorldVehicle::grounded(2)];
     world.zenoh.listen = vec![endpoint.clone()];

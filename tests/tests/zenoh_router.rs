@@ -322,6 +322,7 @@ fn harrier_serve(
         format!(
             "[frame]\norigin = {{ lat_deg = {:?}, lon_deg = {:?}, alt_m = {:?} }}\n\
              [tracker]\nestimator = \"ekf\"\nscan_period_s = {:?}\n\
+             [clock]\nreal_time = false\n\
              [zenoh]\nmode = \"client\"\nlisten = []\nconnect = [\"{router}\"]\n{zenoh_extra}\n\
              [mavlink]\ngcs = []\nrouter = []\n",
             o.lat_deg,

@@ -34,6 +34,8 @@ pub struct Config {
     pub mavlink: MavlinkConfig,
     /// The guidance loop.
     pub guidance: GuidanceConfig,
+    /// How far the sources' clocks are trusted.
+    pub clock: super::clock::ClockConfig,
 }
 
 /// The MAVLink GCS link and router ([`super::gcs`]).
@@ -458,6 +460,9 @@ impl Config {
     /// Checks the values a TOML parser cannot.
     pub fn check(&self) -> Result<(), ConfigError> {
         let bad = |m: String| Err(ConfigError::Invalid(m));
+        if let Some(p) = self.clock.problem() {
+            return bad(p);
+        }
         let o = self.frame.origin;
         if !(o.lat_deg.abs() <= 90.0 && o.lon_deg.abs() <= 180.0 && o.alt_m.is_finite()) {
             return bad(format!("frame.origin {o:?} is not a WGS-84 position"));

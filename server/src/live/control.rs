@@ -18,6 +18,8 @@ use super::api::{ApiState, ErrorBody, bad_json, error};
 use super::gcs::vehicle::VehicleLinkView;
 use super::gcs::{CommandError, CommandOutcome};
 use super::guidance::{AssignError, AssignmentRequest, AssignmentView};
+use super::clock::ClockEstimate;
+use super::metrics::DropReason;
 use super::tracker::VehicleView;
 
 /// A vehicle: its MAVLink link (when the GCS link hears it) and its detections (when it
@@ -30,6 +32,23 @@ pub struct VehicleEntry {
     pub link: Option<VehicleLinkView>,
     /// Its detections; `null` when none was processed.
     pub detections: Option<VehicleView>,
+    /// Its clock as estimated from its scans' `time_unix` (`[clock]`); `null` before the first
+    /// stamped scan.
+    pub clock: Option<ClockEstimate>,
+    /// Its scans refused because their `time_unix` was outside the bound (drop reason `clock`).
+    pub clock_refused: u64,
+}
+
+impl VehicleEntry {
+    fn new(id: u8) -> Self {
+        Self {
+            id,
+            link: None,
+            detections: None,
+            clock: None,
+            clock_refused: 0,
+        }
+    }
 }
 
 /// The vehicles.
@@ -50,6 +69,8 @@ pub fn vehicle_entries(s: &ApiState) -> Vec<VehicleEntry> {
                     id: v.view.id,
                     link: Some(v.view.clone()),
                     detections: None,
+                    clock: None,
+                    clock_refused: 0,
                 },
             );
         }
@@ -60,12 +81,22 @@ pub fn vehicle_entries(s: &ApiState) -> Vec<VehicleEntry> {
             continue;
         };
         out.entry(id)
-            .or_insert_with(|| VehicleEntry {
-                id,
-                link: None,
-                detections: None,
-            })
+            .or_insert_with(|| VehicleEntry::new(id))
             .detections = Some(d.clone());
+    }
+    for (label, estimate) in s.metrics.clocks() {
+        let Ok(id) = label.parse::<u8>() else {
+            continue;
+        };
+        let e = out.entry(id).or_insert_with(|| VehicleEntry::new(id));
+        e.clock = Some(estimate);
+        e.clock_refused = s
+            .metrics
+            .vehicle_counters(&label)
+            .dropped
+            .get(&DropReason::Clock)
+            .copied()
+            .unwrap_or(0);
     }
     out.into_values().collect()
 }

@@ -18,7 +18,7 @@ use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use tokio::sync::mpsc;
 
-use super::clock::unix_now;
+use super::clock::{ClockConfig, SourceClock, unix_now};
 use super::metrics::{DropReason, Metrics, vehicle_label};
 use super::recorder::{Record, Recorder};
 use crate::engine::SensorScan;
@@ -34,6 +34,8 @@ pub struct Payload {
     pub bytes: Vec<u8>,
     /// When it arrived.
     pub received: Instant,
+    /// When it arrived, as UNIX time on the server's clock (s).
+    pub arrival_unix: f64,
 }
 
 impl Payload {
@@ -46,6 +48,7 @@ impl Payload {
             vehicle,
             bytes,
             received: Instant::now(),
+            arrival_unix: unix_now(),
         }
     }
 }
@@ -109,6 +112,11 @@ pub struct Ingest {
     sensors: Vec<String>,
     target_size: Option<TargetSize>,
     recorder: Option<Recorder>,
+    clock: ClockConfig,
+    /// The clock of every vehicle that stamps `time_unix` (at most [`MAX_SEQUENCES`]).
+    clocks: HashMap<u8, SourceClock>,
+    /// The last (corrected) time of every sequence: a correction never takes a source back.
+    last_t: HashMap<(u8, String), f64>,
 }
 
 impl Ingest {
@@ -126,7 +134,16 @@ impl Ingest {
             sensors: Vec::new(),
             target_size: None,
             recorder: None,
+            clock: ClockConfig::default(),
+            clocks: HashMap::new(),
+            last_t: HashMap::new(),
         }
+    }
+
+    /// Bounds, estimates and corrects the sources' clocks as `clock` says.
+    pub fn with_clock(mut self, clock: ClockConfig) -> Self {
+        self.clock = clock;
+        self
     }
 
     /// The targets' size (m), for `bearing_size` detections.
@@ -174,6 +191,13 @@ impl Ingest {
             self.drop(v, DropReason::KeyMismatch, &m);
             return None;
         }
+        let t = match scan.time_unix {
+            Some(time_unix) if self.clock.real_time => {
+                self.place_in_time(v, &scan, time_unix, p.arrival_unix)?
+            }
+            // Without `time_unix`, `t` is on the publisher's own epoch: taken as sent.
+            _ => scan.time_unix.unwrap_or(scan.t),
+        };
         self.follow_seq(v, &scan);
         if let Some(r) = &self.recorder {
             r.record(Record::Scan {
@@ -208,11 +232,52 @@ impl Ingest {
             sensor: scan.sensor,
             scan: SensorScan {
                 // One time line for every publisher: UNIX time when the scan carries it.
-                t: scan.time_unix.unwrap_or(framed.t),
+                t,
                 sensor,
                 detections: framed.detections,
             },
         })
+    }
+
+    /// The time of a scan stamped `time_unix` on the server's time line, or `None` when its
+    /// clock is outside the bound (dropped as `clock`, counted and logged). Every stamped scan
+    /// feeds its vehicle's clock estimate, the refused ones too (so a wrong clock shows).
+    fn place_in_time(
+        &mut self,
+        vehicle: &str,
+        scan: &DetectionScan,
+        time_unix: f64,
+        arrival: f64,
+    ) -> Option<f64> {
+        let full = self.clocks.len() >= MAX_SEQUENCES;
+        let observed = match self.clocks.get_mut(&scan.vehicle) {
+            Some(c) => Some((c.observe(time_unix, arrival), c.estimate(arrival))),
+            None if !full => {
+                let mut c = SourceClock::new(&self.clock);
+                let o = c.observe(time_unix, arrival);
+                let e = c.estimate(arrival);
+                self.clocks.insert(scan.vehicle, c);
+                Some((o, e))
+            }
+            None => None,
+        };
+        if let Some((_, Some(estimate))) = observed {
+            self.metrics.clock(vehicle, estimate);
+        }
+        if let Some(why) = self.clock.refusal(time_unix, arrival) {
+            self.drop(vehicle, DropReason::Clock, &why);
+            return None;
+        }
+        let Some((o, _)) = observed.filter(|_| self.clock.correct) else {
+            return Some(time_unix);
+        };
+        let key = (scan.vehicle, scan.sensor.clone());
+        let last = self.last_t.get(&key).copied().unwrap_or(f64::NEG_INFINITY);
+        let t = (time_unix - o.offset_s).max(last);
+        if self.last_t.len() < MAX_SEQUENCES || self.last_t.contains_key(&key) {
+            self.last_t.insert(key, t);
+        }
+        Some(t)
     }
 
     /// Counts the scans missing before `scan` in its sensor's `seq` sequence (a sequence that
@@ -341,5 +406,61 @@ mod tests {
         );
         let ready = ingest(Some(12.0)).convert(&p).expect("with a size");
         assert_eq!(ready.scan.sensor.kind(), MeasKind::BearingSize);
+    }
+
+    #[test]
+    fn a_clock_outside_the_bound_is_refused_and_an_offset_one_corrected() {
+        let metrics = Arc::new(Metrics::default());
+        let mut ingest = Ingest::new(
+            LocalFrame::new(DEFAULT_ORIGIN),
+            Geometry::planar(0.0),
+            Arc::clone(&metrics),
+        );
+        let key = "harrier/v1/vehicle/2/detections";
+        let arrival = 1.8e9;
+        let at = |seq: u64, time_unix: f64, arrival_unix: f64| {
+            let mut s = scan(seq, vec![5.0, 6.0]);
+            s.time_unix = Some(time_unix);
+            Payload {
+                arrival_unix,
+                ..Payload::new(key, s.to_json().into_bytes())
+            }
+        };
+        // 10⁷ s ahead: refused, counted, and it moves nothing.
+        assert!(ingest.convert(&at(1, arrival + 1e7, arrival)).is_none());
+        let c = metrics.vehicle_counters("2");
+        assert_eq!(c.dropped.get(&DropReason::Clock), Some(&1));
+        // The estimate shows the wrong clock.
+        assert!((c.clock.expect("an estimate").offset_s - 1e7).abs() < 1.0);
+        // The clock is fixed but runs 1 s ahead (3 scans confirm the jump back); each scan
+        // arrives 10 ms after it was taken and is placed at the instant it was taken.
+        for seq in 2..40 {
+            let taken = arrival + seq as f64 * 0.1;
+            let ready = ingest
+                .convert(&at(seq, taken + 1.0, taken + 0.01))
+                .expect("accepted");
+            if seq >= 4 {
+                assert!(
+                    (ready.scan.t - taken).abs() < 0.02,
+                    "seq {seq}: t = {}, taken {taken}",
+                    ready.scan.t
+                );
+            }
+        }
+        let estimate = metrics.vehicle_counters("2").clock.expect("an estimate");
+        assert!((estimate.offset_s - 0.99).abs() < 1e-3, "{estimate:?}");
+        assert_eq!(estimate.jumps, 1);
+        // Uncorrected, the same scan keeps its own time.
+        let mut raw = Ingest::new(
+            LocalFrame::new(DEFAULT_ORIGIN),
+            Geometry::planar(0.0),
+            Arc::clone(&metrics),
+        )
+        .with_clock(ClockConfig {
+            correct: false,
+            ..ClockConfig::default()
+        });
+        let ready = raw.convert(&at(1, arrival + 1.0, arrival)).expect("accepted");
+        assert_eq!(ready.scan.t, arrival + 1.0);
     }
 }

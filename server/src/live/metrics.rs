@@ -9,6 +9,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::sync::{Mutex, PoisonError};
 
+use super::clock::ClockEstimate;
+
 /// Why a payload or scan was dropped (the `reason` label).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum DropReason {
@@ -28,6 +30,8 @@ pub enum DropReason {
     Late,
     /// From a sensor not in `tracker.sensors`.
     SensorFiltered,
+    /// Its `time_unix` is outside the bound around the server's clock (`[clock]`).
+    Clock,
 }
 
 impl DropReason {
@@ -42,6 +46,7 @@ impl DropReason {
             Self::Rejected => "rejected",
             Self::Late => "late",
             Self::SensorFiltered => "sensor_filtered",
+            Self::Clock => "clock",
         }
     }
 }
@@ -59,6 +64,8 @@ pub struct VehicleCounters {
     pub dropped: BTreeMap<DropReason, u64>,
     /// Scans missing from the `seq` sequences of its sensors.
     pub seq_lost: u64,
+    /// Its clock, as estimated from its scans' `time_unix` and arrival times.
+    pub clock: Option<ClockEstimate>,
 }
 
 /// Every counter of the service.
@@ -77,6 +84,7 @@ struct Inner {
     ws_sent: u64,
     ws_dropped: u64,
     http_refused: BTreeMap<(&'static str, u16), u64>,
+    truth_refused: BTreeMap<&'static str, u64>,
     tracks_tentative: usize,
     last_scan_t: Option<f64>,
 }
@@ -132,6 +140,26 @@ impl Metrics {
 
     fn vehicle<R>(&self, vehicle: &str, f: impl FnOnce(&mut VehicleCounters) -> R) -> R {
         self.with(|i| f(i.vehicles.entry(vehicle.to_string()).or_default()))
+    }
+
+    /// A truth sample not used (`reason`: `invalid`, `clock`).
+    pub fn truth_refused(&self, reason: &'static str) {
+        self.with(|i| *i.truth_refused.entry(reason).or_default() += 1);
+    }
+
+    /// The estimate of `vehicle`'s clock.
+    pub fn clock(&self, vehicle: &str, estimate: ClockEstimate) {
+        self.vehicle(vehicle, |v| v.clock = Some(estimate));
+    }
+
+    /// The estimate of every vehicle's clock that has one, by vehicle label.
+    pub fn clocks(&self) -> BTreeMap<String, ClockEstimate> {
+        self.with(|i| {
+            i.vehicles
+                .iter()
+                .filter_map(|(id, v)| Some((id.clone(), v.clock?)))
+                .collect()
+        })
     }
 
     /// A payload arrived on `vehicle`'s key.
@@ -265,6 +293,44 @@ impl Metrics {
                 "counter",
                 "Scans older than the last processed scan (dropped).",
                 per(&|v| v.dropped.get(&DropReason::Late).copied().unwrap_or(0)),
+            );
+            let clocks: Vec<_> = i
+                .vehicles
+                .iter()
+                .filter_map(|(id, v)| Some((id, v.clock?)))
+                .collect();
+            let clock = |f: &dyn Fn(&ClockEstimate) -> f64| {
+                clocks
+                    .iter()
+                    .map(|(id, c)| (format!("{{vehicle=\"{id}\"}}"), f(c).to_string()))
+                    .collect::<Vec<_>>()
+            };
+            family(
+                "harrier_clock_offset_seconds",
+                "gauge",
+                "Each vehicle's clock minus the server's, estimated from its scans.",
+                clock(&|c| c.offset_s),
+            );
+            family(
+                "harrier_clock_offset_sigma_seconds",
+                "gauge",
+                "Standard uncertainty of harrier_clock_offset_seconds.",
+                clock(&|c| c.sigma_s),
+            );
+            family(
+                "harrier_clock_drift_ppm",
+                "gauge",
+                "How fast each vehicle's clock offset grows (µs per s).",
+                clock(&|c| c.drift_ppm),
+            );
+            family(
+                "harrier_truth_refused_total",
+                "counter",
+                "Truth samples not used, by reason (invalid, clock).",
+                i.truth_refused
+                    .iter()
+                    .map(|(r, n)| (format!("{{reason=\"{r}\"}}"), n.to_string()))
+                    .collect(),
             );
             family(
                 "harrier_seq_lost_total",

@@ -315,17 +315,31 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     {
         let r = recorder.clone().filter(|_| config.recorder.truth);
         let server_frame = LocalFrame::new(config.frame.origin);
+        let bound = config.clock.clone();
+        let m = Arc::clone(&metrics);
         let truth = session
             .declare_subscriber(TRUTH_KEY)
             .callback(
                 move |sample| match TruthSample::from_json(&sample.payload().to_bytes()) {
                     Ok(t) => {
+                        // Truth is bounded in time as scans are: no input moves a clock far.
+                        let refused = t
+                            .time_unix
+                            .and_then(|tu| bound.refusal(tu, clock::unix_now()));
+                        if let Some(why) = refused {
+                            m.truth_refused("clock");
+                            tracing::debug!("truth sample not used: {why}");
+                            return;
+                        }
                         truth_tx.send_replace(Arc::new(truth_body(&t, &server_frame)));
                         if let Some(r) = &r {
                             r.record(recorder::Record::Truth(t));
                         }
                     }
-                    Err(e) => tracing::debug!("truth sample not used: {e}"),
+                    Err(e) => {
+                        m.truth_refused("invalid");
+                        tracing::debug!("truth sample not used: {e}");
+                    }
                 },
             )
             .await
@@ -356,6 +370,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         Arc::clone(&metrics),
     )
     .with_sensors(config.tracker.sensors.clone())
+    .with_clock(config.clock.clone())
     .with_target_size(config.tracker.target_size_m)
     .with_recorder(recorder.clone());
     let recent = Arc::new(Recent::default());
