@@ -178,6 +178,7 @@ impl SimWorld {
                     airframe: config.airframe,
                     origin: config.live.scenario.origin,
                     speedup: config.live.speedup,
+                    clock: config.live.clock,
                 };
                 let mut endpoints =
                     vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))];

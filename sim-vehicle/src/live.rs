@@ -13,6 +13,7 @@ use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
 use crate::bus::{Bus, BusCounters};
 use crate::sensors::{SensorSuite, platform_pose};
 use crate::setup::{ScenarioError, SimScenario};
+pub use crate::vehicle::ClockSkew;
 use crate::vehicle::Vehicle;
 use crate::worker::Worker;
 use crate::world::World;
@@ -30,23 +31,6 @@ pub struct LiveConfig {
     pub truth_hz: f64,
     /// How wrong the clock that stamps `time_unix` is (tests make wrong clocks with it).
     pub clock: ClockSkew,
-}
-
-/// A wrong clock: `time_unix` = the true instant + `offset_s` + `drift_ppm`·10⁻⁶ · seconds
-/// since the start.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ClockSkew {
-    /// Offset (s); positive: the clock is ahead.
-    pub offset_s: f64,
-    /// Drift (µs per s; parts per million).
-    pub drift_ppm: f64,
-}
-
-impl ClockSkew {
-    /// The reading of this clock `elapsed` s after a start the true clock read `start_unix`.
-    pub fn read(&self, start_unix: f64, elapsed: f64) -> f64 {
-        start_unix + elapsed + self.offset_s + self.drift_ppm * 1e-6 * elapsed
-    }
 }
 
 /// The running loop; stopped when dropped.

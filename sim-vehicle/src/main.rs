@@ -20,7 +20,7 @@ use harrier_sim::bus::Bus;
 use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
 use harrier_sim::setup::SimScenario;
-use harrier_sim::vehicle::{Airframe, VehicleConfig};
+use harrier_sim::vehicle::{Airframe, ClockSkew, VehicleConfig};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum AirframeArg {
@@ -103,10 +103,20 @@ struct Args {
     detection_hz: Option<f64>,
     /// Make the clock that stamps `time_unix` on detections and truth wrong by this many
     /// seconds (positive: ahead), to test how a ground station copes with a wrong clock.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "S")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "S"
+    )]
     clock_offset_s: f64,
     /// Make that clock drift by this many µs per second (parts per million).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_name = "PPM")]
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_negative_numbers = true,
+        value_name = "PPM"
+    )]
     clock_drift_ppm: f64,
     /// Rate of the simulation-only truth on harrier/v1/sim/truth (Hz).
     #[arg(long, default_value_t = 10.0)]
@@ -251,6 +261,7 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
             },
             origin,
             speedup: args.speedup,
+            clock: skew(args),
         };
         let links = LinkConfig {
             endpoints,
@@ -285,10 +296,7 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         seed: args.seed,
         speedup: args.speedup,
         truth_hz: args.truth_hz,
-        clock: harrier_sim::live::ClockSkew {
-            offset_s: args.clock_offset_s,
-            drift_ppm: args.clock_drift_ppm,
-        },
+        clock: skew(args),
     };
     let live = harrier_sim::live::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
         .map_err(|e| e.to_string())?;
@@ -338,6 +346,14 @@ fn main() -> ExitCode {
             eprintln!("harrier-sim: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+/// The wrong clock `--clock-offset-s` and `--clock-drift-ppm` ask for.
+fn skew(args: &Args) -> ClockSkew {
+    ClockSkew {
+        offset_s: args.clock_offset_s,
+        drift_ppm: args.clock_drift_ppm,
     }
 }
 

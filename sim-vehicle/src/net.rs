@@ -28,14 +28,14 @@ use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::{Duration, Instant};
 
 use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use mavlink::dialects::common::{MavMessage, TIMESYNC_DATA};
 
 pub use harrier_link::frame::{Endpoint, EndpointError, StreamParser};
 use harrier_link::frame::{Frame, parse_datagram};
 use harrier_link::px4::COMPONENT_ID;
 pub use harrier_link::signing::{Rejection, Rejections, Signer, Signing};
 
-use crate::vehicle::{Vehicle, VehicleConfig};
+use crate::vehicle::{ClockSkew, Vehicle, VehicleConfig};
 use crate::worker::Worker;
 
 /// Errors from setting up links.
@@ -554,6 +554,26 @@ impl RejectLog {
     }
 }
 
+/// The answer to a time-sync request (TIMESYNC with tc1 = 0): this vehicle's clock in ns, `now`
+/// s after its start, as PX4 and ArduPilot answer it (theirs reads time since boot; this one
+/// reads UNIX time, wrong by `clock`). `None` for every other message.
+fn timesync_reply(clock: &ClockSkew, m: &MavMessage, now: f64) -> Option<MavMessage> {
+    let MavMessage::TIMESYNC(t) = m else {
+        return None;
+    };
+    if t.tc1 != 0 {
+        return None;
+    }
+    let unix = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64());
+    let reading = unix + clock.offset_s + clock.drift_ppm * 1e-6 * now;
+    Some(MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: (reading * 1e9) as i64,
+        ts1: t.ts1,
+    }))
+}
+
 fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
     let sysid = v.id();
     for link in links.iter_mut() {
@@ -565,6 +585,10 @@ fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
                 v.count_rejected(reason);
             }
             for m in &r.messages {
+                if let Some(reply) = timesync_reply(&v.config().clock, m, now) {
+                    link.send(sysid, &reply, r.from);
+                    continue;
+                }
                 for reply in v.handle(now, m) {
                     link.send(sysid, &reply, r.from);
                 }

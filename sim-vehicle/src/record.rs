@@ -298,6 +298,7 @@ pub fn record(
             airframe,
             origin,
             speedup: 1.0,
+            clock: Default::default(),
         };
         let takeoff_amsl = origin.alt_m as f32 + TAKEOFF_HEIGHT_M;
         pilots.push(Pilot {

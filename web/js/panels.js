@@ -32,6 +32,11 @@ export function showResult(node, kind, text) {
 
 // --- vehicles --------------------------------------------------------------------------------
 
+/** A clock offset: ms below a second, s above. */
+function fmtOffset(s) {
+  return Math.abs(s) < 1 ? `${fmt(s * 1000, 0)} ms` : `${fmt(s, 3)} s`;
+}
+
 export class VehiclesPanel {
   constructor(root, store, actions) {
     this.root = root;
@@ -56,6 +61,7 @@ export class VehiclesPanel {
       el("span", { class: "k", text: "link" }), cell("rate"),
       el("span", { class: "k", text: "scans" }), cell("scans"),
       el("span", { class: "k", text: "last seen" }), cell("seen"),
+      el("span", { class: "k", text: "clock" }), cell("clock"),
     );
     f.title = el("span", { class: "title" });
     f.mode = el("span", { class: "tag" });
@@ -107,6 +113,12 @@ export class VehiclesPanel {
       setText(f.scans, `${v.scans}`);
       setText(f.seen, link && Number.isFinite(link.last_seen_s) ? `${fmt(link.last_seen_s, 1)} s` : s.t != null && v.lastScanT != null ? `${fmt(Math.max(0, s.t - v.lastScanT), 1)} s` : "–");
       setText(f.sensors, v.sensors.size ? `sensors: ${[...v.sensors].join(", ")}` : "");
+      // The vehicle's clock minus the server's (estimated from its scans), and its refused scans.
+      const ck = v.clock;
+      setText(f.clock, ck
+        ? `${ck.offset_s >= 0 ? "+" : ""}${fmtOffset(ck.offset_s)} ±${fmtOffset(ck.sigma_s)}${v.clockRefused ? ` · ${v.clockRefused} refused` : ""}`
+        : "–");
+      f.clock.classList.toggle("bad", Boolean(v.clockRefused));
       const slot = s.slotOf(v.label);
       setText(f.assigned, slot
         ? `assignment #${slot.assignment.id} → T${slot.assignment.track}: ${slot.slot.state.replace("_", " ")}${Number.isFinite(slot.slot.range_error_m) ? ` · r−R ${fmt(slot.slot.range_error_m, 1)} m` : ""}`

@@ -238,6 +238,8 @@ export class Store {
       const label = String(raw.id);
       const v = this.vehicleFor(label);
       v.link = raw.link || null;
+      v.clock = raw.clock || null;
+      v.clockRefused = Number.isFinite(raw.clock_refused) ? raw.clock_refused : 0;
       const det = raw.detections || null;
       if (det) this.mergeDetectionView(v, det);
       if (v.link && Array.isArray(v.link.position)) {

@@ -82,7 +82,9 @@ impl ClockConfig {
             ("window_s", self.window_s),
         ];
         if let Some((name, v)) = positive.iter().find(|(_, v)| !(v.is_finite() && *v > 0.0)) {
-            return Some(format!("clock.{name} must be a positive number of seconds, got {v}"));
+            return Some(format!(
+                "clock.{name} must be a positive number of seconds, got {v}"
+            ));
         }
         if !(self.delay_floor_s.is_finite() && self.delay_floor_s >= 0.0) {
             return Some(format!(
@@ -310,7 +312,10 @@ fn fit(samples: &VecDeque<Sample>, window_s: f64) -> Option<Line> {
             drift,
             sigma: 0.0,
         };
-        let ss: f64 = tops.iter().map(|s| (s.y - line.at(s.arrival)).powi(2)).sum();
+        let ss: f64 = tops
+            .iter()
+            .map(|s| (s.y - line.at(s.arrival)).powi(2))
+            .sum();
         let sigma = (ss / (n - 2.0).max(1.0) / n).sqrt();
         Some(Line {
             sigma: sigma.max(SIGMA_FLOOR_S),

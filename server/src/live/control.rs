@@ -15,10 +15,10 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::api::{ApiState, ErrorBody, bad_json, error};
+use super::clock::ClockEstimate;
 use super::gcs::vehicle::VehicleLinkView;
 use super::gcs::{CommandError, CommandOutcome};
 use super::guidance::{AssignError, AssignmentRequest, AssignmentView};
-use super::clock::ClockEstimate;
 use super::metrics::DropReason;
 use super::tracker::VehicleView;
 

@@ -460,7 +460,9 @@ mod tests {
             correct: false,
             ..ClockConfig::default()
         });
-        let ready = raw.convert(&at(1, arrival + 1.0, arrival)).expect("accepted");
+        let ready = raw
+            .convert(&at(1, arrival + 1.0, arrival))
+            .expect("accepted");
         assert_eq!(ready.scan.t, arrival + 1.0);
     }
 }

@@ -81,6 +81,25 @@ pub struct VehicleConfig {
     pub origin: Geodetic,
     /// Simulation seconds per wall-clock second.
     pub speedup: f64,
+    /// How wrong its clock is: the TIMESYNC answers (and the detections' `time_unix`) read it.
+    pub clock: ClockSkew,
+}
+
+/// A wrong clock: `time_unix` = the true instant + `offset_s` + `drift_ppm`·10⁻⁶ · seconds
+/// since the start.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ClockSkew {
+    /// Offset (s); positive: the clock is ahead.
+    pub offset_s: f64,
+    /// Drift (µs per s; parts per million).
+    pub drift_ppm: f64,
+}
+
+impl ClockSkew {
+    /// The reading of this clock `elapsed` s after a start the true clock read `start_unix`.
+    pub fn read(&self, start_unix: f64, elapsed: f64) -> f64 {
+        start_unix + elapsed + self.offset_s + self.drift_ppm * 1e-6 * elapsed
+    }
 }
 
 impl VehicleConfig {
@@ -91,6 +110,7 @@ impl VehicleConfig {
             airframe: Airframe::Multirotor,
             origin: Geodetic::new(47.397_742, 8.545_594, 488.0),
             speedup: 1.0,
+            clock: ClockSkew::default(),
         }
     }
 }

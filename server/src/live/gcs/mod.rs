@@ -32,6 +32,7 @@
 //!   same key, and the vehicle checks the client's signature itself). It never re-signs: an
 //!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
+pub mod timesync;
 pub mod traffic;
 pub mod transport;
 pub mod vehicle;
@@ -49,6 +50,7 @@ use harrier_link::geo::LocalFrame;
 use harrier_link::mavlink::MavHeader;
 use harrier_link::mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType,
+    TIMESYNC_DATA,
 };
 use harrier_link::px4::VehicleStatus;
 use harrier_link::signing::{Rejection, Signer, Signing};
@@ -556,6 +558,8 @@ struct Actor {
     watch: watch::Sender<Arc<Vec<VehicleSample>>>,
     tlog: Option<Tlog>,
     last_heartbeat: Option<Instant>,
+    /// The TIMESYNC requests sent lately.
+    timesync: timesync::Requests,
     /// Last (armed, mode) per vehicle, for the events.
     flight: HashMap<u8, (bool, Option<String>)>,
     /// Signs the ground station's frames (the endpoints check the incoming ones).
@@ -629,6 +633,7 @@ pub async fn start(
         watch: watch_tx,
         tlog,
         last_heartbeat: None,
+        timesync: timesync::Requests::default(),
         flight: HashMap::new(),
         signer,
         reject_log: HashMap::new(),
@@ -768,7 +773,22 @@ impl Actor {
                 let _ = self.acks.send((id, f.message.clone()));
                 self.on_ack(id, ack.command, ack.result, at);
             }
+            MavMessage::TIMESYNC(t) => self.on_timesync(id, t.tc1, t.ts1),
             _ => {}
+        }
+    }
+
+    /// A vehicle's answer to one of the link's TIMESYNC requests feeds its estimate; a request
+    /// of its own is answered with the server's clock.
+    fn on_timesync(&mut self, id: u8, tc1: i64, ts1: i64) {
+        let now = timesync::now_ns(unix_now());
+        if tc1 == 0 {
+            let reply = MavMessage::TIMESYNC(TIMESYNC_DATA { tc1: now, ts1 });
+            self.send_to(id, &reply);
+        } else if self.timesync.sent(ts1)
+            && let Some(v) = self.vehicles.get_mut(&id)
+        {
+            v.timesync.answer(tc1, ts1, now);
         }
     }
 
@@ -1012,6 +1032,12 @@ impl Actor {
                     let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
                 }
                 self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
+            }
+            // And a TIMESYNC request to each vehicle (only to them: not to router clients).
+            let request = self.timesync.request(timesync::now_ns(unix_now()));
+            let ids: Vec<u8> = self.vehicles.keys().copied().collect();
+            for id in ids {
+                self.send_to(id, &request);
             }
         }
         let samples: Vec<VehicleSample> = self

@@ -15,6 +15,7 @@ use nalgebra::Vector3;
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use super::timesync::{Timesync, TimesyncView};
 use super::transport::Peer;
 
 /// Link state of a vehicle.
@@ -88,6 +89,8 @@ pub struct VehicleLinkView {
     pub last_seen_s: f64,
     /// Times it was marked lost and came back.
     pub reconnects: u64,
+    /// Its clock from MAVLink TIMESYNC; `null` before its first answer.
+    pub timesync: Option<TimesyncView>,
 }
 
 /// What a vehicle's telemetry tells (see the module documentation).
@@ -117,6 +120,8 @@ pub struct VehicleLink {
     reconnects: u64,
     /// Arrival times of the last second's messages.
     window: std::collections::VecDeque<Instant>,
+    /// Its TIMESYNC exchanges.
+    pub timesync: Timesync,
 }
 
 impl VehicleLink {
@@ -143,6 +148,7 @@ impl VehicleLink {
             lost_frames: 0,
             reconnects: 0,
             window: std::collections::VecDeque::new(),
+            timesync: Timesync::default(),
         }
     }
 
@@ -297,6 +303,7 @@ impl VehicleLink {
             lost_frames: self.lost_frames,
             last_seen_s: now.duration_since(self.last_seen).as_secs_f64(),
             reconnects: self.reconnects,
+            timesync: self.timesync.view(),
         }
     }
 }
