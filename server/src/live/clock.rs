@@ -13,7 +13,8 @@
 //!   and its drift, from the scans' arrival times. Every scan gives `y = time_unix − arrival =
 //!   offset − delay`, and the transport delay is never below its floor, so the upper envelope of
 //!   `y` (plus the floor) is the offset: the largest `y` in each of [`BUCKETS`] slices of the last
-//!   [`ClockConfig::window_s`], and a least-squares line through them (offset now, drift). A
+//!   [`ClockConfig::window_s`], and a least-squares line through them (offset now, drift); O(1)
+//!   per scan, whatever the scan rate. A
 //!   sample that lies more than [`JUMP_S`] off the line is a suspect; [`JUMP_CONFIRM`] suspects
 //!   in a row that agree are a clock jump, and the estimate restarts from them.
 //! * **The correction** ([`ClockConfig::correct`]): a scan's time becomes `time_unix − offset`,
@@ -124,8 +125,6 @@ pub const BUCKETS: usize = 8;
 pub const JUMP_S: f64 = 1.0;
 /// Suspects in a row, agreeing within [`JUMP_S`], that make a clock jump.
 pub const JUMP_CONFIRM: usize = 3;
-/// Most samples kept per source (the oldest go first).
-const MAX_SAMPLES: usize = 4096;
 /// The uncertainty is never reported below this (s): the resolution the arrival times have.
 const SIGMA_FLOOR_S: f64 = 1e-4;
 
@@ -150,6 +149,15 @@ struct Sample {
     y: f64,
 }
 
+/// One slice of arrival time: its sample of largest `y`, its smallest `y`, how many.
+#[derive(Debug, Clone, Copy)]
+struct Slice {
+    index: i64,
+    top: Sample,
+    low: f64,
+    n: usize,
+}
+
 /// The fitted envelope: `y(arrival) = offset + drift · (arrival − at)`.
 #[derive(Debug, Clone, Copy)]
 struct Line {
@@ -165,12 +173,14 @@ impl Line {
     }
 }
 
-/// The clock estimate of one source.
+/// The clock estimate of one source. Each scan costs O([`BUCKETS`]): the samples are kept only
+/// as the extremes of the slices of the window they fall in.
 #[derive(Debug, Clone)]
 pub struct SourceClock {
     window_s: f64,
     delay_floor_s: f64,
-    samples: VecDeque<Sample>,
+    slices: VecDeque<Slice>,
+    last_arrival: f64,
     suspects: Vec<Sample>,
     line: Option<Line>,
     jumps: u64,
@@ -192,7 +202,8 @@ impl SourceClock {
         Self {
             window_s: config.window_s,
             delay_floor_s: config.delay_floor_s,
-            samples: VecDeque::new(),
+            slices: VecDeque::with_capacity(BUCKETS + 1),
+            last_arrival: f64::NEG_INFINITY,
             suspects: Vec::new(),
             line: None,
             jumps: 0,
@@ -212,10 +223,7 @@ impl SourceClock {
             };
         }
         // A source silent for longer than the window starts afresh.
-        let fresh = self
-            .samples
-            .back()
-            .is_some_and(|b| arrival - b.arrival <= self.window_s);
+        let fresh = arrival - self.last_arrival <= self.window_s;
         if let Some(line) = self.line.filter(|_| fresh)
             && (s.y - line.at(arrival)).abs() > JUMP_S
         {
@@ -235,27 +243,50 @@ impl SourceClock {
                 };
             }
             self.jumps += 1;
-            self.samples.clear();
-            self.samples.extend(self.suspects.drain(..));
+            self.slices.clear();
+            for s in std::mem::take(&mut self.suspects) {
+                self.add(s);
+            }
         } else {
             if !fresh {
-                self.samples.clear();
+                self.slices.clear();
             }
             self.suspects.clear();
-            self.samples.push_back(s);
+            self.add(s);
         }
-        while self.samples.len() > MAX_SAMPLES
-            || self
-                .samples
-                .front()
-                .is_some_and(|f| f.arrival < arrival - self.window_s)
-        {
-            self.samples.pop_front();
-        }
-        self.line = fit(&self.samples, self.window_s);
+        self.line = fit(&self.slices, self.last_arrival, self.window_s);
         Observed {
             offset_s: self.line.map_or(s.y, |l| l.at(arrival)) + self.delay_floor_s,
             suspect: false,
+        }
+    }
+
+    /// Adds a sample to its slice, and forgets the slices that left the window.
+    fn add(&mut self, s: Sample) {
+        let width = self.window_s / BUCKETS as f64;
+        let index = (s.arrival / width).floor() as i64;
+        self.last_arrival = self.last_arrival.max(s.arrival);
+        match self.slices.back_mut() {
+            Some(b) if b.index == index => {
+                if s.y > b.top.y {
+                    b.top = s;
+                }
+                b.low = b.low.min(s.y);
+                b.n += 1;
+            }
+            _ => self.slices.push_back(Slice {
+                index,
+                top: s,
+                low: s.y,
+                n: 1,
+            }),
+        }
+        while self
+            .slices
+            .front()
+            .is_some_and(|f| f.index <= index - BUCKETS as i64)
+        {
+            self.slices.pop_front();
         }
     }
 
@@ -266,48 +297,32 @@ impl SourceClock {
             offset_s: line.at(now) + self.delay_floor_s,
             sigma_s: line.sigma,
             drift_ppm: line.drift * 1e6,
-            samples: self.samples.len(),
+            samples: self.slices.iter().map(|b| b.n).sum(),
             jumps: self.jumps,
         })
     }
 }
 
-/// The upper envelope of `samples`: the largest `y` of each of [`BUCKETS`] slices of the window,
-/// and the least-squares line through them when they span at least a quarter of the window (else
-/// a constant, their largest `y`).
-fn fit(samples: &VecDeque<Sample>, window_s: f64) -> Option<Line> {
-    let last = samples.back()?;
-    let width = window_s / BUCKETS as f64;
-    let mut tops: Vec<Option<Sample>> = vec![None; BUCKETS];
-    for s in samples {
-        let back = ((last.arrival - s.arrival) / width).floor();
-        let i = if back.is_finite() && back >= 0.0 {
-            (back as usize).min(BUCKETS - 1)
-        } else {
-            0
-        };
-        if tops[i].is_none_or(|t| s.y > t.y) {
-            tops[i] = Some(*s);
-        }
-    }
-    let tops: Vec<Sample> = tops.into_iter().flatten().collect();
+/// The upper envelope of the slices: the least-squares line through their largest `y` when
+/// they span at least a quarter of the window (else a constant, their largest `y`).
+fn fit(slices: &VecDeque<Slice>, last: f64, window_s: f64) -> Option<Line> {
+    let first = slices.front()?.top.arrival;
+    let tops: Vec<Sample> = slices.iter().map(|b| b.top).collect();
     let n = tops.len() as f64;
-    let first = tops.iter().map(|s| s.arrival).fold(f64::INFINITY, f64::min);
-    let span = last.arrival - first;
-    if tops.len() >= 3 && span >= window_s / 4.0 {
+    if tops.len() >= 3 && last - first >= window_s / 4.0 {
         let (ma, my) = (
-            tops.iter().map(|s| s.arrival - last.arrival).sum::<f64>() / n,
+            tops.iter().map(|s| s.arrival - last).sum::<f64>() / n,
             tops.iter().map(|s| s.y).sum::<f64>() / n,
         );
         let (mut sxx, mut sxy) = (0.0, 0.0);
         for s in &tops {
-            let dx = s.arrival - last.arrival - ma;
+            let dx = s.arrival - last - ma;
             sxx += dx * dx;
             sxy += dx * (s.y - my);
         }
         let drift = if sxx > 0.0 { sxy / sxx } else { 0.0 };
         let line = Line {
-            at: last.arrival,
+            at: last,
             offset: my - drift * ma,
             drift,
             sigma: 0.0,
@@ -323,9 +338,9 @@ fn fit(samples: &VecDeque<Sample>, window_s: f64) -> Option<Line> {
         })
     } else {
         let top = tops.iter().map(|s| s.y).fold(f64::NEG_INFINITY, f64::max);
-        let low = samples.iter().map(|s| s.y).fold(f64::INFINITY, f64::min);
+        let low = slices.iter().map(|b| b.low).fold(f64::INFINITY, f64::min);
         Some(Line {
-            at: last.arrival,
+            at: last,
             offset: top,
             drift: 0.0,
             sigma: ((top - low) / 2.0).max(SIGMA_FLOOR_S),
