@@ -8,8 +8,9 @@
 
 With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
 accepted arm, a timeout from the --silent vehicle, assignment errors, the counters in /metrics).
-With --connect: connects through the router as QGroundControl or MAVProxy would, waits for the
-ground station's HEARTBEAT (system 255, MAV_TYPE_GCS) and every listed vehicle's, then sends
+With --connect: connects through the router as QGroundControl or MAVProxy would, waits for every
+listed vehicle's HEARTBEAT (and checks that the ground station's own, system 255, is not among
+those it sees, nor is its first one: `wait_heartbeat()` must find a vehicle), then sends
 COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (disarm) to vehicle --command and waits for its
 COMMAND_ACK, which comes back through the router. With --tlog: reads a session's .tlog and checks
 it holds HEARTBEATs of the ground station and of every listed vehicle. With --db: reads the
@@ -48,7 +49,17 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
     seen = {}
     deadline = time.monotonic() + timeout_s
     last_hb = 0.0
-    want = set(vehicles) | {255}
+    want = set(vehicles)
+    # A router endpoint hears a client once it sent something: announce, then wait_heartbeat().
+    first = None
+    while first is None and time.monotonic() < deadline:
+        m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+        first = m.wait_heartbeat(timeout=0.5)
+    if first is None:
+        fail(f"{url}: no HEARTBEAT within {timeout_s} s")
+    if first.get_srcSystem() not in want:
+        fail(f"wait_heartbeat() found system {first.get_srcSystem()}, not a vehicle of {sorted(want)}")
+    seen[first.get_srcSystem()] = first.type
     while not want <= set(seen) and time.monotonic() < deadline:
         if time.monotonic() - last_hb > 0.5:
             m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
@@ -60,8 +71,8 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
             seen[msg.get_srcSystem()] = msg.type
     if not want <= set(seen):
         fail(f"{url}: heartbeats seen from {sorted(seen)}, wanted {sorted(want)}")
-    if seen[255] != mavutil.mavlink.MAV_TYPE_GCS:
-        fail(f"system 255 is type {seen[255]}, not MAV_TYPE_GCS")
+    if 255 in seen:
+        fail("the ground station's own HEARTBEAT (system 255) reached a router client")
     print(f"{url}: heartbeats from {sorted(seen)}")
     if command:
         for attempt in range(3):

@@ -69,6 +69,11 @@ pub struct MavlinkConfig {
     /// ADSB_VEHICLE message, callsign `T<id>` (the traffic message of MAVProxy's `adsb` module
     /// and QGroundControl's ADS-B display; never sent to the vehicles); 0: not sent.
     pub tracks_hz: f64,
+    /// Send the ground station's own HEARTBEAT to the router's clients too. Off by default: a
+    /// client script's `wait_heartbeat()` (pymavlink, MAVProxy) takes the first HEARTBEAT's
+    /// system as its target, and Harrier's (system 255, as QGroundControl's and MAVProxy's own)
+    /// would win over the vehicles'.
+    pub router_heartbeat: bool,
 }
 
 /// MAVLink 2 signing of the GCS link and router (`[mavlink.signing]`; docs/mavlink-signing.md).
@@ -138,6 +143,7 @@ impl Default for MavlinkConfig {
             tlog: String::new(),
             signing: SigningConfig::default(),
             tracks_hz: 1.0,
+            router_heartbeat: false,
         }
     }
 }
@@ -631,6 +637,7 @@ impl Config {
             frame: harrier_link::geo::LocalFrame::new(self.frame.origin),
             tlog,
             signing: m.signing.resolve()?,
+            router_heartbeat: m.router_heartbeat,
         }))
     }
 

@@ -16,8 +16,9 @@
 //! - A command is a COMMAND_LONG sent with confirmation 0, re-sent with confirmation + 1 after
 //!   `command_timeout_ms` without its COMMAND_ACK, `command_attempts` times in all; the caller
 //!   gets the final ACK's result, or `timeout`. `MAV_RESULT_IN_PROGRESS` restarts the wait.
-//! - Router: every valid frame from a vehicle, and the ground station's own HEARTBEAT, go
-//!   unchanged to every client endpoint; a
+//! - Router: every valid frame from a vehicle goes unchanged to every client endpoint (the
+//!   ground station's own HEARTBEAT only with `mavlink.router_heartbeat`: a client script's
+//!   `wait_heartbeat()` would otherwise take system 255 for its vehicle); a
 //!   client's frame goes to the vehicle its `target_system` names, or to every vehicle when it
 //!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
 //!   routed (counted as malformed).
@@ -85,6 +86,8 @@ pub struct GcsConfig {
     pub tlog: Option<PathBuf>,
     /// MAVLink 2 signing (`None`: off).
     pub signing: Option<Signing>,
+    /// The ground station's HEARTBEAT goes to the router's clients too.
+    pub router_heartbeat: bool,
 }
 
 /// Why the link cannot start.
@@ -1026,9 +1029,14 @@ impl Actor {
                 mavlink_version: 3,
             });
             if let Some(bytes) = self.frame(&hb) {
-                // To the vehicles, and to the router's clients, which see the ground station
-                // as mavlink-router shows the GCS behind it.
-                for e in &self.endpoints {
+                // To the vehicles; to the router's clients only when configured (their scripts'
+                // `wait_heartbeat()` would take the ground station for a vehicle).
+                let to = if self.config.router_heartbeat {
+                    self.endpoints.len()
+                } else {
+                    self.config.gcs.len()
+                };
+                for e in &self.endpoints[..to] {
                     let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
                 }
                 self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
