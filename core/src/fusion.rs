@@ -49,7 +49,7 @@ fn from_information<const N: usize>(
 
 /// At least one track, and every track a finite Gaussian with no negative variance: a single
 /// track is returned as it is, so a corrupt one must be refused here (found by the
-/// hostile-number tests, `core/tests/hostile.rs`).
+/// hostile-number tests, `core/tests/it/hostile.rs`).
 fn nonempty<const N: usize>(tracks: &[Gaussian<N>]) -> Result<()> {
     if tracks.is_empty() {
         return Err(EstimationError::InvalidParameter(

@@ -51,7 +51,7 @@ pub fn ensure_finite<const R: usize, const C: usize>(
 /// below zero (a necessary condition of positive semi-definiteness, O(N)). Rounding may leave a
 /// zero variance at −1e-12 of the largest one; anything more negative comes from a corrupt
 /// input — a negative process-noise density or measurement variance, a prior that is not a
-/// covariance — and is refused (found by the hostile-number tests, `core/tests/hostile.rs`).
+/// covariance — and is refused (found by the hostile-number tests, `core/tests/it/hostile.rs`).
 #[inline]
 pub fn ensure_covariance<const N: usize>(a: &SMatrix<f64, N, N>, what: &'static str) -> Result<()> {
     ensure_finite(a, what)?;

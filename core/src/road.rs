@@ -189,7 +189,8 @@ impl Road {
         for (k, s) in segments.iter().enumerate() {
             // Every defining number finite and of a physical size (|·| ≤ MAX_ROAD_COORD_M): an
             // arc's length alone does not see a NaN centre, and a projection onto coordinates
-            // near f64::MAX overflows (found by the hostile-number tests, core/tests/hostile.rs).
+            // near f64::MAX overflows (found by the hostile-number tests,
+            // core/tests/it/hostile.rs).
             let finite = match *s {
                 RoadSegment::Line { start, end } => start
                     .iter()

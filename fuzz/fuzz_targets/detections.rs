@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `detections`: the body is `harness::detections`, shared with `tests/tests/fuzz_regressions.rs`.
+//! Fuzz target `detections`: the body is `harness::detections`, shared with `tests/tests/it/fuzz_regressions.rs`.
 
 #[path = "../harness/mod.rs"]
 mod harness;

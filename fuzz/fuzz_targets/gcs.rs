@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `gcs`: the body is `harness::gcs`, shared with `tests/tests/fuzz_regressions.rs`.
+//! Fuzz target `gcs`: the body is `harness::gcs`, shared with `tests/tests/it/fuzz_regressions.rs`.
 
 #[path = "../harness/mod.rs"]
 mod harness;

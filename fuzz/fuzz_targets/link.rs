@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `link`: the body is `harness::link`, shared with `tests/tests/fuzz_regressions.rs`.
+//! Fuzz target `link`: the body is `harness::link`, shared with `tests/tests/it/fuzz_regressions.rs`.
 
 #[path = "../harness/mod.rs"]
 mod harness;

@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `rest`: the body is `harness::rest`, shared with `tests/tests/fuzz_regressions.rs`.
+//! Fuzz target `rest`: the body is `harness::rest`, shared with `tests/tests/it/fuzz_regressions.rs`.
 
 #[path = "../harness/mod.rs"]
 mod harness;

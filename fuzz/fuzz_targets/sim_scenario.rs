@@ -1,5 +1,5 @@
 #![no_main]
-//! Fuzz target `sim_scenario`: the body is `harness::sim_scenario`, shared with `tests/tests/fuzz_regressions.rs`.
+//! Fuzz target `sim_scenario`: the body is `harness::sim_scenario`, shared with `tests/tests/it/fuzz_regressions.rs`.
 
 #[path = "../harness/mod.rs"]
 mod harness;

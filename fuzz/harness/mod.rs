@@ -3,7 +3,7 @@
 //! the line, finite outputs for accepted inputs).
 //!
 //! This file is compiled twice: by each fuzz target (`fuzz/fuzz_targets/*.rs`, nightly,
-//! cargo-fuzz) and by the stable replay test `tests/tests/fuzz_regressions.rs`, which runs every
+//! cargo-fuzz) and by the stable replay test `tests/tests/it/fuzz_regressions.rs`, which runs every
 //! file under `fuzz/regressions/<target>/` and `fuzz/seeds/<target>/` through it. Both include it
 //! with `#[path]`, so the two cannot drift apart.
 

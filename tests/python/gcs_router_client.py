@@ -1,4 +1,4 @@
-"""pymavlink as a MAVLink client of Harrier's router (run by tests/tests/mavlink_gcs.rs).
+"""pymavlink as a MAVLink client of Harrier's router (run by tests/tests/it/mavlink_gcs.rs).
 
     python3 gcs_router_client.py --api http://127.0.0.1:8080 --token T --vehicles 1,42 --silent 42
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,42 --command 1

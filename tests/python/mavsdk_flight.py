@@ -9,7 +9,7 @@ position, home, armable), position, MIS_TAKEOFF_ALT set and read back through th
 arm, takeoff to that altitude, OFFBOARD with NED velocity setpoints (the vehicle must move east),
 offboard stop (Hold), land, landed (in_air false) and the automatic disarm after landing that PX4
 does. Every wait is on a telemetry stream, with a deadline. Exit code 0 on success; any failure
-raises. Run by tests/tests/mavsdk_client.rs.
+raises. Run by tests/tests/it/mavsdk_client.rs.
 """
 
 import argparse

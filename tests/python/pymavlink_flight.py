@@ -8,7 +8,7 @@ decoding, telemetry (position, status, GPS, battery, home, autopilot version), p
 intervals, an unsupported command, arm, takeoff to MIS_TAKEOFF_ALT, OFFBOARD with velocity
 setpoints (the vehicle must move north), fallback to Hold when setpoints stop, land and disarm.
 No sleeps: every wait is on a message, with a deadline. Exit code 0 on success; any failure raises.
-Run by tests/tests/pymavlink_client.rs.
+Run by tests/tests/it/pymavlink_client.rs.
 
 With --signing-key (64 hex characters) the client signs every message (MAVLink 2 signing,
 `setup_signing`, link id 1) and accepts only correctly signed ones: every message from the vehicle

@@ -1,5 +1,5 @@
 """A headless API client of the live ground station, as a user's script would be: httpx for REST,
-websockets for the stream. Run by tests/tests/api_clients.rs against a live server fed by
+websockets for the stream. Run by tests/tests/it/api_clients.rs against a live server fed by
 harrier-sim over real Zenoh (HARRIER_URL, HARRIER_TOKEN in the environment).
 
     HARRIER_URL=http://127.0.0.1:8080 HARRIER_TOKEN=... python3 -m pytest tests/python/test_api_client.py

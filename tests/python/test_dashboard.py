@@ -1,6 +1,6 @@
 """The web dashboard in a real browser: headless Chromium (Debian's /usr/bin/chromium) driven by
 Playwright for Python, against a running `harrier demo` (HARRIER_URL, HARRIER_TOKEN). Run by
-tests/tests/dashboard.rs, which also acts when this script asks it with a line on stdout and
+tests/tests/it/dashboard.rs, which also acts when this script asks it with a line on stdout and
 answers on stdin (`ask`): restarts the server (`HARRIER-RESTART`, answered `restarted`), makes it
 drop scans (`HARRIER-DROPS`, answered `dropped N`), starts or SIGKILLs a real vehicle 4
 (`HARRIER-VEHICLE-START`, answered `connected 4`; `HARRIER-VEHICLE-KILL`, answered `killed 4`).
@@ -10,7 +10,7 @@ with the REST API; screenshots of the live page go to HARRIER_SCREENSHOTS (map.p
 dashboard.png).
 
     HARRIER_URL=http://127.0.0.1:8080 HARRIER_TOKEN=... python3 -m pytest -s tests/python/test_dashboard.py
-    (without tests/tests/dashboard.rs, the tests that need it are skipped)
+    (without tests/tests/it/dashboard.rs, the tests that need it are skipped)
 """
 
 import os
@@ -354,7 +354,7 @@ def test_assign_from_the_page_then_end_it(session):
 
 
 def ask(line, answer):
-    """Asks tests/tests/dashboard.rs to act (a line on stdout) and returns its answer, which must
+    """Asks tests/tests/it/dashboard.rs to act (a line on stdout) and returns its answer, which must
     start with `answer`."""
     print(f"\n{line}", flush=True)
     said = sys.__stdin__.readline().strip()
@@ -362,7 +362,7 @@ def ask(line, answer):
     return said
 
 
-@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to start and kill a vehicle")
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/it/dashboard.rs to start and kill a vehicle")
 def test_a_lost_link_shows_a_warning_until_the_vehicle_speaks_again(session):
     """A real vehicle (harrier-sim, vehicle 4) on the demo's GCS link is SIGKILLed: the server
     marks it lost after 3 s of silence, and the page shows a LINK LOST card, a banner and a
@@ -403,9 +403,9 @@ def dropped_scans():
     return int(total)
 
 
-@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to make the server drop scans")
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/it/dashboard.rs to make the server drop scans")
 def test_dropped_scans_show_a_badge(session):
-    """The server drops scans (tests/tests/dashboard.rs publishes malformed payloads on vehicle
+    """The server drops scans (tests/tests/it/dashboard.rs publishes malformed payloads on vehicle
     9's key when asked with a line `HARRIER-DROPS`): the top bar's badge shows the count
     /metrics has, in red while it grows, with the reason."""
     page, console = session
@@ -426,7 +426,7 @@ def test_dropped_scans_show_a_badge(session):
     page.screenshot(path=str(SHOTS / "drops.png"))
 
 
-@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/dashboard.rs to restart the server")
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/it/dashboard.rs to restart the server")
 def test_the_page_reconnects_after_a_server_restart_without_a_reload(session):
     page, console = session
     page.evaluate("() => { window.__sameDocument = 'yes'; }")

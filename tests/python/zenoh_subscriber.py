@@ -9,7 +9,7 @@ sent `--scans` scans (deadline `--timeout` s). Every payload is decoded field by
 DETECTIONS.md (types, lengths, finiteness, angle ranges, encoding); seq numbers must be contiguous
 per (vehicle, sensor) once received. Prints one JSON summary line (per-vehicle counts, rates in
 simulated and wall time, detections seen, truth samples) on stdout; exits non-zero on any failure.
-Run by tests/tests/zenoh_detections.rs.
+Run by tests/tests/it/zenoh_detections.rs.
 """
 
 import argparse

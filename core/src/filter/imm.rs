@@ -322,7 +322,7 @@ fn update_modes<const N: usize, const M: usize, const R: usize>(
 
 /// `s` when its moment-matched combination is finite. Modes far apart (means beyond ~1e154 m)
 /// overflow the spread term `(x_j − x̄)(x_j − x̄)ᵀ` although each mode is finite; such a state is
-/// refused rather than handed on (found by the hostile-number tests, `core/tests/hostile.rs`).
+/// refused rather than handed on (found by the hostile-number tests, `core/tests/it/hostile.rs`).
 fn combinable<const N: usize, const R: usize>(s: ImmState<N, R>) -> Result<ImmState<N, R>> {
     let c = s.combined();
     ensure_finite(&c.mean, "IMM combined mean")?;

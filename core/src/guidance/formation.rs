@@ -94,7 +94,7 @@ impl RangeRegulator {
                 self.v_ad_max,
             ),
         };
-        // Overflow (found by the hostile-number tests, core/tests/hostile.rs): keep the state.
+        // Overflow (found by the hostile-number tests, core/tests/it/hostile.rs): keep the state.
         if next.r_c.is_finite() && next.v_ad.is_finite() {
             next
         } else {

@@ -31,7 +31,7 @@
 //! acceleration of density `nn_tau · ‖ē‖² / D` (D = 2 planar, 3 spatial), which widens the
 //! covariance while the network adapts. This is only partial: with the size unknown the remaining
 //! acceleration error still biases the size and range and the NEES stays above its bound (figures
-//! in `tests/tests/bearings.rs`).
+//! in `tests/tests/it/bearings.rs`).
 //!
 //! After each update 1/r is projected back onto `r ≤ 100 km` (and S onto `S ≥ 1 cm`) when a
 //! linear update overshoots through infinite range, which angles-only data can cause

@@ -3,7 +3,7 @@
 //! (CIMM) estimate from simulated camera fixes (a CV Kalman filter as the comparison), phase spacing of three UAVs, the \[BOT\] formation with four obstacles,
 //! the observability maneuver, the flight limits, and the safe "hold" command.
 //!
-//! Every figure is printed (`cargo test -p harrier-tests --test guidance -- --nocapture`);
+//! Every figure is printed (`cargo test -p harrier-tests --test it guidance:: -- --nocapture`);
 //! GUIDANCE.md records them.
 
 use harrier_core::guidance::kinematics::step;

@@ -1,11 +1,12 @@
 //! The filters' hot path never touches the heap: 100 predict + update steps at N = 6, M = 2 (KF,
 //! EKF, CDKF, STF, OBE, ICDKF, bias-aware CDKF) must make zero allocations.
 //!
-//! How: this test binary links `allocation-counter`, which installs a global allocator wrapping
-//! `std::alloc::System` and counting allocations per thread (the `unsafe impl GlobalAlloc` lives in
-//! that crate; this workspace forbids unsafe code). [`allocation_counter::measure`] returns what the
-//! closure allocated on the current thread only, so tests running in parallel threads, or the test
-//! harness, cannot add noise.
+//! How: the test binary (`it`, shared with the other end-to-end tests) links `allocation-counter`,
+//! which installs a global allocator wrapping `std::alloc::System` and counting allocations per
+//! thread, in thread-locals (the `unsafe impl GlobalAlloc` lives in that crate; this workspace
+//! forbids unsafe code). [`allocation_counter::measure`] returns what the closure allocated on the
+//! current thread only, so the other tests running in parallel threads of the same process (live
+//! servers, Zenoh, tokio runtimes), or the test harness, cannot add noise.
 //!
 //! To cover another filter, add a `#[test]` calling [`assert_steps_do_not_allocate`] with the
 //! filter, a motion model and a measurement model (or, for non-Gaussian filters, a loop of the same

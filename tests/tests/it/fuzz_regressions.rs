@@ -3,7 +3,7 @@
 //! same per-target function as the fuzz target (`fuzz/harness/mod.rs`, included below), so a
 //! regression fails `cargo test` without nightly or cargo-fuzz. BENCHMARKS.md § Fuzzing.
 
-#[path = "../../fuzz/harness/mod.rs"]
+#[path = "../../../fuzz/harness/mod.rs"]
 mod harness;
 
 use std::path::{Path, PathBuf};
