@@ -306,3 +306,21 @@ pub fn targets_at(s: &harrier_core::detection::TruthSample, t: f64) -> Vec<[f64;
         .map(|g| [g.state[0] + g.state[3] * dt, g.state[1] + g.state[4] * dt])
         .collect()
 }
+
+/// Awaits `f`, panicking with `what` when it takes longer than `secs` seconds: every await of a
+/// test on something outside it goes through this, so a hang fails the test instead.
+pub async fn within<T>(secs: u64, what: &str, f: impl std::future::IntoFuture<Output = T>) -> T {
+    match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
+        Ok(v) => v,
+        Err(_) => panic!("{what}: no answer within {secs} s"),
+    }
+}
+
+/// The tests' tokio runtime: two worker threads (the machines have two cores), time and I/O.
+pub fn runtime() -> tokio::runtime::Runtime {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .expect("runtime")
+}

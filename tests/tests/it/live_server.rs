@@ -18,7 +18,6 @@
 //!   pymavlink client of the MAVLink router as ADSB_VEHICLE (`mavlink.tracks_hz`), where REST has
 //!   it.
 
-use std::future::IntoFuture;
 use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -32,7 +31,9 @@ use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorModel, SimScenario};
-use harrier_tests::{SimProcess, free_tcp_port, publish_standing_target, targets_at};
+use harrier_tests::{
+    SimProcess, free_tcp_port, publish_standing_target, runtime, targets_at, within,
+};
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
 use serde_json::Value;
@@ -44,21 +45,6 @@ const SPEEDUP: f64 = 5.0;
 const MAX_ERROR_M: f64 = 10.0;
 /// Consecutive polls (each after a new scan) that must agree.
 const STABLE_POLLS: usize = 6;
-
-async fn within<T>(secs: u64, what: &str, f: impl IntoFuture<Output = T>) -> T {
-    match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
-        Ok(v) => v,
-        Err(_) => panic!("{what}: no answer within {secs} s"),
-    }
-}
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime")
-}
 
 /// `GET path` on a fresh HTTP/1 connection: status and body.
 async fn get(addr: SocketAddr, path: &str) -> (u16, String) {

@@ -22,6 +22,7 @@
 mod api_clients;
 mod bearings;
 mod cimm;
+mod clock;
 mod dashboard;
 mod fuzz_regressions;
 mod guidance;

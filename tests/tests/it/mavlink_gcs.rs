@@ -43,23 +43,8 @@ use harrier_sim::net::{LinkConfig, spawn};
 use harrier_sim::vehicle::VehicleConfig;
 use harrier_tests::{
     SimProcess, free_tcp_port, publish_standing_target, python_script, require_python_module,
-    wait_with_deadline,
+    runtime, wait_with_deadline, within,
 };
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime")
-}
-
-async fn within<T>(secs: u64, what: &str, f: impl std::future::IntoFuture<Output = T>) -> T {
-    match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
-        Ok(v) => v,
-        Err(_) => panic!("{what}: no answer within {secs} s"),
-    }
-}
 
 /// A server with a GCS link and a router on free loopback ports, its Zenoh session listening on
 /// `zenoh_port`.

@@ -33,7 +33,7 @@ use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::live::LiveConfig;
 use harrier_sim::setup::SimScenario;
-use harrier_tests::{free_tcp_port, publish_standing_target};
+use harrier_tests::{free_tcp_port, publish_standing_target, within};
 use zenoh::Wait as _;
 
 /// Simulated seconds per wall second.
@@ -412,13 +412,6 @@ impl Tmpfs {
 impl Drop for Tmpfs {
     fn drop(&mut self) {
         let _ = Command::new("umount").arg("-l").arg(self.path()).status();
-    }
-}
-
-async fn within<T>(secs: u64, what: &str, f: impl std::future::IntoFuture<Output = T>) -> T {
-    match tokio::time::timeout(Duration::from_secs(secs), f.into_future()).await {
-        Ok(v) => v,
-        Err(_) => panic!("{what}: not within {secs} s"),
     }
 }
 

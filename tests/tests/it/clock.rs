@@ -23,25 +23,11 @@ use harrier_server::live::config::{Config, DEFAULT_ORIGIN, MavlinkConfig};
 use harrier_server::live::metrics::DropReason;
 use harrier_server::live::{self, LiveServer};
 use harrier_sim::bus::BusConfig;
-use harrier_tests::{SimProcess, free_tcp_port};
+use harrier_tests::{SimProcess, free_tcp_port, runtime, within};
 use nalgebra::Vector2;
 use serde_json::Value;
 use tokio::io::{AsyncReadExt as _, AsyncWriteExt as _};
 use tokio::sync::watch;
-
-async fn within<T>(secs: u64, what: &str, f: impl IntoFuture<Output = T>) -> T {
-    tokio::time::timeout(Duration::from_secs(secs), f)
-        .await
-        .unwrap_or_else(|_| panic!("{what}: no result within {secs} s"))
-}
-
-fn runtime() -> tokio::runtime::Runtime {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime")
-}
 
 fn unix_now() -> f64 {
     std::time::SystemTime::now()
