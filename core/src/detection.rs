@@ -74,8 +74,10 @@ pub struct PlatformPose {
     pub vel: [f64; 3],
     /// Attitude `[roll, pitch, yaw]` (rad; yaw clockwise from North, as MAVLink ATTITUDE).
     pub attitude: [f64; 3],
-    /// The same position, geodetic.
-    pub geodetic: GeoPoint,
+    /// The same position, geodetic (WGS-84). Optional on the wire: a reader that needs it derives
+    /// it from `pos` and the scan's `origin` when it is absent.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geodetic: Option<GeoPoint>,
 }
 
 /// One detection: a measurement that a target (or clutter: nothing says which) produced.
@@ -369,11 +371,11 @@ mod tests {
                 pos: [10.0, 20.0, 100.0],
                 vel: [5.0, 0.0, 0.0],
                 attitude: [0.0, 0.0, 1.57],
-                geodetic: GeoPoint {
+                geodetic: Some(GeoPoint {
                     lat_deg: 47.3902,
                     lon_deg: 8.5401,
                     alt_m: 588.0,
-                },
+                }),
             },
             noise_std: vec![0.002, 0.002],
             detections: vec![Detection { z: vec![0.3, -1.2] }],

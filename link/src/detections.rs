@@ -196,7 +196,7 @@ mod tests {
                 pos,
                 vel: [1.0, 2.0, 0.0],
                 attitude: [0.0; 3],
-                geodetic: frame.from_enu(&Vector3::from(pos)),
+                geodetic: Some(frame.from_enu(&Vector3::from(pos))),
             },
             noise_std,
             detections: vec![Detection { z }],

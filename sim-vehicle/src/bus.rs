@@ -154,11 +154,11 @@ mod tests {
                 pos: [0.0; 3],
                 vel: [0.0; 3],
                 attitude: [0.0; 3],
-                geodetic: GeoPoint {
+                geodetic: Some(GeoPoint {
                     lat_deg: 47.0,
                     lon_deg: 8.0,
                     alt_m: 400.0,
-                },
+                }),
             },
             noise_std: vec![5.0, 0.005],
             detections: vec![Detection {

@@ -81,7 +81,7 @@ pub fn platform_pose(v: &Vehicle) -> PlatformPose {
         pos: [s.position.x, s.position.y, s.position.z],
         vel: [s.velocity.x, s.velocity.y, s.velocity.z],
         attitude: v.attitude(),
-        geodetic: v.position(),
+        geodetic: Some(v.position()),
     }
 }
 
@@ -401,7 +401,7 @@ mod tests {
             pos,
             vel: [0.0; 3],
             attitude: [0.0, 0.0, yaw],
-            geodetic: ORIGIN,
+            geodetic: Some(ORIGIN),
         }
     }
 

@@ -283,7 +283,7 @@ pub async fn publish_standing_target(
                     pos: platform,
                     vel: [0.0; 3],
                     attitude: [0.0; 3],
-                    geodetic: frame.from_enu(&pos),
+                    geodetic: Some(frame.from_enu(&pos)),
                 },
                 noise_std: vec![2.0, 2.0],
                 detections: vec![Detection {

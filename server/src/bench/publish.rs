@@ -111,7 +111,7 @@ fn template(vehicle: u8, origin: GeoPoint, detections: usize) -> DetectionScan {
             pos,
             vel: [0.0; 3],
             attitude: [0.0; 3],
-            geodetic,
+            geodetic: Some(geodetic),
         },
         noise_std: vec![NOISE_M, NOISE_M],
         detections: vec![Detection { z: vec![0.0; 2] }; detections],

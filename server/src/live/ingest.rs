@@ -226,7 +226,10 @@ impl Ingest {
         Some(ReadyScan {
             vehicle: p.vehicle.clone(),
             platform: framed.platform_pos.into(),
-            geodetic: scan.platform.geodetic,
+            // A publisher may leave the geodetic position out: it is the same as `pos`.
+            geodetic: scan.platform.geodetic.unwrap_or_else(|| {
+                LocalFrame::new(scan.origin).from_enu(&nalgebra::Vector3::from(scan.platform.pos))
+            }),
             received: p.received,
             noise_std: framed.noise_std,
             sensor: scan.sensor,
@@ -333,7 +336,7 @@ mod tests {
                 pos: [0.0; 3],
                 vel: [0.0; 3],
                 attitude: [0.0; 3],
-                geodetic: DEFAULT_ORIGIN,
+                geodetic: Some(DEFAULT_ORIGIN),
             },
             noise_std: vec![10.0, 10.0],
             detections: vec![Detection { z }],
@@ -464,5 +467,32 @@ mod tests {
             .convert(&at(1, arrival + 1.0, arrival))
             .expect("accepted");
         assert_eq!(ready.scan.t, arrival + 1.0);
+    }
+
+    #[test]
+    fn a_scan_without_the_geodetic_position_gets_it_from_pos() {
+        let metrics = Arc::new(Metrics::default());
+        let mut ingest = Ingest::new(
+            LocalFrame::new(DEFAULT_ORIGIN),
+            Geometry::planar(0.0),
+            Arc::clone(&metrics),
+        );
+        let mut s = scan(1, vec![5.0, 6.0]);
+        s.platform.pos = [100.0, 200.0, 50.0];
+        let mut json: serde_json::Value = serde_json::from_str(&s.to_json()).expect("json");
+        json["platform"]
+            .as_object_mut()
+            .expect("platform")
+            .remove("geodetic");
+        let bytes = serde_json::to_vec(&json).expect("bytes");
+        let ready = ingest
+            .convert(&Payload::new("harrier/v1/vehicle/2/detections", bytes))
+            .expect("accepted without platform.geodetic");
+        let expected =
+            LocalFrame::new(DEFAULT_ORIGIN).from_enu(&nalgebra::Vector3::new(100.0, 200.0, 50.0));
+        assert!((ready.geodetic.lat_deg - expected.lat_deg).abs() < 1e-9);
+        assert!((ready.geodetic.lon_deg - expected.lon_deg).abs() < 1e-9);
+        assert!((ready.geodetic.alt_m - expected.alt_m).abs() < 1e-6);
+        assert!(metrics.vehicle_counters("2").dropped.is_empty());
     }
 }

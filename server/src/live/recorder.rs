@@ -854,7 +854,7 @@ pub(crate) mod testing {
                     pos,
                     vel: [1.0, 0.0, 0.0],
                     attitude: [0.0; 3],
-                    geodetic: frame.from_enu(&nalgebra::Vector3::from(pos)),
+                    geodetic: Some(frame.from_enu(&nalgebra::Vector3::from(pos))),
                 },
                 noise_std: vec![10.0, 10.0],
                 detections: z.iter().map(|z| Detection { z: z.to_vec() }).collect(),

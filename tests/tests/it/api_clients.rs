@@ -259,7 +259,7 @@ fn scan_json(seq: u64, t: f64, n: usize) -> String {
             pos: [0.0; 3],
             vel: [0.0; 3],
             attitude: [0.0; 3],
-            geodetic: origin,
+            geodetic: Some(origin),
         },
         noise_std: vec![5.0, 5.0],
         detections: (0..n)

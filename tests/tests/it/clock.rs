@@ -97,7 +97,7 @@ fn position_scan(vehicle: u8, seq: u64, time_unix: f64, z: Vec<[f64; 2]>) -> Det
             pos: [0.0, 0.0, 50.0],
             vel: [0.0; 3],
             attitude: [0.0; 3],
-            geodetic: frame.from_enu(&nalgebra::Vector3::new(0.0, 0.0, 50.0)),
+            geodetic: Some(frame.from_enu(&nalgebra::Vector3::new(0.0, 0.0, 50.0))),
         },
         noise_std: vec![10.0, 10.0],
         detections: z.into_iter().map(|p| Detection { z: p.to_vec() }).collect(),
