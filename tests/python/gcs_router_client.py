@@ -48,18 +48,20 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
         m.setup_signing(bytes.fromhex(signing_key), sign_outgoing=True, link_id=1)
     seen = {}
     deadline = time.monotonic() + timeout_s
-    last_hb = 0.0
     want = set(vehicles)
     # A router endpoint hears a client once it sent something: announce, then wait_heartbeat().
-    first = None
-    while first is None and time.monotonic() < deadline:
-        m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
-        first = m.wait_heartbeat(timeout=0.5)
-    if first is None:
-        fail(f"{url}: no HEARTBEAT within {timeout_s} s")
-    if first.get_srcSystem() not in want:
-        fail(f"wait_heartbeat() found system {first.get_srcSystem()}, not a vehicle of {sorted(want)}")
-    seen[first.get_srcSystem()] = first.type
+    m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+    last_hb = time.monotonic()
+    if want:
+        first = None
+        while first is None and time.monotonic() < deadline:
+            m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            first = m.wait_heartbeat(timeout=0.5)
+        if first is None:
+            fail(f"{url}: no HEARTBEAT within {timeout_s} s")
+        if first.get_srcSystem() not in want:
+            fail(f"wait_heartbeat() found system {first.get_srcSystem()}, not a vehicle of {sorted(want)}")
+        seen[first.get_srcSystem()] = first.type
     while not want <= set(seen) and time.monotonic() < deadline:
         if time.monotonic() - last_hb > 0.5:
             m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
@@ -90,6 +92,9 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
         got = {}
         end = time.monotonic() + timeout_s
         while len(got) < tracks and time.monotonic() < end:
+            if time.monotonic() - last_hb > 0.5:
+                m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+                last_hb = time.monotonic()
             msg = m.recv_match(type="ADSB_VEHICLE", blocking=True, timeout=0.5)
             if msg is None:
                 continue
