@@ -17,7 +17,7 @@ forwarded frames. Reports:
 - the server's CPU share (utime + stime from /proc over the measured window);
 - the guidance loop's tick lateness histogram at 20 Hz from /metrics.
 
-Needs pymavlink (installed by .ci/run). Prints one JSON object at the end.
+Needs pymavlink (in the venv scripts/setup makes: eval "$(scripts/setup --env)"). Prints one JSON object at the end.
 """
 
 import argparse

@@ -118,7 +118,8 @@ pub fn nees_ok(s: &harrier_core::metrics::Score) -> f64 {
 }
 
 /// Panics with an install hint unless `python3` can import `module` (`pip` names the pinned
-/// package, as `.ci/run` installs it).
+/// package, as `tests/python/requirements.lock` has it; `scripts/setup` installs the lock into a
+/// venv that `scripts/test` puts first on `PATH`).
 pub fn require_python_module(module: &str, pip: &str) {
     let ok = Command::new("python3")
         .args(["-W", "ignore", "-c", &format!("import {module}")])
@@ -128,7 +129,8 @@ pub fn require_python_module(module: &str, pip: &str) {
         .success();
     assert!(
         ok,
-        "python3 lacks {module}: python3 -m pip install {pip} (.ci/run installs it)"
+        "python3 lacks {module} ({pip}): run the tests with scripts/test, or first \
+         `eval \"$(scripts/setup --env)\"` to put the venv of tests/python/requirements.lock on PATH"
     );
 }
 

@@ -107,7 +107,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     require_python_module("httpx", "httpx==0.28.1");
     assert!(
         Path::new("/usr/bin/chromium").exists(),
-        "/usr/bin/chromium is missing: apt-get install -y chromium (.ci/run installs it)"
+        "/usr/bin/chromium is missing: apt-get install -y chromium (scripts/setup installs it)"
     );
     let started = Instant::now();
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -767,7 +767,7 @@ fn certificates(dir: &Path, names: &[&str]) {
             .current_dir(dir)
             .stdin(Stdio::null())
             .output()
-            .unwrap_or_else(|e| panic!("openssl not found ({e}): .ci/run installs it"));
+            .unwrap_or_else(|e| panic!("openssl not found ({e}): scripts/setup installs it"));
         assert!(
             out.status.success(),
             "openssl {}: {}",
