@@ -15,7 +15,7 @@
 //!   status, content type, header and body as documented;
 //! - afterwards `/metrics` counts the refused requests, and tracking went on.
 //!
-//! The clients are installed by `.ci/run` (httpx, websockets, pytest, schemathesis).
+//! The clients are installed by `scripts/setup` (httpx, websockets, pytest, schemathesis).
 //!
 //! `a_slow_websocket_client_is_dropped_to_the_latest_snapshot`: two WebSocket clients (Rust,
 //! tokio-tungstenite) on a server fed scans over Zenoh by the test itself; one stops reading.

@@ -33,7 +33,7 @@
 //!   frame rate ≥ 20 fps (software WebGL on a shared CPU; the 3-D view lowers its resolution and
 //!   update rate to keep the page smooth).
 //!
-//! Needs `/usr/bin/chromium` (`apt-get install chromium`) and `playwright` for Python (`.ci/run`
+//! Needs `/usr/bin/chromium` (`apt-get install chromium`) and `playwright` for Python (`scripts/setup`
 //! installs both, pinned).
 
 use std::io::{BufRead as _, BufReader, Read as _, Write as _};

@@ -1,5 +1,5 @@
 //! MAVProxy, headless, connects to harrier-sim over TCP: the vehicle runs in-process with a
-//! `tcpin` API link and MAVProxy (installed by `.ci/run`) is its `--master=tcp:…` client, logging
+//! `tcpin` API link and MAVProxy (installed by `scripts/setup`) is its `--master=tcp:…` client, logging
 //! to a telemetry log (tlog) and forwarding to a UDP `--out` socket held here. Its `--cmd` sends a
 //! MAV_CMD_REQUEST_MESSAGE (AUTOPILOT_VERSION) through the link, so the round trip is checked too.
 //!

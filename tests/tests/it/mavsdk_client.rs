@@ -1,6 +1,6 @@
 //! MAVSDK flies harrier-sim: the vehicle runs in-process on real UDP sockets and
 //! `tests/python/mavsdk_flight.py` (MAVSDK-Python with its bundled `mavsdk_server`, installed by
-//! `.ci/run`) connects to its API link, waits for the connection and for health all ok, sets
+//! `scripts/setup`) connects to its API link, waits for the connection and for health all ok, sets
 //! MIS_TAKEOFF_ALT, arms, takes off, flies OFFBOARD NED velocity setpoints east, stops offboard,
 //! lands and sees the automatic disarm after landing.
 //!

@@ -1,5 +1,5 @@
 //! A real MAVLink client flies harrier-sim: the vehicle runs in-process on real UDP sockets and
-//! `tests/python/pymavlink_flight.py` (pymavlink, installed by `.ci/run`) connects to its API link,
+//! `tests/python/pymavlink_flight.py` (pymavlink, installed by `scripts/setup`) connects to its API link,
 //! reads telemetry and parameters, arms, takes off, flies OFFBOARD velocity setpoints (sending a
 //! NaN setpoint and a garbage datagram in flight, which must be refused, counted and survived) and
 //! lands.

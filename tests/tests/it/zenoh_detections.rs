@@ -1,4 +1,4 @@
-//! The real Zenoh Python API (eclipse-zenoh, installed by `.ci/run`) receives harrier-sim's
+//! The real Zenoh Python API (eclipse-zenoh, installed by `scripts/setup`) receives harrier-sim's
 //! detections: two in-process vehicles on real UDP sockets, the live sensor loop publishing over a
 //! real Zenoh session that listens on loopback (scouting off), and
 //! `tests/python/zenoh_subscriber.py` connecting to that explicit tcp endpoint. The subscriber

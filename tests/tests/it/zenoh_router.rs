@@ -1,4 +1,4 @@
-//! Harrier on a real Zenoh router (`zenohd`, pinned and installed by `.ci/run`), real processes
+//! Harrier on a real Zenoh router (`zenohd`, pinned and installed by `scripts/setup`), real processes
 //! only: the `harrier-sim` and `harrier` binaries and `zenohd`, all Zenoh clients of the router,
 //! `/api/v1/tracks` and `/api/v1/metrics` read over HTTP, the simulator's truth read by this test's own
 //! Zenoh client of the same router. The world is the `radar` preset with two targets (a
@@ -57,7 +57,7 @@ const STABLE_POLLS: usize = 6;
 /// Longest wait for tracks.
 const TRACKS_DEADLINE: Duration = Duration::from_secs(90);
 
-/// The pinned `zenohd`: `$HARRIER_ZENOHD`, else where `.ci/run` installs it.
+/// The pinned `zenohd`: `$HARRIER_ZENOHD`, else where `scripts/setup` installs it.
 fn zenohd_bin() -> PathBuf {
     let bin = std::env::var_os("HARRIER_ZENOHD").map_or_else(
         || {
@@ -70,7 +70,7 @@ fn zenohd_bin() -> PathBuf {
         bin.is_file(),
         "{} not found: install the router with `cargo install zenohd --version =1.10.2 --locked \
          --no-default-features --features \"zenoh/transport_tcp zenoh/transport_tls\" --root \
-         ~/.cache/harrier/zenohd` (.ci/run does), or set HARRIER_ZENOHD",
+         ~/.cache/harrier/zenohd` (scripts/setup does), or set HARRIER_ZENOHD",
         bin.display()
     );
     bin
