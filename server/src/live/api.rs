@@ -76,9 +76,9 @@ pub struct ApiState {
     /// The guidance loop, when the link runs.
     pub guidance: Option<super::guidance::Guidance>,
     /// The latest simulation truth.
-    pub truth: watch::Receiver<Arc<super::control::TruthBody>>,
+    pub truth: watch::Receiver<Arc<super::world::TruthBody>>,
     /// Roads and obstacles of the configuration.
-    pub world: Arc<super::control::WorldBody>,
+    pub world: Arc<super::world::WorldBody>,
 }
 
 /// The API's access rule.

@@ -1,5 +1,6 @@
 //! The API routes of the vehicles and the guidance: vehicles (their MAVLink link and their
-//! detections), commands with their COMMAND_ACK result, assignments, and the simulator's truth.
+//! detections), commands with their COMMAND_ACK result, assignments, and the simulator's truth
+//! and the configuration's world ([`super::world`]).
 
 use std::sync::Arc;
 
@@ -19,6 +20,7 @@ use super::gcs::vehicle::VehicleLinkView;
 use super::gcs::{CommandError, CommandOutcome};
 use super::guidance::{AssignError, AssignmentRequest, AssignmentView};
 use super::tracker::VehicleView;
+use super::world::{TruthBody, WorldBody};
 
 /// A vehicle: its MAVLink link (when the GCS link hears it) and its detections (when it
 /// publishes any), joined on the system id.
@@ -388,26 +390,6 @@ pub async fn end_assignment(
     }
 }
 
-/// One target of the simulator's truth, in the server's ENU frame.
-#[derive(Debug, Clone, Serialize, ToSchema)]
-pub struct TruthTarget {
-    /// Target id.
-    pub id: String,
-    /// Time (the detections' clock; UNIX s when the simulator gives it).
-    pub t: f64,
-    /// Position (ENU, m).
-    pub position: [f64; 3],
-    /// Velocity (ENU, m/s).
-    pub velocity: [f64; 3],
-}
-
-/// The latest truth.
-#[derive(Debug, Clone, Default, Serialize, ToSchema)]
-pub struct TruthBody {
-    /// Every target of the last truth sample; empty when no simulator publishes truth.
-    pub targets: Vec<TruthTarget>,
-}
-
 /// The latest simulation truth (`harrier/v1/sim/truth`), for drawing and for error figures.
 #[utoipa::path(get, path = "/api/v1/truth", tag = "tracks",
     responses(
@@ -417,101 +399,6 @@ pub struct TruthBody {
     security((), ("bearer" = [])))]
 pub async fn truth(State(s): State<ApiState>) -> Json<TruthBody> {
     Json((*s.truth.borrow()).as_ref().clone())
-}
-
-/// A road's centre line as a polyline (ENU, m).
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
-pub struct RoadView {
-    /// Road id.
-    pub id: String,
-    /// Physical width (m), when given.
-    pub width_m: Option<f64>,
-    /// Centre-line points in travel order, arcs sampled at most every 5° or 10 m.
-    pub points: Vec<[f64; 2]>,
-}
-
-/// An obstacle the `formation` law steers around.
-#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
-pub struct ObstacleView {
-    /// Centre east (m).
-    pub x_m: f64,
-    /// Centre north (m).
-    pub y_m: f64,
-    /// Radius (m).
-    pub radius_m: f64,
-}
-
-/// The static world of the deployment: what the map draws under the live picture.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, ToSchema)]
-pub struct WorldBody {
-    /// The road network of the configuration (`tracker.roads`).
-    pub roads: Vec<RoadView>,
-    /// The obstacles of the configuration (`guidance.obstacles`).
-    pub obstacles: Vec<ObstacleView>,
-}
-
-impl WorldBody {
-    /// The world of a configuration.
-    pub fn of(config: &super::config::Config) -> Self {
-        Self {
-            roads: config
-                .tracker
-                .roads
-                .iter()
-                .map(|r| RoadView {
-                    id: r.id.clone(),
-                    width_m: r.width_m,
-                    points: polyline(&r.segments),
-                })
-                .collect(),
-            obstacles: config
-                .guidance
-                .obstacles
-                .iter()
-                .map(|o| ObstacleView {
-                    x_m: o.x_m,
-                    y_m: o.y_m,
-                    radius_m: o.radius_m,
-                })
-                .collect(),
-        }
-    }
-}
-
-/// The centre line of road `segments`: line ends, and arcs sampled at most every 5° or 10 m.
-fn polyline(segments: &[harrier_core::scenario::Segment]) -> Vec<[f64; 2]> {
-    use harrier_core::scenario::Segment;
-    let mut points: Vec<[f64; 2]> = Vec::new();
-    let mut push = |p: [f64; 2]| {
-        if points.last() != Some(&p) {
-            points.push(p);
-        }
-    };
-    for seg in segments {
-        match seg {
-            Segment::Line { start, end } => {
-                push(*start);
-                push(*end);
-            }
-            Segment::Arc {
-                center,
-                radius,
-                start,
-                sweep_rad,
-                ..
-            } => {
-                let a0 = (start[1] - center[1]).atan2(start[0] - center[0]);
-                let step = 5f64.to_radians().min(10.0 / radius.max(1e-3));
-                // At most 720 points an arc whatever the configuration says.
-                let n = ((sweep_rad.abs() / step).ceil() as usize).clamp(1, 720);
-                for k in 0..=n {
-                    let a = a0 + sweep_rad * k as f64 / n as f64;
-                    push([center[0] + radius * a.cos(), center[1] + radius * a.sin()]);
-                }
-            }
-        }
-    }
-    points
 }
 
 /// The static world: roads and obstacles of the configuration, for the map.

@@ -20,7 +20,9 @@
 //!   are only fused with others on the same clock. The estimator can be changed at run time; the
 //!   live tracks are handed over.
 //! - [`api`]: axum routes under `/api/v1`, the OpenAPI document, the dashboard; [`ws`]: the
-//!   WebSocket stream; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
+//!   WebSocket stream; [`world`]: the simulator's truth in the server's frame and the
+//!   configuration's roads and obstacles; [`publish`]: the tracks on Zenoh; [`recorder`]: the
+//!   SQLite recording.
 //! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
 //!   it describes; [`metrics`]: the counters.
 //!
@@ -42,6 +44,7 @@ pub mod metrics;
 pub mod publish;
 pub mod recorder;
 pub mod tracker;
+pub mod world;
 pub mod ws;
 
 use std::net::SocketAddr;
@@ -61,6 +64,7 @@ use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
 use self::recorder::{Recorder, SessionMeta};
 use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
+use self::world::{TruthBody, WorldBody};
 use crate::engine::{EngineError, TrackView};
 
 /// Why the service could not start.
@@ -311,7 +315,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         .await
         .map_err(|e| LiveError::Zenoh(format!("subscribe {DETECTIONS_KEY_ALL}: {e}")))?;
     let mut subscribers = vec![subscriber];
-    let (truth_tx, truth_rx) = watch::channel(Arc::new(control::TruthBody::default()));
+    let (truth_tx, truth_rx) = watch::channel(Arc::new(TruthBody::default()));
     {
         let r = recorder.clone().filter(|_| config.recorder.truth);
         let server_frame = LocalFrame::new(config.frame.origin);
@@ -320,7 +324,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             .callback(
                 move |sample| match TruthSample::from_json(&sample.payload().to_bytes()) {
                     Ok(t) => {
-                        truth_tx.send_replace(Arc::new(truth_body(&t, &server_frame)));
+                        truth_tx.send_replace(Arc::new(TruthBody::of(&t, &server_frame)));
                         if let Some(r) = &r {
                             r.record(recorder::Record::Truth(t));
                         }
@@ -470,7 +474,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             link: link.clone(),
             guidance: guidance.clone(),
             truth: truth_rx,
-            world: Arc::new(control::WorldBody::of(config)),
+            world: Arc::new(WorldBody::of(config)),
         },
         web_dir(config).as_deref(),
         &config.api.cors_origins,
@@ -552,28 +556,5 @@ async fn record_vehicles(
             Ok(a) = assignments.recv() => row(None, "assignment", serde_json::to_string(&a)),
             () = gcs::transport::stopped(&mut stop) => break,
         }
-    }
-}
-
-/// A truth sample in the server's ENU frame.
-fn truth_body(t: &TruthSample, server: &LocalFrame) -> control::TruthBody {
-    let theirs = LocalFrame::new(t.origin);
-    let rot = theirs.rotation_to(server);
-    control::TruthBody {
-        targets: t
-            .targets
-            .iter()
-            .map(|k| {
-                let [x, y, z, vx, vy, vz] = k.state;
-                let p = theirs.enu_to_frame(server, &nalgebra::Vector3::new(x, y, z));
-                let v = rot * nalgebra::Vector3::new(vx, vy, vz);
-                control::TruthTarget {
-                    id: k.id.clone(),
-                    t: t.time_unix.unwrap_or(t.t),
-                    position: p.into(),
-                    velocity: v.into(),
-                }
-            })
-            .collect(),
     }
 }
