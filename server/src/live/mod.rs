@@ -20,7 +20,7 @@
 //!   are only fused with others on the same clock. The estimator can be changed at run time; the
 //!   live tracks are handed over.
 //! - [`http`]: the HTTP layer (axum), the only module that knows HTTP: [`http::app`] (routes
-//!   under `/api/v1`, the OpenAPI document, the dashboard), one file per resource,
+//!   under `/api/v1`, the OpenAPI document, `/metrics`, the dashboard), one file per resource,
 //!   the WebSocket stream ([`http::ws`]) and one error type; nothing else in the service
 //!   imports it. [`world`]: the simulator's truth in the server's frame and the configuration's
 //!   roads and obstacles; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.

@@ -1,5 +1,6 @@
 //! The HTTP API (axum). Routes under `/api/v1`; the OpenAPI 3 document generated from this code
-//! (utoipa) at `/api/openapi.json`; the web dashboard (`api.web_dir`) at `/`.
+//! (utoipa) at `/api/openapi.json`; Prometheus text also at `/metrics`; the web dashboard
+//! (`api.web_dir`) at `/`.
 //!
 //! | route | file |
 //! |---|---|
@@ -9,7 +10,7 @@
 //! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}` | [`assignments`] |
 //! | `GET /truth`, `GET /world` | [`world`] |
 //! | `GET /sessions`, `/sessions/{id}`, `/sessions/{id}/export` | [`sessions`] |
-//! | `GET /health`, `GET /metrics` | [`service`] |
+//! | `GET /health`, `GET /metrics` (and `GET /metrics` at the root) | [`service`] |
 //! | `GET /ws` | [`ws`] |
 //!
 //! Each route file holds its handlers, their request and response types, its `routes()` and
@@ -112,8 +113,8 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
     doc
 }
 
-/// The router: the API under `/api/v1`, the OpenAPI document, the dashboard from `web_dir`
-/// (when given) at `/`, CORS for `cors_origins`.
+/// The router: the API under `/api/v1`, Prometheus text at `/metrics`, the OpenAPI document,
+/// the dashboard from `web_dir` (when given) at `/`, CORS for `cors_origins`.
 pub fn app(state: ApiState, web_dir: Option<&Path>, cors_origins: &[String]) -> Router {
     let guard = middleware::from_fn_with_state(state.clone(), guard);
     let count = middleware::from_fn_with_state(state.service.clone(), count_refusals);
@@ -129,10 +130,11 @@ pub fn app(state: ApiState, web_dir: Option<&Path>, cors_origins: &[String]) -> 
         .merge(sessions::routes())
         .merge(ws::routes())
         .fallback(|| async { ApiError::not_found("no such route") })
-        .layer(guard)
-        .layer(count);
+        .layer(guard.clone())
+        .layer(count.clone());
     let mut router = Router::new()
         .nest("/api/v1", api)
+        .merge(service::root_routes().route_layer(guard).route_layer(count))
         .route("/api/openapi.json", get(openapi_json));
     router = match web_dir {
         Some(dir) => router.fallback_service(
@@ -266,7 +268,7 @@ mod tests {
         let open = TestApp::new();
         assert_eq!(open.get("/api/v1/tracks").await.status, StatusCode::OK);
         let closed = TestApp::new().reads_need_token();
-        for uri in ["/api/v1/tracks", "/api/v1/nothing-here", "/api/v1/metrics"] {
+        for uri in ["/api/v1/tracks", "/api/v1/nothing-here", "/metrics"] {
             let r = closed.get(uri).await;
             assert_eq!(r.status, StatusCode::UNAUTHORIZED, "{uri}");
             assert!(r.error().contains("needs the API token"));
@@ -368,7 +370,9 @@ mod tests {
             "world",
             "ws",
         ];
-        let want: Vec<String> = v1.iter().map(|p| format!("/api/v1/{p}")).collect();
+        let mut want: Vec<String> = v1.iter().map(|p| format!("/api/v1/{p}")).collect();
+        want.push("/metrics".into());
+        want.sort_unstable();
         assert_eq!(paths, want);
         assert_eq!(doc["info"]["title"], "Harrier ground station API");
         assert_eq!(

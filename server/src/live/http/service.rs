@@ -1,4 +1,5 @@
-//! `GET /health`, `GET /metrics` (Prometheus text).
+//! `GET /health`, `GET /metrics` (Prometheus text; also at the root, `GET /metrics`, where
+//! scrapers look by default).
 
 use std::fmt::Write as _;
 
@@ -14,16 +15,21 @@ use super::error::ErrorBody;
 use super::state::{ApiState, Control, Recording, Service, Tracking};
 use crate::live::recorder::RecorderStats;
 
-/// The routes of this file.
+/// The routes of this file under `/api/v1`.
 pub(super) fn routes() -> Router<ApiState> {
     Router::new()
         .route("/health", get(health))
         .route("/metrics", get(metrics))
 }
 
+/// The route of this file at the root: `/metrics`.
+pub(super) fn root_routes() -> Router<ApiState> {
+    Router::new().route("/metrics", get(root_metrics))
+}
+
 /// The OpenAPI paths of this file.
 #[derive(Debug, OpenApi)]
-#[openapi(paths(health, metrics))]
+#[openapi(paths(health, metrics, root_metrics))]
 pub(super) struct Doc;
 
 /// Service health.
@@ -107,6 +113,22 @@ async fn metrics(
     ([(header::CONTENT_TYPE, "text/plain; version=0.0.4")], text)
 }
 
+/// Prometheus metrics at the conventional path: the same text, and the same access rule, as
+/// `GET /api/v1/metrics`.
+#[utoipa::path(get, path = "/metrics", tag = "service",
+    responses(
+        (status = 200, description = "Prometheus text exposition format 0.0.4", content_type = "text/plain", body = String),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn root_metrics(
+    s: State<Service>,
+    r: State<Recording>,
+    c: State<Control>,
+) -> impl IntoResponse {
+    metrics(s, r, c).await
+}
+
 /// The recorder's counters in the Prometheus text format.
 fn render_recorder(out: &mut String, st: &RecorderStats) {
     let _ = writeln!(
@@ -154,8 +176,17 @@ mod tests {
 
     use super::super::testing::TestApp;
 
+    /// The Prometheus text without the uptime, which moves between two reads.
+    fn without_uptime(body: &[u8]) -> String {
+        String::from_utf8_lossy(body)
+            .lines()
+            .filter(|l| !l.starts_with("harrier_uptime_seconds "))
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
     #[tokio::test]
-    async fn health_and_the_metrics() {
+    async fn health_and_the_metrics_at_both_paths() {
         let app = TestApp::new();
         let h = app.get("/api/v1/health").await;
         assert_eq!(h.status, StatusCode::OK);
@@ -168,23 +199,29 @@ mod tests {
         let m = app.get("/api/v1/metrics").await;
         assert_eq!(m.status, StatusCode::OK);
         assert_eq!(m.headers[header::CONTENT_TYPE], "text/plain; version=0.0.4");
-        let text = String::from_utf8_lossy(&m.body).into_owned();
-        assert!(text.contains("# TYPE harrier_http_refused_total counter"));
+        let root = app.get("/metrics").await;
+        assert_eq!(root.status, StatusCode::OK);
+        assert_eq!(
+            root.headers[header::CONTENT_TYPE],
+            "text/plain; version=0.0.4"
+        );
+        assert_eq!(without_uptime(&root.body), without_uptime(&m.body));
+        assert!(without_uptime(&m.body).contains("# TYPE harrier_http_refused_total counter"));
     }
 
     #[tokio::test]
     async fn health_and_metrics_need_the_token_when_reads_do() {
         let app = TestApp::new().reads_need_token();
-        for uri in ["/api/v1/health", "/api/v1/metrics"] {
+        for uri in ["/api/v1/health", "/api/v1/metrics", "/metrics"] {
             let r = app.get(uri).await;
             assert_eq!(r.status, StatusCode::UNAUTHORIZED, "{uri}");
             assert_eq!(r.headers[header::WWW_AUTHENTICATE], "Bearer");
         }
-        assert_eq!(app.refused("auth_missing", 401), 2);
-        let m = app.get_with_token("/api/v1/metrics").await;
+        assert_eq!(app.refused("auth_missing", 401), 3);
+        let m = app.get_with_token("/metrics").await;
         let text = String::from_utf8_lossy(&m.body).into_owned();
         assert!(
-            text.contains("harrier_http_refused_total{reason=\"auth_missing\",status=\"401\"} 2")
+            text.contains("harrier_http_refused_total{reason=\"auth_missing\",status=\"401\"} 3")
         );
     }
 }
