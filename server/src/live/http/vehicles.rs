@@ -37,7 +37,8 @@ pub(super) fn routes() -> Router<ApiState> {
 pub(super) struct Doc;
 
 /// A vehicle: its MAVLink link (when the GCS link hears it) and its detections (when it
-/// publishes any), joined on the system id.
+/// publishes any), joined on the system id. The one shape of a vehicle on the API and the
+/// WebSocket.
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct VehicleEntry {
     /// MAVLink system id (the `{id}` of `harrier/v1/vehicle/{id}/detections`).

@@ -3,7 +3,7 @@
 //! Messages are JSON text frames with a `type`:
 //!
 //! - `snapshot`: sent on connect, and again after the client fell behind:
-//!   `{"type": "snapshot", "seq", "t", "tracks": [TrackView…], "vehicles": [VehicleView…],
+//!   `{"type": "snapshot", "seq", "t", "tracks": [TrackView…], "vehicles": [VehicleEntry…],
 //!   "estimator": {"name", "params"}, "dropped"}` (`dropped`: scan messages this client missed
 //!   since the last snapshot, 0 on connect).
 //! - `scan`: one per scan the tracker processed, in order: `{"type": "scan", "seq", "t",
@@ -12,13 +12,15 @@
 //!   [TrackView…]}` (the tracks the scan started, confirmed or updated; a deleted track has a
 //!   `deleted` event, a coasted one keeps its last state). `seq` counts processed scans: a client
 //!   sees consecutive values unless it was dropped to a snapshot.
-//! - `vehicles` (every 0.5 s, [`VEHICLES_PERIOD`], when the MAVLink link runs): `{"type":
+//! - `vehicles` (at 10 Hz, [`VEHICLES_PERIOD`], when the MAVLink link runs): `{"type":
 //!   "vehicles", "vehicles": [VehicleEntry…], "assignments": [AssignmentView…]}`, as
 //!   `GET /api/v1/vehicles` and `GET /api/v1/assignments`.
 //! - `vehicle_event`: `{"type": "vehicle_event", "event": {"vehicle", "event": "connected" |
 //!   "lost" | "recovered" | "mode" | "armed" | "disarmed", "mode", "time_unix"}}`.
 //! - `assignment`: `{"type": "assignment", "assignment": AssignmentView}` when one is created,
 //!   a vehicle of it changes state, or it ends.
+//!
+//! A vehicle has one shape everywhere: `VehicleEntry` (`{"id", "link", "detections"}`).
 //!
 //! Each client has a bounded queue (`api.ws_queue` messages, the tracker's broadcast ring): the
 //! tracker never waits for a client. A client that falls further behind loses the oldest
@@ -45,7 +47,7 @@ use utoipa::OpenApi;
 
 use super::error::{ApiError, ErrorBody};
 use super::state::{ApiState, Control, Tracking};
-use super::vehicles::vehicle_entries;
+use super::vehicles::{VehicleEntry, vehicle_entries};
 use crate::live::tracker::Snapshot;
 
 /// The route of this file.
@@ -61,17 +63,17 @@ pub(super) struct Doc;
 /// Longest time one message may take to leave; past it the client is disconnected.
 pub const SEND_TIMEOUT: Duration = Duration::from_secs(10);
 
-/// Period of the `vehicles` message.
-pub const VEHICLES_PERIOD: Duration = Duration::from_millis(500);
+/// Period of the `vehicles` message (10 Hz; the link's vehicle table changes at 20 Hz).
+pub const VEHICLES_PERIOD: Duration = Duration::from_millis(100);
 
 /// The `snapshot` message.
-fn snapshot_message(s: &Snapshot, dropped: u64) -> String {
+fn snapshot_message(s: &Snapshot, vehicles: &[VehicleEntry], dropped: u64) -> String {
     serde_json::json!({
         "type": "snapshot",
         "seq": s.seq,
         "t": s.t,
         "tracks": *s.tracks,
-        "vehicles": *s.vehicles,
+        "vehicles": vehicles,
         "estimator": *s.estimator,
         "dropped": dropped,
     })
@@ -151,7 +153,7 @@ where
     let mut assignments = c.guidance.as_ref().map(|g| g.events.subscribe());
     let mut vehicles = tokio::time::interval(VEHICLES_PERIOD);
     vehicles.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let first = snapshot_message(&snap, 0);
+    let first = snapshot_message(&snap, &vehicle_entries(c, t), 0);
     if send(&mut tx, &first).await {
         loop {
             let ok = tokio::select! {
@@ -177,7 +179,7 @@ where
                         metrics.ws_dropped(n);
                         let snap = Arc::clone(&t.snapshot.borrow());
                         last = snap.seq;
-                        send(&mut tx, &snapshot_message(&snap, n)).await
+                        send(&mut tx, &snapshot_message(&snap, &vehicle_entries(c, t), n)).await
                     }
                     Err(RecvError::Closed) => false,
                 },
@@ -196,6 +198,7 @@ where
 #[cfg(test)]
 mod tests {
     use std::convert::Infallible;
+    use std::time::Instant;
 
     use axum::extract::ws::Message;
     use axum::http::StatusCode;
@@ -204,7 +207,7 @@ mod tests {
     use tokio::task::JoinHandle;
 
     use super::super::testing::{TestApp, WAIT};
-    use super::client;
+    use super::{VEHICLES_PERIOD, client};
 
     /// A client on channels: what the server sends, what it reads, its task.
     struct Client {
@@ -270,7 +273,10 @@ mod tests {
         );
         assert_eq!(first["dropped"], 0);
         assert_eq!(first["estimator"]["name"], "ekf");
-        assert_eq!(first["vehicles"][0]["vehicle"], "2");
+        // The one vehicle shape: as GET /vehicles.
+        let v = &first["vehicles"][0];
+        assert_eq!((v["id"].as_u64(), v["link"].is_null()), (Some(2), true));
+        assert_eq!(v["detections"]["vehicle"], "2");
         for k in 1..=3_u32 {
             app.scan(2, f64::from(k), &[[100.0, 50.0]]).await;
             let m = c.next().await;
@@ -350,20 +356,26 @@ mod tests {
     }
 
     #[tokio::test]
-    async fn with_a_link_the_vehicles_come_as_get_vehicles_has_them() {
+    async fn with_a_link_the_vehicles_come_at_10_hz_in_the_one_shape() {
         let (app, _link) = TestApp::new().with_link();
         app.scan(2, 0.0, &[[100.0, 50.0]]).await;
         let mut c = connect(&app, 64);
-        assert_eq!(c.next().await["type"], "snapshot");
-        let m = loop {
+        let snapshot = c.next().await;
+        let mut at = Vec::new();
+        while at.len() < 5 {
             let m = c.next().await;
             if m["type"] == "vehicles" {
-                break m;
+                at.push(Instant::now());
+                assert_eq!(m["vehicles"], snapshot["vehicles"]);
+                assert_eq!(m["assignments"], serde_json::json!([]));
             }
-        };
-        let rest = app.get("/api/v1/vehicles").await.json();
-        assert_eq!(m["vehicles"], rest["vehicles"]);
-        assert_eq!(m["assignments"], serde_json::json!([]));
+        }
+        // Four periods of 0.1 s (at the former 2 Hz: 2 s).
+        let four = at[4] - at[0];
+        assert!(
+            four >= VEHICLES_PERIOD * 3 && four < VEHICLES_PERIOD * 12,
+            "{four:?}"
+        );
     }
 
     #[tokio::test]
