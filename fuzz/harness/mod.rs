@@ -732,9 +732,9 @@ fn assert_no_null_numbers(
 /// frames and parses back to itself) and `PUT /estimator` (the estimator built from the name and
 /// parameters, as the tracker does, then run on a scan: finite tracks or an error).
 pub(crate) fn rest(data: &[u8]) {
-    use harrier_server::live::api::EstimatorChange;
-    use harrier_server::live::control::CommandRequest;
     use harrier_server::live::guidance::{AssignmentRequest, GuidanceSettings};
+    use harrier_server::live::http::estimator::EstimatorChange;
+    use harrier_server::live::http::vehicles::CommandRequest;
 
     let Some((&which, body)) = data.split_first() else {
         return;
@@ -792,7 +792,7 @@ pub(crate) fn rest(data: &[u8]) {
 }
 
 /// Builds the estimator of a `PUT /estimator` body as the tracker does and runs it on two scans.
-fn estimator_change(change: &harrier_server::live::api::EstimatorChange) {
+fn estimator_change(change: &harrier_server::live::http::estimator::EstimatorChange) {
     use harrier_server::engine::{Params, SensorScan};
     static DEPLOYMENT: OnceLock<Scenario> = OnceLock::new();
     let sc = DEPLOYMENT.get_or_init(|| {

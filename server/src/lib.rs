@@ -10,7 +10,7 @@
 //!   `Box<dyn ReplayEstimator>`).
 //! * Live service: [`live`] (`harrier serve`): Zenoh detections in ([`live::ingest`]), a track
 //!   engine from the registry fed in time order ([`live::tracker`]), tracks, health and
-//!   Prometheus metrics over HTTP ([`live::api`]), the WebSocket stream ([`live::ws`]), the
+//!   Prometheus metrics over HTTP ([`live::http`]), the WebSocket stream ([`live::http::ws`]), the
 //!   MAVLink GCS link and router ([`live::gcs`]) and the guidance loop ([`live::guidance`]);
 //!   configured by a TOML file ([`live::config`]). [`demo`] runs it with harrier-sim's world
 //!   in-process; [`bench`](mod@bench) loads it.

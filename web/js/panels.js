@@ -44,7 +44,6 @@ export class VehiclesPanel {
     this.actions = actions; // {command(label, command, altitude, resultNode)} or null
     this.cards = new Map();
     this.count = document.getElementById("vehicles-count");
-    this.note = document.getElementById("vehicles-note");
   }
 
   card(v) {
@@ -151,12 +150,6 @@ export class VehiclesPanel {
         node.dataset.link = "none";
       }
     }
-    setText(
-      this.note,
-      s.linkShape
-        ? ""
-        : "This server reports vehicles as seen in their detections: mode, arming, battery and link state come with its MAVLink links.",
-    );
   }
 }
 

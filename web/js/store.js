@@ -29,7 +29,6 @@ export class Store {
     this.dropped = 0; // scan messages the server dropped for this page (lagging)
     this.gaps = 0; // seq gaps seen
     this.rates = []; // [performance.now ms, vehicle, detections] of recent scans
-    this.linkShape = false; // /vehicles answers the link shape (issue 9)
     this.planeZ = 0;
     this.version = 0; // bumped on every change (the panels redraw when it moves)
     this.onConfirmed = null; // callback(id) when a track is first seen confirmed
@@ -81,7 +80,7 @@ export class Store {
     this.version += 1;
   }
 
-  /** `vehicles` (issue 9) or GET /vehicles: either shape; the stream's message also has the assignments. */
+  /** `vehicles` or GET /vehicles; the stream's message also has the assignments. */
   applyVehicles(body) {
     for (const v of body.vehicles || []) this.upsertVehicle(v);
     if (Array.isArray(body.assignments)) this.applyAssignments(body.assignments);
@@ -228,32 +227,22 @@ export class Store {
     v.position = p;
   }
 
-  /**
-   * One vehicle in either shape: today's `{vehicle, position, geodetic, sensors, …}` (as seen in
-   * its detections), or issue 9's `{id, link: {...} | null, detections: {...} | null}`.
-   */
+  /** One vehicle, `{id, link: {...} | null, detections: {...} | null}` (the server's `VehicleEntry`). */
   upsertVehicle(raw) {
-    if (raw && ("link" in raw || "id" in raw) && !("vehicle" in raw)) {
-      this.linkShape = true;
-      const label = String(raw.id);
-      const v = this.vehicleFor(label);
-      v.link = raw.link || null;
-      v.clock = raw.clock || null;
-      v.clockRefused = Number.isFinite(raw.clock_refused) ? raw.clock_refused : 0;
-      const det = raw.detections || null;
-      if (det) this.mergeDetectionView(v, det);
-      if (v.link && Array.isArray(v.link.position)) {
-        v.linkPosition = true;
-        this.moveVehicle(v, v.link.position, det ? det.last_t : null);
-        v.velocity = v.link.velocity || null;
-        if (Number.isFinite(v.link.heading_deg)) v.heading = (v.link.heading_deg * Math.PI) / 180;
-      } else {
-        v.linkPosition = false;
-      }
-      return;
+    const v = this.vehicleFor(String(raw.id));
+    v.link = raw.link || null;
+    v.clock = raw.clock || null;
+    v.clockRefused = Number.isFinite(raw.clock_refused) ? raw.clock_refused : 0;
+    const det = raw.detections || null;
+    if (det) this.mergeDetectionView(v, det);
+    if (v.link && Array.isArray(v.link.position)) {
+      v.linkPosition = true;
+      this.moveVehicle(v, v.link.position, det ? det.last_t : null);
+      v.velocity = v.link.velocity || null;
+      if (Number.isFinite(v.link.heading_deg)) v.heading = (v.link.heading_deg * Math.PI) / 180;
+    } else {
+      v.linkPosition = false;
     }
-    const v = this.vehicleFor(String(raw.vehicle));
-    this.mergeDetectionView(v, raw);
   }
 
   mergeDetectionView(v, det) {

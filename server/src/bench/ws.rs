@@ -1,6 +1,6 @@
 //! The WebSocket clients: each connects to `/api/v1/ws`, expects a `snapshot` first, then one
-//! `scan` message per processed scan with consecutive `seq` (`live::ws`). A gap in `seq`, or a
-//! later `snapshot` with `dropped > 0`, is a missing update. The latency of a `scan` message is
+//! `scan` message per processed scan with consecutive `seq` (`live::http::ws`). A gap in `seq`,
+//! or a later `snapshot` with `dropped > 0`, is a missing update. The latency of a `scan` message is
 //! its receipt's wall time minus its `t`: the scan's `time_unix`, stamped by the publisher.
 
 use std::sync::Arc;

@@ -4,10 +4,10 @@
 //! An actor (tokio task) per concern, joined by bounded channels, data flowing one way:
 //!
 //! ```text
-//! Zenoh subscriber ─try_send─▶ [ingest] ─send─▶ [tracker] ─watch (latest snapshot)──▶ [API], [publisher] ─▶ Zenoh
+//! Zenoh subscriber ─try_send─▶ [ingest] ─send─▶ [tracker] ─watch (latest snapshot)──▶ [http], [publisher] ─▶ Zenoh
 //!   (callback, drops when full)  decode, frame   reorder,    ├broadcast (each scan)──▶ WebSocket clients
 //!                                                 estimator   └sinks (try_send)──────▶ [recorder] ─▶ SQLite
-//!                                                   ▲ commands (change estimator) ◀─ [API]
+//!                                                   ▲ commands (change estimator) ◀─ [http]
 //! ```
 //!
 //! - [`ingest`]: payloads of `harrier/v1/vehicle/*/detections` decoded and validated
@@ -19,8 +19,11 @@
 //!   sender's clock) when they carry it, else by their `t` — so publishers without `time_unix`
 //!   are only fused with others on the same clock. The estimator can be changed at run time; the
 //!   live tracks are handed over.
-//! - [`api`]: axum routes under `/api/v1`, the OpenAPI document, the dashboard; [`ws`]: the
-//!   WebSocket stream; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
+//! - [`http`]: the HTTP layer (axum), the only module that knows HTTP: [`http::app`] (routes
+//!   under `/api/v1`, the OpenAPI document, `/metrics`, the dashboard), one file per resource,
+//!   the WebSocket stream ([`http::ws`]) and one error type; nothing else in the service
+//!   imports it. [`world`]: the simulator's truth in the server's frame and the configuration's
+//!   roads and obstacles; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
 //! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
 //!   it describes; [`metrics`]: the counters.
 //!
@@ -30,19 +33,18 @@
 //! bounded `broadcast` (a lagging WebSocket client is dropped to the latest snapshot) and to the
 //! recorder by `try_send`.
 
-pub mod api;
 pub mod bound;
 pub mod clock;
 pub mod config;
-pub mod control;
 pub mod gcs;
 pub mod guidance;
+pub mod http;
 pub mod ingest;
 pub mod metrics;
 pub mod publish;
 pub mod recorder;
 pub mod tracker;
-pub mod ws;
+pub mod world;
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -55,12 +57,13 @@ use harrier_link::geo::LocalFrame;
 use tokio::sync::{broadcast, mpsc, watch};
 use tokio::task::JoinHandle;
 
-use self::api::{ApiState, ApiToken, Auth};
 use self::config::{Config, ConfigError};
+use self::http::{ApiState, ApiToken, Auth, Control, Recording, Service, Tracking};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
 use self::recorder::{Recorder, SessionMeta};
 use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
+use self::world::{TruthBody, WorldBody};
 use crate::engine::{EngineError, TrackView};
 
 /// Why the service could not start.
@@ -311,7 +314,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         .await
         .map_err(|e| LiveError::Zenoh(format!("subscribe {DETECTIONS_KEY_ALL}: {e}")))?;
     let mut subscribers = vec![subscriber];
-    let (truth_tx, truth_rx) = watch::channel(Arc::new(control::TruthBody::default()));
+    let (truth_tx, truth_rx) = watch::channel(Arc::new(TruthBody::default()));
     {
         let r = recorder.clone().filter(|_| config.recorder.truth);
         let server_frame = LocalFrame::new(config.frame.origin);
@@ -331,7 +334,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
                             tracing::debug!("truth sample not used: {why}");
                             return;
                         }
-                        truth_tx.send_replace(Arc::new(truth_body(&t, &server_frame)));
+                        truth_tx.send_replace(Arc::new(TruthBody::of(&t, &server_frame)));
                         if let Some(r) = &r {
                             r.record(recorder::Record::Truth(t));
                         }
@@ -451,45 +454,51 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
             (Some(link), Some(guidance))
         }
     };
-    let app = api::app(
-        ApiState {
+    let auth = Auth {
+        tokens: std::iter::once(ApiToken {
+            name: "main".into(),
+            secret: token.0.clone(),
+            expires: None,
+        })
+        .chain(config.api.tokens.iter().map(|t| {
+            ApiToken {
+                name: t.name.clone(),
+                secret: t.token.clone(),
+                // `Config::check` refuses a bad expiry; were one to get here, the token is
+                // refused rather than accepted forever.
+                expires: t
+                    .expiry()
+                    .unwrap_or(Some(std::time::SystemTime::UNIX_EPOCH)),
+            }
+        }))
+        .collect(),
+        reads: config.api.auth_reads,
+    };
+    let state = ApiState {
+        tracking: Tracking {
             snapshot: snap_rx.clone(),
             events: events_tx.clone(),
             recent,
             commands: command_tx,
-            metrics: Arc::clone(&metrics),
-            auth: Arc::new(Auth {
-                tokens: std::iter::once(ApiToken {
-                    name: "main".into(),
-                    secret: token.0.clone(),
-                    expires: None,
-                })
-                .chain(config.api.tokens.iter().map(|t| {
-                    ApiToken {
-                        name: t.name.clone(),
-                        secret: t.token.clone(),
-                        // `Config::check` refuses a bad expiry; were one to get here, the token
-                        // is refused rather than accepted forever.
-                        expires: t
-                            .expiry()
-                            .unwrap_or(Some(std::time::SystemTime::UNIX_EPOCH)),
-                    }
-                }))
-                .collect(),
-                reads: config.api.auth_reads,
-            }),
-            started,
-            stop: stop_rx.clone(),
-            recorder: recorder.clone(),
-            recording_error: recording_error.clone(),
+            truth: truth_rx,
+            world: Arc::new(WorldBody::of(config)),
+        },
+        control: Control {
             link: link.clone(),
             guidance: guidance.clone(),
-            truth: truth_rx,
-            world: Arc::new(control::WorldBody::of(config)),
         },
-        web_dir(config).as_deref(),
-        &config.api.cors_origins,
-    );
+        recording: Recording {
+            recorder: recorder.clone(),
+            error: recording_error.clone(),
+        },
+        service: Service {
+            metrics: Arc::clone(&metrics),
+            auth: Arc::new(auth),
+            started,
+            stop: stop_rx.clone(),
+        },
+    };
+    let app = http::app(state, web_dir(config).as_deref(), &config.api.cors_origins);
     let mut stop_api = stop_rx;
     let serve = async move {
         let shutdown = async move {
@@ -567,28 +576,5 @@ async fn record_vehicles(
             Ok(a) = assignments.recv() => row(None, "assignment", serde_json::to_string(&a)),
             () = gcs::transport::stopped(&mut stop) => break,
         }
-    }
-}
-
-/// A truth sample in the server's ENU frame.
-fn truth_body(t: &TruthSample, server: &LocalFrame) -> control::TruthBody {
-    let theirs = LocalFrame::new(t.origin);
-    let rot = theirs.rotation_to(server);
-    control::TruthBody {
-        targets: t
-            .targets
-            .iter()
-            .map(|k| {
-                let [x, y, z, vx, vy, vz] = k.state;
-                let p = theirs.enu_to_frame(server, &nalgebra::Vector3::new(x, y, z));
-                let v = rot * nalgebra::Vector3::new(vx, vy, vz);
-                control::TruthTarget {
-                    id: k.id.clone(),
-                    t: t.time_unix.unwrap_or(t.t),
-                    position: p.into(),
-                    velocity: v.into(),
-                }
-            })
-            .collect(),
     }
 }

@@ -105,7 +105,7 @@ impl ScanEvents {
             .filter(|k| self.events.iter().any(|e| changes(e, k.id)))
     }
 
-    /// The WebSocket `scan` message (see `live::ws`).
+    /// The WebSocket `scan` message (see `live::http::ws`).
     pub fn message(&self) -> &str {
         self.json.get_or_init(|| {
             serde_json::json!({
