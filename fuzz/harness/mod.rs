@@ -809,7 +809,7 @@ fn estimator_change(change: &harrier_server::live::api::EstimatorChange) {
         return;
     };
     let sensor = harrier_core::measurement::SensorModel::new(
-        harrier_core::scenario::MeasKind::Position,
+        harrier_core::measurement::MeasKind::Position,
         Geometry::planar(0.0),
         nalgebra::Vector3::zeros(),
         &[5.0, 5.0],

@@ -13,8 +13,8 @@
 
 use harrier_core::detection::DetectionScan;
 use harrier_core::linalg::wrap_angle;
+use harrier_core::measurement::MeasKind;
 use harrier_core::measurement::{Geometry, SensorModel, TargetSize};
-use harrier_core::scenario::MeasKind;
 use nalgebra::{Matrix3, Vector3};
 
 use crate::geo::LocalFrame;

@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
 use harrier_core::measurement::{
-    Geometry, Locate, MeasurementModel, PositionFix, SensorModel, WithSensor,
+    Geometry, Locate, MeasKind, MeasurementModel, PositionFix, SensorModel, WithSensor,
 };
-use harrier_core::scenario::{self as fmt, MeasKind};
+use harrier_core::scenario as fmt;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use harrier_link::scenario_out::{self, WriteError};

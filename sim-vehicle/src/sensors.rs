@@ -23,10 +23,10 @@ use harrier_core::detection::{
     DETECTIONS_SCHEMA, Detection, DetectionScan, GeoPoint, PlatformPose,
 };
 use harrier_core::linalg::wrap_angle;
+use harrier_core::measurement::MeasKind;
 use harrier_core::measurement::{
     AzEl, BearingSize, Geometry, MeasurementModel, RangeBearing, TargetSize,
 };
-use harrier_core::scenario::MeasKind;
 use nalgebra::{SVector, Vector3};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};

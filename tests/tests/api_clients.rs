@@ -253,7 +253,7 @@ fn scan_json(seq: u64, t: f64, n: usize) -> String {
         vehicle: 1,
         seq,
         sensor: "cam".into(),
-        kind: harrier_core::scenario::MeasKind::Position,
+        kind: harrier_core::measurement::MeasKind::Position,
         origin,
         platform: PlatformPose {
             pos: [0.0; 3],

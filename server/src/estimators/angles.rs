@@ -27,9 +27,9 @@ use harrier_core::filter::{
     Updater,
 };
 use harrier_core::linalg::wrap_angle;
-use harrier_core::measurement::DirectPosition;
+use harrier_core::measurement::{DirectPosition, MeasKind};
 use harrier_core::motion::{LinearTransition, WienerAcceleration};
-use harrier_core::scenario::{Estimate, MeasKind, PredictionOut, Scenario};
+use harrier_core::scenario::{Estimate, PredictionOut, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, Vector1};
 

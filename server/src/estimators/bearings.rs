@@ -47,9 +47,9 @@ use harrier_core::filter::mpekf::{
 };
 use harrier_core::filter::nn::AdaptiveNn;
 use harrier_core::filter::{Extended, Predictor, Updater};
-use harrier_core::measurement::TargetSize;
+use harrier_core::measurement::{MeasKind, TargetSize};
 use harrier_core::motion::ConstantVelocity;
-use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3, Vector6};
 

@@ -16,9 +16,9 @@ pub mod tracker;
 use harrier_core::EstimationError;
 use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};
 use harrier_core::measurement::{
-    Geometry, Locate, MeasurementModel, SensorModel, TargetSize, WithSensor,
+    Geometry, Locate, MeasKind, MeasurementModel, SensorModel, TargetSize, WithSensor,
 };
-use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector3};
 

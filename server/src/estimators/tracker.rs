@@ -9,10 +9,10 @@
 //! see FORMAT-MULTI.md §4.
 
 use harrier_core::filter::{CentralDifference, Extended, ModeModel};
-use harrier_core::measurement::SensorModel;
+use harrier_core::measurement::{MeasKind, SensorModel};
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::road::RoadNetwork;
-use harrier_core::scenario::{Estimate, MeasKind, Scenario};
+use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::tracker::{
     CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
     TrackFilter, TrackStatus, Tracker, TrackerConfig,

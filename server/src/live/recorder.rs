@@ -20,7 +20,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::MeasKind;
 use rusqlite::{Connection, params};
 
 use super::clock::unix_now;

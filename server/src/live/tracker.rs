@@ -15,7 +15,8 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::Duration;
 
 use harrier_core::detection::GeoPoint;
-use harrier_core::scenario::{MeasKind, Scenario};
+use harrier_core::measurement::MeasKind;
+use harrier_core::scenario::Scenario;
 use harrier_core::tracker::{DeleteReason, TrackEvent};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};

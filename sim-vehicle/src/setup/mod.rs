@@ -421,8 +421,8 @@ impl SimScenario {
 
 impl SensorSpec {
     /// The measurement kind of its detections.
-    pub fn kind(&self) -> harrier_core::scenario::MeasKind {
-        use harrier_core::scenario::MeasKind;
+    pub fn kind(&self) -> harrier_core::measurement::MeasKind {
+        use harrier_core::measurement::MeasKind;
         match &self.model {
             SensorModel::Radar { .. } => MeasKind::RangeBearing,
             SensorModel::Camera { output, .. } => match output {
