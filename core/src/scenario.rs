@@ -339,6 +339,11 @@ impl Motion {
             accel_bound: None,
         }
     }
+
+    /// Acceleration spectral density from `accel_std` (m²/s³), if given.
+    pub fn accel_q(&self) -> Option<f64> {
+        self.accel_std.map(|a| a * a)
+    }
 }
 
 /// One motion model of the hints.
@@ -693,10 +698,7 @@ impl Scenario {
 
     /// Acceleration spectral density from `motion.accel_std` (m²/s³), if given.
     pub fn accel_q(&self) -> Option<f64> {
-        self.motion
-            .as_ref()
-            .and_then(|m| m.accel_std)
-            .map(|a| a * a)
+        self.motion.as_ref().and_then(Motion::accel_q)
     }
 }
 

@@ -793,18 +793,13 @@ pub(crate) fn rest(data: &[u8]) {
 
 /// Builds the estimator of a `PUT /estimator` body as the tracker does and runs it on two scans.
 fn estimator_change(change: &harrier_server::live::api::EstimatorChange) {
-    use harrier_server::engine::{Params, SensorScan};
-    static DEPLOYMENT: OnceLock<Scenario> = OnceLock::new();
-    let sc = DEPLOYMENT.get_or_init(|| {
-        harrier_server::live::config::Config::default()
-            .scenario()
-            .expect("the default deployment")
-    });
-    let params = change
-        .params
-        .iter()
-        .fold(Params::default(), |p, (k, v)| p.with(k, *v));
-    let Ok(mut engine) = harrier_server::registry::build_track_engine(&change.name, sc, &params)
+    use harrier_server::engine::{Deployment, Params, SensorScan};
+    static DEPLOYMENT: OnceLock<Deployment> = OnceLock::new();
+    let deployment =
+        DEPLOYMENT.get_or_init(|| harrier_server::live::config::Config::default().deployment());
+    let params = Params::from(&change.params);
+    let Ok(mut engine) =
+        harrier_server::registry::build_track_engine(&change.name, deployment, &params)
     else {
         return;
     };

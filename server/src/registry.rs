@@ -6,7 +6,8 @@
 use harrier_core::scenario::Scenario;
 
 use crate::engine::{
-    EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackEngineInfo, setup,
+    Deployment, EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackEngineInfo,
+    setup,
 };
 use crate::estimators::{angles, bearings, bias, gaussian, icdkf, imm, obe, tracker};
 
@@ -86,11 +87,10 @@ pub fn build(
     (info.build)(sc, params)
 }
 
-/// Looks up the track engine `name` and builds it for the deployment `sc`, rejecting unknown
-/// parameters.
+/// Looks up the track engine `name` and builds it for `deployment`, rejecting unknown parameters.
 pub fn build_track_engine(
     name: &str,
-    sc: &Scenario,
+    deployment: &Deployment,
     params: &Params,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
     let info = TRACK_ENGINES
@@ -104,5 +104,5 @@ pub fn build_track_engine(
             ))
         })?;
     check_params("track estimator", name, info.params, params)?;
-    (info.build)(sc, params)
+    (info.build)(deployment, params)
 }

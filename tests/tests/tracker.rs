@@ -514,10 +514,11 @@ fn track_engines_by_name_on_the_cimm_reference() {
     use harrier_server::registry::build_track_engine;
     let data = harrier_server::replay::load(&harrier_tests::scenario("cimm_road_3uav")).unwrap();
     let sc = &data.scenario;
+    let deployment = &harrier_server::engine::Deployment::from(sc);
     let truth = data.truth.as_ref().unwrap();
     let mut rmse = Vec::new();
     for name in ["ekf", "cdkf", "imm", "cimm"] {
-        let mut engine = build_track_engine(name, sc, &Params::default()).unwrap();
+        let mut engine = build_track_engine(name, deployment, &Params::default()).unwrap();
         let (mut se, mut n, mut ids) = (0.0, 0usize, std::collections::BTreeSet::new());
         for m in &data.measurements {
             let sensor = SensorModel::new(
@@ -573,9 +574,10 @@ fn track_engines_by_name_on_the_cimm_reference() {
     assert!(of("cimm") < of("imm") && of("imm") < of("ekf"), "{rmse:?}");
     assert!(of("cimm") < 2.5, "{rmse:?}");
     // Unknown names and parameters are refused with the list of what exists.
-    let e = build_track_engine("kalman", sc, &Params::default()).unwrap_err();
+    let e = build_track_engine("kalman", deployment, &Params::default()).unwrap_err();
     assert!(e.to_string().contains("ekf, cdkf, imm, cimm"), "{e}");
-    let e = build_track_engine("imm", sc, &Params::parse(&["nope=1"]).unwrap()).unwrap_err();
+    let e =
+        build_track_engine("imm", deployment, &Params::parse(&["nope=1"]).unwrap()).unwrap_err();
     assert!(e.to_string().contains("nope"), "{e}");
 }
 

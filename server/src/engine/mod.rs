@@ -21,7 +21,7 @@ use harrier_core::EstimationError;
 
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
-    Handover, SensorScan, TrackEngine, TrackEngineBuildFn, TrackEngineInfo, TrackView,
+    Deployment, Handover, SensorScan, TrackEngine, TrackEngineBuildFn, TrackEngineInfo, TrackView,
 };
 
 /// Why an estimator could not be built or could not process a time step.

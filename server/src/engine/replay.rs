@@ -35,7 +35,8 @@ pub trait ReplayEstimator {
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError>;
 }
 
-/// `--param name=value` settings, checked against the estimator's declared parameters.
+/// `--param name=value` settings (or a live service's `[tracker] params`), checked against the
+/// estimator's declared parameters.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Params(BTreeMap<String, f64>);
 
@@ -78,9 +79,22 @@ impl Params {
     /// The acceleration spectral density `q` (m²/s³) of the kinematic models ([`Q_PARAM`]):
     /// `--param q=…`, else `motion.accel_std²` of the scenario.
     pub fn q(&self, sc: &Scenario) -> Result<f64, EngineError> {
+        self.q_or(sc.accel_q())
+    }
+    /// `q` ([`Q_PARAM`]): `--param q=…`, else `accel_q`, the `motion.accel_std²` of a scenario or
+    /// a deployment.
+    pub fn q_or(&self, accel_q: Option<f64>) -> Result<f64, EngineError> {
         self.opt("q")
-            .or(sc.accel_q())
+            .or(accel_q)
             .ok_or_else(|| setup("scenario.json has no motion.accel_std; pass --param q=<m²/s³>"))
+    }
+}
+
+/// Settings given as a name → value map: the live service's `[tracker] params` and the
+/// parameters of a `PUT /api/v1/estimator`.
+impl From<&BTreeMap<String, f64>> for Params {
+    fn from(map: &BTreeMap<String, f64>) -> Self {
+        Self(map.clone())
     }
 }
 

@@ -1,10 +1,56 @@
 //! The live shape: a multi-target tracker whose per-track filter type is erased
 //! ([`TrackEngine`]), fed one [`SensorScan`] at a time, reporting [`TrackView`]s, handing its
-//! tracks over to another ([`Handover`]); described by a [`TrackEngineInfo`].
+//! tracks over to another ([`Handover`]); described by a [`TrackEngineInfo`] and built for a
+//! [`Deployment`].
 
-use harrier_core::scenario::Scenario;
+use harrier_core::scenario::{Motion, Road, Scenario};
 
 use super::{EngineError, Params};
+
+/// The setting a track engine is built for, and everything a track engine reads of it: where
+/// the targets move, how, and how often scans come. The live service makes it from its
+/// configuration (`Config::deployment`), `harrier replay -e tracker` from the scenario
+/// ([`Deployment::from`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deployment {
+    /// 2: planar targets on the ground plane (states `[x, y, vx, vy]`); 3: targets in 3-D.
+    pub dims: u8,
+    /// Up coordinate (m) of the ground plane of a planar deployment.
+    pub plane_z: f64,
+    /// Motion hints (`gcs-scenario/1` `motion`): `accel_std` gives the default `q`; `models`,
+    /// `transition_matrix` and `initial_probs` the modes of the IMM track engines.
+    pub motion: Option<Motion>,
+    /// The road network (`gcs-scenario/1` `roads`) of the road-constrained track engine.
+    pub roads: Vec<Road>,
+    /// Nominal scan period (s): CIMM's road velocity noise is a road's σ over it.
+    pub scan_period_s: f64,
+    /// The sensors whose scans feed the tracker (≥ 1). Every sensor's scan counts as a scan for
+    /// M-of-N and misses, so the default `misses` is 5 per sensor. The live service, whose
+    /// sensors come and go, counts one.
+    pub sensors: u32,
+}
+
+impl Deployment {
+    /// The `q` (m²/s³) of the kinematic models: `p`'s `q`, else `motion.accel_std²`.
+    pub fn q(&self, p: &Params) -> Result<f64, EngineError> {
+        p.q_or(self.motion.as_ref().and_then(Motion::accel_q))
+    }
+}
+
+/// A scenario's deployment: its `dims`, `plane_z`, `motion`, `roads`, `time.dt` and number of
+/// sensors.
+impl From<&Scenario> for Deployment {
+    fn from(sc: &Scenario) -> Self {
+        Self {
+            dims: sc.dims,
+            plane_z: sc.plane_z(),
+            motion: sc.motion.clone(),
+            roads: sc.roads.clone(),
+            scan_period_s: sc.time.dt,
+            sensors: u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX),
+        }
+    }
+}
 
 /// One sensor scan as a track engine takes it, in the engine's local ENU frame: the time, the
 /// sensor's measurement model at the platform pose of the scan (kind, position, noise), and the
@@ -83,9 +129,8 @@ pub struct Handover {
     pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
 }
 
-/// Builds a track engine for a deployment described as a scenario (`dims`, ground plane,
-/// `motion`, `roads`).
-pub type TrackEngineBuildFn = fn(&Scenario, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
+/// Builds a track engine for a deployment.
+pub type TrackEngineBuildFn = fn(&Deployment, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
 
 /// A named track engine, as a driver declares it and [`crate::registry::TRACK_ENGINES`] lists it.
 #[derive(Debug)]

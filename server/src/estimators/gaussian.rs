@@ -123,7 +123,7 @@ where
         }
         self.state = g;
         self.t = t;
-        Ok(Some(cv_estimate(&self.sc, t, &g)))
+        Ok(Some(cv_estimate(self.sc.plane_z(), t, &g)))
     }
 }
 

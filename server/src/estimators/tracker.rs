@@ -21,8 +21,8 @@ use serde_json::{Value, json};
 
 use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::engine::{
-    EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan, Step,
-    TrackEngine, TrackEngineInfo, TrackView, setup,
+    Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan,
+    Step, TrackEngine, TrackEngineInfo, TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -85,9 +85,9 @@ pub const ENGINE_EKF: TrackEngineInfo = TrackEngineInfo {
     name: "ekf",
     summary: "EKF tracks, CV model (the KF on position sensors)",
     params: ENGINE_PARAMS,
-    build: |sc, p| match sc.dims {
-        2 => engine::<4, _>(sc, p, ekf(sc, p)?),
-        _ => engine::<6, _>(sc, p, ekf(sc, p)?),
+    build: |d, p| match d.dims {
+        2 => engine::<4, _>(d, p, ekf(d, p)?),
+        _ => engine::<6, _>(d, p, ekf(d, p)?),
     },
 };
 
@@ -96,12 +96,12 @@ pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
     name: "cdkf",
     summary: "central-difference Kalman filter tracks, CV model",
     params: ENGINE_PARAMS,
-    build: |sc, p| {
-        let q = p.q(sc)?;
+    build: |d, p| {
+        let q = d.q(p)?;
         let filter = CentralDifference::default();
-        match sc.dims {
+        match d.dims {
             2 => engine::<4, _>(
-                sc,
+                d,
                 p,
                 GaussianFilter {
                     filter,
@@ -109,7 +109,7 @@ pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
                 },
             ),
             _ => engine::<6, _>(
-                sc,
+                d,
                 p,
                 GaussianFilter {
                     filter,
@@ -125,7 +125,7 @@ pub const ENGINE_IMM: TrackEngineInfo = TrackEngineInfo {
     name: "imm",
     summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
     params: ENGINE_PARAMS,
-    build: |sc, p| imm_engine(sc, p, None),
+    build: |d, p| imm_engine(d, p, None),
 };
 
 /// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
@@ -133,43 +133,43 @@ pub const ENGINE_CIMM: TrackEngineInfo = TrackEngineInfo {
     name: "cimm",
     summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
     params: ENGINE_PARAMS,
-    build: |sc, p| {
-        let roads = RoadNetwork::from_scenario(&sc.roads)
+    build: |d, p| {
+        let roads = RoadNetwork::from_scenario(&d.roads)
             .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
         if roads.is_empty() {
             return Err(setup("the cimm track engine needs roads"));
         }
-        imm_engine(sc, p, Some(roads))
+        imm_engine(d, p, Some(roads))
     },
 };
 
-fn ekf<const N: usize>(sc: &Scenario, p: &Params) -> Result<Ekf<N>, EngineError> {
+fn ekf<const N: usize>(d: &Deployment, p: &Params) -> Result<Ekf<N>, EngineError> {
     Ok(GaussianFilter {
         filter: Extended,
-        motion: ConstantVelocity::<N>::new(p.q(sc)?),
+        motion: ConstantVelocity::<N>::new(d.q(p)?),
     })
 }
 
 /// The IMM (or, with roads, CIMM) engine for R = the number of `motion.models`.
 fn imm_engine(
-    sc: &Scenario,
+    d: &Deployment,
     p: &Params,
     roads: Option<RoadNetwork>,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
-    if sc.dims != 2 {
+    if d.dims != 2 {
         return Err(setup("the IMM track engines are planar (dims = 2)"));
     }
-    let models = mode_models(sc, p.q(sc)?)?;
+    let models = mode_models(d.motion.as_ref(), d.q(p)?)?;
     fn boxed<const R: usize>(
-        sc: &Scenario,
+        d: &Deployment,
         p: &Params,
         models: &[ModeModel],
         roads: Option<RoadNetwork>,
     ) -> Result<Box<dyn TrackEngine>, EngineError> {
-        let (imm, initial_probs) = imm_of::<R>(sc, models)?;
+        let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
         let imm = ImmFilter { imm, initial_probs };
         match roads {
-            None => engine::<4, _>(sc, p, imm),
+            None => engine::<4, _>(d, p, imm),
             Some(roads) => {
                 let sigma_m = roads
                     .roads()
@@ -179,19 +179,19 @@ fn imm_engine(
                 let cimm = CimmFilter {
                     imm,
                     roads,
-                    sigma_v: sigma_m / sc.time.dt.max(1e-3),
+                    sigma_v: sigma_m / d.scan_period_s.max(1e-3),
                     max_offset_m: 3.0 * sigma_m + 10.0,
                 };
-                engine::<4, _>(sc, p, cimm)
+                engine::<4, _>(d, p, cimm)
             }
         }
     }
     match models.len() {
-        1 => boxed::<1>(sc, p, &models, roads),
-        2 => boxed::<2>(sc, p, &models, roads),
-        3 => boxed::<3>(sc, p, &models, roads),
-        4 => boxed::<4>(sc, p, &models, roads),
-        5 => boxed::<5>(sc, p, &models, roads),
+        1 => boxed::<1>(d, p, &models, roads),
+        2 => boxed::<2>(d, p, &models, roads),
+        3 => boxed::<3>(d, p, &models, roads),
+        4 => boxed::<4>(d, p, &models, roads),
+        5 => boxed::<5>(d, p, &models, roads),
         n => Err(setup(format!(
             "motion.models has {n} models; the IMM track engines support 1 to 5"
         ))),
@@ -202,7 +202,8 @@ fn imm_engine(
 #[derive(Debug)]
 struct Engine<F: TrackFilter<N>, const N: usize> {
     tracker: Tracker<F, SinglePointInitiator, N>,
-    sc: Scenario,
+    /// The ground plane of planar tracks (their estimate lines' z).
+    plane_z: f64,
 }
 
 /// An integer parameter ≥ 1.
@@ -216,7 +217,7 @@ fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
 
 /// The engine over `filter` with the tracker tuning of `p`.
 fn engine<const N: usize, F>(
-    sc: &Scenario,
+    d: &Deployment,
     p: &Params,
     filter: F,
 ) -> Result<Box<dyn TrackEngine>, EngineError>
@@ -226,20 +227,19 @@ where
 {
     let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
     // Every sensor's scan counts as a scan for M-of-N and misses.
-    let sensors = u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX);
     let config = TrackerConfig {
         gater: Gater::chi2(p.get("gate", 0.999), 2)?,
         tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
         confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
         deleter: Deleter::new(
-            count(p, "misses", 5 * sensors)?,
+            count(p, "misses", 5 * d.sensors)?,
             p.get("max_pos_var", 1e5),
-            usize::from(sc.dims),
+            usize::from(d.dims),
         )?,
     };
     Ok(Box::new(Engine {
         tracker: Tracker::new(filter, init, config),
-        sc: sc.clone(),
+        plane_z: d.plane_z,
     }))
 }
 
@@ -258,7 +258,7 @@ where
             .snapshot()
             .into_iter()
             .map(|k| {
-                let e = cv_estimate(&self.sc, k.t, &k.estimate);
+                let e = cv_estimate(self.plane_z, k.t, &k.estimate);
                 TrackView {
                     id: k.id,
                     status: match k.status {
@@ -339,7 +339,7 @@ struct MultiTracker {
 impl MultiTracker {
     fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
         Ok(Self {
-            engine: (ENGINE_EKF.build)(sc, p)?,
+            engine: (ENGINE_EKF.build)(&Deployment::from(sc), p)?,
             sc: sc.clone(),
             last_model: None,
         })

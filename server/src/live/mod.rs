@@ -21,8 +21,8 @@
 //!   live tracks are handed over.
 //! - [`api`]: axum routes under `/api/v1`, the OpenAPI document, the dashboard; [`ws`]: the
 //!   WebSocket stream; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
-//! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
-//!   it describes; [`metrics`]: the counters.
+//! - [`config`]: the TOML configuration and the [`Deployment`](crate::engine::Deployment) it
+//!   describes; [`metrics`]: the counters.
 //!
 //! Nothing from the network can panic the service: bad payloads are counted per vehicle and
 //! reason, logged at a bounded rate and dropped. A slow consumer never stalls tracking: the
@@ -227,7 +227,7 @@ impl LiveServer {
 /// Returns once all of it is up (the API accepts connections).
 pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     config.check()?;
-    let deployment = config.scenario()?;
+    let deployment = config.deployment();
     let estimator = EstimatorState {
         name: config.tracker.estimator.clone(),
         params: config.tracker.params.clone(),

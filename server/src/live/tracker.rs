@@ -16,7 +16,6 @@ use std::time::Duration;
 
 use harrier_core::detection::GeoPoint;
 use harrier_core::measurement::MeasKind;
-use harrier_core::scenario::Scenario;
 use harrier_core::tracker::{DeleteReason, TrackEvent};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
@@ -24,7 +23,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use crate::engine::{Params, TrackEngine, TrackView};
+use crate::engine::{Deployment, Params, TrackEngine, TrackView};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
@@ -221,7 +220,7 @@ impl Recent {
 #[derive(Debug)]
 pub struct TrackerActor {
     engine: Box<dyn TrackEngine>,
-    deployment: Scenario,
+    deployment: Deployment,
     estimator: Arc<EstimatorState>,
     window: f64,
     metrics: Arc<Metrics>,
@@ -258,7 +257,7 @@ impl TrackerActor {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         engine: Box<dyn TrackEngine>,
-        deployment: Scenario,
+        deployment: Deployment,
         estimator: EstimatorState,
         window: f64,
         metrics: Arc<Metrics>,
@@ -469,10 +468,7 @@ impl TrackerActor {
 
     /// Builds `to` for the deployment and hands the live tracks over to it.
     fn set_estimator(&mut self, to: EstimatorState) -> Result<EstimatorState, SetError> {
-        let params = to
-            .params
-            .iter()
-            .fold(Params::default(), |p, (k, v)| p.with(k, *v));
+        let params = Params::from(&to.params);
         let mut engine = crate::registry::build_track_engine(&to.name, &self.deployment, &params)
             .map_err(|e| SetError::Invalid(e.to_string()))?;
         engine.adopt(&self.engine.handover()).map_err(|e| {
@@ -563,14 +559,15 @@ mod tests {
 
     fn actor(window: f64) -> Parts {
         let c = Config::default();
-        let sc = c.scenario().expect("sc");
-        let engine = crate::registry::build_track_engine("ekf", &sc, &c.params()).expect("engine");
+        let deployment = c.deployment();
+        let engine =
+            crate::registry::build_track_engine("ekf", &deployment, &c.params()).expect("engine");
         let metrics = Arc::new(Metrics::default());
         let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
         let (ev_tx, ev_rx) = broadcast::channel(16);
         let a = TrackerActor::new(
             engine,
-            sc,
+            deployment,
             EstimatorState {
                 name: "ekf".into(),
                 params: BTreeMap::new(),
