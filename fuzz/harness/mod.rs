@@ -799,7 +799,7 @@ fn estimator_change(change: &harrier_server::live::api::EstimatorChange) {
         DEPLOYMENT.get_or_init(|| harrier_server::live::config::Config::default().deployment());
     let params = Params::from(&change.params);
     let Ok(mut engine) =
-        harrier_server::registry::build_track_engine(&change.name, deployment, &params)
+        harrier_server::registry::build_track_filter(&change.name, deployment, &params)
     else {
         return;
     };

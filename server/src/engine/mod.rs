@@ -5,7 +5,7 @@
 //!   [`ReplayEstimator`] and is described by an [`EstimatorInfo`]. A `Box<dyn ReplayEstimator>` is
 //!   the only form in which the offline tools (`replay`, `guidance-sim`) see a filter.
 //! - [`track`]: the live service's multi-target tracker, [`TrackEngine`], described by a
-//!   [`TrackEngineInfo`].
+//!   [`TrackFilterInfo`].
 //!
 //! The drivers in [`crate::estimators`] build both from a scenario and [`Params`], and
 //! [`crate::registry`] lists them and builds one by name. This module re-exports what its two
@@ -21,7 +21,7 @@ use harrier_core::EstimationError;
 
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
-    Deployment, Handover, SensorScan, TrackEngine, TrackEngineBuildFn, TrackEngineInfo, TrackView,
+    Deployment, Handover, SensorScan, TrackEngine, TrackFilterBuildFn, TrackFilterInfo, TrackView,
 };
 
 /// Why an estimator could not be built or could not process a time step.

@@ -1,7 +1,6 @@
-//! The live shape: a multi-target tracker whose per-track filter type is erased
-//! ([`TrackEngine`]), fed one [`SensorScan`] at a time, reporting [`TrackView`]s, handing its
-//! tracks over to another ([`Handover`]); described by a [`TrackEngineInfo`] and built for a
-//! [`Deployment`].
+//! The live shape: a multi-target tracker whose track filter type is erased ([`TrackEngine`]),
+//! fed one [`SensorScan`] at a time, reporting [`TrackView`]s, handing its tracks over to another
+//! ([`Handover`]); built for a [`Deployment`] by a named track filter ([`TrackFilterInfo`]).
 
 use harrier_core::scenario::{Motion, Road, Scenario};
 
@@ -18,9 +17,9 @@ pub struct Deployment {
     /// Up coordinate (m) of the ground plane of a planar deployment.
     pub plane_z: f64,
     /// Motion hints (`gcs-scenario/1` `motion`): `accel_std` gives the default `q`; `models`,
-    /// `transition_matrix` and `initial_probs` the modes of the IMM track engines.
+    /// `transition_matrix` and `initial_probs` the modes of the IMM track filters.
     pub motion: Option<Motion>,
-    /// The road network (`gcs-scenario/1` `roads`) of the road-constrained track engine.
+    /// The road network (`gcs-scenario/1` `roads`) of the road-constrained track filter (`cimm`).
     pub roads: Vec<Road>,
     /// Nominal scan period (s): CIMM's road velocity noise is a road's σ over it.
     pub scan_period_s: f64,
@@ -94,7 +93,7 @@ pub struct TrackView {
     pub mode_probabilities: Vec<f64>,
 }
 
-/// A multi-target tracker whose filter type is erased: the live shape of an estimator. It ingests
+/// A multi-target tracker whose track filter type is erased: the live shape of an estimator. It ingests
 /// one sensor scan at a time (any kind, any platform) and says what happened as
 /// [`TrackEvent`](harrier_core::tracker::TrackEvent)s; a snapshot serves the API.
 pub trait TrackEngine: Send + std::fmt::Debug {
@@ -110,7 +109,7 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     fn time(&self) -> Option<f64>;
     /// The live tracks in a form any engine of the same deployment can [`adopt`](Self::adopt).
     fn handover(&self) -> Handover;
-    /// Replaces this engine's tracks with `h`'s (a change of estimator at run time): ids, status
+    /// Replaces this engine's tracks with `h`'s (a change of track filter at run time): ids, status
     /// and hit/miss records are kept, each estimate starts this engine's filter. On error
     /// nothing changes.
     fn adopt(&mut self, h: &Handover) -> Result<(), EngineError>;
@@ -129,18 +128,21 @@ pub struct Handover {
     pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
 }
 
-/// Builds a track engine for a deployment.
-pub type TrackEngineBuildFn = fn(&Deployment, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
+/// Builds the track engine of a track filter for a deployment.
+pub type TrackFilterBuildFn = fn(&Deployment, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
 
-/// A named track engine, as a driver declares it and [`crate::registry::TRACK_ENGINES`] lists it.
+/// A named **track filter** — the filter each track of the live multi-target tracker runs (`ekf`,
+/// `cdkf`, `imm`, `cimm`) — as a driver declares it and [`crate::registry::TRACK_FILTERS`] lists
+/// it. It is what `[tracker] estimator` and `PUT /api/v1/estimator` choose, and not the replay
+/// estimator of the same name (an [`EstimatorInfo`](super::EstimatorInfo)).
 #[derive(Debug)]
-pub struct TrackEngineInfo {
-    /// Name (the per-track estimator).
+pub struct TrackFilterInfo {
+    /// Name.
     pub name: &'static str,
     /// One line for `harrier estimators`.
     pub summary: &'static str,
     /// Accepted parameter names with a description (and default).
     pub params: &'static [(&'static str, &'static str)],
-    /// Constructor.
-    pub build: TrackEngineBuildFn,
+    /// Builds the track engine that runs it.
+    pub build: TrackFilterBuildFn,
 }

@@ -1,8 +1,9 @@
 //! The drivers: each turns scenario measurements into the calls of one estimator family's filters
-//! and declares its [`EstimatorInfo`](crate::engine::EstimatorInfo) entries; and the glue they
+//! and declares its [`EstimatorInfo`](crate::engine::EstimatorInfo) entries (and
+//! [`multi_target`] its [`TrackFilterInfo`](crate::engine::TrackFilterInfo)s); and the glue they
 //! share: the prior and the measurement models from `scenario.json`, updates with a run-time
 //! measurement kind, estimate lines. Drivers import [`crate::engine`] only; the registry
-//! ([`crate::registry`]) lists them.
+//! ([`crate::registry`]) lists them and is the only module that imports them.
 
 pub mod angles;
 pub mod bearings;
@@ -10,8 +11,8 @@ pub mod bias;
 pub mod gaussian;
 pub mod icdkf;
 pub mod imm;
+pub mod multi_target;
 pub mod obe;
-pub mod tracker;
 
 use harrier_core::EstimationError;
 use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};

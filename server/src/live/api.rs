@@ -43,9 +43,9 @@ use utoipa::{OpenApi, ToSchema};
 
 use super::metrics::Metrics;
 use super::recorder::{Record, Recorder, RecorderStats};
-use super::tracker::{Command, EstimatorState, Recent, ScanEvents, Snapshot};
+use super::tracker::{Command, Recent, ScanEvents, Snapshot, TrackFilterState as EstimatorState};
 use crate::engine::TrackView;
-use crate::registry::TRACK_ENGINES;
+use crate::registry::TRACK_FILTERS as TRACK_ENGINES;
 use crate::sessions::{self, Exported, SessionError, SessionInfo};
 
 /// What the handlers read.

@@ -3,7 +3,7 @@
 //!
 //! The deployment a track engine is built for (planar targets on a ground plane, motion models,
 //! roads, the scan period) is described here and turned into a [`Deployment`] by
-//! [`Config::deployment`], the form [`crate::registry::build_track_engine`] takes.
+//! [`Config::deployment`], the form [`crate::registry::build_track_filter`] takes.
 
 use std::net::SocketAddr;
 use std::path::Path;
@@ -22,7 +22,7 @@ use crate::engine::{Deployment, Params};
 pub struct Config {
     /// The server's ENU frame.
     pub frame: FrameConfig,
-    /// The track engine and its input ordering.
+    /// The live tracker: its track filter, deployment and input ordering.
     pub tracker: TrackerConfig,
     /// The HTTP API.
     pub api: ApiConfig,
@@ -204,13 +204,15 @@ pub struct FrameConfig {
     pub plane_z: f64,
 }
 
-/// The track engine.
+/// The live tracker (`[tracker]`): its track filter, the deployment it tracks in
+/// ([`Config::deployment`]) and the ordering of its input.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerConfig {
-    /// Track engine name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
+    /// The track filter (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`). The key keeps
+    /// the name `estimator`, as `PUT /api/v1/estimator` does: both select the track filter.
     pub estimator: String,
-    /// Engine parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
+    /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
     /// of order are processed in time order; older ones are dropped as late.
@@ -740,7 +742,7 @@ mod tests {
     fn the_example_parses_and_builds_its_engine() {
         let text = include_str!("../../../harrier.example.toml");
         let c = Config::parse(text, "harrier.example.toml").expect("example config");
-        crate::registry::build_track_engine(&c.tracker.estimator, &c.deployment(), &c.params())
+        crate::registry::build_track_filter(&c.tracker.estimator, &c.deployment(), &c.params())
             .expect("engine");
     }
 
@@ -748,7 +750,7 @@ mod tests {
     fn defaults_build_and_bad_values_are_named() {
         let c = Config::parse("", "empty").expect("defaults");
         assert_eq!(c, Config::default());
-        crate::registry::build_track_engine("ekf", &c.deployment(), &c.params()).expect("engine");
+        crate::registry::build_track_filter("ekf", &c.deployment(), &c.params()).expect("engine");
         let e = Config::parse("[tracker]\nreorder_window_s = -1\n", "f").unwrap_err();
         assert!(e.to_string().contains("reorder_window_s"), "{e}");
         let e = Config::parse("[zenoh]\nmode = \"router\"\n", "f").unwrap_err();
@@ -781,7 +783,7 @@ mod tests {
         );
         assert_eq!(d.motion.as_ref(), Some(&c.tracker.motion));
         assert_eq!(d.roads, c.tracker.roads);
-        crate::registry::build_track_engine("cimm", &d, &c.params()).expect("cimm engine");
+        crate::registry::build_track_filter("cimm", &d, &c.params()).expect("cimm engine");
         let e = Config::parse("[tracker.motion]\naccel_std = -1.0\n", "f").unwrap_err();
         assert!(e.to_string().contains("tracker.motion.accel_std"), "{e}");
         let e = Config::parse("[tracker.motion]\ntransition_matrix = [[nan]]\n", "f").unwrap_err();

@@ -13,7 +13,7 @@
 //! - [`ingest`]: payloads of `harrier/v1/vehicle/*/detections` decoded and validated
 //!   ([`harrier_core::detection::DetectionScan::from_json`]), `seq` gaps counted, converted into
 //!   the server's ENU frame (harrier-link's `scan_in_frame`) as [`crate::engine::SensorScan`]s.
-//! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_engine`], fed in
+//! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_filter`], fed in
 //!   time order through a short reorder buffer; snapshots to a `watch`, each processed scan to a
 //!   bounded `broadcast`. Scans are put on one time line by their `time_unix` (UNIX time on the
 //!   sender's clock) when they carry it, else by their `t` — so publishers without `time_unix`
@@ -60,7 +60,7 @@ use self::config::{Config, ConfigError};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
 use self::recorder::{Recorder, SessionMeta};
-use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
+use self::tracker::{Recent, ScanEvents, Snapshot, TrackFilterState, TrackerActor};
 use crate::engine::{EngineError, TrackView};
 
 /// Why the service could not start.
@@ -228,12 +228,12 @@ impl LiveServer {
 pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     config.check()?;
     let deployment = config.deployment();
-    let estimator = EstimatorState {
+    let estimator = TrackFilterState {
         name: config.tracker.estimator.clone(),
         params: config.tracker.params.clone(),
     };
     let engine =
-        crate::registry::build_track_engine(&estimator.name, &deployment, &config.params())?;
+        crate::registry::build_track_filter(&estimator.name, &deployment, &config.params())?;
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
 

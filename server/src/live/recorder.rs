@@ -159,7 +159,7 @@ pub struct SessionMeta {
     pub origin: GeoPoint,
     /// Up coordinate (m) of the ground plane.
     pub plane_z: f64,
-    /// Track engine at the start (a change at run time is an action).
+    /// Track filter at the start (a change at run time is an action).
     pub estimator: String,
     /// The whole configuration, as JSON.
     pub config_json: String,

@@ -30,10 +30,12 @@ pub const RECENT_SCANS: usize = 512;
 /// Positions kept per track for its history.
 pub const HISTORY_LEN: usize = 200;
 
-/// The estimator the engine runs, and its parameters.
+/// The track filter the tracker runs, and its parameters. On the wire it keeps the name
+/// "estimator": `GET`/`PUT /api/v1/estimator` read and select the track filter.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct EstimatorState {
-    /// Track engine name (`GET /api/v1/estimators`).
+#[schema(as = EstimatorState)]
+pub struct TrackFilterState {
+    /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
     pub name: String,
     /// Parameters given (the others have their defaults).
     pub params: BTreeMap<String, f64>,
@@ -69,7 +71,7 @@ pub struct Snapshot {
     /// Every vehicle seen, by label.
     pub vehicles: Arc<Vec<VehicleView>>,
     /// The estimator running.
-    pub estimator: Arc<EstimatorState>,
+    pub estimator: Arc<TrackFilterState>,
 }
 
 /// One processed scan: what it held and what it did to the tracks.
@@ -171,9 +173,9 @@ pub enum Command {
     /// Change the estimator; live tracks are handed over (ids kept).
     SetEstimator {
         /// The new estimator.
-        to: EstimatorState,
+        to: TrackFilterState,
         /// The result: the estimator now running, or why the change was refused.
-        reply: oneshot::Sender<Result<EstimatorState, SetError>>,
+        reply: oneshot::Sender<Result<TrackFilterState, SetError>>,
     },
 }
 
@@ -221,7 +223,7 @@ impl Recent {
 pub struct TrackerActor {
     engine: Box<dyn TrackEngine>,
     deployment: Deployment,
-    estimator: Arc<EstimatorState>,
+    estimator: Arc<TrackFilterState>,
     window: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
@@ -258,7 +260,7 @@ impl TrackerActor {
     pub fn new(
         engine: Box<dyn TrackEngine>,
         deployment: Deployment,
-        estimator: EstimatorState,
+        estimator: TrackFilterState,
         window: f64,
         metrics: Arc<Metrics>,
         recent: Arc<Recent>,
@@ -467,9 +469,9 @@ impl TrackerActor {
     }
 
     /// Builds `to` for the deployment and hands the live tracks over to it.
-    fn set_estimator(&mut self, to: EstimatorState) -> Result<EstimatorState, SetError> {
+    fn set_estimator(&mut self, to: TrackFilterState) -> Result<TrackFilterState, SetError> {
         let params = Params::from(&to.params);
-        let mut engine = crate::registry::build_track_engine(&to.name, &self.deployment, &params)
+        let mut engine = crate::registry::build_track_filter(&to.name, &self.deployment, &params)
             .map_err(|e| SetError::Invalid(e.to_string()))?;
         engine.adopt(&self.engine.handover()).map_err(|e| {
             SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
@@ -561,14 +563,14 @@ mod tests {
         let c = Config::default();
         let deployment = c.deployment();
         let engine =
-            crate::registry::build_track_engine("ekf", &deployment, &c.params()).expect("engine");
+            crate::registry::build_track_filter("ekf", &deployment, &c.params()).expect("engine");
         let metrics = Arc::new(Metrics::default());
         let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
         let (ev_tx, ev_rx) = broadcast::channel(16);
         let a = TrackerActor::new(
             engine,
             deployment,
-            EstimatorState {
+            TrackFilterState {
                 name: "ekf".into(),
                 params: BTreeMap::new(),
             },
@@ -632,7 +634,7 @@ mod tests {
         a.release(f64::INFINITY);
         let before = snap_rx.borrow().tracks.clone();
         assert_eq!(before.len(), 1);
-        let bad = a.set_estimator(EstimatorState {
+        let bad = a.set_estimator(TrackFilterState {
             name: "nonesuch".into(),
             params: BTreeMap::new(),
         });
@@ -640,14 +642,14 @@ mod tests {
             matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")),
             "{bad:?}"
         );
-        let bad = a.set_estimator(EstimatorState {
+        let bad = a.set_estimator(TrackFilterState {
             name: "cdkf".into(),
             params: BTreeMap::from([("m".to_string(), 0.5)]),
         });
         assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
         assert_eq!(snap_rx.borrow().estimator.name, "ekf");
         let now = a
-            .set_estimator(EstimatorState {
+            .set_estimator(TrackFilterState {
                 name: "cdkf".into(),
                 params: BTreeMap::new(),
             })

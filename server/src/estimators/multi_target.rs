@@ -1,12 +1,14 @@
-//! `tracker`: the multi-target tracker of `harrier_core::tracker` (EKF with the CV model — the KF on
-//! `position` sensors — χ² gating, global nearest neighbour over confirmed and tentative tracks,
-//! single-point initiation from any detection kind with M-of-N confirmation, miss/covariance
-//! deletion) over a multi-target scenario (FORMAT-MULTI.md): any number of sensors of any kind
-//! whose scans carry unlabeled detections, clutter included. Each sensor's detections of one time
-//! are one scan, under that sensor's model at its platform pose.
+//! The multi-target tracker of `harrier_core::tracker` (χ² gating, global nearest neighbour over
+//! confirmed and tentative tracks, single-point initiation from any detection kind with M-of-N
+//! confirmation, miss/covariance deletion) as a [`TrackEngine`], `MultiTargetEngine`, one per
+//! **track filter** — the filter of each track: `ekf` (the KF on `position` sensors), `cdkf`,
+//! `imm`, `cimm` ([`TrackFilterInfo`]s, the live service's choice) — built for a [`Deployment`].
 //!
-//! Each estimate line holds every confirmed track after the scan (`"state": null`, `"tracks"`):
-//! see FORMAT-MULTI.md §4.
+//! The replay estimator `tracker` runs the `ekf` track filter over a multi-target scenario
+//! (FORMAT-MULTI.md): any number of sensors of any kind whose scans carry unlabeled detections,
+//! clutter included. Each sensor's detections of one time are one scan, under that sensor's model
+//! at its platform pose. Each estimate line holds every confirmed track after the scan
+//! (`"state": null`, `"tracks"`): see FORMAT-MULTI.md §4.
 
 use harrier_core::filter::{CentralDifference, Extended, ModeModel};
 use harrier_core::measurement::{MeasKind, SensorModel};
@@ -22,7 +24,7 @@ use serde_json::{Value, json};
 use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::engine::{
     Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan,
-    Step, TrackEngine, TrackEngineInfo, TrackView, setup,
+    Step, TrackEngine, TrackFilterInfo, TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -31,7 +33,7 @@ use nalgebra::{SMatrix, SVector};
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
     name: "tracker",
     summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |sc, p| {
         if sc.sensors.is_empty() {
             return Err(setup("the tracker needs at least one sensor"));
@@ -52,8 +54,8 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
 
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
-/// Tuning shared by every track engine.
-const ENGINE_PARAMS: &[(&str, &str)] = &[
+/// The tracker's tuning, shared by every track filter and the replay estimator `tracker`.
+const TRACKER_PARAMS: &[(&str, &str)] = &[
     Q_PARAM,
     ("vel_std", "velocity prior of a new track, m/s (default 12)"),
     (
@@ -81,26 +83,26 @@ const ENGINE_PARAMS: &[(&str, &str)] = &[
 ];
 
 /// `ekf`: tracks of EKFs (the KF on `position` sensors) with the CV model.
-pub const ENGINE_EKF: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_EKF: TrackFilterInfo = TrackFilterInfo {
     name: "ekf",
     summary: "EKF tracks, CV model (the KF on position sensors)",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |d, p| match d.dims {
-        2 => engine::<4, _>(d, p, ekf(d, p)?),
-        _ => engine::<6, _>(d, p, ekf(d, p)?),
+        2 => multi_target_engine::<4, _>(d, p, ekf(d, p)?),
+        _ => multi_target_engine::<6, _>(d, p, ekf(d, p)?),
     },
 };
 
 /// `cdkf`: tracks of central-difference filters with the CV model.
-pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
     name: "cdkf",
     summary: "central-difference Kalman filter tracks, CV model",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |d, p| {
         let q = d.q(p)?;
         let filter = CentralDifference::default();
         match d.dims {
-            2 => engine::<4, _>(
+            2 => multi_target_engine::<4, _>(
                 d,
                 p,
                 GaussianFilter {
@@ -108,7 +110,7 @@ pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
                     motion: ConstantVelocity::<4>::new(q),
                 },
             ),
-            _ => engine::<6, _>(
+            _ => multi_target_engine::<6, _>(
                 d,
                 p,
                 GaussianFilter {
@@ -121,23 +123,23 @@ pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
 };
 
 /// `imm`: IMM tracks over `motion.models` (planar).
-pub const ENGINE_IMM: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_IMM: TrackFilterInfo = TrackFilterInfo {
     name: "imm",
     summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |d, p| imm_engine(d, p, None),
 };
 
 /// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
-pub const ENGINE_CIMM: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_CIMM: TrackFilterInfo = TrackFilterInfo {
     name: "cimm",
     summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |d, p| {
         let roads = RoadNetwork::from_scenario(&d.roads)
             .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
         if roads.is_empty() {
-            return Err(setup("the cimm track engine needs roads"));
+            return Err(setup("the cimm track filter needs roads"));
         }
         imm_engine(d, p, Some(roads))
     },
@@ -157,7 +159,7 @@ fn imm_engine(
     roads: Option<RoadNetwork>,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
     if d.dims != 2 {
-        return Err(setup("the IMM track engines are planar (dims = 2)"));
+        return Err(setup("the IMM track filters are planar (dims = 2)"));
     }
     let models = mode_models(d.motion.as_ref(), d.q(p)?)?;
     fn boxed<const R: usize>(
@@ -169,7 +171,7 @@ fn imm_engine(
         let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
         let imm = ImmFilter { imm, initial_probs };
         match roads {
-            None => engine::<4, _>(d, p, imm),
+            None => multi_target_engine::<4, _>(d, p, imm),
             Some(roads) => {
                 let sigma_m = roads
                     .roads()
@@ -182,7 +184,7 @@ fn imm_engine(
                     sigma_v: sigma_m / d.scan_period_s.max(1e-3),
                     max_offset_m: 3.0 * sigma_m + 10.0,
                 };
-                engine::<4, _>(d, p, cimm)
+                multi_target_engine::<4, _>(d, p, cimm)
             }
         }
     }
@@ -193,14 +195,15 @@ fn imm_engine(
         4 => boxed::<4>(d, p, &models, roads),
         5 => boxed::<5>(d, p, &models, roads),
         n => Err(setup(format!(
-            "motion.models has {n} models; the IMM track engines support 1 to 5"
+            "motion.models has {n} models; the IMM track filters support 1 to 5"
         ))),
     }
 }
 
-/// A multi-target tracker over the track filter `F` on N-state CV-layout states.
+/// A multi-target tracker over the track filter `F` on N-state CV-layout states: the
+/// [`TrackEngine`] every track filter builds.
 #[derive(Debug)]
-struct Engine<F: TrackFilter<N>, const N: usize> {
+struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     tracker: Tracker<F, SinglePointInitiator, N>,
     /// The ground plane of planar tracks (their estimate lines' z).
     plane_z: f64,
@@ -216,7 +219,7 @@ fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
 }
 
 /// The engine over `filter` with the tracker tuning of `p`.
-fn engine<const N: usize, F>(
+fn multi_target_engine<const N: usize, F>(
     d: &Deployment,
     p: &Params,
     filter: F,
@@ -237,13 +240,13 @@ where
             usize::from(d.dims),
         )?,
     };
-    Ok(Box::new(Engine {
+    Ok(Box::new(MultiTargetEngine {
         tracker: Tracker::new(filter, init, config),
         plane_z: d.plane_z,
     }))
 }
 
-impl<F, const N: usize> TrackEngine for Engine<F, N>
+impl<F, const N: usize> TrackEngine for MultiTargetEngine<F, N>
 where
     F: TrackFilter<N> + Send + std::fmt::Debug,
     F::State: Send,
@@ -327,7 +330,8 @@ where
     }
 }
 
-/// The replay estimator `tracker`: the `ekf` track engine fed one scan per sensor and time.
+/// The replay estimator `tracker`: the tracker with the `ekf` track filter, fed one scan per sensor
+/// and time.
 #[derive(Debug)]
 struct MultiTracker {
     engine: Box<dyn TrackEngine>,
@@ -339,7 +343,7 @@ struct MultiTracker {
 impl MultiTracker {
     fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
         Ok(Self {
-            engine: (ENGINE_EKF.build)(&Deployment::from(sc), p)?,
+            engine: (TRACK_FILTER_EKF.build)(&Deployment::from(sc), p)?,
             sc: sc.clone(),
             last_model: None,
         })
@@ -420,24 +424,4 @@ impl ReplayEstimator for MultiTracker {
         est.extra.insert("tracks".into(), Value::Array(tracks));
         Ok(Some(est))
     }
-}
-
-/// `harrier gen-multi <dir> --seed N`: writes the generator's default crossing-target scenario
-/// (`harrier_core::tracker::generate`, FORMAT-MULTI.md §5) into `dir`, creating it.
-pub fn write_generated(dir: &std::path::Path, seed: u64) -> anyhow::Result<()> {
-    use anyhow::Context as _;
-    let g = harrier_core::tracker::generate::generate(
-        seed,
-        &harrier_core::tracker::generate::GenConfig::default(),
-    )?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (name, text) in [
-        ("scenario.json", &g.scenario_json),
-        ("measurements.jsonl", &g.measurements_jsonl),
-        ("truth.csv", &g.truth_csv),
-    ] {
-        let path = dir.join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
 }
