@@ -8,8 +8,8 @@
 //!   `udpin:{mavlink_ip}:0`: it answers whoever sends to [`SimWorld::mavlink_addrs`], so a ground
 //!   station can connect to it; with [`WorldConfig::gcs`] set it also sends its telemetry to that
 //!   ground station (`udpout:`, as PX4 sends to UDP 14550) and takes its commands.
-//! - The live sensor loop ([`crate::sensor_loop`]) scans every vehicle from its real pose and publishes
-//!   detections and truth on a session opened from [`WorldConfig::zenoh`].
+//! - The live sensor loop ([`crate::sensor_loop`]) scans every vehicle from its real pose and
+//!   publishes detections and truth on a session opened from [`WorldConfig::zenoh`].
 //! - A vehicle given a station is launched like a client would do it, through its MAVLink
 //!   protocol (harrier-link's [`OffboardSequence`]: arm, takeoff, OFFBOARD velocity setpoints
 //!   towards the station), and switched to Hold once there, so it hovers on station (a fixed wing

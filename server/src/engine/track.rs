@@ -93,8 +93,8 @@ pub struct TrackView {
     pub mode_probabilities: Vec<f64>,
 }
 
-/// A multi-target tracker whose track filter type is erased: the live shape of an estimator. It ingests
-/// one sensor scan at a time (any kind, any platform) and says what happened as
+/// A multi-target tracker whose track filter type is erased: the live shape of an estimator. It
+/// ingests one sensor scan at a time (any kind, any platform) and says what happened as
 /// [`TrackEvent`](harrier_core::tracker::TrackEvent)s; a snapshot serves the API.
 pub trait TrackEngine: Send + std::fmt::Debug {
     /// Processes one scan. On error (time earlier than the last scan, a non-finite detection, a
