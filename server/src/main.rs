@@ -120,7 +120,7 @@ fn main() -> ExitCode {
             out!("");
             out!(
                 "Track filters of the live tracker ([tracker] estimator and params, \
-                 PUT /api/v1/estimator); the same names above are other programs:"
+                 PUT /api/v1/estimator), not the replay estimators of the same names:"
             );
             for f in TRACK_FILTERS {
                 out!("{:<14} {}", f.name, f.summary);
