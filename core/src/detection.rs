@@ -15,7 +15,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::scenario::MeasKind;
+use crate::measurement::MeasKind;
 
 /// Value of [`DetectionScan::schema`].
 pub const DETECTIONS_SCHEMA: &str = "harrier-detections/1";

@@ -15,7 +15,8 @@
 //!   [`filter::Updater`]. An update returns a [`state::Posterior`] that keeps the innovation and its
 //!   covariance, which gating, NIS and IMM likelihoods need.
 //!
-//! Everything is monomorphised; the server erases filter types in exactly one place.
+//! Everything is monomorphised; the server erases filter types behind one registry (its drivers
+//! box them, its registry builds them by name).
 //!
 //! ```
 //! use harrier_core::filter::{Extended, Predictor, Updater};

@@ -13,6 +13,8 @@ use nalgebra::{
     Matrix1x3, Matrix2, Matrix2x3, Matrix3, Matrix3x2, SMatrix, SVector, Vector2, Vector3,
 };
 
+use serde::{Deserialize, Serialize};
+
 use crate::linalg::wrap_angle;
 
 /// `z = h(x) + v`, `v ~ N(0, R)`.
@@ -448,6 +450,50 @@ impl Locate<3> for BearingSize {
     }
 }
 
+/// Measurement kinds of FORMAT.md §3: what a sensor measures, as a scenario file, a detection
+/// scan and a [`SensorModel`] name it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeasKind {
+    /// Absolute ENU position `[x, y]` or `[x, y, z]`.
+    Position,
+    /// `[range, azimuth]`.
+    RangeBearing,
+    /// `[azimuth, elevation]`.
+    AzEl,
+    /// `[azimuth, elevation, subtended]`.
+    BearingSize,
+}
+
+impl MeasKind {
+    /// The name used in files and messages (`position`, `range_bearing`, `az_el`,
+    /// `bearing_size`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Position => "position",
+            Self::RangeBearing => "range_bearing",
+            Self::AzEl => "az_el",
+            Self::BearingSize => "bearing_size",
+        }
+    }
+    /// Number of components (`ncomp` for position sensors).
+    pub fn len(self, ncomp: Option<usize>) -> usize {
+        match self {
+            Self::Position => ncomp.unwrap_or(3),
+            Self::RangeBearing | Self::AzEl => 2,
+            Self::BearingSize => 3,
+        }
+    }
+    /// Index of the azimuth component that must be wrapped, if any.
+    pub fn azimuth_index(self) -> Option<usize> {
+        match self {
+            Self::Position => None,
+            Self::RangeBearing => Some(1),
+            Self::AzEl | Self::BearingSize => Some(0),
+        }
+    }
+}
+
 /// The measurement model of a sensor whose kind is known only at run time (a scenario's sensor, a
 /// detection scan's `kind`): one variant per kind of FORMAT.md §3. It is turned back into the
 /// concrete, const-sized model in one place, [`SensorModel::apply`].
@@ -481,13 +527,12 @@ impl SensorModel {
     /// standard deviations `std` (`position`: 2 or 3 components, by the length of `std`); `size`
     /// is the target size for `bearing_size`. Errors name what is wrong.
     pub fn new(
-        kind: crate::scenario::MeasKind,
+        kind: MeasKind,
         geometry: Geometry,
         sensor: Vector3<f64>,
         std: &[f64],
         size: Option<TargetSize>,
     ) -> Result<Self, String> {
-        use crate::scenario::MeasKind;
         if let Some(bad) = std.iter().find(|s| !(s.is_finite() && **s > 0.0)) {
             return Err(format!("noise std must be finite and > 0, got {bad}"));
         }
@@ -518,8 +563,7 @@ impl SensorModel {
     }
 
     /// The measurement kind.
-    pub fn kind(&self) -> crate::scenario::MeasKind {
-        use crate::scenario::MeasKind;
+    pub fn kind(&self) -> MeasKind {
         match self {
             Self::Position2(_) | Self::Position3(_) => MeasKind::Position,
             Self::RangeBearing(_) => MeasKind::RangeBearing,
@@ -677,7 +721,6 @@ mod tests {
 
     #[test]
     fn sensor_models_are_built_by_kind_and_checked() {
-        use crate::scenario::MeasKind;
         let g = Geometry::planar(0.0);
         let at = Vector3::new(1.0, 2.0, 3.0);
         let m = SensorModel::new(MeasKind::AzEl, g, at, &[0.01, 0.02], None).unwrap();

@@ -9,9 +9,8 @@ use std::f64::consts::PI;
 use nalgebra::{DMatrix, DVector, Vector3};
 
 use crate::linalg::wrap_angle;
-use crate::scenario::{
-    Estimate, MeasKind, Measurement, Scenario, TruthRow, default_cov_dims, truth_at,
-};
+use crate::measurement::MeasKind;
+use crate::scenario::{Estimate, Measurement, Scenario, TruthRow, default_cov_dims, truth_at};
 
 /// Root mean square of `v` (`None` when empty).
 pub fn rms(v: &[f64]) -> Option<f64> {

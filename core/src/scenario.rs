@@ -10,6 +10,8 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+use crate::measurement::MeasKind;
+
 /// The three files of a scenario directory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScenarioFile {
@@ -195,49 +197,6 @@ pub struct Platform {
     pub kind: String,
 }
 
-/// Measurement kinds of FORMAT.md §3.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum MeasKind {
-    /// Absolute ENU position `[x, y]` or `[x, y, z]`.
-    Position,
-    /// `[range, azimuth]`.
-    RangeBearing,
-    /// `[azimuth, elevation]`.
-    AzEl,
-    /// `[azimuth, elevation, subtended]`.
-    BearingSize,
-}
-
-impl MeasKind {
-    /// The name used in files and messages (`position`, `range_bearing`, `az_el`,
-    /// `bearing_size`).
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Position => "position",
-            Self::RangeBearing => "range_bearing",
-            Self::AzEl => "az_el",
-            Self::BearingSize => "bearing_size",
-        }
-    }
-    /// Number of components (`ncomp` for position sensors).
-    pub fn len(self, ncomp: Option<usize>) -> usize {
-        match self {
-            Self::Position => ncomp.unwrap_or(3),
-            Self::RangeBearing | Self::AzEl => 2,
-            Self::BearingSize => 3,
-        }
-    }
-    /// Index of the azimuth component that must be wrapped, if any.
-    pub fn azimuth_index(self) -> Option<usize> {
-        match self {
-            Self::Position => None,
-            Self::RangeBearing => Some(1),
-            Self::AzEl | Self::BearingSize => Some(0),
-        }
-    }
-}
-
 /// A sensor.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 pub struct Sensor {
@@ -379,6 +338,11 @@ impl Motion {
             accel_std: Some(accel_std),
             accel_bound: None,
         }
+    }
+
+    /// Acceleration spectral density from `accel_std` (m²/s³), if given.
+    pub fn accel_q(&self) -> Option<f64> {
+        self.accel_std.map(|a| a * a)
     }
 }
 
@@ -734,10 +698,7 @@ impl Scenario {
 
     /// Acceleration spectral density from `motion.accel_std` (m²/s³), if given.
     pub fn accel_q(&self) -> Option<f64> {
-        self.motion
-            .as_ref()
-            .and_then(|m| m.accel_std)
-            .map(|a| a * a)
+        self.motion.as_ref().and_then(Motion::accel_q)
     }
 }
 

@@ -793,23 +793,18 @@ pub(crate) fn rest(data: &[u8]) {
 
 /// Builds the estimator of a `PUT /estimator` body as the tracker does and runs it on two scans.
 fn estimator_change(change: &harrier_server::live::http::estimator::EstimatorChange) {
-    use harrier_server::engine::{Params, SensorScan};
-    static DEPLOYMENT: OnceLock<Scenario> = OnceLock::new();
-    let sc = DEPLOYMENT.get_or_init(|| {
-        harrier_server::live::config::Config::default()
-            .scenario()
-            .expect("the default deployment")
-    });
-    let params = change
-        .params
-        .iter()
-        .fold(Params::default(), |p, (k, v)| p.with(k, *v));
-    let Ok(mut engine) = harrier_server::registry::build_track_engine(&change.name, sc, &params)
+    use harrier_server::engine::{Deployment, Params, SensorScan};
+    static DEPLOYMENT: OnceLock<Deployment> = OnceLock::new();
+    let deployment =
+        DEPLOYMENT.get_or_init(|| harrier_server::live::config::Config::default().deployment());
+    let params = Params::from(&change.params);
+    let Ok(mut engine) =
+        harrier_server::registry::build_track_filter(&change.name, deployment, &params)
     else {
         return;
     };
     let sensor = harrier_core::measurement::SensorModel::new(
-        harrier_core::scenario::MeasKind::Position,
+        harrier_core::measurement::MeasKind::Position,
         Geometry::planar(0.0),
         nalgebra::Vector3::zeros(),
         &[5.0, 5.0],

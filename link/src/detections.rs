@@ -13,8 +13,7 @@
 
 use harrier_core::detection::DetectionScan;
 use harrier_core::linalg::wrap_angle;
-use harrier_core::measurement::{Geometry, SensorModel, TargetSize};
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::{Geometry, MeasKind, SensorModel, TargetSize};
 use nalgebra::{Matrix3, Vector3};
 
 use crate::geo::LocalFrame;

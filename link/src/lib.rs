@@ -5,7 +5,8 @@
 //! - [`geo`]: WGS-84 geodetic ↔ ECEF ↔ local ENU/NED, and points and directions between two
 //!   local frames.
 //! - [`bus`]: the Zenoh session configuration ([`bus::BusConfig`]: peer/client, explicit
-//!   endpoints, multicast scouting off by default, TCP only).
+//!   endpoints, multicast scouting off by default, TCP and TLS transports only,
+//!   [`bus::TlsConfig`]).
 //! - [`px4`]: PX4 flight modes and their MAVLink encodings (HEARTBEAT `custom_mode`,
 //!   DO_SET_MODE parameters), [`px4::VehicleStatus`] from a HEARTBEAT.
 //! - [`command`]: COMMAND_LONG builders and offboard setpoints (SET_POSITION_TARGET_LOCAL_NED,

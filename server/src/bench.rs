@@ -97,7 +97,7 @@ pub struct BenchArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
-    /// In-process server: track engine (ekf, cdkf, imm, cimm; default ekf).
+    /// In-process server: track filter (ekf, cdkf, imm, cimm; default ekf).
     #[arg(long, short)]
     pub estimator: Option<String>,
     /// In-process server: `tracker.reorder_window_s` (default: the server's, 0.1 s). Scans wait
@@ -245,7 +245,7 @@ impl BenchArgs {
 pub struct Setup {
     /// `in-process`, or the URL of the server attached to.
     pub server: String,
-    /// Track engine of the in-process server.
+    /// Track filter of the in-process server.
     pub estimator: Option<String>,
     /// `tracker.reorder_window_s` of the in-process server.
     pub reorder_window_s: Option<f64>,

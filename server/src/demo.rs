@@ -14,8 +14,8 @@ use std::net::SocketAddr;
 use std::path::PathBuf;
 
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
-use harrier_sim::live::LiveConfig;
-use harrier_sim::setup::{ScenarioError, SensorModel, SimScenario, TargetMotion};
+use harrier_sim::sensor_loop::SensorLoopConfig;
+use harrier_sim::setup::{ScenarioError, SensorType, SimScenario, TargetMotion};
 
 use crate::live::config::{Config, ObstacleConfig, SigningConfig};
 use crate::live::{self, LiveError, LiveServer};
@@ -39,7 +39,7 @@ pub struct DemoArgs {
     /// it).
     #[arg(long, value_name = "SQLITE")]
     pub record: Option<PathBuf>,
-    /// Track engine: ekf, cdkf, imm or cimm (road-constrained IMM on the demo's road).
+    /// Track filter: ekf, cdkf, imm or cimm (road-constrained IMM on the demo's road).
     #[arg(long, short, default_value = "cimm")]
     pub estimator: String,
     /// The GCS link the simulated UAVs send their MAVLink to (PX4's UDP 14550).
@@ -180,7 +180,7 @@ pub fn scenario() -> Result<SimScenario, ScenarioError> {
     s.targets.push(second);
     let mut cam2 = s.sensors[0].clone();
     cam2.id = "cam2".into();
-    if let SensorModel::Camera { pointing, .. } = &mut cam2.model {
+    if let SensorType::Camera { pointing, .. } = &mut cam2.model {
         *pointing = harrier_sim::setup::Pointing::Track { target: 1 };
     }
     s.sensors.push(cam2);
@@ -315,7 +315,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         gcs
     };
 
-    let mut world_config = WorldConfig::new(LiveConfig {
+    let mut world_config = WorldConfig::new(SensorLoopConfig {
         scenario: scenario.clone(),
         seed: config.seed,
         speedup: config.speedup,

@@ -6,8 +6,9 @@
 //! * Estimation engine: [`engine`] (the traits and types every estimator is erased to,
 //!   [`engine::ReplayEstimator`]; a leaf module), [`estimators`] (the drivers, which build
 //!   harrier-core filters for a scenario and import only [`engine`]) and [`registry`] (every
-//!   estimator by name, [`registry::build`]: the one place where a name becomes a
-//!   `Box<dyn ReplayEstimator>`).
+//!   replay estimator by name, [`registry::build`]: the one place where a name becomes a
+//!   `Box<dyn ReplayEstimator>`; every track filter by name, [`registry::build_track_filter`]:
+//!   the one place where a name becomes a `Box<dyn TrackEngine>`).
 //! * Live service: [`live`] (`harrier serve`): Zenoh detections in ([`live::ingest`]), a track
 //!   engine from the registry fed in time order ([`live::tracker`]), tracks, health and
 //!   Prometheus metrics over HTTP ([`live::http`]), the WebSocket stream ([`live::http::ws`]), the
@@ -15,12 +16,13 @@
 //!   configured by a TOML file ([`live::config`]). [`demo`] runs it with harrier-sim's world
 //!   in-process; [`bench`](mod@bench) loads it.
 //! * Offline tools: [`replay`] (`harrier replay`) and [`guidance_sim`] (`harrier guidance-sim`),
-//!   both getting their estimators from the registry.
+//!   both getting their estimators from the registry; [`gen_multi`] (`harrier gen-multi`).
 
 pub mod bench;
 pub mod demo;
 pub mod engine;
 pub mod estimators;
+pub mod gen_multi;
 pub mod guidance_sim;
 pub mod live;
 pub mod registry;

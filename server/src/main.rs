@@ -21,7 +21,7 @@ macro_rules! out {
 }
 use harrier_server::engine::Params;
 use harrier_server::guidance_sim;
-use harrier_server::registry::ESTIMATORS;
+use harrier_server::registry::{ESTIMATORS, TRACK_FILTERS};
 use harrier_server::replay;
 
 /// Harrier: ground-control station for UAV target tracking.
@@ -38,7 +38,7 @@ enum Command {
     Replay {
         /// Scenario directory (scenario.json, measurements.jsonl, optional truth.csv).
         scenario: PathBuf,
-        /// Estimator name (see `harrier estimators`).
+        /// Replay estimator name (see `harrier estimators`).
         #[arg(long, short)]
         estimator: String,
         /// Output file.
@@ -70,9 +70,9 @@ enum Command {
     /// Load-test the live service: simulated vehicles' detections in, WebSocket and REST clients
     /// out; prints rates, latencies and memory (BENCHMARKS.md).
     Bench(harrier_server::bench::BenchArgs),
-    /// List the estimators, one line each.
+    /// List the replay estimators and the live tracker's track filters, one line each.
     Estimators {
-        /// Also list each estimator's `--param` names.
+        /// Also list each one's parameter names.
         #[arg(long)]
         params: bool,
     },
@@ -110,23 +110,33 @@ fn main() -> ExitCode {
             }
         },
         Command::Estimators { params } => {
+            out!("Replay estimators (harrier replay -e NAME, --param NAME=VALUE):");
             for e in ESTIMATORS {
                 out!("{:<14} {}", e.name, e.summary);
                 for (p, d) in e.params.iter().filter(|_| params) {
                     out!("{:<14}   --param {p}=…  {d}", "");
                 }
             }
-            ExitCode::SUCCESS
-        }
-        Command::GenMulti { dir, seed } => {
-            match harrier_server::estimators::tracker::write_generated(&dir, seed) {
-                Ok(()) => ExitCode::SUCCESS,
-                Err(e) => {
-                    eprintln!("harrier gen-multi: error: {e:#}");
-                    ExitCode::FAILURE
+            out!("");
+            out!(
+                "Track filters of the live tracker ([tracker] estimator and params, \
+                 PUT /api/v1/estimator), not the replay estimators of the same names:"
+            );
+            for f in TRACK_FILTERS {
+                out!("{:<14} {}", f.name, f.summary);
+                for (p, d) in f.params.iter().filter(|_| params) {
+                    out!("{:<14}   {p} = …  {d}", "");
                 }
             }
+            ExitCode::SUCCESS
         }
+        Command::GenMulti { dir, seed } => match harrier_server::gen_multi::write(&dir, seed) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier gen-multi: error: {e:#}");
+                ExitCode::FAILURE
+            }
+        },
         Command::GuidanceSim(args) => match run_guidance_sim(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
@@ -170,7 +180,7 @@ struct ServeArgs {
     /// `zenoh.connect`).
     #[arg(long, value_name = "ENDPOINT")]
     zenoh_connect: Vec<String>,
-    /// Track engine: ekf, cdkf, imm or cimm (`tracker.estimator`; default ekf).
+    /// Track filter: ekf, cdkf, imm or cimm (`tracker.estimator`; default ekf).
     #[arg(long, short)]
     estimator: Option<String>,
     /// Record the session into this SQLite file (`recorder.path`; see RECORDING.md). If it

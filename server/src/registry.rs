@@ -1,16 +1,20 @@
-//! The registry: every estimator Harrier can run by name ([`ESTIMATORS`]) and [`build`], which
-//! turns a name, a scenario and `--param` settings into a `Box<dyn ReplayEstimator>`. This is the
-//! only module that knows the drivers; `harrier replay`, `harrier guidance-sim` (and the live
-//! service) get their estimators here.
+//! The registry: every replay estimator Harrier can run by name ([`ESTIMATORS`]) and [`build`],
+//! which turns a name, a scenario and `--param` settings into a `Box<dyn ReplayEstimator>`; every
+//! track filter of the live tracker by name ([`TRACK_FILTERS`]) and [`build_track_filter`], which
+//! turns a name, a [`Deployment`] and parameters into a `Box<dyn TrackEngine>`. This is the only
+//! module that knows the drivers; `harrier replay`, `harrier guidance-sim` and the live service
+//! get their estimators here.
 
 use harrier_core::scenario::Scenario;
 
 use crate::engine::{
-    EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackEngineInfo, setup,
+    Deployment, EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackFilterInfo,
+    setup,
 };
-use crate::estimators::{angles, bearings, bias, gaussian, icdkf, imm, obe, tracker};
+use crate::estimators::{angles, bearings, bias, gaussian, icdkf, imm, multi_target, obe};
 
-/// Every estimator Harrier can run by name, in the order `harrier estimators` lists them.
+/// Every replay estimator Harrier can run by name (`harrier replay -e NAME`), in the order
+/// `harrier estimators` lists them.
 pub static ESTIMATORS: &[EstimatorInfo] = &[
     gaussian::KF,
     gaussian::EKF,
@@ -29,10 +33,10 @@ pub static ESTIMATORS: &[EstimatorInfo] = &[
     imm::CIMM,
     imm::CIMM_FUSION,
     imm::CIMM_CI,
-    tracker::TRACKER,
+    multi_target::TRACKER,
 ];
 
-/// The estimator called `name`.
+/// The replay estimator called `name`.
 pub fn find(name: &str) -> Result<&'static EstimatorInfo, EngineError> {
     ESTIMATORS.iter().find(|e| e.name == name).ok_or_else(|| {
         let names: Vec<_> = ESTIMATORS.iter().map(|e| e.name).collect();
@@ -43,13 +47,14 @@ pub fn find(name: &str) -> Result<&'static EstimatorInfo, EngineError> {
     })
 }
 
-/// Every track engine by the name of its per-track estimator: the live service's choice, and
-/// what `harrier replay -e tracker` runs (`ekf`).
-pub static TRACK_ENGINES: &[TrackEngineInfo] = &[
-    tracker::ENGINE_EKF,
-    tracker::ENGINE_CDKF,
-    tracker::ENGINE_IMM,
-    tracker::ENGINE_CIMM,
+/// Every track filter by name: the filter each track of the live tracker runs, chosen by
+/// `[tracker] estimator` and `PUT /api/v1/estimator` (the replay estimator `tracker` runs `ekf`).
+/// The names `ekf`, `cdkf`, `imm` and `cimm` are also replay estimators, which are other programs.
+pub static TRACK_FILTERS: &[TrackFilterInfo] = &[
+    multi_target::TRACK_FILTER_EKF,
+    multi_target::TRACK_FILTER_CDKF,
+    multi_target::TRACK_FILTER_IMM,
+    multi_target::TRACK_FILTER_CIMM,
 ];
 
 /// `name`'s parameters: an error naming the first one not in `known`.
@@ -75,7 +80,7 @@ fn check_params(
     }
 }
 
-/// Looks up `name` and builds it for `sc`, rejecting unknown parameters.
+/// Looks up the replay estimator `name` and builds it for `sc`, rejecting unknown parameters.
 pub fn build(
     name: &str,
     sc: &Scenario,
@@ -86,23 +91,23 @@ pub fn build(
     (info.build)(sc, params)
 }
 
-/// Looks up the track engine `name` and builds it for the deployment `sc`, rejecting unknown
-/// parameters.
-pub fn build_track_engine(
+/// Looks up the track filter `name` and builds its track engine for `deployment`, rejecting
+/// unknown parameters.
+pub fn build_track_filter(
     name: &str,
-    sc: &Scenario,
+    deployment: &Deployment,
     params: &Params,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
-    let info = TRACK_ENGINES
+    let info = TRACK_FILTERS
         .iter()
         .find(|e| e.name == name)
         .ok_or_else(|| {
-            let names: Vec<_> = TRACK_ENGINES.iter().map(|e| e.name).collect();
+            let names: Vec<_> = TRACK_FILTERS.iter().map(|e| e.name).collect();
             setup(format!(
-                "unknown track estimator {name:?}; known: {}",
+                "unknown track filter {name:?}; known: {}",
                 names.join(", ")
             ))
         })?;
-    check_params("track estimator", name, info.params, params)?;
-    (info.build)(sc, params)
+    check_params("track filter", name, info.params, params)?;
+    (info.build)(deployment, params)
 }

@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
 use harrier_core::measurement::{
-    Geometry, Locate, MeasurementModel, PositionFix, SensorModel, WithSensor,
+    Geometry, Locate, MeasKind, MeasurementModel, PositionFix, SensorModel, WithSensor,
 };
-use harrier_core::scenario::{self as fmt, MeasKind};
+use harrier_core::scenario as fmt;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use harrier_link::scenario_out::{self, WriteError};
@@ -89,7 +89,7 @@ pub struct SessionInfo {
     pub started_unix: f64,
     /// When the recorder was closed (UNIX s); `None` while it runs, or when it was killed.
     pub ended_unix: Option<f64>,
-    /// Track engine at the start.
+    /// Track filter at the start.
     pub estimator: String,
     /// WGS-84 origin of the session's ENU frame: latitude (deg).
     pub origin_lat_deg: f64,
@@ -893,7 +893,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         format: fmt::FORMAT_ID.into(),
         name: format!("session_{id}"),
         description: format!(
-            "harrier serve session {id} of {} (started {:.3} UNIX, track engine {}); time 0 is \
+            "harrier serve session {id} of {} (started {:.3} UNIX, track filter {}); time 0 is \
              {epoch:.6} on the {time_line} time line",
             db.display(),
             info.started_unix,
@@ -1013,7 +1013,7 @@ fn info_lines(s: &SessionInfo) -> Vec<String> {
             )
         ),
         format!(
-            "  track engine {}, origin {:.6}° {:.6}° {:.1} m, ground plane z = {} m",
+            "  track filter {}, origin {:.6}° {:.6}° {:.1} m, ground plane z = {} m",
             s.estimator, s.origin_lat_deg, s.origin_lon_deg, s.origin_alt_m, s.plane_z
         ),
         format!(

@@ -71,8 +71,20 @@ fn lists_estimators_with_one_line_each() {
         text.lines().all(|l| !l.starts_with(' ')),
         "one line per estimator:\n{text}"
     );
+    // Two tables: the replay estimators, then the track filters of the live tracker, so that
+    // `ekf` in each is visibly a different program.
+    let (replay, track) = text
+        .split_once("\n\nTrack filters")
+        .expect("a track filter table");
+    assert!(replay.starts_with("Replay estimators"), "{text}");
+    for name in ["ekf", "cdkf", "imm", "cimm"] {
+        let row = |table: &str| table.lines().any(|l| l.starts_with(&format!("{name} ")));
+        assert!(row(replay) && row(track), "{name} in both tables:\n{text}");
+    }
+    assert!(!track.lines().any(|l| l.starts_with("kf ")), "{text}");
     let with_params = String::from_utf8(harrier(&["estimators", "--params"]).stdout).unwrap();
     assert!(with_params.contains("--param p_jump="));
+    assert!(with_params.contains("   misses = …"), "{with_params}");
 }
 
 #[test]

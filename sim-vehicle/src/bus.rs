@@ -109,7 +109,7 @@ impl Bus {
 mod tests {
     use super::*;
     use harrier_core::detection::{Detection, GeoPoint, PlatformPose};
-    use harrier_core::scenario::MeasKind;
+    use harrier_core::measurement::MeasKind;
     use std::time::Duration;
 
     /// A real session on loopback: a subscriber connected to the publisher's listener receives a

@@ -8,8 +8,8 @@
 //!   `udpin:{mavlink_ip}:0`: it answers whoever sends to [`SimWorld::mavlink_addrs`], so a ground
 //!   station can connect to it; with [`WorldConfig::gcs`] set it also sends its telemetry to that
 //!   ground station (`udpout:`, as PX4 sends to UDP 14550) and takes its commands.
-//! - The live sensor loop ([`crate::live`]) scans every vehicle from its real pose and publishes
-//!   detections and truth on a session opened from [`WorldConfig::zenoh`].
+//! - The live sensor loop ([`crate::sensor_loop`]) scans every vehicle from its real pose and
+//!   publishes detections and truth on a session opened from [`WorldConfig::zenoh`].
 //! - A vehicle given a station is launched like a client would do it, through its MAVLink
 //!   protocol (harrier-link's [`OffboardSequence`]: arm, takeoff, OFFBOARD velocity setpoints
 //!   towards the station), and switched to Hold once there, so it hovers on station (a fixed wing
@@ -18,16 +18,16 @@
 //!
 //! ```no_run
 //! use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
-//! use harrier_sim::live::LiveConfig;
+//! use harrier_sim::sensor_loop::SensorLoopConfig;
 //! use harrier_sim::setup::SimScenario;
-//! let live = LiveConfig {
+//! let sensor_loop = SensorLoopConfig {
 //!     scenario: SimScenario::load("cimm-road")?,
 //!     seed: 1,
 //!     speedup: 1.0,
 //!     truth_hz: 10.0,
 //!     clock: Default::default(),
 //! };
-//! let mut config = WorldConfig::new(live);
+//! let mut config = WorldConfig::new(sensor_loop);
 //! config.vehicles = vec![WorldVehicle::at(1, [0.0, 0.0, 100.0])];
 //! config.zenoh.listen = vec!["tcp/127.0.0.1:7448".into()];
 //! let world = SimWorld::start(&config)?;
@@ -48,8 +48,8 @@ use mavlink::dialects::common::{MavMessage, MavResult};
 use nalgebra::Vector3;
 
 use crate::bus::{Bus, BusConfig, BusCounters, BusError};
-use crate::live::{LiveConfig, LiveError, LiveHandle};
 use crate::net::{LinkConfig, LinkError, Signing, SimHandle, spawn};
+use crate::sensor_loop::{SensorLoopConfig, SensorLoopError, SensorLoopHandle};
 use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
 use crate::worker::Worker;
 
@@ -83,7 +83,7 @@ pub struct WorldConfig {
     /// The vehicles; each carries every sensor of the scenario.
     pub vehicles: Vec<WorldVehicle>,
     /// World, sensors, seed, speed-up (also the vehicles') and truth rate.
-    pub live: LiveConfig,
+    pub sensor_loop: SensorLoopConfig,
     /// Airframe of every vehicle.
     pub airframe: Airframe,
     /// Address the vehicles' MAVLink (UDP) links bind, each on a free port.
@@ -100,10 +100,10 @@ pub struct WorldConfig {
 impl WorldConfig {
     /// No vehicles, multirotors, MAVLink on loopback, a default Zenoh peer session (no
     /// endpoints: set `zenoh.listen` or `zenoh.connect`).
-    pub fn new(live: LiveConfig) -> Self {
+    pub fn new(sensor_loop: SensorLoopConfig) -> Self {
         Self {
             vehicles: Vec::new(),
-            live,
+            sensor_loop,
             airframe: Airframe::Multirotor,
             mavlink_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
             zenoh: BusConfig::default(),
@@ -135,7 +135,7 @@ pub enum WorldError {
     Bus(#[from] BusError),
     /// The sensor loop could not start.
     #[error(transparent)]
-    Live(#[from] LiveError),
+    SensorLoop(#[from] SensorLoopError),
     /// The launch thread could not be started.
     #[error("cannot start the launch thread: {0}")]
     Thread(std::io::Error),
@@ -146,7 +146,7 @@ pub enum WorldError {
 pub struct SimWorld {
     // Field order is drop order: the loops that read the vehicles go first.
     pilot: Option<Worker>,
-    live: LiveHandle,
+    sensor_loop: SensorLoopHandle,
     vehicles: Vec<SimHandle>,
     stationed: Arc<AtomicUsize>,
     with_station: usize,
@@ -176,9 +176,9 @@ impl SimWorld {
                 let vc = VehicleConfig {
                     id: v.id,
                     airframe: config.airframe,
-                    origin: config.live.scenario.origin,
-                    speedup: config.live.speedup,
-                    clock: config.live.clock,
+                    origin: config.sensor_loop.scenario.origin,
+                    speedup: config.sensor_loop.speedup,
+                    clock: config.sensor_loop.clock,
                 };
                 let mut endpoints =
                     vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))];
@@ -191,8 +191,8 @@ impl SimWorld {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let bus = Bus::open(&config.zenoh)?;
-        let live = crate::live::spawn(
-            &config.live,
+        let sensor_loop = crate::sensor_loop::spawn(
+            &config.sensor_loop,
             vehicles.iter().map(SimHandle::shared).collect(),
             bus,
         )?;
@@ -242,7 +242,7 @@ impl SimWorld {
         };
         Ok(Self {
             pilot,
-            live,
+            sensor_loop,
             vehicles,
             stationed,
             with_station,
@@ -272,7 +272,7 @@ impl SimWorld {
 
     /// The sensor loop's publication counters.
     pub fn counters(&self) -> BusCounters {
-        self.live.counters()
+        self.sensor_loop.counters()
     }
 
     /// Stops the launches, the sensor loop (closing the Zenoh session) and the vehicles, and
@@ -281,7 +281,7 @@ impl SimWorld {
         if let Some(mut p) = self.pilot.take() {
             p.stop();
         }
-        self.live.stop();
+        self.sensor_loop.stop();
         for v in self.vehicles {
             v.stop();
         }
@@ -381,8 +381,8 @@ mod tests {
     use super::*;
     use crate::setup::SimScenario;
 
-    fn live(speedup: f64) -> LiveConfig {
-        LiveConfig {
+    fn sensor_loop(speedup: f64) -> SensorLoopConfig {
+        SensorLoopConfig {
             scenario: SimScenario::load("radar").expect("preset"),
             seed: 1,
             speedup,
@@ -402,7 +402,7 @@ mod tests {
             (vec![WorldVehicle::at(3, [0.0, 0.0, -5.0])], "vehicle 3"),
             (vec![WorldVehicle::at(4, [f64::NAN, 0.0, 5.0])], "vehicle 4"),
         ] {
-            let mut c = WorldConfig::new(live(1.0));
+            let mut c = WorldConfig::new(sensor_loop(1.0));
             c.vehicles = vehicles;
             let e = SimWorld::start(&c).expect_err(what);
             assert!(e.to_string().contains(what), "{e}");
@@ -413,7 +413,7 @@ mod tests {
     /// stays on the ground, each answers on its own UDP address.
     #[test]
     fn vehicles_fly_to_their_stations_and_hold() {
-        let mut c = WorldConfig::new(live(20.0));
+        let mut c = WorldConfig::new(sensor_loop(20.0));
         c.vehicles = vec![
             WorldVehicle::at(1, [30.0, -20.0, 40.0]),
             WorldVehicle::at(2, [-30.0, 10.0, 60.0]),

@@ -9,7 +9,7 @@
 //!   `harrier_core::detection`).
 //! - [`embedded`]: [`embedded::SimWorld`], the whole simulated world (vehicles on real MAVLink
 //!   sockets, sensor loop on Zenoh, launches to stations) started inside another process.
-//! - [`live`]: the live sensor loop: world, sensors of every vehicle, Zenoh publication.
+//! - [`sensor_loop`]: the live sensor loop: world, sensors of every vehicle, Zenoh publication.
 //! - [`vehicle`]: one vehicle — point-mass flight with harrier-core's kinematic limits, PX4 modes,
 //!   and the MAVLink 2 protocol (commands, parameters, offboard setpoints, telemetry streams),
 //!   independent of sockets and clock.
@@ -31,9 +31,9 @@
 
 pub mod bus;
 pub mod embedded;
-pub mod live;
 pub mod net;
 pub mod record;
+pub mod sensor_loop;
 pub mod sensors;
 pub mod setup;
 pub mod vehicle;

@@ -17,8 +17,8 @@ use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_link::geo::Geodetic;
 use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use harrier_sim::bus::Bus;
-use harrier_sim::live::{LiveConfig, LiveHandle};
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
+use harrier_sim::sensor_loop::{SensorLoopConfig, SensorLoopHandle};
 use harrier_sim::setup::SimScenario;
 use harrier_sim::vehicle::{Airframe, ClockSkew, VehicleConfig};
 
@@ -228,7 +228,7 @@ fn scenario(args: &Args) -> Result<SimScenario, String> {
 }
 
 /// Starts the vehicles and, unless `--no-zenoh`, the sensor loop publishing over Zenoh.
-fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
+fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<SensorLoopHandle>), String> {
     if !(args.speedup.is_finite() && args.speedup > 0.0 && args.speedup <= 100.0) {
         return Err("--speedup must be in (0, 100]".to_owned());
     }
@@ -291,15 +291,16 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<LiveHandle>), String> {
         },
     })
     .map_err(|e| e.to_string())?;
-    let config = LiveConfig {
+    let config = SensorLoopConfig {
         scenario,
         seed: args.seed,
         speedup: args.speedup,
         truth_hz: args.truth_hz,
         clock: skew(args),
     };
-    let live = harrier_sim::live::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
-        .map_err(|e| e.to_string())?;
+    let live =
+        harrier_sim::sensor_loop::spawn(&config, sims.iter().map(SimHandle::shared).collect(), bus)
+            .map_err(|e| e.to_string())?;
     eprintln!(
         "harrier-sim: publishing detections on harrier/v1/vehicle/{{id}}/detections (zenoh {}, connect {:?}, listen {:?})",
         Mode::from(args.zenoh_mode),

@@ -20,8 +20,8 @@ use std::path::{Path, PathBuf};
 use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
-use harrier_core::measurement::Geometry;
-use harrier_core::scenario::{self as fmt, MeasKind};
+use harrier_core::measurement::{Geometry, MeasKind};
+use harrier_core::scenario as fmt;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence};
@@ -35,7 +35,7 @@ use serde_json::json;
 
 use crate::sensors::{SensorSuite, platform_pose};
 use crate::setup::{
-    AirframeSpec, Behaviour, ScenarioError, SensorModel, SimScenario, Source, TargetMotion,
+    AirframeSpec, Behaviour, ScenarioError, SensorType, SimScenario, Source, TargetMotion,
 };
 use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
 use crate::world::World;
@@ -454,7 +454,7 @@ fn scenario_json(
             kind: kind.into(),
         });
         for spec in &s.sensors {
-            let bias = matches!(spec.model, SensorModel::Radar { .. }).then(|| {
+            let bias = matches!(spec.model, SensorType::Radar { .. }).then(|| {
                 json!({"model": "unknown",
                        "description": "z_i = (1 + s_i) h_i + o_i + v_i with unknown, possibly \
                                        time-varying s, o (may be zero)"})

@@ -24,9 +24,8 @@ use harrier_core::detection::{
 };
 use harrier_core::linalg::wrap_angle;
 use harrier_core::measurement::{
-    AzEl, BearingSize, Geometry, MeasurementModel, RangeBearing, TargetSize,
+    AzEl, BearingSize, Geometry, MeasKind, MeasurementModel, RangeBearing, TargetSize,
 };
-use harrier_core::scenario::MeasKind;
 use nalgebra::{SVector, Vector3};
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
@@ -34,7 +33,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 
 use crate::setup::{
-    BiasModel, Pointing, ScenarioError, SensorModel, SensorSpec, SimScenario, Source,
+    BiasModel, Pointing, ScenarioError, SensorSpec, SensorType, SimScenario, Source,
 };
 use crate::vehicle::Vehicle;
 use crate::world::World;
@@ -210,7 +209,7 @@ impl SensorState {
 
     fn boresight(&self, pose: &PlatformPose, truths: &[Vector3<f64>]) -> Vector3<f64> {
         let nadir = -Vector3::z();
-        let SensorModel::Camera { pointing, .. } = &self.spec.model else {
+        let SensorType::Camera { pointing, .. } = &self.spec.model else {
             return nadir;
         };
         match *pointing {
@@ -233,7 +232,7 @@ impl SensorState {
 
     /// Bias `(scale, offset)` at `t` (\[ICDKF\] eq. (9)); draws two normals per scan for Markov.
     fn bias(&mut self, t: f64) -> ([f64; 2], [f64; 2]) {
-        let SensorModel::Radar { bias } = self.spec.model else {
+        let SensorType::Radar { bias } = self.spec.model else {
             return ([0.0; 2], [0.0; 2]);
         };
         match bias {
@@ -290,8 +289,8 @@ impl SensorState {
         let sensor = Vector3::from(pose.pos);
         let b = self.boresight(pose, truths);
         let cos_half = match &self.spec.model {
-            SensorModel::Camera { fov_deg, .. } => (0.5 * fov_deg.to_radians()).cos(),
-            SensorModel::Radar { .. } => -1.0,
+            SensorType::Camera { fov_deg, .. } => (0.5 * fov_deg.to_radians()).cos(),
+            SensorType::Radar { .. } => -1.0,
         };
         let (scale, offset) = self.bias(t);
         let std = &self.spec.noise_std;
@@ -351,7 +350,7 @@ impl SensorState {
         let half = cos_half.clamp(-1.0, 1.0).acos();
         for _ in 0..clutter {
             let z = match (&self.spec.model, self.kind) {
-                (SensorModel::Radar { .. }, _) => Some(vec![
+                (SensorType::Radar { .. }, _) => Some(vec![
                     self.rng.random_range(0.0..=self.spec.max_range_m),
                     self.rng.random_range(-PI..PI),
                 ]),
@@ -449,7 +448,7 @@ mod tests {
             clutter_rate: 0.0,
             max_range_m: 1000.0,
             noise_std: noise,
-            model: SensorModel::Camera {
+            model: SensorType::Camera {
                 output,
                 fov_deg,
                 pointing,
@@ -518,7 +517,7 @@ mod tests {
             clutter_rate: 0.0,
             max_range_m: 1500.0,
             noise_std: vec![5.0, 0.005],
-            model: SensorModel::Radar {
+            model: SensorType::Radar {
                 bias: BiasModel::None,
             },
         };
@@ -676,7 +675,7 @@ mod tests {
             clutter_rate: 0.0,
             max_range_m: 20_000.0,
             noise_std: vec![1e-6, 1e-9],
-            model: SensorModel::Radar { bias },
+            model: SensorType::Radar { bias },
         };
         let s = scenario(vec![still("t", 3000.0, 4000.0)], radar);
         run(&s, &pose([0.0, 0.0, 0.0], 0.0), scans, 8)

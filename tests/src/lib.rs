@@ -279,7 +279,7 @@ pub async fn publish_standing_target(
                 vehicle,
                 seq,
                 sensor: "cam".into(),
-                kind: harrier_core::scenario::MeasKind::Position,
+                kind: harrier_core::measurement::MeasKind::Position,
                 origin,
                 platform: PlatformPose {
                     pos: platform,

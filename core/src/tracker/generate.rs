@@ -258,7 +258,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         sensors: vec![fmt::Sensor {
             id: "radar".into(),
             platform: "gcs".into(),
-            kind: fmt::MeasKind::Position,
+            kind: crate::measurement::MeasKind::Position,
             ncomp: Some(2),
             rate_hz: Some(1.0 / cfg.dt),
             noise: fmt::Noise::Gaussian {

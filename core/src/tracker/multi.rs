@@ -664,8 +664,8 @@ mod tests {
     #[test]
     fn imm_tracks_through_any_sensor() {
         use crate::filter::{Imm, ModeModel};
+        use crate::measurement::MeasKind;
         use crate::measurement::{RangeBearing, SensorModel};
-        use crate::scenario::MeasKind;
         use crate::tracker::filter::ImmFilter;
         let q = 0.05;
         let imm = Imm::new(

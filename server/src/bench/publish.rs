@@ -15,7 +15,7 @@ use anyhow::Context as _;
 use harrier_core::detection::{
     DETECTIONS_SCHEMA, Detection, DetectionScan, GeoPoint, PlatformPose, detections_key,
 };
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::MeasKind;
 use harrier_link::bus::BusConfig;
 use harrier_link::geo::LocalFrame;
 use nalgebra::Vector3;

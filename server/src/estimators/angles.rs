@@ -27,9 +27,9 @@ use harrier_core::filter::{
     Updater,
 };
 use harrier_core::linalg::wrap_angle;
-use harrier_core::measurement::DirectPosition;
+use harrier_core::measurement::{DirectPosition, MeasKind};
 use harrier_core::motion::{LinearTransition, WienerAcceleration};
-use harrier_core::scenario::{Estimate, MeasKind, PredictionOut, Scenario};
+use harrier_core::scenario::{Estimate, PredictionOut, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, Vector1};
 
@@ -190,9 +190,9 @@ fn check_dt(t_prev: f64, t: f64) -> Result<f64> {
     }
 }
 
-/// Three-point start, then a running state at time `t`.
+/// The phase of one angle axis's filter: the three-point start, then a running state at time `t`.
 #[derive(Debug, Clone, Copy)]
-enum Track<S> {
+enum AxisPhase<S> {
     Start(DifferenceStart<1>),
     Run { t: f64, state: S },
 }
@@ -202,7 +202,7 @@ struct KfAxis {
     motion: WienerAcceleration<3>,
     meas: DirectPosition<1>,
     r2: SMatrix<f64, 1, 1>,
-    track: Track<Gaussian<3>>,
+    phase: AxisPhase<Gaussian<3>>,
 }
 
 impl AxisFilter for KfAxis {
@@ -211,29 +211,29 @@ impl AxisFilter for KfAxis {
             motion: WienerAcceleration::new(s.q),
             meas: DirectPosition::new([s.r[axis]]),
             r2: SMatrix::<f64, 1, 1>::new(s.r[axis] * s.r[axis]),
-            track: Track::Start(DifferenceStart::default()),
+            phase: AxisPhase::Start(DifferenceStart::default()),
         })
     }
     fn step(&self, z: f64, t: f64) -> Result<Self> {
         let z = Vector1::new(z);
-        let track = match self.track {
-            Track::Start(mut start) => match start.push(t, &z, &self.r2)? {
-                Some(state) => Track::Run { t, state },
-                None => Track::Start(start),
+        let phase = match self.phase {
+            AxisPhase::Start(mut start) => match start.push(t, &z, &self.r2)? {
+                Some(state) => AxisPhase::Run { t, state },
+                None => AxisPhase::Start(start),
             },
-            Track::Run { t: tp, state } => {
+            AxisPhase::Run { t: tp, state } => {
                 let pred = Kalman.predict(&self.motion, &state, check_dt(tp, t)?)?;
                 let state = Kalman.update(&self.meas, &pred, &z)?.state;
-                Track::Run { t, state }
+                AxisPhase::Run { t, state }
             }
         };
-        Ok(Self { track, ..*self })
+        Ok(Self { phase, ..*self })
     }
     fn predict(&self, t_next: f64) -> Result<Option<f64>> {
-        Ok(match &self.track {
-            Track::Start(_) => None,
+        Ok(match &self.phase {
+            AxisPhase::Start(_) => None,
             // Ẑ(k+1|k) = H Φ x̂(k|k), [ESE] eqs. (7)–(8).
-            Track::Run { t, state } => Some((self.motion.matrix(t_next - t) * state.mean)[0]),
+            AxisPhase::Run { t, state } => Some((self.motion.matrix(t_next - t) * state.mean)[0]),
         })
     }
 }
@@ -244,7 +244,7 @@ struct StfAxis {
     motion: WienerAcceleration<3>,
     meas: DirectPosition<1>,
     r2: SMatrix<f64, 1, 1>,
-    track: Track<StfState<3, 1>>,
+    phase: AxisPhase<StfState<3, 1>>,
 }
 
 impl AxisFilter for StfAxis {
@@ -254,35 +254,35 @@ impl AxisFilter for StfAxis {
             motion: WienerAcceleration::new(s.q),
             meas: DirectPosition::new([s.r[axis]]),
             r2: SMatrix::<f64, 1, 1>::new(s.r[axis] * s.r[axis]),
-            track: Track::Start(DifferenceStart::default()),
+            phase: AxisPhase::Start(DifferenceStart::default()),
         })
     }
     fn step(&self, z: f64, t: f64) -> Result<Self> {
         let z = Vector1::new(z);
-        let track = match self.track {
-            Track::Start(mut start) => match start.push(t, &z, &self.r2)? {
-                Some(g) => Track::Run {
+        let phase = match self.phase {
+            AxisPhase::Start(mut start) => match start.push(t, &z, &self.r2)? {
+                Some(g) => AxisPhase::Run {
                     t,
                     state: StfState::new(g),
                 },
-                None => Track::Start(start),
+                None => AxisPhase::Start(start),
             },
-            Track::Run { t: tp, state } => {
+            AxisPhase::Run { t: tp, state } => {
                 let out = self
                     .stf
                     .step(&self.motion, &self.meas, &state, &z, check_dt(tp, t)?)?;
-                Track::Run {
+                AxisPhase::Run {
                     t,
                     state: out.state,
                 }
             }
         };
-        Ok(Self { track, ..*self })
+        Ok(Self { phase, ..*self })
     }
     fn predict(&self, t_next: f64) -> Result<Option<f64>> {
-        Ok(match &self.track {
-            Track::Start(_) => None,
-            Track::Run { t, state } => {
+        Ok(match &self.phase {
+            AxisPhase::Start(_) => None,
+            AxisPhase::Run { t, state } => {
                 Some((self.motion.matrix(t_next - t) * state.estimate.mean)[0])
             }
         })

@@ -47,9 +47,9 @@ use harrier_core::filter::mpekf::{
 };
 use harrier_core::filter::nn::AdaptiveNn;
 use harrier_core::filter::{Extended, Predictor, Updater};
-use harrier_core::measurement::TargetSize;
+use harrier_core::measurement::{MeasKind, TargetSize};
 use harrier_core::motion::ConstantVelocity;
-use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector2, Vector3, Vector6};
 
@@ -105,8 +105,10 @@ enum Model {
     AzEl(MpAzEl),
 }
 
+/// The estimate at time `t`: the modified-polar Gaussian and the Cartesian position and velocity
+/// it maps to.
 #[derive(Debug, Clone, Copy)]
-struct Track<const N: usize> {
+struct MpEstimate<const N: usize> {
     t: f64,
     g: Gaussian<N>,
     pos: Vector3<f64>,
@@ -123,7 +125,7 @@ struct MpTracker<const N: usize> {
     q: f64,
     cart_prior: (f64, Gaussian<6>),
     size_prior: Option<(f64, f64)>,
-    track: Option<Track<N>>,
+    track: Option<MpEstimate<N>>,
     nn: Option<Net>,
     /// Tapped-delay input of the network: heading low-passed with time constant `lag` (ū).
     lagged_heading: Option<Vector3<f64>>,
@@ -262,7 +264,7 @@ fn cartesian_prior(sc: &Scenario) -> Result<(f64, Gaussian<6>), EngineError> {
 
 impl<const N: usize> MpTracker<N> {
     /// Estimated target heading (unit velocity, ENU) and speed.
-    fn heading(tr: &Track<N>) -> (Vector3<f64>, f64) {
+    fn heading(tr: &MpEstimate<N>) -> (Vector3<f64>, f64) {
         let x = mp_to_relative(&Vector6::from_fn(|i, _| tr.g.mean[i]));
         let v = Vector3::new(x[3], x[4], x[5]) + tr.vel;
         let speed = v.norm();
@@ -272,14 +274,19 @@ impl<const N: usize> MpTracker<N> {
     /// Network input (\[BOT\] §II.D with the tapped-delay inputs of its refs. \[14\], \[15\]): bias, the
     /// heading û and its change û − ū against the lagged heading ū, normalised by the largest turn
     /// over the lag, `lag · nn_amax / speed`.
-    fn nn_input(&self, tr: &Track<N>, lagged: Option<Vector3<f64>>) -> SVector<f64, 7> {
+    fn nn_input(&self, tr: &MpEstimate<N>, lagged: Option<Vector3<f64>>) -> SVector<f64, 7> {
         let (u, speed) = Self::heading(tr);
         let du = lagged.map_or_else(Vector3::zeros, |l| u - l)
             * (speed.max(1.0) / (self.lag * self.amax));
         SVector::<f64, 7>::from_column_slice(&[1.0, u.x, u.y, u.z, du.x, du.y, du.z])
     }
 
-    fn accel(&self, nn: Option<&Net>, tr: &Track<N>, lagged: Option<Vector3<f64>>) -> Vector3<f64> {
+    fn accel(
+        &self,
+        nn: Option<&Net>,
+        tr: &MpEstimate<N>,
+        lagged: Option<Vector3<f64>>,
+    ) -> Vector3<f64> {
         let mut a = nn.map_or_else(Vector3::zeros, |nn| nn.output(&self.nn_input(tr, lagged)));
         if self.plane.is_some() {
             a.z = 0.0;
@@ -328,7 +335,7 @@ impl<const N: usize> MpTracker<N> {
         Ok(from_cartesian::<N>(&cart, &pos, &vel, self.size_prior)?)
     }
 
-    fn estimate(&self, tr: &Track<N>) -> Result<Estimate, EngineError> {
+    fn estimate(&self, tr: &MpEstimate<N>) -> Result<Estimate, EngineError> {
         let c = to_cartesian(&tr.g, &tr.pos, &tr.vel)?;
         let dims: &[usize] = if self.plane.is_some() {
             cv_dims(4)
@@ -378,7 +385,7 @@ impl<const N: usize> ReplayEstimator for MpTracker<N> {
             let Some(tr) = track else {
                 let g = self.first(m, pos, vel)?;
                 let g = self.update(&g, &m.z)?;
-                track = Some(Track {
+                track = Some(MpEstimate {
                     t: m.t,
                     g,
                     pos,
@@ -419,7 +426,7 @@ impl<const N: usize> ReplayEstimator for MpTracker<N> {
                 net.train(&self.nn_input(&tr, lagged), &e)?;
                 unexplained += (e - unexplained) * (dt / self.tau).min(1.0);
             }
-            let new = Track {
+            let new = MpEstimate {
                 t: m.t,
                 g,
                 pos,

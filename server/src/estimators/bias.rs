@@ -127,7 +127,7 @@ impl ReplayEstimator for CdkfBias {
             mean: g.mean.fixed_rows::<4>(0).into_owned(),
             cov: g.cov.fixed_view::<4, 4>(0, 0).into_owned(),
         };
-        let mut e = cv_estimate(&self.sc, t, &kin);
+        let mut e = cv_estimate(self.sc.plane_z(), t, &kin);
         e.extra
             .insert("bias_est".into(), serde_json::json!([g.mean[4], g.mean[5]]));
         if jumped {

@@ -2,9 +2,9 @@
 //! scenario (`motion.accel_std`), planar or 3-D, over any mix of measurement kinds.
 
 use harrier_core::filter::{CentralDifference, Extended, Kalman, Predictor, Updater};
-use harrier_core::measurement::SensorModel;
+use harrier_core::measurement::{MeasKind, SensorModel};
 use harrier_core::motion::ConstantVelocity;
-use harrier_core::scenario::{Estimate, MeasKind, Scenario};
+use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::state::Gaussian;
 use harrier_core::{EstimationError, Result};
 
@@ -123,7 +123,7 @@ where
         }
         self.state = g;
         self.t = t;
-        Ok(Some(cv_estimate(&self.sc, t, &g)))
+        Ok(Some(cv_estimate(self.sc.plane_z(), t, &g)))
     }
 }
 

@@ -103,6 +103,6 @@ impl ReplayEstimator for Icdkf {
             self.t = m.t;
             self.last = Some((z, model));
         }
-        Ok(Some(cv_estimate(&self.sc, self.t, &self.state)))
+        Ok(Some(cv_estimate(self.sc.plane_z(), self.t, &self.state)))
     }
 }

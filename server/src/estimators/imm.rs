@@ -103,7 +103,7 @@ impl<const R: usize> SingleTargetImm<R> {
         variant: Variant,
         roads: Option<(RoadNetwork, Option<f64>)>,
     ) -> Result<Self, EngineError> {
-        let (imm, probs) = imm_of::<R>(sc, models)?;
+        let (imm, probs) = imm_of::<R>(sc.motion.as_ref(), models)?;
         let (t, g) = prior::<4>(sc, super::cv_dims(4))?;
         let state =
             ImmState::new(g, probs).map_err(|e| setup(format!("motion.initial_probs: {e}")))?;
@@ -222,7 +222,7 @@ impl<const R: usize> ReplayEstimator for SingleTargetImm<R> {
             .collect();
         let t = locals.first().map_or(step.t, |l| l.t);
         self.locals = locals;
-        let mut e = cv_estimate(&self.sc, t, &fused);
+        let mut e = cv_estimate(self.sc.plane_z(), t, &fused);
         e.model_probs = Some(probs);
         Ok(Some(e))
     }
@@ -239,7 +239,7 @@ fn build(
         ));
     }
     let q = params.q(sc)?;
-    let models = mode_models(sc, q)?;
+    let models = mode_models(sc.motion.as_ref(), q)?;
     let roads = if variant == Variant::Imm {
         None
     } else {

@@ -1,8 +1,9 @@
 //! The drivers: each turns scenario measurements into the calls of one estimator family's filters
-//! and declares its [`EstimatorInfo`](crate::engine::EstimatorInfo) entries; and the glue they
+//! and declares its [`EstimatorInfo`](crate::engine::EstimatorInfo) entries (and
+//! [`multi_target`] its [`TrackFilterInfo`](crate::engine::TrackFilterInfo)s); and the glue they
 //! share: the prior and the measurement models from `scenario.json`, updates with a run-time
 //! measurement kind, estimate lines. Drivers import [`crate::engine`] only; the registry
-//! ([`crate::registry`]) lists them.
+//! ([`crate::registry`]) lists them and is the only module that imports them.
 
 pub mod angles;
 pub mod bearings;
@@ -10,15 +11,15 @@ pub mod bias;
 pub mod gaussian;
 pub mod icdkf;
 pub mod imm;
+pub mod multi_target;
 pub mod obe;
-pub mod tracker;
 
 use harrier_core::EstimationError;
 use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};
 use harrier_core::measurement::{
-    Geometry, Locate, MeasurementModel, SensorModel, TargetSize, WithSensor,
+    Geometry, Locate, MeasKind, MeasurementModel, SensorModel, TargetSize, WithSensor,
 };
-use harrier_core::scenario::{Estimate, MeasKind, Measurement, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Motion, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector3};
 
@@ -138,11 +139,11 @@ pub fn update<F: NonlinearFilter<N>, const N: usize>(
     model.apply(Visit { filter, state, z })
 }
 
-/// An estimate line from an N-state CV-layout Gaussian (planar: z = plane_z, vz = 0).
-pub fn cv_estimate<const N: usize>(sc: &Scenario, t: f64, g: &Gaussian<N>) -> Estimate {
+/// An estimate line from an N-state CV-layout Gaussian (planar: z = `plane_z`, vz = 0).
+pub fn cv_estimate<const N: usize>(plane_z: f64, t: f64, g: &Gaussian<N>) -> Estimate {
     let dims = cv_dims(N);
     let mut state = [0.0; 6];
-    state[2] = sc.plane_z();
+    state[2] = plane_z;
     for (i, &d) in dims.iter().enumerate() {
         state[d] = g.mean[i];
     }
@@ -159,10 +160,8 @@ pub fn cv_estimate<const N: usize>(sc: &Scenario, t: f64, g: &Gaussian<N>) -> Es
 }
 
 /// The mode models of `motion.models`.
-pub fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError> {
-    let m = sc
-        .motion
-        .as_ref()
+pub fn mode_models(motion: Option<&Motion>, q: f64) -> Result<Vec<ModeModel>, EngineError> {
+    let m = motion
         .filter(|m| !m.models.is_empty())
         .ok_or_else(|| setup("scenario.json has no motion.models; the IMM estimators need them"))?;
     m.models
@@ -185,10 +184,9 @@ pub fn mode_models(sc: &Scenario, q: f64) -> Result<Vec<ModeModel>, EngineError>
 /// The IMM of `motion.models` (`models`, R of them) with `motion.transition_matrix` (default: stay
 /// with probability 0.98) and `motion.initial_probs` (default uniform), EKF mode filters.
 pub fn imm_of<const R: usize>(
-    sc: &Scenario,
+    motion: Option<&Motion>,
     models: &[ModeModel],
 ) -> Result<(Imm<Extended, ModeModel, R>, [f64; R]), EngineError> {
-    let motion = sc.motion.as_ref();
     let models: [ModeModel; R] = models
         .try_into()
         .map_err(|_| setup("internal: mode count mismatch"))?;

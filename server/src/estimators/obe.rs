@@ -18,7 +18,8 @@
 use harrier_core::filter::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, Predictor, Updater,
 };
-use harrier_core::scenario::{EllipsoidSpec, Estimate, LinearSystem, MeasKind, Scenario};
+use harrier_core::measurement::MeasKind;
+use harrier_core::scenario::{EllipsoidSpec, Estimate, LinearSystem, Scenario};
 use harrier_core::state::Ellipsoid;
 use nalgebra::{SMatrix, SVector};
 use serde_json::Value;

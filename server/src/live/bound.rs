@@ -19,7 +19,7 @@ use harrier_core::filter::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, Predictor, Updater,
 };
 use harrier_core::linalg::ellipse_axes;
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::MeasKind;
 use harrier_core::state::Ellipsoid;
 use harrier_core::tracker::TrackEvent;
 use nalgebra::{Matrix2, Matrix4, SMatrix, Vector2, Vector4};

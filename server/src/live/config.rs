@@ -2,19 +2,19 @@
 //! documents every key) whose values the command line may override.
 //!
 //! The deployment a track engine is built for (planar targets on a ground plane, motion models,
-//! roads) is described here and turned into an in-memory `gcs-scenario/1` [`Scenario`] by
-//! [`Config::scenario`], the form [`crate::registry::build_track_engine`] takes.
+//! roads, the scan period) is described here and turned into a [`Deployment`] by
+//! [`Config::deployment`], the form [`crate::registry::build_track_filter`] takes.
 
 use std::net::SocketAddr;
 use std::path::Path;
 
 use harrier_core::detection::GeoPoint;
-use harrier_core::scenario::{Motion, Road, Scenario};
+use harrier_core::scenario::{Motion, Road, Segment};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use serde::{Deserialize, Serialize};
 
-use crate::engine::Params;
+use crate::engine::{Deployment, Params};
 
 /// The whole configuration.
 #[derive(Debug, Clone, Default, PartialEq, Deserialize, Serialize)]
@@ -22,7 +22,7 @@ use crate::engine::Params;
 pub struct Config {
     /// The server's ENU frame.
     pub frame: FrameConfig,
-    /// The track engine and its input ordering.
+    /// The live tracker: its track filter, deployment and input ordering.
     pub tracker: TrackerConfig,
     /// The HTTP API.
     pub api: ApiConfig,
@@ -210,13 +210,15 @@ pub struct FrameConfig {
     pub plane_z: f64,
 }
 
-/// The track engine.
+/// The live tracker (`[tracker]`): its track filter, the deployment it tracks in
+/// ([`Config::deployment`]) and the ordering of its input.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerConfig {
-    /// Track engine name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
+    /// The track filter (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`). The key keeps
+    /// the name `estimator`, as `PUT /api/v1/estimator` does: both select the track filter.
     pub estimator: String,
-    /// Engine parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
+    /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
     /// of order are processed in time order; older ones are dropped as late.
@@ -508,6 +510,9 @@ impl Config {
         if t.queue == 0 {
             return bad("tracker.queue must be ≥ 1".into());
         }
+        if let Some(p) = deployment_problem(&t.motion, &t.roads) {
+            return bad(p);
+        }
         if let Some(size) = t.target_size_m
             && !(size.is_finite() && size > 0.0)
         {
@@ -674,29 +679,66 @@ impl Config {
 
     /// The engine parameters.
     pub fn params(&self) -> Params {
-        self.tracker
-            .params
-            .iter()
-            .fold(Params::default(), |p, (k, v)| p.with(k, *v))
+        Params::from(&self.tracker.params)
     }
 
-    /// The deployment as a planar `gcs-scenario/1` scenario: dims 2 on the ground plane, the
-    /// motion models and roads of the configuration, no sensors (scans bring their own models).
-    pub fn scenario(&self) -> Result<Scenario, ConfigError> {
-        let doc = serde_json::json!({
-            "format": harrier_core::scenario::FORMAT_ID,
-            "name": "harrier serve",
-            "dims": 2,
-            "plane_z": self.frame.plane_z,
-            "time": {"t0": 0.0, "dt": self.tracker.scan_period_s, "t_end": 1e12},
-            "target": {"id": "targets", "on_ground": true},
-            "sensors": [],
-            "roads": self.tracker.roads,
-            "motion": self.tracker.motion,
-        });
-        Scenario::parse(&doc.to_string())
-            .map_err(|e| ConfigError::Invalid(format!("tracker deployment: {e}")))
+    /// The deployment: planar targets on the ground plane `frame.plane_z`, the motion models,
+    /// roads and scan period of `[tracker]`, one sensor (scans bring their own models).
+    pub fn deployment(&self) -> Deployment {
+        let t = &self.tracker;
+        Deployment {
+            dims: 2,
+            plane_z: self.frame.plane_z,
+            motion: Some(t.motion.clone()),
+            roads: t.roads.clone(),
+            scan_period_s: t.scan_period_s,
+            sensors: 1,
+        }
     }
+}
+
+/// What is wrong with the motion models and roads of `[tracker]`, if anything: a negative
+/// `accel_std`, a number that is not finite.
+fn deployment_problem(motion: &Motion, roads: &[Road]) -> Option<String> {
+    if let Some(a) = motion.accel_std
+        && !(a.is_finite() && a >= 0.0)
+    {
+        return Some(format!("tracker.motion.accel_std must be ≥ 0, got {a}"));
+    }
+    let mut motion_numbers = motion
+        .accel_bound
+        .iter()
+        .chain(motion.models.iter().filter_map(|m| m.turn_rate.as_ref()))
+        .chain(motion.initial_probs.iter().flatten())
+        .chain(motion.transition_matrix.iter().flatten().flatten());
+    if let Some(bad) = motion_numbers.find(|v| !v.is_finite()) {
+        return Some(format!("tracker.motion: {bad} is not a finite number"));
+    }
+    for road in roads {
+        let mut numbers: Vec<f64> = road.width_m.into_iter().chain(road.sigma_m).collect();
+        for segment in &road.segments {
+            match segment {
+                Segment::Line { start, end } => numbers.extend(start.iter().chain(end)),
+                Segment::Arc {
+                    center,
+                    radius,
+                    start,
+                    end,
+                    sweep_rad,
+                } => {
+                    numbers.extend(center.iter().chain(start).chain(end));
+                    numbers.extend([*radius, *sweep_rad]);
+                }
+            }
+        }
+        if let Some(bad) = numbers.iter().find(|v| !v.is_finite()) {
+            return Some(format!(
+                "tracker.roads {:?}: {bad} is not a finite number",
+                road.id
+            ));
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -707,8 +749,7 @@ mod tests {
     fn the_example_parses_and_builds_its_engine() {
         let text = include_str!("../../../harrier.example.toml");
         let c = Config::parse(text, "harrier.example.toml").expect("example config");
-        let sc = c.scenario().expect("scenario");
-        crate::registry::build_track_engine(&c.tracker.estimator, &sc, &c.params())
+        crate::registry::build_track_filter(&c.tracker.estimator, &c.deployment(), &c.params())
             .expect("engine");
     }
 
@@ -716,8 +757,7 @@ mod tests {
     fn defaults_build_and_bad_values_are_named() {
         let c = Config::parse("", "empty").expect("defaults");
         assert_eq!(c, Config::default());
-        let sc = c.scenario().expect("scenario");
-        crate::registry::build_track_engine("ekf", &sc, &c.params()).expect("engine");
+        crate::registry::build_track_filter("ekf", &c.deployment(), &c.params()).expect("engine");
         let e = Config::parse("[tracker]\nreorder_window_s = -1\n", "f").unwrap_err();
         assert!(e.to_string().contains("reorder_window_s"), "{e}");
         let e = Config::parse("[zenoh]\nmode = \"router\"\n", "f").unwrap_err();
@@ -732,6 +772,36 @@ mod tests {
         assert!(e.to_string().starts_with("f: "), "{e}");
         let e = Config::parse("[nonsense]\n", "f").unwrap_err();
         assert!(e.to_string().contains("nonsense"), "{e}");
+    }
+
+    #[test]
+    fn the_deployment_is_the_tracker_section_and_its_numbers_are_checked() {
+        let c = Config::parse(
+            "[frame]\nplane_z = 12.5\n[tracker]\nscan_period_s = 0.5\n\
+             [[tracker.roads]]\nid = \"r\"\nsigma_m = 2.0\n\
+             segments = [{type = \"line\", start = [0.0, 0.0], end = [100.0, 0.0]}]\n",
+            "f",
+        )
+        .expect("config");
+        let d = c.deployment();
+        assert_eq!(
+            (d.dims, d.plane_z, d.scan_period_s, d.sensors),
+            (2, 12.5, 0.5, 1)
+        );
+        assert_eq!(d.motion.as_ref(), Some(&c.tracker.motion));
+        assert_eq!(d.roads, c.tracker.roads);
+        crate::registry::build_track_filter("cimm", &d, &c.params()).expect("cimm engine");
+        let e = Config::parse("[tracker.motion]\naccel_std = -1.0\n", "f").unwrap_err();
+        assert!(e.to_string().contains("tracker.motion.accel_std"), "{e}");
+        let e = Config::parse("[tracker.motion]\ntransition_matrix = [[nan]]\n", "f").unwrap_err();
+        assert!(e.to_string().contains("tracker.motion: NaN"), "{e}");
+        let e = Config::parse(
+            "[[tracker.roads]]\nid = \"r\"\nsigma_m = 2.0\n\
+             segments = [{type = \"line\", start = [0.0, inf], end = [1.0, 0.0]}]\n",
+            "f",
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("tracker.roads \"r\": inf"), "{e}");
     }
 
     #[test]

@@ -318,7 +318,7 @@ impl Ingest {
 mod tests {
     use super::*;
     use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, PlatformPose};
-    use harrier_core::scenario::MeasKind;
+    use harrier_core::measurement::MeasKind;
 
     use crate::live::config::DEFAULT_ORIGIN;
 

@@ -13,7 +13,7 @@
 //! - [`ingest`]: payloads of `harrier/v1/vehicle/*/detections` decoded and validated
 //!   ([`harrier_core::detection::DetectionScan::from_json`]), `seq` gaps counted, converted into
 //!   the server's ENU frame (harrier-link's `scan_in_frame`) as [`crate::engine::SensorScan`]s.
-//! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_engine`], fed in
+//! - [`tracker`]: the `Box<dyn TrackEngine>` of [`crate::registry::build_track_filter`], fed in
 //!   time order through a short reorder buffer; snapshots to a `watch`, each processed scan to a
 //!   bounded `broadcast`. Scans are put on one time line by their `time_unix` (UNIX time on the
 //!   sender's clock) when they carry it, else by their `t` — so publishers without `time_unix`
@@ -24,8 +24,8 @@
 //!   the WebSocket stream ([`http::ws`]) and one error type; nothing else in the service
 //!   imports it. [`world`]: the simulator's truth in the server's frame and the configuration's
 //!   roads and obstacles; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
-//! - [`config`]: the TOML configuration and the deployment [`Scenario`](harrier_core::scenario::Scenario)
-//!   it describes; [`metrics`]: the counters.
+//! - [`config`]: the TOML configuration and the [`Deployment`](crate::engine::Deployment) it
+//!   describes; [`metrics`]: the counters.
 //!
 //! Nothing from the network can panic the service: bad payloads are counted per vehicle and
 //! reason, logged at a bounded rate and dropped. A slow consumer never stalls tracking: the
@@ -62,7 +62,7 @@ use self::http::{ApiState, ApiToken, Auth, Control, Recording, Service, Tracking
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
 use self::recorder::{Recorder, SessionMeta};
-use self::tracker::{EstimatorState, Recent, ScanEvents, Snapshot, TrackerActor};
+use self::tracker::{Recent, ScanEvents, Snapshot, TrackFilterState, TrackerActor};
 use self::world::{TruthBody, WorldBody};
 use crate::engine::{EngineError, TrackView};
 
@@ -230,13 +230,13 @@ impl LiveServer {
 /// Returns once all of it is up (the API accepts connections).
 pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     config.check()?;
-    let deployment = config.scenario()?;
-    let estimator = EstimatorState {
+    let deployment = config.deployment();
+    let estimator = TrackFilterState {
         name: config.tracker.estimator.clone(),
         params: config.tracker.params.clone(),
     };
     let engine =
-        crate::registry::build_track_engine(&estimator.name, &deployment, &config.params())?;
+        crate::registry::build_track_filter(&estimator.name, &deployment, &config.params())?;
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
 

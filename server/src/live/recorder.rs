@@ -20,7 +20,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::MeasKind;
 use rusqlite::{Connection, params};
 
 use super::clock::unix_now;
@@ -159,7 +159,7 @@ pub struct SessionMeta {
     pub origin: GeoPoint,
     /// Up coordinate (m) of the ground plane.
     pub plane_z: f64,
-    /// Track engine at the start (a change at run time is an action).
+    /// Track filter at the start (a change at run time is an action).
     pub estimator: String,
     /// The whole configuration, as JSON.
     pub config_json: String,

@@ -15,7 +15,7 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 use std::time::Duration;
 
 use harrier_core::detection::GeoPoint;
-use harrier_core::scenario::{MeasKind, Scenario};
+use harrier_core::measurement::MeasKind;
 use harrier_core::tracker::{DeleteReason, TrackEvent};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
@@ -23,17 +23,19 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use crate::engine::{Params, TrackEngine, TrackView};
+use crate::engine::{Deployment, Params, TrackEngine, TrackView};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
 /// Positions kept per track for its history.
 pub const HISTORY_LEN: usize = 200;
 
-/// The estimator the engine runs, and its parameters.
+/// The track filter the tracker runs, and its parameters. On the wire it keeps the name
+/// "estimator": `GET`/`PUT /api/v1/estimator` read and select the track filter.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct EstimatorState {
-    /// Track engine name (`GET /api/v1/estimators`).
+#[schema(as = EstimatorState)]
+pub struct TrackFilterState {
+    /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
     pub name: String,
     /// Parameters given (the others have their defaults).
     pub params: BTreeMap<String, f64>,
@@ -69,7 +71,7 @@ pub struct Snapshot {
     /// Every vehicle seen, by label.
     pub vehicles: Arc<Vec<VehicleView>>,
     /// The estimator running.
-    pub estimator: Arc<EstimatorState>,
+    pub estimator: Arc<TrackFilterState>,
 }
 
 /// One processed scan: what it held and what it did to the tracks.
@@ -171,9 +173,9 @@ pub enum Command {
     /// Change the estimator; live tracks are handed over (ids kept).
     SetEstimator {
         /// The new estimator.
-        to: EstimatorState,
+        to: TrackFilterState,
         /// The result: the estimator now running, or why the change was refused.
-        reply: oneshot::Sender<Result<EstimatorState, SetError>>,
+        reply: oneshot::Sender<Result<TrackFilterState, SetError>>,
     },
 }
 
@@ -220,8 +222,8 @@ impl Recent {
 #[derive(Debug)]
 pub struct TrackerActor {
     engine: Box<dyn TrackEngine>,
-    deployment: Scenario,
-    estimator: Arc<EstimatorState>,
+    deployment: Deployment,
+    estimator: Arc<TrackFilterState>,
     window: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
@@ -257,8 +259,8 @@ impl TrackerActor {
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         engine: Box<dyn TrackEngine>,
-        deployment: Scenario,
-        estimator: EstimatorState,
+        deployment: Deployment,
+        estimator: TrackFilterState,
         window: f64,
         metrics: Arc<Metrics>,
         recent: Arc<Recent>,
@@ -467,12 +469,9 @@ impl TrackerActor {
     }
 
     /// Builds `to` for the deployment and hands the live tracks over to it.
-    fn set_estimator(&mut self, to: EstimatorState) -> Result<EstimatorState, SetError> {
-        let params = to
-            .params
-            .iter()
-            .fold(Params::default(), |p, (k, v)| p.with(k, *v));
-        let mut engine = crate::registry::build_track_engine(&to.name, &self.deployment, &params)
+    fn set_estimator(&mut self, to: TrackFilterState) -> Result<TrackFilterState, SetError> {
+        let params = Params::from(&to.params);
+        let mut engine = crate::registry::build_track_filter(&to.name, &self.deployment, &params)
             .map_err(|e| SetError::Invalid(e.to_string()))?;
         engine.adopt(&self.engine.handover()).map_err(|e| {
             SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
@@ -562,15 +561,16 @@ mod tests {
 
     fn actor(window: f64) -> Parts {
         let c = Config::default();
-        let sc = c.scenario().expect("sc");
-        let engine = crate::registry::build_track_engine("ekf", &sc, &c.params()).expect("engine");
+        let deployment = c.deployment();
+        let engine =
+            crate::registry::build_track_filter("ekf", &deployment, &c.params()).expect("engine");
         let metrics = Arc::new(Metrics::default());
         let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
         let (ev_tx, ev_rx) = broadcast::channel(16);
         let a = TrackerActor::new(
             engine,
-            sc,
-            EstimatorState {
+            deployment,
+            TrackFilterState {
                 name: "ekf".into(),
                 params: BTreeMap::new(),
             },
@@ -634,7 +634,7 @@ mod tests {
         a.release(f64::INFINITY);
         let before = snap_rx.borrow().tracks.clone();
         assert_eq!(before.len(), 1);
-        let bad = a.set_estimator(EstimatorState {
+        let bad = a.set_estimator(TrackFilterState {
             name: "nonesuch".into(),
             params: BTreeMap::new(),
         });
@@ -642,14 +642,14 @@ mod tests {
             matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")),
             "{bad:?}"
         );
-        let bad = a.set_estimator(EstimatorState {
+        let bad = a.set_estimator(TrackFilterState {
             name: "cdkf".into(),
             params: BTreeMap::from([("m".to_string(), 0.5)]),
         });
         assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
         assert_eq!(snap_rx.borrow().estimator.name, "ekf");
         let now = a
-            .set_estimator(EstimatorState {
+            .set_estimator(TrackFilterState {
                 name: "cdkf".into(),
                 params: BTreeMap::new(),
             })

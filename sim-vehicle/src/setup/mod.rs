@@ -187,13 +187,15 @@ pub struct SensorSpec {
     /// Gaussian noise std of each measured component (units of `z`, FORMAT.md §3).
     pub noise_std: Vec<f64>,
     /// Camera or radar.
-    pub model: SensorModel,
+    pub model: SensorType,
 }
 
-/// Sensor models.
+/// What a [`SensorSpec`] is — a camera or a radar — with the settings of its type (a sensor's
+/// `model` object, tagged by `type`). Not harrier-core's run-time measurement model
+/// (`harrier_core::measurement::SensorModel`).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SensorModel {
+pub enum SensorType {
     /// Gimbal camera: sees what lies within `fov_deg / 2` of its boresight.
     Camera {
         /// What it reports.
@@ -421,11 +423,11 @@ impl SimScenario {
 
 impl SensorSpec {
     /// The measurement kind of its detections.
-    pub fn kind(&self) -> harrier_core::scenario::MeasKind {
-        use harrier_core::scenario::MeasKind;
+    pub fn kind(&self) -> harrier_core::measurement::MeasKind {
+        use harrier_core::measurement::MeasKind;
         match &self.model {
-            SensorModel::Radar { .. } => MeasKind::RangeBearing,
-            SensorModel::Camera { output, .. } => match output {
+            SensorType::Radar { .. } => MeasKind::RangeBearing,
+            SensorType::Camera { output, .. } => match output {
                 CameraOutput::AzEl => MeasKind::AzEl,
                 CameraOutput::BearingSize => MeasKind::BearingSize,
                 CameraOutput::Position => MeasKind::Position,

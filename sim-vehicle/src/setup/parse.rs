@@ -7,7 +7,7 @@ use std::path::Path;
 use serde::de::Error as _;
 use serde::{Deserialize, Deserializer};
 
-use super::{Behaviour, BiasModel, PRESETS, Pointing, SensorModel, SimScenario, TargetMotion};
+use super::{Behaviour, BiasModel, PRESETS, Pointing, SensorType, SimScenario, TargetMotion};
 
 fn checked<'de, D: Deserializer<'de>>(
     d: D,
@@ -250,7 +250,7 @@ impl SimScenario {
                 )));
             }
             match &s.model {
-                SensorModel::Camera {
+                SensorType::Camera {
                     fov_deg, pointing, ..
                 } => {
                     if !(*fov_deg > 0.0 && *fov_deg < 180.0) {
@@ -269,7 +269,7 @@ impl SimScenario {
                         _ => {}
                     }
                 }
-                SensorModel::Radar { bias } => {
+                SensorType::Radar { bias } => {
                     let ok = match bias {
                         BiasModel::None => true,
                         BiasModel::Abrupt {

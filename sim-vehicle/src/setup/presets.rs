@@ -6,7 +6,7 @@ use nalgebra::Vector2;
 
 use super::{
     AirframeSpec, Behaviour, BiasModel, CameraOutput, EstimatorHints, Jitter, MotionSegment,
-    Pointing, SensorModel, SensorSpec, SimScenario, TargetMotion, TargetSpec, VehicleSpec,
+    Pointing, SensorSpec, SensorType, SimScenario, TargetMotion, TargetSpec, VehicleSpec,
     default_origin,
 };
 
@@ -101,7 +101,7 @@ fn cimm_road() -> SimScenario {
             clutter_rate: 0.0,
             max_range_m: 2000.0,
             noise_std: vec![10.0, 10.0],
-            model: SensorModel::Camera {
+            model: SensorType::Camera {
                 output: CameraOutput::Position,
                 fov_deg: 30.0,
                 pointing: Pointing::Track { target: 0 },
@@ -170,7 +170,7 @@ fn leader() -> SimScenario {
             clutter_rate: 0.0,
             max_range_m: 2000.0,
             noise_std: vec![0.001, 0.001, 0.001],
-            model: SensorModel::Camera {
+            model: SensorType::Camera {
                 output: CameraOutput::BearingSize,
                 fov_deg: 40.0,
                 pointing: Pointing::Track { target: 0 },
@@ -230,7 +230,7 @@ fn radar(bias: BiasModel, name: &str) -> SimScenario {
             clutter_rate: 0.0,
             max_range_m: 20_000.0,
             noise_std: vec![5.0, 0.005],
-            model: SensorModel::Radar { bias },
+            model: SensorType::Radar { bias },
         }],
         vehicles: VehicleSpec {
             airframe: AirframeSpec::Multirotor,
@@ -283,7 +283,7 @@ fn crossing() -> SimScenario {
             clutter_rate: 1.0,
             max_range_m: 1500.0,
             noise_std: vec![0.002, 0.002],
-            model: SensorModel::Camera {
+            model: SensorType::Camera {
                 output: CameraOutput::AzEl,
                 fov_deg: 90.0,
                 pointing: Pointing::Nadir,

@@ -32,7 +32,7 @@ use harrier_server::live::{
     config::{Config, MavlinkConfig, TokenConfig},
 };
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
-use harrier_sim::live::LiveConfig;
+use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
 use harrier_tests::{free_tcp_port, kill_group, require_python_module, wait_with_deadline};
 
@@ -150,7 +150,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
     let server_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     config.zenoh.listen = vec![server_endpoint.clone()];
     config.zenoh.connect = vec![sim_endpoint.clone()];
-    let mut world = WorldConfig::new(LiveConfig {
+    let mut world = WorldConfig::new(SensorLoopConfig {
         scenario,
         seed: 5,
         speedup: 10.0,
@@ -253,7 +253,7 @@ fn scan_json(seq: u64, t: f64, n: usize) -> String {
         vehicle: 1,
         seq,
         sensor: "cam".into(),
-        kind: harrier_core::scenario::MeasKind::Position,
+        kind: harrier_core::measurement::MeasKind::Position,
         origin,
         platform: PlatformPose {
             pos: [0.0; 3],

@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{
     DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose, detections_key,
 };
-use harrier_core::scenario::MeasKind;
+use harrier_core::measurement::MeasKind;
 use harrier_core::tracker::format::MultiScenario;
 use harrier_core::tracker::generate::{GenConfig, generate};
 use harrier_core::tracker::metrics::gospa;

@@ -29,8 +29,8 @@ use harrier_server::engine::TrackView;
 use harrier_server::live::{self, LiveServer, config::Config};
 use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
-use harrier_sim::live::LiveConfig;
-use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorModel, SimScenario};
+use harrier_sim::sensor_loop::SensorLoopConfig;
+use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorType, SimScenario};
 use harrier_tests::{
     SimProcess, free_tcp_port, publish_standing_target, runtime, targets_at, within,
 };
@@ -665,7 +665,7 @@ fn fusion_scenario() -> SimScenario {
     let mut cam = s.sensors[0].clone();
     cam.noise_std = vec![0.006, 0.006];
     cam.max_range_m = 3000.0;
-    cam.model = SensorModel::Camera {
+    cam.model = SensorType::Camera {
         output: CameraOutput::AzEl,
         fov_deg: 30.0,
         pointing: Pointing::Track { target: 0 },
@@ -673,7 +673,7 @@ fn fusion_scenario() -> SimScenario {
     let mut radar = cam.clone();
     radar.id = "radar".into();
     radar.noise_std = vec![5.0, 0.01];
-    radar.model = SensorModel::Radar {
+    radar.model = SensorType::Radar {
         bias: BiasModel::Markov {
             mean: [3.0, 0.002],
             std: [2.0, 0.002],
@@ -725,7 +725,7 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
     let started = Instant::now();
     let scenario = fusion_scenario();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let mut world = WorldConfig::new(LiveConfig {
+    let mut world = WorldConfig::new(SensorLoopConfig {
         scenario: scenario.clone(),
         seed: 11,
         speedup: FUSION_SPEEDUP,

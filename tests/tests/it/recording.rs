@@ -31,7 +31,7 @@ use harrier_server::replay;
 use harrier_server::sessions::{self, SessionInfo};
 use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
-use harrier_sim::live::LiveConfig;
+use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
 use harrier_tests::{free_tcp_port, publish_standing_target, within};
 use zenoh::Wait as _;
@@ -190,7 +190,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
 
     // The simulated world, publishing on its own Zenoh endpoint.
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let mut world = WorldConfig::new(LiveConfig {
+    let mut world = WorldConfig::new(SensorLoopConfig {
         scenario,
         seed: 5,
         speedup: SPEEDUP,

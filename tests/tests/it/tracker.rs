@@ -511,13 +511,14 @@ fn cameras_and_radar_fuse_into_one_track_per_target() {
 fn track_engines_by_name_on_the_cimm_reference() {
     use harrier_core::measurement::SensorModel;
     use harrier_server::engine::{Params, SensorScan};
-    use harrier_server::registry::build_track_engine;
+    use harrier_server::registry::build_track_filter;
     let data = harrier_server::replay::load(&harrier_tests::scenario("cimm_road_3uav")).unwrap();
     let sc = &data.scenario;
+    let deployment = &harrier_server::engine::Deployment::from(sc);
     let truth = data.truth.as_ref().unwrap();
     let mut rmse = Vec::new();
     for name in ["ekf", "cdkf", "imm", "cimm"] {
-        let mut engine = build_track_engine(name, sc, &Params::default()).unwrap();
+        let mut engine = build_track_filter(name, deployment, &Params::default()).unwrap();
         let (mut se, mut n, mut ids) = (0.0, 0usize, std::collections::BTreeSet::new());
         for m in &data.measurements {
             let sensor = SensorModel::new(
@@ -573,9 +574,10 @@ fn track_engines_by_name_on_the_cimm_reference() {
     assert!(of("cimm") < of("imm") && of("imm") < of("ekf"), "{rmse:?}");
     assert!(of("cimm") < 2.5, "{rmse:?}");
     // Unknown names and parameters are refused with the list of what exists.
-    let e = build_track_engine("kalman", sc, &Params::default()).unwrap_err();
+    let e = build_track_filter("kalman", deployment, &Params::default()).unwrap_err();
     assert!(e.to_string().contains("ekf, cdkf, imm, cimm"), "{e}");
-    let e = build_track_engine("imm", sc, &Params::parse(&["nope=1"]).unwrap()).unwrap_err();
+    let e =
+        build_track_filter("imm", deployment, &Params::parse(&["nope=1"]).unwrap()).unwrap_err();
     assert!(e.to_string().contains("nope"), "{e}");
 }
 
@@ -583,7 +585,7 @@ fn track_engines_by_name_on_the_cimm_reference() {
 #[test]
 fn replays_a_generated_scenario() {
     let dir = tempfile::tempdir().unwrap();
-    harrier_server::estimators::tracker::write_generated(dir.path(), 5).unwrap();
+    harrier_server::gen_multi::write(dir.path(), 5).unwrap();
     let data = harrier_server::replay::load(dir.path()).unwrap();
     let report =
         harrier_server::replay::run(&data, "tracker", &harrier_server::engine::Params::default())

@@ -9,7 +9,7 @@ use std::process::Stdio;
 use std::time::Duration;
 
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
-use harrier_sim::live::LiveConfig;
+use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
 use harrier_tests::{free_tcp_port, python_script, require_python_module, wait_with_deadline};
 
@@ -25,7 +25,7 @@ fn eclipse_zenoh_subscriber_decodes_the_detections() {
         s.rate_hz = RATE_HZ;
     }
     let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let mut world = WorldConfig::new(LiveConfig {
+    let mut world = WorldConfig::new(SensorLoopConfig {
         scenario,
         seed: 7,
         speedup: 1.0,

@@ -13,8 +13,8 @@ use utoipa::{OpenApi, ToSchema};
 use super::error::{ApiError, ErrorBody};
 use super::extract::AppJson;
 use super::state::{ApiState, Tracking};
-use crate::live::tracker::{Command, EstimatorState};
-use crate::registry::TRACK_ENGINES;
+use crate::live::tracker::{Command, TrackFilterState};
+use crate::registry::TRACK_FILTERS;
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
@@ -31,11 +31,11 @@ pub(super) struct Doc;
 /// The running estimator.
 #[utoipa::path(get, path = "/api/v1/estimator", tag = "control",
     responses(
-        (status = 200, body = EstimatorState),
+        (status = 200, body = TrackFilterState),
         (status = 401, description = "Reads need the token", body = ErrorBody),
     ),
     security((), ("bearer" = [])))]
-async fn get_estimator(State(s): State<Tracking>) -> Json<EstimatorState> {
+async fn get_estimator(State(s): State<Tracking>) -> Json<TrackFilterState> {
     Json((*s.snapshot.borrow().estimator).clone())
 }
 
@@ -51,11 +51,11 @@ pub struct EstimatorChange {
     pub params: BTreeMap<String, f64>,
 }
 
-/// The schema of an estimator name: one of [`TRACK_ENGINES`].
+/// The schema of an estimator name: one of [`TRACK_FILTERS`].
 fn estimator_names() -> utoipa::openapi::Object {
     utoipa::openapi::ObjectBuilder::new()
         .schema_type(utoipa::openapi::schema::Type::String)
-        .enum_values(Some(TRACK_ENGINES.iter().map(|e| e.name)))
+        .enum_values(Some(TRACK_FILTERS.iter().map(|e| e.name)))
         .description(Some("Track estimator name (`GET /api/v1/estimators`)"))
         .build()
 }
@@ -63,7 +63,7 @@ fn estimator_names() -> utoipa::openapi::Object {
 /// Changes the estimator; the live tracks are handed over (ids, status and estimates kept).
 #[utoipa::path(put, path = "/api/v1/estimator", tag = "control", request_body = EstimatorChange,
     responses(
-        (status = 200, description = "Now running", body = EstimatorState),
+        (status = 200, description = "Now running", body = TrackFilterState),
         (status = 400, description = "The body is not JSON", body = ErrorBody),
         (status = 401, description = "No or a wrong token", body = ErrorBody),
         (status = 409, description = "The tracks cannot be handed over to this estimator", body = ErrorBody),
@@ -75,10 +75,10 @@ fn estimator_names() -> utoipa::openapi::Object {
 async fn put_estimator(
     State(s): State<Tracking>,
     AppJson(change): AppJson<EstimatorChange>,
-) -> Result<Json<EstimatorState>, ApiError> {
+) -> Result<Json<TrackFilterState>, ApiError> {
     let gone = || ApiError::unavailable("stopped", "the tracker is not running");
     let (reply, answer) = oneshot::channel();
-    let to = EstimatorState {
+    let to = TrackFilterState {
         name: change.name,
         params: change.params,
     };
@@ -126,7 +126,7 @@ pub struct EstimatorsBody {
     security((), ("bearer" = [])))]
 async fn estimators() -> Json<EstimatorsBody> {
     Json(EstimatorsBody {
-        estimators: TRACK_ENGINES
+        estimators: TRACK_FILTERS
             .iter()
             .map(|e| EstimatorInfoBody {
                 name: e.name,

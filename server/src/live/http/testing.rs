@@ -9,8 +9,8 @@ use std::time::{Duration, Instant, SystemTime};
 use axum::body::Body;
 use axum::http::{HeaderMap, Method, Request, StatusCode, header};
 use harrier_core::detection::GeoPoint;
+use harrier_core::measurement::MeasKind;
 use harrier_core::measurement::{Geometry, SensorModel};
-use harrier_core::scenario::MeasKind;
 use serde_json::Value;
 use tokio::sync::{broadcast, mpsc, watch};
 use tower::ServiceExt as _;
@@ -23,7 +23,7 @@ use crate::live::guidance::{Guidance, GuidanceMetrics, GuidanceRequest};
 use crate::live::ingest::ReadyScan;
 use crate::live::metrics::Metrics;
 use crate::live::recorder::{Recorder, SessionMeta};
-use crate::live::tracker::{EstimatorState, Recent, Snapshot, TrackerActor};
+use crate::live::tracker::{Recent, Snapshot, TrackFilterState, TrackerActor};
 use crate::live::world::{TruthBody, WorldBody};
 
 /// The token the tests send.
@@ -76,13 +76,13 @@ impl TestApp {
     /// runtime.
     pub(super) fn with_queue(ws_queue: usize) -> Self {
         let config = Config::default();
-        let deployment = config.scenario().expect("the default deployment");
-        let estimator = EstimatorState {
+        let deployment = config.deployment();
+        let estimator = TrackFilterState {
             name: config.tracker.estimator.clone(),
             params: config.tracker.params.clone(),
         };
         let engine =
-            crate::registry::build_track_engine(&estimator.name, &deployment, &config.params())
+            crate::registry::build_track_filter(&estimator.name, &deployment, &config.params())
                 .expect("the default track engine");
         let metrics = Arc::new(Metrics::default());
         let recent = Arc::new(Recent::default());

@@ -18,9 +18,9 @@ use crate::vehicle::Vehicle;
 use crate::worker::Worker;
 use crate::world::World;
 
-/// Settings of the live loop.
+/// Settings of the sensor loop.
 #[derive(Debug, Clone, PartialEq)]
-pub struct LiveConfig {
+pub struct SensorLoopConfig {
     /// World and sensors.
     pub scenario: SimScenario,
     /// Seed of the world and of every sensor.
@@ -35,12 +35,12 @@ pub struct LiveConfig {
 
 /// The running loop; stopped when dropped.
 #[derive(Debug)]
-pub struct LiveHandle {
+pub struct SensorLoopHandle {
     counters: Arc<Mutex<BusCounters>>,
     worker: Worker,
 }
 
-impl LiveHandle {
+impl SensorLoopHandle {
     /// Publication counters so far.
     pub fn counters(&self) -> BusCounters {
         *self.counters.lock().unwrap_or_else(PoisonError::into_inner)
@@ -53,7 +53,7 @@ impl LiveHandle {
 
 /// Why the loop could not start.
 #[derive(Debug, thiserror::Error)]
-pub enum LiveError {
+pub enum SensorLoopError {
     /// The scenario does not build a world or sensors.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),
@@ -74,18 +74,18 @@ const MAX_TICK: Duration = Duration::from_millis(5);
 /// Starts the loop for `vehicles` (their sensor suites are built from the scenario, seeded per
 /// vehicle id), publishing on `bus`.
 pub fn spawn(
-    config: &LiveConfig,
+    config: &SensorLoopConfig,
     vehicles: Vec<Arc<Mutex<Vehicle>>>,
     mut bus: Bus,
-) -> Result<LiveHandle, LiveError> {
+) -> Result<SensorLoopHandle, SensorLoopError> {
     for (name, v) in [("speedup", config.speedup), ("truth_hz", config.truth_hz)] {
         if !(v.is_finite() && v > 0.0) {
-            return Err(LiveError::NotPositive(name));
+            return Err(SensorLoopError::NotPositive(name));
         }
     }
     let skew = config.clock;
     if !(skew.offset_s.is_finite() && skew.drift_ppm.is_finite()) {
-        return Err(LiveError::NotFinite("clock"));
+        return Err(SensorLoopError::NotFinite("clock"));
     }
     let mut world = World::new(&config.scenario, config.seed)?;
     let mut suites = Vec::with_capacity(vehicles.len());
@@ -135,8 +135,8 @@ pub fn spawn(
         *c.lock().unwrap_or_else(PoisonError::into_inner) = bus.counters();
         std::thread::sleep(tick);
     })
-    .map_err(LiveError::Thread)?;
-    Ok(LiveHandle { counters, worker })
+    .map_err(SensorLoopError::Thread)?;
+    Ok(SensorLoopHandle { counters, worker })
 }
 
 #[cfg(test)]
@@ -149,7 +149,7 @@ mod tests {
         let scenario = SimScenario::load("radar").expect("preset");
         for (speedup, truth_hz, what) in [(0.0, 10.0, "speedup"), (1.0, f64::NAN, "truth_hz")] {
             let bus = Bus::open(&BusConfig::default()).expect("session");
-            let config = LiveConfig {
+            let config = SensorLoopConfig {
                 scenario: scenario.clone(),
                 seed: 1,
                 speedup,

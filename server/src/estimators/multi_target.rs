@@ -1,18 +1,20 @@
-//! `tracker`: the multi-target tracker of `harrier_core::tracker` (EKF with the CV model — the KF on
-//! `position` sensors — χ² gating, global nearest neighbour over confirmed and tentative tracks,
-//! single-point initiation from any detection kind with M-of-N confirmation, miss/covariance
-//! deletion) over a multi-target scenario (FORMAT-MULTI.md): any number of sensors of any kind
-//! whose scans carry unlabeled detections, clutter included. Each sensor's detections of one time
-//! are one scan, under that sensor's model at its platform pose.
+//! The multi-target tracker of `harrier_core::tracker` (χ² gating, global nearest neighbour over
+//! confirmed and tentative tracks, single-point initiation from any detection kind with M-of-N
+//! confirmation, miss/covariance deletion) as a [`TrackEngine`], `MultiTargetEngine`, one per
+//! **track filter** — the filter of each track: `ekf` (the KF on `position` sensors), `cdkf`,
+//! `imm`, `cimm` ([`TrackFilterInfo`]s, the live service's choice) — built for a [`Deployment`].
 //!
-//! Each estimate line holds every confirmed track after the scan (`"state": null`, `"tracks"`):
-//! see FORMAT-MULTI.md §4.
+//! The replay estimator `tracker` runs the `ekf` track filter over a multi-target scenario
+//! (FORMAT-MULTI.md): any number of sensors of any kind whose scans carry unlabeled detections,
+//! clutter included. Each sensor's detections of one time are one scan, under that sensor's model
+//! at its platform pose. Each estimate line holds every confirmed track after the scan
+//! (`"state": null`, `"tracks"`): see FORMAT-MULTI.md §4.
 
 use harrier_core::filter::{CentralDifference, Extended, ModeModel};
-use harrier_core::measurement::SensorModel;
+use harrier_core::measurement::{MeasKind, SensorModel};
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::road::RoadNetwork;
-use harrier_core::scenario::{Estimate, MeasKind, Scenario};
+use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::tracker::{
     CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
     TrackFilter, TrackStatus, Tracker, TrackerConfig,
@@ -21,8 +23,8 @@ use serde_json::{Value, json};
 
 use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::engine::{
-    EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan, Step,
-    TrackEngine, TrackEngineInfo, TrackView, setup,
+    Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan,
+    Step, TrackEngine, TrackFilterInfo, TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -31,7 +33,7 @@ use nalgebra::{SMatrix, SVector};
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
     name: "tracker",
     summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
-    params: ENGINE_PARAMS,
+    params: TRACKER_PARAMS,
     build: |sc, p| {
         if sc.sensors.is_empty() {
             return Err(setup("the tracker needs at least one sensor"));
@@ -52,8 +54,8 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
 
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
-/// Tuning shared by every track engine.
-const ENGINE_PARAMS: &[(&str, &str)] = &[
+/// The tracker's tuning, shared by every track filter and the replay estimator `tracker`.
+const TRACKER_PARAMS: &[(&str, &str)] = &[
     Q_PARAM,
     ("vel_std", "velocity prior of a new track, m/s (default 12)"),
     (
@@ -81,35 +83,35 @@ const ENGINE_PARAMS: &[(&str, &str)] = &[
 ];
 
 /// `ekf`: tracks of EKFs (the KF on `position` sensors) with the CV model.
-pub const ENGINE_EKF: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_EKF: TrackFilterInfo = TrackFilterInfo {
     name: "ekf",
     summary: "EKF tracks, CV model (the KF on position sensors)",
-    params: ENGINE_PARAMS,
-    build: |sc, p| match sc.dims {
-        2 => engine::<4, _>(sc, p, ekf(sc, p)?),
-        _ => engine::<6, _>(sc, p, ekf(sc, p)?),
+    params: TRACKER_PARAMS,
+    build: |d, p| match d.dims {
+        2 => multi_target_engine::<4, _>(d, p, ekf(d, p)?),
+        _ => multi_target_engine::<6, _>(d, p, ekf(d, p)?),
     },
 };
 
 /// `cdkf`: tracks of central-difference filters with the CV model.
-pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
     name: "cdkf",
     summary: "central-difference Kalman filter tracks, CV model",
-    params: ENGINE_PARAMS,
-    build: |sc, p| {
-        let q = p.q(sc)?;
+    params: TRACKER_PARAMS,
+    build: |d, p| {
+        let q = d.q(p)?;
         let filter = CentralDifference::default();
-        match sc.dims {
-            2 => engine::<4, _>(
-                sc,
+        match d.dims {
+            2 => multi_target_engine::<4, _>(
+                d,
                 p,
                 GaussianFilter {
                     filter,
                     motion: ConstantVelocity::<4>::new(q),
                 },
             ),
-            _ => engine::<6, _>(
-                sc,
+            _ => multi_target_engine::<6, _>(
+                d,
                 p,
                 GaussianFilter {
                     filter,
@@ -121,55 +123,55 @@ pub const ENGINE_CDKF: TrackEngineInfo = TrackEngineInfo {
 };
 
 /// `imm`: IMM tracks over `motion.models` (planar).
-pub const ENGINE_IMM: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_IMM: TrackFilterInfo = TrackFilterInfo {
     name: "imm",
     summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
-    params: ENGINE_PARAMS,
-    build: |sc, p| imm_engine(sc, p, None),
+    params: TRACKER_PARAMS,
+    build: |d, p| imm_engine(d, p, None),
 };
 
 /// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
-pub const ENGINE_CIMM: TrackEngineInfo = TrackEngineInfo {
+pub const TRACK_FILTER_CIMM: TrackFilterInfo = TrackFilterInfo {
     name: "cimm",
     summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
-    params: ENGINE_PARAMS,
-    build: |sc, p| {
-        let roads = RoadNetwork::from_scenario(&sc.roads)
+    params: TRACKER_PARAMS,
+    build: |d, p| {
+        let roads = RoadNetwork::from_scenario(&d.roads)
             .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
         if roads.is_empty() {
-            return Err(setup("the cimm track engine needs roads"));
+            return Err(setup("the cimm track filter needs roads"));
         }
-        imm_engine(sc, p, Some(roads))
+        imm_engine(d, p, Some(roads))
     },
 };
 
-fn ekf<const N: usize>(sc: &Scenario, p: &Params) -> Result<Ekf<N>, EngineError> {
+fn ekf<const N: usize>(d: &Deployment, p: &Params) -> Result<Ekf<N>, EngineError> {
     Ok(GaussianFilter {
         filter: Extended,
-        motion: ConstantVelocity::<N>::new(p.q(sc)?),
+        motion: ConstantVelocity::<N>::new(d.q(p)?),
     })
 }
 
 /// The IMM (or, with roads, CIMM) engine for R = the number of `motion.models`.
 fn imm_engine(
-    sc: &Scenario,
+    d: &Deployment,
     p: &Params,
     roads: Option<RoadNetwork>,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
-    if sc.dims != 2 {
-        return Err(setup("the IMM track engines are planar (dims = 2)"));
+    if d.dims != 2 {
+        return Err(setup("the IMM track filters are planar (dims = 2)"));
     }
-    let models = mode_models(sc, p.q(sc)?)?;
+    let models = mode_models(d.motion.as_ref(), d.q(p)?)?;
     fn boxed<const R: usize>(
-        sc: &Scenario,
+        d: &Deployment,
         p: &Params,
         models: &[ModeModel],
         roads: Option<RoadNetwork>,
     ) -> Result<Box<dyn TrackEngine>, EngineError> {
-        let (imm, initial_probs) = imm_of::<R>(sc, models)?;
+        let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
         let imm = ImmFilter { imm, initial_probs };
         match roads {
-            None => engine::<4, _>(sc, p, imm),
+            None => multi_target_engine::<4, _>(d, p, imm),
             Some(roads) => {
                 let sigma_m = roads
                     .roads()
@@ -179,30 +181,32 @@ fn imm_engine(
                 let cimm = CimmFilter {
                     imm,
                     roads,
-                    sigma_v: sigma_m / sc.time.dt.max(1e-3),
+                    sigma_v: sigma_m / d.scan_period_s.max(1e-3),
                     max_offset_m: 3.0 * sigma_m + 10.0,
                 };
-                engine::<4, _>(sc, p, cimm)
+                multi_target_engine::<4, _>(d, p, cimm)
             }
         }
     }
     match models.len() {
-        1 => boxed::<1>(sc, p, &models, roads),
-        2 => boxed::<2>(sc, p, &models, roads),
-        3 => boxed::<3>(sc, p, &models, roads),
-        4 => boxed::<4>(sc, p, &models, roads),
-        5 => boxed::<5>(sc, p, &models, roads),
+        1 => boxed::<1>(d, p, &models, roads),
+        2 => boxed::<2>(d, p, &models, roads),
+        3 => boxed::<3>(d, p, &models, roads),
+        4 => boxed::<4>(d, p, &models, roads),
+        5 => boxed::<5>(d, p, &models, roads),
         n => Err(setup(format!(
-            "motion.models has {n} models; the IMM track engines support 1 to 5"
+            "motion.models has {n} models; the IMM track filters support 1 to 5"
         ))),
     }
 }
 
-/// A multi-target tracker over the track filter `F` on N-state CV-layout states.
+/// A multi-target tracker over the track filter `F` on N-state CV-layout states: the
+/// [`TrackEngine`] every track filter builds.
 #[derive(Debug)]
-struct Engine<F: TrackFilter<N>, const N: usize> {
+struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     tracker: Tracker<F, SinglePointInitiator, N>,
-    sc: Scenario,
+    /// The ground plane of planar tracks (their estimate lines' z).
+    plane_z: f64,
 }
 
 /// An integer parameter ≥ 1.
@@ -215,8 +219,8 @@ fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
 }
 
 /// The engine over `filter` with the tracker tuning of `p`.
-fn engine<const N: usize, F>(
-    sc: &Scenario,
+fn multi_target_engine<const N: usize, F>(
+    d: &Deployment,
     p: &Params,
     filter: F,
 ) -> Result<Box<dyn TrackEngine>, EngineError>
@@ -226,24 +230,23 @@ where
 {
     let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
     // Every sensor's scan counts as a scan for M-of-N and misses.
-    let sensors = u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX);
     let config = TrackerConfig {
         gater: Gater::chi2(p.get("gate", 0.999), 2)?,
         tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
         confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
         deleter: Deleter::new(
-            count(p, "misses", 5 * sensors)?,
+            count(p, "misses", 5 * d.sensors)?,
             p.get("max_pos_var", 1e5),
-            usize::from(sc.dims),
+            usize::from(d.dims),
         )?,
     };
-    Ok(Box::new(Engine {
+    Ok(Box::new(MultiTargetEngine {
         tracker: Tracker::new(filter, init, config),
-        sc: sc.clone(),
+        plane_z: d.plane_z,
     }))
 }
 
-impl<F, const N: usize> TrackEngine for Engine<F, N>
+impl<F, const N: usize> TrackEngine for MultiTargetEngine<F, N>
 where
     F: TrackFilter<N> + Send + std::fmt::Debug,
     F::State: Send,
@@ -258,7 +261,7 @@ where
             .snapshot()
             .into_iter()
             .map(|k| {
-                let e = cv_estimate(&self.sc, k.t, &k.estimate);
+                let e = cv_estimate(self.plane_z, k.t, &k.estimate);
                 TrackView {
                     id: k.id,
                     status: match k.status {
@@ -327,7 +330,8 @@ where
     }
 }
 
-/// The replay estimator `tracker`: the `ekf` track engine fed one scan per sensor and time.
+/// The replay estimator `tracker`: the tracker with the `ekf` track filter, fed one scan per sensor
+/// and time.
 #[derive(Debug)]
 struct MultiTracker {
     engine: Box<dyn TrackEngine>,
@@ -339,7 +343,7 @@ struct MultiTracker {
 impl MultiTracker {
     fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
         Ok(Self {
-            engine: (ENGINE_EKF.build)(sc, p)?,
+            engine: (TRACK_FILTER_EKF.build)(&Deployment::from(sc), p)?,
             sc: sc.clone(),
             last_model: None,
         })
@@ -420,24 +424,4 @@ impl ReplayEstimator for MultiTracker {
         est.extra.insert("tracks".into(), Value::Array(tracks));
         Ok(Some(est))
     }
-}
-
-/// `harrier gen-multi <dir> --seed N`: writes the generator's default crossing-target scenario
-/// (`harrier_core::tracker::generate`, FORMAT-MULTI.md §5) into `dir`, creating it.
-pub fn write_generated(dir: &std::path::Path, seed: u64) -> anyhow::Result<()> {
-    use anyhow::Context as _;
-    let g = harrier_core::tracker::generate::generate(
-        seed,
-        &harrier_core::tracker::generate::GenConfig::default(),
-    )?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    for (name, text) in [
-        ("scenario.json", &g.scenario_json),
-        ("measurements.jsonl", &g.measurements_jsonl),
-        ("truth.csv", &g.truth_csv),
-    ] {
-        let path = dir.join(name);
-        std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
-    }
-    Ok(())
 }
