@@ -179,7 +179,7 @@ mod tests {
             .send(Method::PUT, "/api/v1/estimator", r#"{"name":"nope"}"#)
             .await;
         assert_eq!(r.status, StatusCode::UNPROCESSABLE_ENTITY);
-        assert!(r.error().starts_with("unknown track estimator \"nope\""));
+        assert!(r.error().starts_with("unknown track filter \"nope\""));
         assert_eq!(app.refused("estimator", 422), 1);
         let r = app
             .send(Method::PUT, "/api/v1/estimator", r#"{"name":"ekf","x":1}"#)
