@@ -106,6 +106,23 @@ pub fn ellipse_axes(m: &nalgebra::Matrix2<f64>) -> ([f64; 2], f64) {
     )
 }
 
+/// The ellipsoid `{x : xᵀ M⁻¹ x ≤ 1}` of a symmetric positive semi-definite 3 × 3 matrix `M`: its
+/// semi-axes `√λ`, largest first, and the unit axis directions in the same order. Scale `M` by a
+/// χ² quantile first for a confidence ellipsoid.
+pub fn ellipsoid_axes(m: &nalgebra::Matrix3<f64>) -> ([f64; 3], [[f64; 3]; 3]) {
+    let e = nalgebra::SymmetricEigen::new(symmetrize(m));
+    let mut order = [0, 1, 2];
+    order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
+    let axis = |i: usize| {
+        let v = e.eigenvectors.column(i);
+        [v[0], v[1], v[2]]
+    };
+    (
+        order.map(|i| e.eigenvalues[i].max(0.0).sqrt()),
+        order.map(axis),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,5 +165,15 @@ mod tests {
             (wrap_angle(2.0 * (angle - 0.3)) / 2.0).abs() < 1e-12,
             "{angle}"
         );
+    }
+
+    #[test]
+    fn ellipsoid_axes_largest_first_with_their_directions() {
+        let m = nalgebra::Matrix3::new(4.0, 0.0, 0.0, 0.0, 25.0, 0.0, 0.0, 0.0, 9.0);
+        let (axes, dirs) = ellipsoid_axes(&m);
+        assert_eq!(axes, [5.0, 3.0, 2.0]);
+        for (d, unit) in dirs.iter().zip([1, 2, 0]) {
+            assert!((d[unit].abs() - 1.0).abs() < 1e-12, "{dirs:?}");
+        }
     }
 }

@@ -393,7 +393,7 @@ async fn assign_when_ready(
             .borrow()
             .tracks
             .iter()
-            .filter(|t| t.status == "confirmed" && t.age >= 5)
+            .filter(|t| t.status == crate::engine::TrackStatus::Confirmed && t.age >= 5)
             .min_by(|a, b| {
                 let speed = |t: &crate::engine::TrackView| t.state[3].hypot(t.state[4]);
                 speed(a).total_cmp(&speed(b))

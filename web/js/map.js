@@ -313,12 +313,12 @@ export class MapView {
         }
       }
       const e = k.ellipse;
-      const ra = e ? Math.max(e.a * this.scale, 1.5) : 0;
+      const ra = e ? Math.max(e.semi_axes[0] * this.scale, 1.5) : 0;
       if (!this.visible(px, py, Math.max(ra, 30))) continue;
       if (this.layers.ellipses && e) {
-        const rb = Math.max(e.b * this.scale, 1.5);
+        const rb = Math.max(e.semi_axes[1] * this.scale, 1.5);
         ctx.beginPath();
-        ctx.ellipse(px, py, ra, rb, -e.angle, 0, 2 * Math.PI);
+        ctx.ellipse(px, py, ra, rb, -e.angle_rad, 0, 2 * Math.PI);
         ctx.fillStyle = color;
         ctx.globalAlpha = confirmed ? 0.14 : 0.06;
         ctx.fill();

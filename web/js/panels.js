@@ -223,7 +223,7 @@ export class TracksPanel {
       const since = k.history.length ? k.history[0][0] : k.firstSeen;
       setText(f.age, `${v.age} scans · ${fmt(v.t - since, 0)} s`);
       f.age.title = "scans since initiation · time since the oldest position of its history";
-      setText(f.ell, k.ellipse ? `${fmt(k.ellipse.a, 1)}×${fmt(k.ellipse.b, 1)}` : "–");
+      setText(f.ell, k.ellipse ? `${fmt(k.ellipse.semi_axes[0], 1)}×${fmt(k.ellipse.semi_axes[1], 1)}` : "–");
       setText(f.upd, s.t != null ? `${fmt(Math.max(0, s.t - v.last_update), 1)} s` : "–");
       setText(f.pos, `${fmt(v.state[0], 0)}, ${fmt(v.state[1], 0)}`);
       setText(f.nees, k.nees != null && Number.isFinite(k.nees) ? fmt(k.nees, 2) : "–");

@@ -7,7 +7,28 @@
 import * as THREE from "three";
 import { OrbitControls } from "../vendor/three/OrbitControls.js";
 import { Store } from "./store.js";
-import { CHI2_95_3, cholesky3, colorHex, detectionPoint, detectionRay, positionCov3 } from "./util.js";
+import { colorHex, detectionPoint, detectionRay } from "./util.js";
+
+/** Half-thickness (m) of the disc drawn for a planar track's 95 % ellipse. */
+const DISC_HALF_M = 2.8;
+
+/**
+ * The axes of a track's 95 % region as three scaled column vectors: its `ellipsoid_95`, else a
+ * thin disc over its `ellipse_95` (planar tracks); null when the server sent neither.
+ */
+function regionAxes(view) {
+  const e3 = view.ellipsoid_95;
+  if (e3) return e3.axes.map((u, i) => u.map((c) => c * e3.semi_axes[i]));
+  const e = view.ellipse_95;
+  if (!e) return null;
+  const [c, s] = [Math.cos(e.angle_rad), Math.sin(e.angle_rad)];
+  const [a, b] = e.semi_axes;
+  return [
+    [a * c, a * s, 0],
+    [-b * s, b * c, 0],
+    [0, 0, DISC_HALF_M],
+  ];
+}
 
 const MAX_RAYS = 600;
 const MAX_CMDS = 64;
@@ -278,14 +299,13 @@ export class SceneView {
       o.confirmed = confirmed;
       o.marker.material.opacity = confirmed ? 1 : 0.5;
       o.marker.material.transparent = !confirmed;
-      const p = positionCov3(k.view, 1.0);
-      const l = p && cholesky3(p);
-      if (l && layers.ellipses) {
-        const r = Math.sqrt(CHI2_95_3);
+      const ax = regionAxes(k.view);
+      if (ax && layers.ellipses) {
+        // The unit sphere's x, y, z go to the three axes (matrix columns), centred on the track.
         m.set(
-          r * l[0][0], r * l[0][1], r * l[0][2], x,
-          r * l[1][0], r * l[1][1], r * l[1][2], y,
-          r * l[2][0], r * l[2][1], r * l[2][2], z,
+          ax[0][0], ax[1][0], ax[2][0], x,
+          ax[0][1], ax[1][1], ax[2][1], y,
+          ax[0][2], ax[1][2], ax[2][2], z,
           0, 0, 0, 1,
         );
         o.ellipsoid.matrix.copy(m);

@@ -2,8 +2,6 @@
 // simulation truth, assignments and the stream's counters. Fed by WebSocket messages and REST
 // polls; read by the map, the 3-D view and the panels. Times are the tracker's time line (s).
 
-import { mahalanobis2, positionCov, trackEllipse } from "./util.js";
-
 const HISTORY_LEN = 200;
 const TRAIL_LEN = 300;
 const DETECTION_TTL_S = 8; // wall-clock seconds a detection stays on screen (fading)
@@ -114,13 +112,14 @@ export class Store {
         bound: null,
         firstSeen: view.t,
         series: [], // [t, value] (position error with truth, else ellipse major semi-axis)
-        nees: null,
+        nees: null, // position NEES against the nearest true target (the server's, GET /truth)
+        neesDim: null,
         error: null,
       };
       this.tracks.set(view.id, k);
     }
     k.view = view;
-    k.ellipse = trackEllipse(view);
+    k.ellipse = view.ellipse_95 || null; // {semi_axes: [a, b], angle_rad}, from the server
     const [x, y, z] = view.state;
     if (fromScan || isNew) {
       const h = k.history;
@@ -129,7 +128,11 @@ export class Store {
         if (h.length > HISTORY_LEN) h.splice(0, h.length - HISTORY_LEN);
       }
     }
-    this.scoreTrack(k);
+    if (this.truth.size === 0 && k.ellipse) {
+      if (k.seriesKind !== "sigma") k.series = [];
+      k.seriesKind = "sigma";
+      pushSeries(k.series, view.t, k.ellipse.semi_axes[0]);
+    }
     if (view.status === "confirmed" && !k.confirmedSeen) {
       k.confirmedSeen = true;
       if (this.onConfirmed) this.onConfirmed(view.id);
@@ -146,42 +149,6 @@ export class Store {
       k.history = older.concat(k.history).slice(-HISTORY_LEN);
     }
     if (bound !== undefined) k.bound = bound;
-  }
-
-  /** Position error and NEES against the nearest true target (when truth is known). */
-  scoreTrack(k) {
-    const v = k.view;
-    const t = v.t;
-    let best = null;
-    for (const target of this.truth.values()) {
-      const s = target.last;
-      if (!s) continue;
-      const dt = t - s.t;
-      if (Math.abs(dt) > 5) continue;
-      const vel = s.velocity || [0, 0, 0];
-      const p = [0, 1, 2].map((i) => s.position[i] + (vel[i] || 0) * dt);
-      const d = [v.state[0] - p[0], v.state[1] - p[1], v.state[2] - p[2]];
-      const e = Math.hypot(d[0], d[1]);
-      if (!best || e < best.e) best = { e, d };
-    }
-    if (best && best.e < 200) {
-      k.error = best.e;
-      const p3 = positionCov(v, [0, 1, 2]);
-      const p2 = positionCov(v, [0, 1]);
-      k.nees = p3 ? mahalanobis2(best.d, p3) : p2 ? mahalanobis2(best.d.slice(0, 2), p2) : null;
-      k.neesDim = p3 ? 3 : 2;
-      if (k.seriesKind !== "error") k.series = [];
-      k.seriesKind = "error";
-      pushSeries(k.series, t, best.e);
-    } else {
-      k.error = null;
-      k.nees = null;
-      if (this.truth.size === 0 && k.ellipse) {
-        if (k.seriesKind !== "sigma") k.series = [];
-        k.seriesKind = "sigma";
-        pushSeries(k.series, t, k.ellipse.a);
-      }
-    }
   }
 
   confirmed() {
@@ -268,6 +235,19 @@ export class Store {
         if (target.samples.length > TRUTH_LEN) target.samples.splice(0, target.samples.length - TRUTH_LEN);
       }
       target.last = s;
+    }
+    // Each track's error and NEES against the nearest target, as the server scored them.
+    const scored = new Map((body.scores || []).map((s) => [s.track, s]));
+    for (const k of this.tracks.values()) {
+      const s = scored.get(k.id);
+      k.error = s ? s.error_m : null;
+      k.nees = s ? s.nees : null;
+      k.neesDim = s ? s.dof : null;
+      if (s) {
+        if (k.seriesKind !== "error") k.series = [];
+        k.seriesKind = "error";
+        pushSeries(k.series, s.t, s.error_m);
+      }
     }
     this.version += 1;
   }

@@ -66,15 +66,47 @@ pub struct SensorScan {
     pub detections: Vec<Vec<f64>>,
 }
 
+/// Life-cycle stage of a live track: `tentative` (not yet through the M-of-N rule) or
+/// `confirmed` (reported). The wire spelling is the snake-case name.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, utoipa::ToSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackStatus {
+    /// Started by an unassociated detection, not yet confirmed.
+    Tentative,
+    /// Confirmed by the M-of-N rule.
+    Confirmed,
+}
+
+impl TrackStatus {
+    /// `"tentative"` or `"confirmed"` (as on the wire; the recording's `status` column).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Tentative => "tentative",
+            Self::Confirmed => "confirmed",
+        }
+    }
+}
+
+impl From<harrier_core::tracker::TrackStatus> for TrackStatus {
+    fn from(s: harrier_core::tracker::TrackStatus) -> Self {
+        match s {
+            harrier_core::tracker::TrackStatus::Tentative => Self::Tentative,
+            harrier_core::tracker::TrackStatus::Confirmed => Self::Confirmed,
+        }
+    }
+}
+
 /// What a track engine reports of one track: the estimate in the canonical state layout of an
 /// estimate line (`[x, y, z, vx, vy, vz]`, FORMAT.md §5) with its covariance over `cov_dims`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+/// Not a wire type: the API sends it as a `live::wire::TrackDto`.
+#[derive(Debug, Clone, PartialEq)]
 pub struct TrackView {
     /// Stable track id.
     pub id: u64,
-    /// `"tentative"` or `"confirmed"`.
-    #[schema(value_type = String)]
-    pub status: &'static str,
+    /// Tentative or confirmed.
+    pub status: TrackStatus,
     /// Time of the estimate (s).
     pub t: f64,
     /// `[x, y, z, vx, vy, vz]` (planar: z = the ground plane, vz = 0).

@@ -17,7 +17,7 @@ use harrier_core::road::RoadNetwork;
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::tracker::{
     CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
-    TrackFilter, TrackStatus, Tracker, TrackerConfig,
+    TrackFilter, Tracker, TrackerConfig,
 };
 use serde_json::{Value, json};
 
@@ -264,10 +264,7 @@ where
                 let e = cv_estimate(self.plane_z, k.t, &k.estimate);
                 TrackView {
                     id: k.id,
-                    status: match k.status {
-                        TrackStatus::Tentative => "tentative",
-                        TrackStatus::Confirmed => "confirmed",
-                    },
+                    status: k.status.into(),
                     t: k.t,
                     state: e.state.unwrap_or_default(),
                     cov: e.cov.unwrap_or_default(),
@@ -406,7 +403,7 @@ impl ReplayEstimator for MultiTracker {
             .engine
             .snapshot()
             .into_iter()
-            .filter(|k| k.status == "confirmed")
+            .filter(|k| k.status == crate::engine::TrackStatus::Confirmed)
             .map(|k| {
                 json!({
                     "id": k.id,

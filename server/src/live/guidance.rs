@@ -1012,7 +1012,7 @@ mod tests {
     fn prediction_is_bounded() {
         let track = TrackView {
             id: 1,
-            status: "confirmed",
+            status: crate::engine::TrackStatus::Confirmed,
             t: 100.0,
             state: [0.0, 0.0, 0.0, 2.0, -1.0, 0.0],
             cov: Vec::new(),

@@ -24,6 +24,8 @@
 //!   the WebSocket stream ([`http::ws`]) and one error type; nothing else in the service
 //!   imports it. [`world`]: the simulator's truth in the server's frame and the configuration's
 //!   roads and obstacles; [`publish`]: the tracks on Zenoh; [`recorder`]: the SQLite recording.
+//!   [`wire`]: the typed messages that leave on a stream (WebSocket, Zenoh tracks) and the
+//!   track as the API sends it.
 //! - [`config`]: the TOML configuration and the [`Deployment`](crate::engine::Deployment) it
 //!   describes; [`metrics`]: the counters.
 //!
@@ -44,6 +46,7 @@ pub mod metrics;
 pub mod publish;
 pub mod recorder;
 pub mod tracker;
+pub mod wire;
 pub mod world;
 
 use std::net::SocketAddr;

@@ -2,36 +2,22 @@
 //! `harrier/v1/tracks`) at most `zenoh.tracks_hz` times a second, whenever a scan changed them,
 //! so that other consumers (a second ground station, a Python script) can subscribe.
 //!
-//! Each message is a JSON object, schema `harrier-tracks/1` (DETECTIONS.md §Tracks):
-//! `{"schema", "time_unix", "t", "seq", "estimator", "frame": {"origin", "plane_z"}, "tracks":
-//! [TrackView…]}`, tracks in the server's ENU frame.
+//! Each message is a JSON object, schema `harrier-tracks/1` (DETECTIONS.md §Tracks): a
+//! [`TracksMessage`] (OpenAPI component `TracksMessage`), tracks in the server's ENU frame.
 
 use std::sync::Arc;
 use std::time::Duration;
 
-use harrier_core::detection::{GeoPoint, TRACKS_SCHEMA};
+use harrier_core::detection::GeoPoint;
 use tokio::sync::watch;
 
 use super::tracker::Snapshot;
+use super::wire::{TracksFrame, TracksMessage, to_json};
 
-/// The message for `snap`.
+/// The message for `snap`, as JSON text.
 pub fn tracks_message(snap: &Snapshot, origin: GeoPoint, plane_z: f64) -> String {
-    let now = super::clock::unix_now();
-    let confirmed: Vec<_> = snap
-        .tracks
-        .iter()
-        .filter(|k| k.status == "confirmed")
-        .collect();
-    serde_json::json!({
-        "schema": TRACKS_SCHEMA,
-        "time_unix": now,
-        "t": snap.t,
-        "seq": snap.seq,
-        "estimator": snap.estimator.name,
-        "frame": {"origin": origin, "plane_z": plane_z},
-        "tracks": confirmed,
-    })
-    .to_string()
+    let frame = TracksFrame { origin, plane_z };
+    to_json(&TracksMessage::new(snap, frame, super::clock::unix_now()))
 }
 
 /// Publishes until the tracker ends (its snapshot channel closes).

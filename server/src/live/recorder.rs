@@ -739,7 +739,7 @@ impl Writer {
                 self.session,
                 t,
                 int(k.id),
-                k.status,
+                k.status.as_str(),
                 s[0],
                 s[1],
                 s[2],
@@ -884,7 +884,7 @@ pub(crate) mod testing {
     pub(crate) fn track(id: u64, t: f64, state: [f64; 6]) -> TrackView {
         TrackView {
             id,
-            status: "confirmed",
+            status: crate::engine::TrackStatus::Confirmed,
             t,
             state,
             cov: vec![vec![4.0, 0.0, 0.0, 0.0]; 4],

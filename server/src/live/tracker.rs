@@ -16,14 +16,14 @@ use std::time::Duration;
 
 use harrier_core::detection::GeoPoint;
 use harrier_core::measurement::MeasKind;
-use harrier_core::tracker::{DeleteReason, TrackEvent};
+use harrier_core::tracker::TrackEvent;
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use crate::engine::{Deployment, Params, TrackEngine, TrackView};
+use crate::engine::{Deployment, Params, TrackEngine, TrackStatus, TrackView};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
@@ -95,7 +95,7 @@ pub struct ScanEvents {
     pub events: Vec<TrackEvent>,
     /// Every live track after the scan.
     pub tracks: Arc<Vec<TrackView>>,
-    /// The WebSocket message, serialised once for every client.
+    /// The WebSocket message, serialised once for every client (`live::wire::scan_json`).
     json: OnceLock<String>,
 }
 
@@ -107,55 +107,9 @@ impl ScanEvents {
             .filter(|k| self.events.iter().any(|e| changes(e, k.id)))
     }
 
-    /// The WebSocket `scan` message (see `live::http::ws`).
-    pub fn message(&self) -> &str {
-        self.json.get_or_init(|| {
-            serde_json::json!({
-                "type": "scan",
-                "seq": self.seq,
-                "t": self.t,
-                "vehicle": self.vehicle,
-                "sensor": self.sensor,
-                "kind": self.kind,
-                "platform": self.platform,
-                "detections": self.detections,
-                "events": self.events.iter().map(event_json).collect::<Vec<_>>(),
-                "tracks": self.changed_tracks().collect::<Vec<_>>(),
-            })
-            .to_string()
-        })
-    }
-}
-
-/// A track event as JSON: `{"type": "born" | "confirmed" | "updated" | "coasted" | "deleted" |
-/// "rejected", …}`.
-pub fn event_json(e: &TrackEvent) -> serde_json::Value {
-    use serde_json::json;
-    match e {
-        TrackEvent::Born { id, detection } => {
-            json!({"type": "born", "id": id, "detection": detection})
-        }
-        TrackEvent::Confirmed { id } => json!({"type": "confirmed", "id": id}),
-        TrackEvent::Updated { id, detection, nis } => {
-            json!({"type": "updated", "id": id, "detection": detection, "nis": nis})
-        }
-        TrackEvent::Coasted { id, misses } => {
-            json!({"type": "coasted", "id": id, "misses": misses})
-        }
-        TrackEvent::Deleted { id, reason } => {
-            let (reason, message) = match reason {
-                DeleteReason::Misses => ("misses", None),
-                DeleteReason::Covariance => ("covariance", None),
-                DeleteReason::Unconfirmed => ("unconfirmed", None),
-                DeleteReason::Failed(m) => ("failed", Some(m)),
-            };
-            json!({"type": "deleted", "id": id, "reason": reason, "message": message})
-        }
-        TrackEvent::Rejected {
-            id,
-            detection,
-            reason,
-        } => json!({"type": "rejected", "id": id, "detection": detection, "reason": reason}),
+    /// Where `live::wire::scan_json` keeps this scan's serialised WebSocket message.
+    pub fn wire_cache(&self) -> &OnceLock<String> {
+        &self.json
     }
 }
 
@@ -352,7 +306,10 @@ impl TrackerActor {
         };
         let tracks = Arc::new(self.engine.snapshot());
         self.metrics.latency(s.received.elapsed().as_secs_f64());
-        let confirmed = tracks.iter().filter(|k| k.status == "confirmed").count();
+        let confirmed = tracks
+            .iter()
+            .filter(|k| k.status == TrackStatus::Confirmed)
+            .count();
         self.metrics.ingested(
             &s.vehicle,
             s.scan.detections.len(),
@@ -621,7 +578,7 @@ mod tests {
             .collect();
         assert_eq!(vehicles, [("1".to_string(), 4), ("2".to_string(), 3)]);
         assert_eq!(a.recent.scans_after(4).len(), 3);
-        let first = a.recent.scans_after(0)[0].message().to_owned();
+        let first = crate::live::wire::scan_json(&a.recent.scans_after(0)[0]).to_owned();
         assert!(first.contains(r#""type":"scan""#), "{first}");
     }
 

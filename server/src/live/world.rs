@@ -1,15 +1,23 @@
 //! What the live service knows of the world besides the tracks: the simulator's truth (converted
 //! into the server's frame by the Zenoh callback of [`super::start`]) and the static world of the
 //! configuration (roads, obstacles). The HTTP routes `GET /api/v1/truth` and `GET /api/v1/world`
-//! serve these values as they are.
+//! serve these values as they are, the truth with each track's error against it
+//! ([`TruthBody::with_scores`]).
 
 use harrier_core::detection::TruthSample;
+use harrier_core::linalg::mahalanobis_sq;
 use harrier_core::scenario::Segment;
 use harrier_link::geo::LocalFrame;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::config::Config;
+use crate::engine::TrackView;
+
+/// Largest time (s) between a track's estimate and a truth sample that can be scored together.
+const SCORE_MAX_DT_S: f64 = 5.0;
+/// Largest horizontal distance (m) from a track to the nearest target for it to be scored.
+const SCORE_MAX_ERROR_M: f64 = 200.0;
 
 /// One target of the simulator's truth, in the server's ENU frame.
 #[derive(Debug, Clone, Serialize, ToSchema)]
@@ -24,11 +32,33 @@ pub struct TruthTarget {
     pub velocity: [f64; 3],
 }
 
+/// A track scored against the nearest true target.
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct TrackScore {
+    /// The track.
+    pub track: u64,
+    /// The nearest target (horizontally, its last sample moved on at its velocity to the
+    /// track's time).
+    pub target: String,
+    /// Time of the track's estimate.
+    pub t: f64,
+    /// Horizontal distance from the estimate to the target (m).
+    pub error_m: f64,
+    /// Position NEES `dᵀ P⁻¹ d` over the track's position covariance (`null` when it is not
+    /// positive definite); its 95 % bound is the χ² quantile of `dof` degrees of freedom.
+    pub nees: Option<f64>,
+    /// Degrees of freedom of `nees`: 3 when the covariance covers z, else 2.
+    pub dof: u8,
+}
+
 /// The latest truth.
 #[derive(Debug, Clone, Default, Serialize, ToSchema)]
 pub struct TruthBody {
     /// Every target of the last truth sample; empty when no simulator publishes truth.
     pub targets: Vec<TruthTarget>,
+    /// Every track within 200 m and 5 s of a target, scored against the nearest one (filled
+    /// when served, against the live tracks).
+    pub scores: Vec<TrackScore>,
 }
 
 impl TruthBody {
@@ -52,7 +82,64 @@ impl TruthBody {
                     }
                 })
                 .collect(),
+            scores: Vec::new(),
         }
+    }
+
+    /// This truth with every track of `tracks` near a target scored against the nearest one.
+    pub fn with_scores(&self, tracks: &[TrackView]) -> Self {
+        Self {
+            targets: self.targets.clone(),
+            scores: tracks.iter().filter_map(|k| self.score(k)).collect(),
+        }
+    }
+
+    /// `k` against the nearest target, when one is near enough.
+    fn score(&self, k: &TrackView) -> Option<TrackScore> {
+        let (target, d) = self
+            .targets
+            .iter()
+            .filter(|s| (k.t - s.t).abs() <= SCORE_MAX_DT_S)
+            .map(|s| {
+                let d: [f64; 3] = std::array::from_fn(|i| {
+                    k.state[i] - (s.position[i] + s.velocity[i] * (k.t - s.t))
+                });
+                (s, d)
+            })
+            .min_by(|a, b| a.1[0].hypot(a.1[1]).total_cmp(&b.1[0].hypot(b.1[1])))?;
+        let error_m = d[0].hypot(d[1]);
+        if error_m.is_nan() || error_m >= SCORE_MAX_ERROR_M {
+            return None;
+        }
+        let block = |dims: &[usize]| -> Option<Vec<Vec<f64>>> {
+            let at: Vec<usize> = dims
+                .iter()
+                .map(|d| k.cov_dims.iter().position(|c| c == d))
+                .collect::<Option<_>>()?;
+            Some(
+                at.iter()
+                    .map(|&i| at.iter().map(|&j| k.cov[i][j]).collect())
+                    .collect(),
+            )
+        };
+        let (nees, dof) = if let Some(p) = block(&[0, 1, 2]) {
+            let p = nalgebra::Matrix3::from_fn(|i, j| p[i][j]);
+            let v = nalgebra::Vector3::from(d);
+            (mahalanobis_sq(&v, &p, "track covariance").ok(), 3)
+        } else {
+            let p = block(&[0, 1])?;
+            let p = nalgebra::Matrix2::from_fn(|i, j| p[i][j]);
+            let v = nalgebra::Vector2::new(d[0], d[1]);
+            (mahalanobis_sq(&v, &p, "track covariance").ok(), 2)
+        };
+        Some(TrackScore {
+            track: k.id,
+            target: target.id.clone(),
+            t: k.t,
+            error_m,
+            nees,
+            dof,
+        })
     }
 }
 

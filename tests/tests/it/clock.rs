@@ -216,7 +216,7 @@ async fn run_held_out(sc: &MultiScenario, bad_clock: bool) -> f64 {
     let estimates: Vec<Vector2<f64>> = snap
         .tracks
         .iter()
-        .filter(|k| k.status == "confirmed")
+        .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
         .map(|k| Vector2::new(k.state[0], k.state[1]))
         .collect();
     let truths: Vec<Vector2<f64>> = sc

@@ -703,7 +703,7 @@ impl Pooled {
         for g in targets_at(s, t) {
             let e = tracks
                 .iter()
-                .filter(|k| k.status == "confirmed")
+                .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
                 .map(|k| {
                     let dt = t - k.t;
                     let x = [k.state[0] + k.state[3] * dt, k.state[1] + k.state[4] * dt];

@@ -294,7 +294,7 @@ fn a_lost_vehicle_flies_its_assignment_again() {
                     .borrow_and_update()
                     .tracks
                     .iter()
-                    .find(|t| t.status == "confirmed")
+                    .find(|t| t.status == harrier_server::engine::TrackStatus::Confirmed)
                 {
                     return t.id;
                 }

@@ -491,7 +491,7 @@ async fn tracking_goes_on(server: &harrier_server::live::LiveServer, more: u64) 
                 .borrow_and_update()
                 .tracks
                 .iter()
-                .any(|t| t.status == "confirmed");
+                .any(|t| t.status == harrier_server::engine::TrackStatus::Confirmed);
             if confirmed && server.metrics().scans_ingested() >= from + more {
                 return;
             }

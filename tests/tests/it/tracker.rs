@@ -538,7 +538,7 @@ fn track_engines_by_name_on_the_cimm_reference() {
             let confirmed: Vec<_> = engine
                 .snapshot()
                 .into_iter()
-                .filter(|k| k.status == "confirmed")
+                .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
                 .collect();
             let row = truth.iter().find(|r| (r.t - m.t).abs() < 1e-6).unwrap();
             if m.t >= 100.0 {

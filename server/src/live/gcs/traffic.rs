@@ -28,13 +28,13 @@ use tokio::sync::watch;
 
 use super::transport::stopped;
 use super::{GcsLink, Request};
-use crate::engine::TrackView;
+use crate::engine::{TrackStatus, TrackView};
 use crate::live::tracker::Snapshot;
 
 /// The ADSB_VEHICLE message of a confirmed track, `None` for a tentative one or an estimate
 /// that is not finite.
 pub fn adsb_vehicle(track: &TrackView, frame: &LocalFrame) -> Option<MavMessage> {
-    if track.status != "confirmed" || !track.state.iter().all(|v| v.is_finite()) {
+    if track.status != TrackStatus::Confirmed || !track.state.iter().all(|v| v.is_finite()) {
         return None;
     }
     let [x, y, z, vx, vy, vz] = track.state;
@@ -106,7 +106,7 @@ mod tests {
     use super::*;
     use crate::live::config::DEFAULT_ORIGIN;
 
-    fn track(status: &'static str, state: [f64; 6]) -> TrackView {
+    fn track(status: TrackStatus, state: [f64; 6]) -> TrackView {
         TrackView {
             id: 12,
             status,
@@ -125,7 +125,7 @@ mod tests {
     fn a_confirmed_track_becomes_traffic_where_it_is() {
         let frame = LocalFrame::new(DEFAULT_ORIGIN);
         // 300 m east, 400 m north, 20 m up; 3 m/s east, 4 m/s north (course 36.87°), 1 m/s up.
-        let t = track("confirmed", [300.0, 400.0, 20.0, 3.0, 4.0, 1.0]);
+        let t = track(TrackStatus::Confirmed, [300.0, 400.0, 20.0, 3.0, 4.0, 1.0]);
         let Some(MavMessage::ADSB_VEHICLE(a)) = adsb_vehicle(&t, &frame) else {
             panic!("no ADSB_VEHICLE");
         };
@@ -150,18 +150,21 @@ mod tests {
     #[test]
     fn tentative_or_non_finite_tracks_are_not_sent() {
         let frame = LocalFrame::new(DEFAULT_ORIGIN);
-        assert!(adsb_vehicle(&track("tentative", [0.0; 6]), &frame).is_none());
-        let nan = track("confirmed", [f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0]);
+        assert!(adsb_vehicle(&track(TrackStatus::Tentative, [0.0; 6]), &frame).is_none());
+        let nan = track(TrackStatus::Confirmed, [f64::NAN, 0.0, 0.0, 0.0, 0.0, 0.0]);
         assert!(adsb_vehicle(&nan, &frame).is_none());
-        let inf = track("confirmed", [0.0, 0.0, 0.0, f64::INFINITY, 0.0, 0.0]);
+        let inf = track(
+            TrackStatus::Confirmed,
+            [0.0, 0.0, 0.0, f64::INFINITY, 0.0, 0.0],
+        );
         assert!(adsb_vehicle(&inf, &frame).is_none());
         // West and due south: courses 270° and 180°, within [0, 360).
-        let west = track("confirmed", [0.0, 0.0, 0.0, -2.0, 0.0, 0.0]);
+        let west = track(TrackStatus::Confirmed, [0.0, 0.0, 0.0, -2.0, 0.0, 0.0]);
         let Some(MavMessage::ADSB_VEHICLE(a)) = adsb_vehicle(&west, &frame) else {
             panic!("no ADSB_VEHICLE");
         };
         assert_eq!(a.heading, 27_000);
-        let south = track("confirmed", [0.0, 0.0, 0.0, 0.0, -2.0, 0.0]);
+        let south = track(TrackStatus::Confirmed, [0.0, 0.0, 0.0, 0.0, -2.0, 0.0]);
         let Some(MavMessage::ADSB_VEHICLE(a)) = adsb_vehicle(&south, &frame) else {
             panic!("no ADSB_VEHICLE");
         };

@@ -245,7 +245,11 @@ impl TestApp {
         for k in 0..20 {
             self.scan(2, f64::from(k), &[[100.0, 50.0]]).await;
             let snap = Arc::clone(&self.state.tracking.snapshot.borrow());
-            if let Some(t) = snap.tracks.iter().find(|t| t.status == "confirmed") {
+            if let Some(t) = snap
+                .tracks
+                .iter()
+                .find(|t| t.status == crate::engine::TrackStatus::Confirmed)
+            {
                 return t.id;
             }
         }

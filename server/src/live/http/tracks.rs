@@ -6,16 +6,15 @@ use std::sync::Arc;
 use axum::extract::State;
 use axum::routing::get;
 use axum::{Json, Router};
-use harrier_core::linalg::ellipse_axes;
-use nalgebra::{Matrix2, Matrix3, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 use utoipa::{OpenApi, ToSchema};
 
 use super::error::{ApiError, ErrorBody};
 use super::extract::{AppPath, AppQuery};
 use super::state::{ApiState, Tracking};
-use crate::engine::TrackView;
+use crate::engine::TrackStatus;
 use crate::live::bound::BoundView;
+use crate::live::wire::TrackDto;
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
@@ -45,7 +44,7 @@ pub struct TracksBody {
     /// Scans processed so far.
     seq: u64,
     /// The tracks, in id order.
-    tracks: Vec<TrackView>,
+    tracks: Vec<TrackDto>,
 }
 
 /// The live tracks.
@@ -62,8 +61,8 @@ async fn tracks(State(s): State<Tracking>, AppQuery(q): AppQuery<TracksQuery>) -
     let tracks = snap
         .tracks
         .iter()
-        .filter(|k| all || k.status == "confirmed")
-        .cloned()
+        .filter(|k| all || k.status == TrackStatus::Confirmed)
+        .map(TrackDto::from)
         .collect();
     Json(TracksBody {
         t: snap.t,
@@ -72,82 +71,16 @@ async fn tracks(State(s): State<Tracking>, AppQuery(q): AppQuery<TracksQuery>) -
     })
 }
 
-/// The 95 % confidence ellipse of a planar position.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct Ellipse {
-    /// Semi-axes (m), major first.
-    semi_axes: [f64; 2],
-    /// Direction of the major axis (rad, counter-clockwise from East).
-    angle_rad: f64,
-}
-
-/// The 95 % confidence ellipsoid of a 3-D position.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct Ellipsoid {
-    /// Semi-axes (m), largest first.
-    semi_axes: [f64; 3],
-    /// Unit axis directions (ENU), in the order of `semi_axes`.
-    axes: [[f64; 3]; 3],
-}
-
 /// One track in full.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct TrackDetail {
-    /// The estimate.
+    /// The estimate, with its 95 % ellipse and ellipsoid.
     #[serde(flatten)]
-    track: TrackView,
-    /// 95 % position ellipse (x, y).
-    ellipse_95: Option<Ellipse>,
-    /// 95 % position ellipsoid (3-D tracks).
-    ellipsoid_95: Option<Ellipsoid>,
+    track: TrackDto,
     /// `[t, x, y, z]` after each update, oldest first (the last 200).
     history: Vec<[f64; 4]>,
     /// The set-membership (OBE) bound beside the track, when `tracker.bound.enabled`.
     bound: Option<BoundView>,
-}
-
-/// χ² quantiles of 0.95 for 2 and 3 degrees of freedom.
-const CHI2_95_2: f64 = 5.991_464_547_107_979;
-const CHI2_95_3: f64 = 7.814_727_903_251_178;
-
-/// The position block of `k`'s covariance over the state indices `dims` (`None` when absent).
-fn position_cov(k: &TrackView, dims: &[usize]) -> Option<Vec<Vec<f64>>> {
-    let at: Option<Vec<usize>> = dims
-        .iter()
-        .map(|d| k.cov_dims.iter().position(|c| c == d))
-        .collect();
-    let at = at?;
-    Some(
-        at.iter()
-            .map(|&i| at.iter().map(|&j| k.cov[i][j]).collect())
-            .collect(),
-    )
-}
-
-fn ellipse(k: &TrackView) -> Option<Ellipse> {
-    let c = position_cov(k, &[0, 1])?;
-    let m = Matrix2::new(c[0][0], c[0][1], c[1][0], c[1][1]);
-    let (semi_axes, angle_rad) = ellipse_axes(&(m * CHI2_95_2));
-    Some(Ellipse {
-        semi_axes,
-        angle_rad,
-    })
-}
-
-fn ellipsoid(k: &TrackView) -> Option<Ellipsoid> {
-    let c = position_cov(k, &[0, 1, 2])?;
-    let m = Matrix3::from_fn(|i, j| c[i][j]);
-    let e = SymmetricEigen::new(0.5 * (m + m.transpose()));
-    let mut order = [0, 1, 2];
-    order.sort_by(|&a, &b| e.eigenvalues[b].total_cmp(&e.eigenvalues[a]));
-    let axis = |i: usize| {
-        let v = e.eigenvectors.column(i);
-        [v[0], v[1], v[2]]
-    };
-    Some(Ellipsoid {
-        semi_axes: order.map(|i| (CHI2_95_3 * e.eigenvalues[i].max(0.0)).sqrt()),
-        axes: order.map(axis),
-    })
 }
 
 /// One track: estimate, confidence regions, history.
@@ -174,11 +107,9 @@ async fn track(
         .find(|k| k.id == id)
         .ok_or_else(|| ApiError::not_found(format!("no track {id}")))?;
     Ok(Json(TrackDetail {
-        ellipse_95: ellipse(k),
-        ellipsoid_95: ellipsoid(k),
+        track: TrackDto::from(k),
         history: s.recent.history(id),
         bound: s.recent.bound(id),
-        track: k.clone(),
     }))
 }
 

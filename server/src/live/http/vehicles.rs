@@ -17,12 +17,11 @@ use utoipa::{OpenApi, ToSchema};
 use super::error::{ApiError, ErrorBody};
 use super::extract::{AppJson, AppPath};
 use super::state::{ApiState, Control, Recording, Service, Tracking};
-use crate::live::clock::{ClockEstimate, unix_now};
+use crate::live::clock::unix_now;
 use crate::live::gcs::CommandOutcome;
-use crate::live::gcs::vehicle::VehicleLinkView;
 use crate::live::metrics::{DropReason, Metrics};
 use crate::live::recorder::Record;
-use crate::live::tracker::VehicleView;
+use crate::live::wire::VehicleEntry;
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
@@ -36,37 +35,6 @@ pub(super) fn routes() -> Router<ApiState> {
 #[derive(Debug, OpenApi)]
 #[openapi(paths(vehicles, vehicle, command))]
 pub(super) struct Doc;
-
-/// A vehicle: its MAVLink link (when the GCS link hears it) and its detections (when it
-/// publishes any), joined on the system id. The one shape of a vehicle on the API and the
-/// WebSocket.
-#[derive(Debug, Clone, Serialize, ToSchema)]
-pub struct VehicleEntry {
-    /// MAVLink system id (the `{id}` of `harrier/v1/vehicle/{id}/detections`).
-    pub id: u8,
-    /// Telemetry and link state; `null` when the GCS link has not heard it.
-    pub link: Option<VehicleLinkView>,
-    /// Its detections; `null` when none was processed.
-    pub detections: Option<VehicleView>,
-    /// Its clock as estimated from its scans' `time_unix` (`[clock]`); `null` before the first
-    /// stamped scan.
-    pub clock: Option<ClockEstimate>,
-    /// Its scans refused because their `time_unix` was outside the bound (drop reason `clock`).
-    pub clock_refused: u64,
-}
-
-impl VehicleEntry {
-    /// Vehicle `id`, known from nothing yet.
-    fn new(id: u8) -> Self {
-        Self {
-            id,
-            link: None,
-            detections: None,
-            clock: None,
-            clock_refused: 0,
-        }
-    }
-}
 
 /// The vehicles.
 #[derive(Debug, Serialize, ToSchema)]

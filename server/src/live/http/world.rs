@@ -22,7 +22,8 @@ pub(super) fn routes() -> Router<ApiState> {
 #[openapi(paths(truth, world))]
 pub(super) struct Doc;
 
-/// The latest simulation truth (`harrier/v1/sim/truth`), for drawing and for error figures.
+/// The latest simulation truth (`harrier/v1/sim/truth`), for drawing, with each live track's
+/// error and NEES against the nearest target.
 #[utoipa::path(get, path = "/api/v1/truth", tag = "tracks",
     responses(
         (status = 200, body = TruthBody),
@@ -30,7 +31,9 @@ pub(super) struct Doc;
     ),
     security((), ("bearer" = [])))]
 async fn truth(State(s): State<Tracking>) -> Json<TruthBody> {
-    Json((*s.truth.borrow()).as_ref().clone())
+    let truth = std::sync::Arc::clone(&s.truth.borrow());
+    let snap = std::sync::Arc::clone(&s.snapshot.borrow());
+    Json(truth.with_scores(&snap.tracks))
 }
 
 /// The static world: roads and obstacles of the configuration, for the map.
@@ -66,7 +69,7 @@ mod tests {
         });
         assert_eq!(
             app.get("/api/v1/truth").await.json(),
-            serde_json::json!({"targets": []})
+            serde_json::json!({"targets": [], "scores": []})
         );
         app.truth.send_replace(Arc::new(TruthBody {
             targets: vec![TruthTarget {
@@ -75,16 +78,46 @@ mod tests {
                 position: [1.0, 2.0, 0.0],
                 velocity: [3.0, 0.0, 0.0],
             }],
+            scores: Vec::new(),
         }));
         let r = app.get("/api/v1/truth").await;
         assert_eq!(r.status, StatusCode::OK);
         assert_eq!(r.json()["targets"][0]["id"], "car-1");
+        assert_eq!(r.json()["scores"], serde_json::json!([]));
         let r = app.get("/api/v1/world").await;
         assert_eq!(r.status, StatusCode::OK);
         assert_eq!(
             r.json(),
             serde_json::json!({"roads": [], "obstacles": [{"x_m": 10.0, "y_m": -5.0, "radius_m": 3.0}]})
         );
+    }
+
+    #[tokio::test]
+    async fn a_track_near_a_target_is_scored_against_it() {
+        let app = TestApp::new();
+        let id = app.confirmed_track().await;
+        let t = app.state.tracking.snapshot.borrow().t.expect("a scan");
+        // Two targets: the track (at about (100, 50)) is scored against the nearer one, moved
+        // on to the track's time.
+        let target = |id: &str, x: f64| TruthTarget {
+            id: id.into(),
+            t: t - 1.0,
+            position: [x - 3.0, 50.0, 0.0],
+            velocity: [3.0, 0.0, 0.0],
+        };
+        app.truth.send_replace(Arc::new(TruthBody {
+            targets: vec![target("far", 160.0), target("near", 103.0)],
+            scores: Vec::new(),
+        }));
+        let body = app.get("/api/v1/truth").await.json();
+        let s = &body["scores"][0];
+        assert_eq!(
+            (&s["track"], &s["target"], &s["dof"]),
+            (&id.into(), &"near".into(), &2.into())
+        );
+        let error = s["error_m"].as_f64().expect("an error");
+        assert!((1.0..5.0).contains(&error), "{s}");
+        assert!(s["nees"].as_f64().is_some_and(|n| n > 0.0), "{s}");
     }
 
     #[tokio::test]

@@ -1,26 +1,30 @@
 //! The WebSocket stream, `GET /api/v1/ws`: every processed scan as it happens, after a snapshot.
 //!
-//! Messages are JSON text frames with a `type`:
+//! Messages are JSON text frames, each a [`WsMessage`] (OpenAPI component `WsMessage`, built in
+//! `live::wire`), told apart by `type`:
 //!
-//! - `snapshot`: sent on connect, and again after the client fell behind:
-//!   `{"type": "snapshot", "seq", "t", "tracks": [TrackView…], "vehicles": [VehicleEntry…],
+//! - `snapshot` ([`SnapshotMessage`]): sent on connect, and again after the client fell behind:
+//!   `{"type": "snapshot", "seq", "t", "tracks": [TrackDto…], "vehicles": [VehicleEntry…],
 //!   "estimator": {"name", "params"}, "dropped"}` (`dropped`: scan messages this client missed
 //!   since the last snapshot, 0 on connect).
-//! - `scan`: one per scan the tracker processed, in order: `{"type": "scan", "seq", "t",
-//!   "vehicle", "sensor", "kind", "platform": [x, y, z], "detections": [z…], "events": [{"type":
-//!   "born" | "confirmed" | "updated" | "coasted" | "deleted" | "rejected", "id", …}], "tracks":
-//!   [TrackView…]}` (the tracks the scan started, confirmed or updated; a deleted track has a
-//!   `deleted` event, a coasted one keeps its last state). `seq` counts processed scans: a client
-//!   sees consecutive values unless it was dropped to a snapshot.
-//! - `vehicles` (at 10 Hz, [`VEHICLES_PERIOD`], when the MAVLink link runs): `{"type":
-//!   "vehicles", "vehicles": [VehicleEntry…], "assignments": [AssignmentView…]}`, as
-//!   `GET /api/v1/vehicles` and `GET /api/v1/assignments`.
-//! - `vehicle_event`: `{"type": "vehicle_event", "event": {"vehicle", "event": "connected" |
-//!   "lost" | "recovered" | "mode" | "armed" | "disarmed", "mode", "time_unix"}}`.
+//! - `scan` ([`ScanMessage`]): one per scan the tracker processed, in order: `{"type": "scan",
+//!   "seq", "t", "vehicle", "sensor", "kind", "platform": [x, y, z], "detections": [z…],
+//!   "events": [TrackEventDto…], "tracks": [TrackDto…]}`; an event is `{"type": "born" |
+//!   "confirmed" | "updated" | "coasted" | "deleted" | "rejected", "id", …}`
+//!   ([`TrackEventDto`]), the tracks are those the scan started, confirmed or updated (a deleted
+//!   track has a `deleted` event, a coasted one keeps its last state). `seq` counts processed
+//!   scans: a client sees consecutive values unless it was dropped to a snapshot.
+//! - `vehicles` ([`VehiclesMessage`], at 10 Hz, [`VEHICLES_PERIOD`], when the MAVLink link
+//!   runs): `{"type": "vehicles", "vehicles": [VehicleEntry…], "assignments":
+//!   [AssignmentView…]}`, as `GET /api/v1/vehicles` and `GET /api/v1/assignments`.
+//! - `vehicle_event`: `{"type": "vehicle_event", "event": LinkEvent}` (`{"vehicle", "event":
+//!   "connected" | "lost" | "recovered" | "mode" | "armed" | "disarmed", "mode", "time_unix"}`).
 //! - `assignment`: `{"type": "assignment", "assignment": AssignmentView}` when one is created,
 //!   a vehicle of it changes state, or it ends.
 //!
-//! A vehicle has one shape everywhere: `VehicleEntry` (`{"id", "link", "detections"}`).
+//! A track has one shape everywhere (REST, WebSocket, Zenoh): [`TrackDto`], with its 95 %
+//! `ellipse_95` and (3-D) `ellipsoid_95`. A vehicle has one shape everywhere: [`VehicleEntry`]
+//! (`{"id", "link", "detections", "clock", "clock_refused"}`).
 //!
 //! Each client has a bounded queue (`api.ws_queue` messages, the tracker's broadcast ring): the
 //! tracker never waits for a client. A client that falls further behind loses the oldest
@@ -47,18 +51,39 @@ use utoipa::OpenApi;
 
 use super::error::{ApiError, ErrorBody};
 use super::state::{ApiState, Control, Tracking};
-use super::vehicles::{VehicleEntry, vehicle_entries};
+use super::vehicles::vehicle_entries;
 use crate::live::metrics::Metrics;
 use crate::live::tracker::Snapshot;
+use crate::live::wire::{
+    DeleteCause, Ellipse, Ellipsoid, ScanMessage, SnapshotMessage, TrackDto, TrackEventDto,
+    TracksFrame, TracksMessage, VehicleEntry, VehiclesMessage, WsMessage, scan_json, to_json,
+};
 
 /// The route of this file.
 pub(super) fn routes() -> Router<ApiState> {
     Router::new().route("/ws", get(ws))
 }
 
-/// The OpenAPI path of this file.
+/// The OpenAPI path of this file, and the schemas of every streamed message: the WebSocket's
+/// [`WsMessage`] and the Zenoh [`TracksMessage`] (which the stream's route cannot name).
 #[derive(Debug, OpenApi)]
-#[openapi(paths(ws))]
+#[openapi(
+    paths(ws),
+    components(schemas(
+        WsMessage,
+        SnapshotMessage,
+        ScanMessage,
+        VehiclesMessage,
+        TrackEventDto,
+        DeleteCause,
+        TrackDto,
+        Ellipse,
+        Ellipsoid,
+        VehicleEntry,
+        TracksMessage,
+        TracksFrame,
+    ))
+)]
 pub(super) struct Doc;
 
 /// Longest time one message may take to leave; past it the client is disconnected.
@@ -67,28 +92,24 @@ pub const SEND_TIMEOUT: Duration = Duration::from_secs(10);
 /// Period of the `vehicles` message (10 Hz; the link's vehicle table changes at 20 Hz).
 pub const VEHICLES_PERIOD: Duration = Duration::from_millis(100);
 
-/// The `snapshot` message.
-fn snapshot_message(s: &Snapshot, vehicles: &[VehicleEntry], dropped: u64) -> String {
-    serde_json::json!({
-        "type": "snapshot",
-        "seq": s.seq,
-        "t": s.t,
-        "tracks": *s.tracks,
-        "vehicles": vehicles,
-        "estimator": *s.estimator,
-        "dropped": dropped,
-    })
-    .to_string()
+/// The `snapshot` message of `s`, after `dropped` lost scan messages.
+fn snapshot_message(s: &Snapshot, c: &Control, t: &Tracking, m: &Metrics, dropped: u64) -> String {
+    let vehicles = vehicle_entries(c, t, m);
+    to_json(&WsMessage::Snapshot(SnapshotMessage::new(
+        s, vehicles, dropped,
+    )))
 }
 
 /// The `vehicles` message.
 fn vehicles_message(c: &Control, t: &Tracking, m: &Metrics) -> String {
-    serde_json::json!({
-        "type": "vehicles",
-        "vehicles": vehicle_entries(c, t, m),
-        "assignments": c.guidance.as_ref().map(|g| g.assignments.borrow().to_vec()).unwrap_or_default(),
-    })
-    .to_string()
+    to_json(&WsMessage::Vehicles(VehiclesMessage {
+        vehicles: vehicle_entries(c, t, m),
+        assignments: c
+            .guidance
+            .as_ref()
+            .map(|g| g.assignments.borrow().to_vec())
+            .unwrap_or_default(),
+    }))
 }
 
 /// Upgrades the connection and streams to it.
@@ -97,7 +118,7 @@ fn vehicles_message(c: &Control, t: &Tracking, m: &Metrics) -> String {
     path = "/api/v1/ws",
     tag = "stream",
     responses(
-        (status = 101, description = "Switching to the WebSocket protocol: `snapshot` and `scan` JSON messages (see the live::http::ws module docs)"),
+        (status = 101, description = "Switching to the WebSocket protocol: JSON text frames, each a `WsMessage` (component schema; `type`: `snapshot`, `scan`, `vehicles`, `vehicle_event`, `assignment`)"),
         (status = 400, description = "Not a WebSocket upgrade request (or an unsupported WebSocket version)", body = ErrorBody),
         (status = 401, description = "Reads need the token (`api.auth_reads`) and it is missing or wrong", body = ErrorBody),
     )
@@ -154,33 +175,31 @@ where
     let mut assignments = c.guidance.as_ref().map(|g| g.events.subscribe());
     let mut vehicles = tokio::time::interval(VEHICLES_PERIOD);
     vehicles.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
-    let first = snapshot_message(&snap, &vehicle_entries(c, t, metrics), 0);
+    let first = snapshot_message(&snap, c, t, metrics, 0);
     if send(&mut tx, &first).await {
         loop {
             let ok = tokio::select! {
                 _ = vehicles.tick(), if c.link.is_some() => {
                     send(&mut tx, &vehicles_message(c, t, metrics)).await
                 }
-                Some(e) = next(&mut link_events) => {
-                    let body = serde_json::json!({"type": "vehicle_event", "event": e});
-                    send(&mut tx, &body.to_string()).await
+                Some(event) = next(&mut link_events) => {
+                    send(&mut tx, &to_json(&WsMessage::VehicleEvent { event })).await
                 }
-                Some(a) = next(&mut assignments) => {
-                    let body = serde_json::json!({"type": "assignment", "assignment": a});
-                    send(&mut tx, &body.to_string()).await
+                Some(assignment) = next(&mut assignments) => {
+                    send(&mut tx, &to_json(&WsMessage::Assignment { assignment })).await
                 }
                 r = scans.recv() => match r {
                     Ok(scan) if scan.seq <= last => true,
                     Ok(scan) => {
                         last = scan.seq;
                         metrics.ws_sent(1);
-                        send(&mut tx, scan.message()).await
+                        send(&mut tx, scan_json(&scan)).await
                     }
                     Err(RecvError::Lagged(n)) => {
                         metrics.ws_dropped(n);
                         let snap = Arc::clone(&t.snapshot.borrow());
                         last = snap.seq;
-                        send(&mut tx, &snapshot_message(&snap, &vehicle_entries(c, t, metrics), n)).await
+                        send(&mut tx, &snapshot_message(&snap, c, t, metrics, n)).await
                     }
                     Err(RecvError::Closed) => false,
                 },
