@@ -21,8 +21,8 @@ use crate::live::clock::{ClockEstimate, unix_now};
 use crate::live::gcs::CommandOutcome;
 use crate::live::gcs::vehicle::VehicleLinkView;
 use crate::live::metrics::{DropReason, Metrics};
-use crate::live::recorder::Record;
 use crate::live::tracker::VehicleView;
+use crate::recording::writer::Record;
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
