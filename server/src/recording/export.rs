@@ -21,7 +21,7 @@ use harrier_link::scenario_out;
 use nalgebra::{SVector, Vector3};
 use serde_json::json;
 
-use super::reader::{Db, SessionError};
+use super::reader::{Db, SessionError, SessionInfo};
 
 /// Velocity standard deviation of an export's prior (m/s): a ground target of unknown speed.
 const PRIOR_VEL_STD_MPS: f64 = 15.0;
@@ -457,72 +457,130 @@ fn ground_target(id: &str) -> fmt::Target {
     }
 }
 
-/// Exports session `id` of `db` as a `gcs-scenario/1` scenario, in memory.
-pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
-    let d = Db::open(db)?;
-    let info = d.info(id)?;
-    let config_json = d.config_json(id)?;
-    let (motion, roads, scan_period) =
-        deployment(&config_json).map_err(|m| d.malformed(id, format!("sessions row: {m}")))?;
-    let scans: Vec<(i64, DetectionScan)> = d.rows("scans", id, DetectionScan::from_json)?;
-    let truth: Vec<(i64, TruthSample)> = d.rows("truth", id, TruthSample::from_json)?;
-    if scans.is_empty() {
-        return Err(d.export_error(id, "it has no scans"));
+/// What an export reads of a session: its summary, the settings of its configuration an export
+/// uses, and its scans and truth samples with their row ids.
+struct Recorded {
+    info: SessionInfo,
+    motion: fmt::Motion,
+    roads: Vec<fmt::Road>,
+    /// The configured scan period (s): a single-target export's time step, and a multi-target
+    /// one's when no sensor scanned twice.
+    scan_period: f64,
+    scans: Vec<(i64, DetectionScan)>,
+    truth: Vec<(i64, TruthSample)>,
+}
+
+impl Recorded {
+    /// Reads session `id` of `d`; one without scans is refused.
+    fn read(d: &Db<'_>, id: i64) -> Result<Self, SessionError> {
+        let info = d.info(id)?;
+        let (motion, roads, scan_period) = deployment(&d.config_json(id)?)
+            .map_err(|m| d.malformed(id, format!("sessions row: {m}")))?;
+        let scans = d.rows("scans", id, DetectionScan::from_json)?;
+        let truth = d.rows("truth", id, TruthSample::from_json)?;
+        if scans.is_empty() {
+            return Err(d.export_error(id, "it has no scans"));
+        }
+        Ok(Self {
+            info,
+            motion,
+            roads,
+            scan_period,
+            scans,
+            truth,
+        })
     }
 
-    let mut line = TimeLine::new(&scans);
-    let origin = GeoPoint::new(info.origin_lat_deg, info.origin_lon_deg, info.origin_alt_m);
-    let frame = LocalFrame::new(origin);
-    let geometry = Geometry::planar(info.plane_z);
+    /// The WGS-84 origin of the session's ENU frame.
+    fn origin(&self) -> GeoPoint {
+        let i = &self.info;
+        GeoPoint::new(i.origin_lat_deg, i.origin_lon_deg, i.origin_alt_m)
+    }
 
-    let Framed {
-        sensors,
-        mut lines,
-        times,
-        several,
-    } = framed(&d, id, &scans, line, &frame, geometry)?;
-    let ids = sensor_ids(&sensors);
-    let truth_ids: BTreeSet<&str> = truth
-        .iter()
-        .flat_map(|s| s.1.targets.iter().map(|g| g.id.as_str()))
-        .collect();
-    let multi = several || truth_ids.len() > 1;
+    /// Whether the truth has several targets.
+    fn several_targets(&self) -> bool {
+        let ids: BTreeSet<&str> = self
+            .truth
+            .iter()
+            .flat_map(|s| s.1.targets.iter().map(|g| g.id.as_str()))
+            .collect();
+        ids.len() > 1
+    }
+}
 
-    // Scan times: as recorded (single target), or snapped to the scan grid (multi-target), time
-    // 0 then being grid point 0.
-    let (times, dt, max_shift) = if multi {
-        let g = Grid::fit(&sensors, scan_period).map_err(|m| d.export_error(id, m))?;
+/// The time axis of an export.
+#[derive(Debug)]
+struct ScanTimes {
+    /// The scenario's scan times (relative, distinct, in order).
+    times: Vec<f64>,
+    /// Its time step (s).
+    dt: f64,
+    /// Largest shift of a scan's time onto the grid (s; 0 when the times are as recorded).
+    max_shift: f64,
+}
+
+impl ScanTimes {
+    /// A single-target export's: the scan times as recorded, the configured period as its step.
+    fn as_recorded(mut times: Vec<f64>, scan_period: f64) -> Self {
+        times.sort_by(f64::total_cmp);
+        times.dedup_by(|a, b| (*a - *b).abs() <= TIME_TOL_S);
+        Self {
+            times,
+            dt: scan_period,
+            max_shift: 0.0,
+        }
+    }
+
+    /// A multi-target export's: the scan grid fitted to the scan times of `sensors`, each of
+    /// `lines` moved onto it, and time 0 being grid point 0 (`line`'s epoch moves there).
+    /// Refused when a sensor scans twice at one grid time.
+    fn on_grid(
+        sensors: &BTreeMap<(u8, String), SensorEntry>,
+        lines: &mut [Line],
+        scan_period: f64,
+        line: &mut TimeLine,
+    ) -> Result<Self, String> {
+        let g = Grid::fit(sensors, scan_period)?;
         line.epoch += g.origin;
-        for ((v, s), e) in &sensors {
+        for ((v, s), e) in sensors {
             let k: Vec<i64> = e.times.iter().map(|t| g.index(*t)).collect();
             if let Some(w) = k.windows(2).find(|w| w[0] == w[1]) {
-                return Err(d.export_error(
-                    id,
-                    format!(
-                        "sensor {s} of vehicle {v} scans twice at grid time {} s (dt {} s)",
-                        w[0] as f64 * g.dt,
-                        g.dt
-                    ),
+                return Err(format!(
+                    "sensor {s} of vehicle {v} scans twice at grid time {} s (dt {} s)",
+                    w[0] as f64 * g.dt,
+                    g.dt
                 ));
             }
         }
-        for l in &mut lines {
+        for l in lines.iter_mut() {
             l.m.t = g.index(l.t) as f64 * g.dt;
         }
-        let last = times.iter().map(|t| g.index(*t)).max().unwrap_or(0);
-        let grid: Vec<f64> = (0..=last).map(|k| k as f64 * g.dt).collect();
-        (grid, g.dt, g.max_shift)
-    } else {
-        let mut distinct = times;
-        distinct.sort_by(f64::total_cmp);
-        distinct.dedup_by(|a, b| (*a - *b).abs() <= TIME_TOL_S);
-        (distinct, scan_period, 0.0)
-    };
-    let t_end = times.last().copied().unwrap_or(0.0);
-    let targets = truth_by_target(&truth, &frame, line);
+        let last = sensors
+            .values()
+            .flat_map(|e| &e.times)
+            .map(|t| g.index(*t))
+            .max()
+            .unwrap_or(0);
+        Ok(Self {
+            times: (0..=last).map(|k| k as f64 * g.dt).collect(),
+            dt: g.dt,
+            max_shift: g.max_shift,
+        })
+    }
 
-    // measurements.jsonl: sorted by time, then sensor id (a scan's detections keep their order).
-    for l in &mut lines {
+    /// The last scan time.
+    fn t_end(&self) -> f64 {
+        self.times.last().copied().unwrap_or(0.0)
+    }
+}
+
+/// `measurements.jsonl`: `lines` named by their scenario sensor ids (`ids`) and sorted by time,
+/// then sensor id (a scan's detections keep their order).
+fn measurements_jsonl(
+    lines: &mut [Line],
+    ids: &BTreeMap<(u8, String), String>,
+) -> Result<String, String> {
+    for l in lines.iter_mut() {
         l.m.sensor.clone_from(&ids[&l.sensor]);
     }
     lines.sort_by(|a, b| {
@@ -530,25 +588,21 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
             .total_cmp(&b.m.t)
             .then_with(|| a.m.sensor.cmp(&b.m.sensor))
     });
-    let mut measurements_jsonl = String::new();
-    for l in &lines {
+    let mut out = String::new();
+    for l in lines.iter() {
         let text = serde_json::to_string(&l.m)
-            .map_err(|e| d.export_error(id, format!("cannot serialise a measurement: {e}")))?;
-        measurements_jsonl.push_str(&text);
-        measurements_jsonl.push('\n');
+            .map_err(|e| format!("cannot serialise a measurement: {e}"))?;
+        out.push_str(&text);
+        out.push('\n');
     }
+    Ok(out)
+}
 
-    let (truth_csv, truth_rows) = if targets.is_empty() {
-        (None, 0)
-    } else {
-        let (csv, rows) = truth_csv(&targets, &times, multi);
-        (Some(csv), rows)
-    };
-    let prior = (!multi)
-        .then(|| first_fix_prior(&lines, &sensors, geometry))
-        .flatten();
-
-    // scenario.json
+/// The scenario's platforms (one per vehicle) and sensors (named by `ids`).
+fn scenario_sensors(
+    sensors: &BTreeMap<(u8, String), SensorEntry>,
+    ids: &BTreeMap<(u8, String), String>,
+) -> (Vec<fmt::Platform>, Vec<fmt::Sensor>) {
     let vehicles: BTreeSet<u8> = sensors.keys().map(|k| k.0).collect();
     let platforms = vehicles
         .iter()
@@ -557,12 +611,35 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
             kind: "uav".into(),
         })
         .collect();
-    let sensor_list: Vec<fmt::Sensor> = sensors
+    let list = sensors
         .iter()
         .map(|(k, e)| scenario_sensor(&ids[k], k.0, e))
         .collect();
+    (platforms, list)
+}
+
+/// The shape of an export: its format, its time line and its time axis.
+#[derive(Debug)]
+struct Shape {
+    /// FORMAT-MULTI.md rather than single-target.
+    multi: bool,
+    line: TimeLine,
+    times: ScanTimes,
+}
+
+/// `scenario.json` of the export of `session` (read from `db`): its platforms and sensors,
+/// targets, time axis, the session's motion models and roads, and where it came from.
+fn scenario_document(
+    db: &Path,
+    session: &Recorded,
+    shape: &Shape,
+    (platforms, sensors): (Vec<fmt::Platform>, Vec<fmt::Sensor>),
+    targets: &BTreeMap<String, TargetTruth>,
+    prior: Option<fmt::Prior>,
+) -> fmt::ScenarioDocument {
+    let (info, id) = (&session.info, session.info.id);
     let mut extensions = serde_json::Map::new();
-    if multi {
+    if shape.multi {
         let all: Vec<fmt::Target> = if targets.is_empty() {
             vec![ground_target("unknown")]
         } else {
@@ -570,7 +647,7 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         };
         extensions.insert("targets".into(), json!(all));
     }
-    let (epoch, time_line) = (line.epoch, line.name());
+    let (epoch, time_line) = (shape.line.epoch, shape.line.name());
     let scenario = fmt::Scenario {
         format: fmt::FORMAT_ID.into(),
         name: format!("session_{id}"),
@@ -583,16 +660,20 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
         ),
         dims: 2,
         plane_z: Some(info.plane_z),
-        time: fmt::TimeSpec { t0: 0.0, dt, t_end },
-        target: ground_target(if multi {
+        time: fmt::TimeSpec {
+            t0: 0.0,
+            dt: shape.times.dt,
+            t_end: shape.times.t_end(),
+        },
+        target: ground_target(if shape.multi {
             "multi"
         } else {
             targets.keys().next().map_or("tgt", String::as_str)
         }),
         platforms,
-        sensors: sensor_list,
-        roads,
-        motion: Some(motion),
+        sensors,
+        roads: session.roads.clone(),
+        motion: Some(session.motion.clone()),
         prior,
         linear_system: None,
         hints: json!({}),
@@ -611,26 +692,60 @@ pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
             "version": env!("CARGO_PKG_VERSION"),
         }),
     };
-    let scenario_json = fmt::ScenarioDocument {
+    fmt::ScenarioDocument {
         scenario,
-        frame: fmt::Frame::enu(Some(origin)),
+        frame: fmt::Frame::enu(Some(session.origin())),
         extensions,
         generator,
     }
-    .to_json()
-    .map_err(|e| d.export_error(id, format!("cannot serialise scenario.json: {e}")))?;
+}
+
+/// Exports session `id` of `db` as a `gcs-scenario/1` scenario, in memory.
+pub fn export(db: &Path, id: i64) -> Result<Exported, SessionError> {
+    let d = Db::open(db)?;
+    let session = Recorded::read(&d, id)?;
+    let frame = LocalFrame::new(session.origin());
+    let geometry = Geometry::planar(session.info.plane_z);
+    let mut line = TimeLine::new(&session.scans);
+    let Framed {
+        sensors,
+        mut lines,
+        times,
+        several,
+    } = framed(&d, id, &session.scans, line, &frame, geometry)?;
+    let multi = several || session.several_targets();
+    let times = if multi {
+        ScanTimes::on_grid(&sensors, &mut lines, session.scan_period, &mut line)
+            .map_err(|m| d.export_error(id, m))?
+    } else {
+        ScanTimes::as_recorded(times, session.scan_period)
+    };
+    let targets = truth_by_target(&session.truth, &frame, line);
+    let ids = sensor_ids(&sensors);
+    let measurements_jsonl =
+        measurements_jsonl(&mut lines, &ids).map_err(|m| d.export_error(id, m))?;
+    let truth = (!targets.is_empty()).then(|| truth_csv(&targets, &times.times, multi));
+    let prior = (!multi)
+        .then(|| first_fix_prior(&lines, &sensors, geometry))
+        .flatten();
+    let shape = Shape { multi, line, times };
+    let platforms_and_sensors = scenario_sensors(&sensors, &ids);
+    let scenario_json =
+        scenario_document(db, &session, &shape, platforms_and_sensors, &targets, prior)
+            .to_json()
+            .map_err(|e| d.export_error(id, format!("cannot serialise scenario.json: {e}")))?;
     Ok(Exported {
         session: id,
         scenario_json,
         measurements_jsonl,
-        truth_csv,
+        truth_rows: truth.as_ref().map_or(0, |t| t.1),
+        truth_csv: truth.map(|t| t.0),
         multi,
-        epoch,
-        time_line: time_line.into(),
-        max_time_shift_s: max_shift,
-        scans: scans.len() as u64,
+        epoch: line.epoch,
+        time_line: line.name().into(),
+        max_time_shift_s: shape.times.max_shift,
+        scans: session.scans.len() as u64,
         lines: lines.len() as u64,
-        truth_rows,
         sensors: ids.into_values().collect(),
     })
 }
