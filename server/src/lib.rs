@@ -26,6 +26,7 @@ pub mod engine;
 pub mod estimators;
 pub mod guidance_sim;
 pub mod live;
+pub mod prom;
 pub mod recording;
 pub mod registry;
 pub mod replay;

@@ -23,8 +23,8 @@
 //! (`shared/papers/002_*.txt`).
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
 use harrier_core::guidance::formation::{PairState, RangeRegulator, vector_sum};
@@ -47,6 +47,7 @@ use super::gcs::vehicle::LinkState;
 use super::gcs::{GcsLink, Request, VehicleSample};
 use super::tracker::Snapshot;
 use crate::engine::TrackView;
+use crate::prom::{Family, Histogram};
 
 /// A new assignment, as `POST /api/v1/assignments` takes it.
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
@@ -242,67 +243,79 @@ pub enum GuidanceRequest {
 }
 
 /// Counters of the loop.
-#[derive(Debug, Default)]
+#[derive(Debug)]
 pub struct GuidanceMetrics {
     ticks: AtomicU64,
     setpoints: AtomicU64,
-    /// Tick lateness histogram buckets (µs): ≤100, ≤500, ≤1000, ≤5000, ≤20000, more.
-    late: [AtomicU64; 6],
+    /// How late each tick started (s), over [`LATE_BOUNDS_S`].
+    late: Mutex<Histogram>,
     max_late_us: AtomicU64,
     created: AtomicU64,
     ended: AtomicU64,
 }
 
-const LATE_BOUNDS_US: [u64; 5] = [100, 500, 1000, 5000, 20_000];
+/// Upper bounds (s) of the tick lateness histogram's buckets.
+const LATE_BOUNDS_S: [f64; 5] = [0.0001, 0.0005, 0.001, 0.005, 0.02];
+
+impl Default for GuidanceMetrics {
+    fn default() -> Self {
+        Self {
+            ticks: AtomicU64::new(0),
+            setpoints: AtomicU64::new(0),
+            late: Mutex::new(Histogram::new(&LATE_BOUNDS_S)),
+            max_late_us: AtomicU64::new(0),
+            created: AtomicU64::new(0),
+            ended: AtomicU64::new(0),
+        }
+    }
+}
 
 impl GuidanceMetrics {
-    /// Appends the Prometheus text.
+    /// Appends the Prometheus text (`active`: the assignments active now).
     pub fn render(&self, active: usize, out: &mut String) {
-        use std::fmt::Write as _;
         let v = |a: &AtomicU64| a.load(Ordering::Relaxed);
-        let _ = writeln!(
+        Family::counter(
             out,
-            "# HELP harrier_guidance_ticks_total Guidance loop iterations.\n# TYPE harrier_guidance_ticks_total counter\nharrier_guidance_ticks_total {}",
-            v(&self.ticks)
-        );
-        let _ = writeln!(
+            "harrier_guidance_ticks_total",
+            "Guidance loop iterations.",
+        )
+        .value(v(&self.ticks));
+        Family::counter(
             out,
-            "# HELP harrier_guidance_setpoints_total Velocity setpoints sent.\n# TYPE harrier_guidance_setpoints_total counter\nharrier_guidance_setpoints_total {}",
-            v(&self.setpoints)
-        );
-        let _ = writeln!(
+            "harrier_guidance_setpoints_total",
+            "Velocity setpoints sent.",
+        )
+        .value(v(&self.setpoints));
+        Family::gauge(
             out,
-            "# HELP harrier_guidance_assignments Assignments: active now; created and ended since start.\n# TYPE harrier_guidance_assignments gauge\nharrier_guidance_assignments{{state=\"active\"}} {active}\nharrier_guidance_assignments{{state=\"created\"}} {}\nharrier_guidance_assignments{{state=\"ended\"}} {}",
-            v(&self.created),
-            v(&self.ended)
-        );
-        let _ = writeln!(
-            out,
-            "# HELP harrier_guidance_tick_late_seconds How late each tick started against its schedule (jitter).\n# TYPE harrier_guidance_tick_late_seconds histogram"
-        );
-        let mut cum = 0;
-        for (i, b) in LATE_BOUNDS_US.iter().enumerate() {
-            cum += v(&self.late[i]);
-            let _ = writeln!(
+            "harrier_guidance_assignments",
+            "Assignments: active now; created and ended since start.",
+        )
+        .sample(&[("state", &"active")], active)
+        .sample(&[("state", &"created")], v(&self.created))
+        .sample(&[("state", &"ended")], v(&self.ended));
+        self.late
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .render(
                 out,
-                "harrier_guidance_tick_late_seconds_bucket{{le=\"{}\"}} {cum}",
-                *b as f64 / 1e6
+                "harrier_guidance_tick_late_seconds",
+                "How late each tick started against its schedule (jitter).",
             );
-        }
-        cum += v(&self.late[5]);
-        let _ = writeln!(
+        Family::gauge(
             out,
-            "harrier_guidance_tick_late_seconds_bucket{{le=\"+Inf\"}} {cum}\nharrier_guidance_tick_late_seconds_count {cum}\n# HELP harrier_guidance_tick_late_max_seconds Latest tick start seen.\n# TYPE harrier_guidance_tick_late_max_seconds gauge\nharrier_guidance_tick_late_max_seconds {}",
-            v(&self.max_late_us) as f64 / 1e6
-        );
+            "harrier_guidance_tick_late_max_seconds",
+            "Latest tick start seen.",
+        )
+        .value(v(&self.max_late_us) as f64 / 1e6);
     }
 
+    /// A tick started `us` µs after its schedule.
     fn late(&self, us: u64) {
-        let i = LATE_BOUNDS_US
-            .iter()
-            .position(|b| us <= *b)
-            .unwrap_or(LATE_BOUNDS_US.len());
-        self.late[i].fetch_add(1, Ordering::Relaxed);
+        self.late
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .observe(us as f64 / 1e6);
         self.max_late_us.fetch_max(us, Ordering::Relaxed);
     }
 }

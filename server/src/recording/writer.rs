@@ -13,7 +13,6 @@
 //! One file holds any number of sessions; each [`Recorder::open`] starts a new one.
 
 use std::collections::HashSet;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, SyncSender, TrySendError};
@@ -30,6 +29,7 @@ use super::schema::{
     UPDATE_SUMMARY, kind_name, schema_problem,
 };
 use crate::engine::TrackView;
+use crate::prom::Family;
 
 /// What the session is: written once into its `sessions` row.
 #[derive(Debug, Clone, PartialEq)]
@@ -125,43 +125,35 @@ pub struct RecorderStats {
 impl RecorderStats {
     /// Appends the counters in the Prometheus text format.
     pub fn render(&self, out: &mut String) {
-        let _ = writeln!(
+        Family::counter(
             out,
-            "# HELP harrier_recorder_rows_total Rows committed to the session file, by table.\n\
-             # TYPE harrier_recorder_rows_total counter"
-        );
-        for (table, n) in [
-            ("scans", self.scans),
-            ("detections", self.detections),
-            ("tracks", self.track_rows),
-            ("truth", self.truth_rows),
-            ("actions", self.actions),
-            ("vehicle_log", self.vehicle_rows),
-        ] {
-            let _ = writeln!(out, "harrier_recorder_rows_total{{table=\"{table}\"}} {n}");
-        }
-        for (name, help, v) in [
-            (
-                "harrier_recorder_dropped_total",
-                "Records dropped because the writer's queue was full.",
-                self.dropped,
-            ),
-            (
-                "harrier_recorder_errors_total",
-                "Failed writes to the session file.",
-                self.errors,
-            ),
-            (
-                "harrier_recorder_commits_total",
-                "Transactions committed.",
-                self.commits,
-            ),
-        ] {
-            let _ = writeln!(
-                out,
-                "# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}"
-            );
-        }
+            "harrier_recorder_rows_total",
+            "Rows committed to the session file, by table.",
+        )
+        .sample(&[("table", &"scans")], self.scans)
+        .sample(&[("table", &"detections")], self.detections)
+        .sample(&[("table", &"tracks")], self.track_rows)
+        .sample(&[("table", &"truth")], self.truth_rows)
+        .sample(&[("table", &"actions")], self.actions)
+        .sample(&[("table", &"vehicle_log")], self.vehicle_rows);
+        Family::counter(
+            out,
+            "harrier_recorder_dropped_total",
+            "Records dropped because the writer's queue was full.",
+        )
+        .value(self.dropped);
+        Family::counter(
+            out,
+            "harrier_recorder_errors_total",
+            "Failed writes to the session file.",
+        )
+        .value(self.errors);
+        Family::counter(
+            out,
+            "harrier_recorder_commits_total",
+            "Transactions committed.",
+        )
+        .value(self.commits);
     }
 }
 

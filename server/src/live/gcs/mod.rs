@@ -33,17 +33,17 @@
 //!   same key, and the vehicle checks the client's signature itself). It never re-signs: an
 //!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
+pub mod metrics;
 pub mod timesync;
 pub mod traffic;
 pub mod transport;
 pub mod vehicle;
 
 use std::collections::{BTreeMap, HashMap};
-use std::fmt::Write as _;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use harrier_link::frame::{Endpoint, EndpointError};
@@ -59,6 +59,7 @@ use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::ToSchema;
 
+pub use self::metrics::LinkMetrics;
 use self::transport::{EndpointHandle, Inbound, Outbound, Peer, stopped};
 use self::vehicle::{LinkState, VehicleLink, VehicleLinkView};
 use super::clock::unix_now;
@@ -201,209 +202,6 @@ pub struct VehicleSample {
     pub status: Option<VehicleStatus>,
     /// Home altitude AMSL (m), once known.
     pub home_amsl: Option<f64>,
-}
-
-/// The link's counters, rendered into `/metrics`.
-#[derive(Debug, Default)]
-pub struct LinkMetrics {
-    frames_in: AtomicU64,
-    malformed_gcs: AtomicU64,
-    malformed_router: AtomicU64,
-    frames_from_clients: AtomicU64,
-    routed_to_clients: AtomicU64,
-    routed_to_vehicles: AtomicU64,
-    unroutable: AtomicU64,
-    frames_out: AtomicU64,
-    heartbeats: AtomicU64,
-    track_messages: AtomicU64,
-    commands: AtomicU64,
-    command_retries: AtomicU64,
-    acks: Mutex<BTreeMap<String, u64>>,
-    vehicles_lost: AtomicU64,
-    tlog_dropped: AtomicU64,
-    /// Frames refused by the signing: [GCS side, router side] × [`Rejection::ALL`].
-    rejected: [[AtomicU64; 3]; 2],
-}
-
-impl LinkMetrics {
-    /// Appends the Prometheus text of the link's counters, and of `vehicles`.
-    pub fn render(
-        &self,
-        vehicles: &[VehicleSample],
-        endpoints: &[EndpointHandle],
-        out: &mut String,
-    ) {
-        let mut family = |name: &str, kind: &str, help: &str, rows: &[(String, u64)]| {
-            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
-            for (labels, value) in rows {
-                let _ = writeln!(out, "{name}{labels} {value}");
-            }
-        };
-        let v = |a: &AtomicU64| a.load(Ordering::Relaxed);
-        let one = |a: &AtomicU64| vec![(String::new(), v(a))];
-        family(
-            "harrier_mavlink_frames_received_total",
-            "counter",
-            "Valid MAVLink frames received on the GCS endpoints.",
-            &one(&self.frames_in),
-        );
-        family(
-            "harrier_mavlink_malformed_total",
-            "counter",
-            "Garbage datagrams, skipped byte stretches and undecodable frames, by side.",
-            &[
-                ("{side=\"gcs\"}".into(), v(&self.malformed_gcs)),
-                ("{side=\"router\"}".into(), v(&self.malformed_router)),
-            ],
-        );
-        let mut rejected = Vec::new();
-        for (side, counts) in ["gcs", "router"].iter().zip(&self.rejected) {
-            for (reason, n) in Rejection::ALL.iter().zip(counts) {
-                rejected.push((
-                    format!("{{side=\"{side}\",reason=\"{}\"}}", reason.as_str()),
-                    v(n),
-                ));
-            }
-        }
-        family(
-            "harrier_mavlink_rejected_total",
-            "counter",
-            "Frames refused by MAVLink 2 signing, by side and reason (unsigned in signed_only mode, bad_signature, replay).",
-            &rejected,
-        );
-        family(
-            "harrier_mavlink_frames_sent_total",
-            "counter",
-            "Frames the ground station sent to vehicles (its own: heartbeats, commands, setpoints).",
-            &one(&self.frames_out),
-        );
-        family(
-            "harrier_mavlink_heartbeats_sent_total",
-            "counter",
-            "GCS HEARTBEATs sent.",
-            &one(&self.heartbeats),
-        );
-        family(
-            "harrier_router_track_messages_total",
-            "counter",
-            "Confirmed tracks sent to the router's clients as ADSB_VEHICLE (mavlink.tracks_hz).",
-            &one(&self.track_messages),
-        );
-        family(
-            "harrier_router_frames_total",
-            "counter",
-            "Frames routed: vehicle to clients, client to vehicles, from clients, unroutable (unknown target system).",
-            &[
-                (
-                    "{direction=\"to_clients\"}".into(),
-                    v(&self.routed_to_clients),
-                ),
-                (
-                    "{direction=\"to_vehicles\"}".into(),
-                    v(&self.routed_to_vehicles),
-                ),
-                (
-                    "{direction=\"from_clients\"}".into(),
-                    v(&self.frames_from_clients),
-                ),
-                ("{direction=\"unroutable\"}".into(), v(&self.unroutable)),
-            ],
-        );
-        family(
-            "harrier_mavlink_commands_total",
-            "counter",
-            "Commands sent (first attempts).",
-            &one(&self.commands),
-        );
-        family(
-            "harrier_mavlink_command_retries_total",
-            "counter",
-            "Commands re-sent after an acknowledgement timeout.",
-            &one(&self.command_retries),
-        );
-        let acks: Vec<(String, u64)> = self
-            .acks
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .iter()
-            .map(|(r, n)| (format!("{{result=\"{r}\"}}"), *n))
-            .collect();
-        family(
-            "harrier_mavlink_command_results_total",
-            "counter",
-            "Command outcomes by result (timeout: no final ACK).",
-            &acks,
-        );
-        family(
-            "harrier_mavlink_vehicle_lost_total",
-            "counter",
-            "Times a vehicle was marked lost.",
-            &one(&self.vehicles_lost),
-        );
-        family(
-            "harrier_mavlink_tlog_dropped_total",
-            "counter",
-            "Frames not written to the .tlog (writer behind).",
-            &one(&self.tlog_dropped),
-        );
-        let ep: Vec<(String, u64)> = endpoints
-            .iter()
-            .map(|e| {
-                (
-                    format!("{{endpoint=\"{}\"}}", e.endpoint),
-                    e.counters.send_dropped.load(Ordering::Relaxed),
-                )
-            })
-            .collect();
-        family(
-            "harrier_mavlink_send_dropped_total",
-            "counter",
-            "Frames an endpoint could not send (slow TCP client, full socket, absent server).",
-            &ep,
-        );
-        let per = |f: &dyn Fn(&VehicleLinkView) -> String| {
-            vehicles
-                .iter()
-                .map(|s| format!("{{vehicle=\"{}\"}} {}", s.view.id, f(&s.view)))
-                .collect::<Vec<_>>()
-        };
-        for (name, help, rows) in [
-            (
-                "harrier_vehicle_connected",
-                "1 while the vehicle is heard, 0 when lost.",
-                per(&|v| u8::from(v.state == LinkState::Connected).to_string()),
-            ),
-            (
-                "harrier_vehicle_message_rate_hz",
-                "Messages received from the vehicle over the last second.",
-                per(&|v| v.rate_hz.to_string()),
-            ),
-            (
-                "harrier_vehicle_frames_lost_total",
-                "Frames lost (MAVLink sequence gaps).",
-                per(&|v| v.lost_frames.to_string()),
-            ),
-        ] {
-            let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} gauge");
-            for r in rows {
-                let _ = writeln!(out, "{name}{r}");
-            }
-        }
-    }
-
-    fn reject(&self, gcs: bool, reason: Rejection) {
-        // `Rejection::ALL` lists the reasons in declaration order.
-        self.rejected[usize::from(!gcs)][reason as usize].fetch_add(1, Ordering::Relaxed);
-    }
-
-    fn result(&self, result: &str) {
-        *self
-            .acks
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .entry(result.to_owned())
-            .or_default() += 1;
-    }
 }
 
 /// The running link, as the API and the guidance use it.

@@ -1,8 +1,6 @@
 //! `GET /health`, `GET /metrics` (Prometheus text; also at the root, `GET /metrics`, where
 //! scrapers look by default).
 
-use std::fmt::Write as _;
-
 use axum::extract::State;
 use axum::http::header;
 use axum::response::IntoResponse;
@@ -13,6 +11,7 @@ use utoipa::{OpenApi, ToSchema};
 
 use super::error::ErrorBody;
 use super::state::{ApiState, Control, Recording, Service, Tracking};
+use crate::prom::Family;
 
 /// The routes of this file under `/api/v1`.
 pub(super) fn routes() -> Router<ApiState> {
@@ -89,13 +88,13 @@ async fn metrics(
         recorder.stats().render(&mut text);
     }
     if r.recorder.is_some() || r.error.is_some() {
-        let _ = writeln!(
-            text,
-            "# HELP harrier_recorder_up 1: recording; 0: recorder.path is set but the file could \
-             not be opened (see /api/v1/health).\n# TYPE harrier_recorder_up gauge\n\
-             harrier_recorder_up {}",
-            u8::from(r.recorder.is_some())
-        );
+        Family::gauge(
+            &mut text,
+            "harrier_recorder_up",
+            "1: recording; 0: recorder.path is set but the file could not be opened (see \
+             /api/v1/health).",
+        )
+        .value(u8::from(r.recorder.is_some()));
     }
     if let Some(l) = &c.link {
         l.render_metrics(&mut text);
