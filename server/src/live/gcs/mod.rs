@@ -35,13 +35,13 @@
 
 pub mod metrics;
 pub mod timesync;
+mod tlog;
 pub mod traffic;
 pub mod transport;
 pub mod vehicle;
 
 use std::collections::{BTreeMap, HashMap};
-use std::io::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
@@ -60,6 +60,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::ToSchema;
 
 pub use self::metrics::LinkMetrics;
+use self::tlog::Tlog;
 use self::transport::{EndpointHandle, Inbound, Outbound, Peer, stopped};
 use self::vehicle::{LinkState, VehicleLink, VehicleLinkView};
 use super::clock::unix_now;
@@ -301,50 +302,6 @@ fn command_name(c: MavCmd) -> String {
     format!("{c:?}")
 }
 
-/// Appends frames to a `.tlog` on a writer thread; a full queue drops (counted).
-#[derive(Debug)]
-struct Tlog {
-    tx: std::sync::mpsc::SyncSender<(u64, Vec<u8>)>,
-}
-
-impl Tlog {
-    fn create(path: &Path) -> std::io::Result<Self> {
-        let file = std::fs::OpenOptions::new()
-            .create(true)
-            .append(true)
-            .open(path)?;
-        let (tx, rx) = std::sync::mpsc::sync_channel::<(u64, Vec<u8>)>(16_384);
-        std::thread::Builder::new()
-            .name("harrier-tlog".into())
-            .spawn(move || {
-                let mut w = std::io::BufWriter::new(file);
-                let mut last_flush = Instant::now();
-                loop {
-                    match rx.recv_timeout(Duration::from_millis(200)) {
-                        Ok((us, frame)) => {
-                            if w.write_all(&us.to_be_bytes()).is_err()
-                                || w.write_all(&frame).is_err()
-                            {
-                                tracing::warn!("tlog: write failed; raw logging stops");
-                                return;
-                            }
-                        }
-                        Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
-                        Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
-                            let _ = w.flush();
-                            return;
-                        }
-                    }
-                    if last_flush.elapsed() >= Duration::from_millis(200) {
-                        let _ = w.flush();
-                        last_flush = Instant::now();
-                    }
-                }
-            })?;
-        Ok(Self { tx })
-    }
-}
-
 /// The actor's state.
 struct Actor {
     config: GcsConfig,
@@ -466,11 +423,10 @@ impl Actor {
     }
 
     fn log(&self, bytes: &[u8]) {
-        if let Some(t) = &self.tlog {
-            let us = (unix_now() * 1e6) as u64;
-            if t.tx.try_send((us, bytes.to_vec())).is_err() {
-                self.metrics.tlog_dropped.fetch_add(1, Ordering::Relaxed);
-            }
+        if let Some(t) = &self.tlog
+            && !t.append((unix_now() * 1e6) as u64, bytes)
+        {
+            self.metrics.tlog_dropped.fetch_add(1, Ordering::Relaxed);
         }
     }
 
