@@ -111,21 +111,30 @@ CREATE INDEX IF NOT EXISTS vehicle_log_session ON vehicle_log (session);
 pub(super) const INSERT_SESSION: &str = "INSERT INTO sessions (started_unix, origin_lat_deg, \
      origin_lon_deg, origin_alt_m, plane_z, estimator, config_json, harrier_version) \
      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)";
-pub(super) const INSERT_SCAN: &str = "INSERT INTO scans (session, received_unix, t, time_unix, vehicle, \
-     sensor, kind, seq, n_detections, json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
+/// A scan row.
+pub(super) const INSERT_SCAN: &str = "INSERT INTO scans (session, received_unix, t, time_unix, \
+     vehicle, sensor, kind, seq, n_detections, json) \
+     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
+/// A vehicle log row.
 pub(super) const INSERT_VEHICLE_LOG: &str =
     "INSERT INTO vehicle_log (session, time_unix, vehicle, kind, json) VALUES (?1, ?2, ?3, ?4, ?5)";
+/// A detection of a scan.
 pub(super) const INSERT_DETECTION: &str =
     "INSERT INTO detections (scan, idx, z0, z1, z2) VALUES (?1, ?2, ?3, ?4, ?5)";
-pub(super) const INSERT_SENSOR: &str = "INSERT OR IGNORE INTO sensors (session, vehicle, sensor, kind, \
-     first_received_unix) VALUES (?1, ?2, ?3, ?4, ?5)";
-pub(super) const INSERT_TRACK: &str = "INSERT INTO tracks (session, t, track, status, x, y, z, vx, vy, vz, \
-     cov_json, cov_dims, updated, age, last_update, mode_probabilities) \
+/// A sensor at its first scan (ignored when known).
+pub(super) const INSERT_SENSOR: &str = "INSERT OR IGNORE INTO sensors (session, vehicle, sensor, \
+     kind, first_received_unix) VALUES (?1, ?2, ?3, ?4, ?5)";
+/// A track's estimate after a scan.
+pub(super) const INSERT_TRACK: &str = "INSERT INTO tracks (session, t, track, status, x, y, z, vx, \
+     vy, vz, cov_json, cov_dims, updated, age, last_update, mode_probabilities) \
      VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)";
+/// A truth sample.
 pub(super) const INSERT_TRUTH: &str =
     "INSERT INTO truth (session, t, time_unix, targets, json) VALUES (?1, ?2, ?3, ?4, ?5)";
-pub(super) const INSERT_ACTION: &str = "INSERT INTO actions (session, time_unix, method, path, body, status) \
-     VALUES (?1, ?2, ?3, ?4, ?5, ?6)";
+/// An API action.
+pub(super) const INSERT_ACTION: &str = "INSERT INTO actions (session, time_unix, method, path, \
+     body, status) VALUES (?1, ?2, ?3, ?4, ?5, ?6)";
+/// A commit's counts and times added to the session's summary.
 pub(super) const UPDATE_SUMMARY: &str = "UPDATE sessions SET scans = scans + ?2, \
      detections = detections + ?3, track_rows = track_rows + ?4, truth_rows = truth_rows + ?5, \
      actions = actions + ?6, dropped = ?7, \
