@@ -2,9 +2,9 @@
 //! [`super::export`] return.
 
 use std::io::Write as _;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use super::export::export;
+use super::export::{Exported, export};
 use super::reader::{SessionInfo, info, list};
 
 /// Arguments of `harrier sessions`.
@@ -70,13 +70,7 @@ fn utc(unix: f64) -> String {
     )
 }
 
-/// `writeln!` to stdout that ignores a closed pipe.
-macro_rules! out {
-    ($($arg:tt)*) => {{
-        let _ = writeln!(std::io::stdout().lock(), $($arg)*);
-    }};
-}
-
+/// The summary of `harrier sessions info`.
 fn info_lines(s: &SessionInfo) -> Vec<String> {
     let span = match (s.first_received_unix, s.last_received_unix) {
         (Some(a), Some(b)) => format!("{:.1} s of scans", b - a),
@@ -108,94 +102,103 @@ fn info_lines(s: &SessionInfo) -> Vec<String> {
     ]
 }
 
-/// Runs `harrier sessions`.
+/// The table of `harrier sessions list`: a line per session.
+fn list_lines(db: &Path, all: &[SessionInfo]) -> Vec<String> {
+    if all.is_empty() {
+        return vec![format!("{}: no sessions", db.display())];
+    }
+    let mut lines = vec![format!(
+        "{:>4}  {:<20}  {:>9}  {:<8}  {:>8}  {:>10}  {:>8}  {:>6}  vehicles",
+        "id", "started (UTC)", "duration", "engine", "scans", "detections", "tracks", "truth"
+    )];
+    for s in all {
+        let duration = s
+            .ended_unix
+            .or(s.last_commit_unix)
+            .map_or_else(|| "-".into(), |e| format!("{:.0} s", e - s.started_unix));
+        let open = if s.ended_unix.is_none() {
+            " (open)"
+        } else {
+            ""
+        };
+        lines.push(format!(
+            "{:>4}  {:<20}  {:>9}  {:<8}  {:>8}  {:>10}  {:>8}  {:>6}  {}{open}",
+            s.id,
+            utc(s.started_unix),
+            duration,
+            s.estimator,
+            s.scans,
+            s.detections,
+            s.track_rows,
+            s.truth_rows,
+            s.vehicles.join(",")
+        ));
+    }
+    lines
+}
+
+/// What `harrier sessions export` wrote into `out_dir`.
+fn export_lines(out_dir: &Path, e: &Exported) -> Vec<String> {
+    let format = if e.multi {
+        "gcs-scenario/1 + FORMAT-MULTI"
+    } else {
+        "gcs-scenario/1, single target"
+    };
+    let mut lines = vec![format!(
+        "wrote {} ({format}): scenario.json, measurements.jsonl ({} lines from {} scans), {}",
+        out_dir.display(),
+        e.lines,
+        e.scans,
+        e.truth_csv.as_ref().map_or_else(
+            || "no truth.csv (no truth recorded)".to_owned(),
+            |_| format!("truth.csv ({} rows)", e.truth_rows)
+        )
+    )];
+    if e.multi {
+        lines.push(format!(
+            "  scan times snapped to the FORMAT-MULTI grid, by at most {:.4} s",
+            e.max_time_shift_s
+        ));
+    }
+    lines.push(format!(
+        "  sensors {}; time 0 = {:.6} ({}); replay: harrier replay {} -e <estimator>",
+        e.sensors.join(", "),
+        e.epoch,
+        e.time_line,
+        out_dir.display()
+    ));
+    lines
+}
+
+/// Runs `harrier sessions`: the reader's or the export's answer, printed as text or JSON.
 pub fn run(args: &SessionsArgs) -> anyhow::Result<()> {
-    match &args.command {
+    let lines = match &args.command {
         SessionsCommand::List { db, json } => {
             let all = list(db)?;
             if *json {
-                out!("{}", serde_json::to_string_pretty(&all)?);
-            } else if all.is_empty() {
-                out!("{}: no sessions", db.display());
+                vec![serde_json::to_string_pretty(&all)?]
             } else {
-                out!(
-                    "{:>4}  {:<20}  {:>9}  {:<8}  {:>8}  {:>10}  {:>8}  {:>6}  vehicles",
-                    "id",
-                    "started (UTC)",
-                    "duration",
-                    "engine",
-                    "scans",
-                    "detections",
-                    "tracks",
-                    "truth"
-                );
-                for s in &all {
-                    let duration = s
-                        .ended_unix
-                        .or(s.last_commit_unix)
-                        .map_or_else(|| "-".into(), |e| format!("{:.0} s", e - s.started_unix));
-                    let open = if s.ended_unix.is_none() {
-                        " (open)"
-                    } else {
-                        ""
-                    };
-                    out!(
-                        "{:>4}  {:<20}  {:>9}  {:<8}  {:>8}  {:>10}  {:>8}  {:>6}  {}{open}",
-                        s.id,
-                        utc(s.started_unix),
-                        duration,
-                        s.estimator,
-                        s.scans,
-                        s.detections,
-                        s.track_rows,
-                        s.truth_rows,
-                        s.vehicles.join(",")
-                    );
-                }
+                list_lines(db, &all)
             }
         }
         SessionsCommand::Info { db, id, json } => {
             let s = info(db, *id)?;
             if *json {
-                out!("{}", serde_json::to_string_pretty(&s)?);
+                vec![serde_json::to_string_pretty(&s)?]
             } else {
-                for l in info_lines(&s) {
-                    out!("{l}");
-                }
+                info_lines(&s)
             }
         }
         SessionsCommand::Export { db, id, out_dir } => {
             let e = export(db, *id)?;
             e.write_to(out_dir)?;
-            let format = if e.multi {
-                "gcs-scenario/1 + FORMAT-MULTI"
-            } else {
-                "gcs-scenario/1, single target"
-            };
-            out!(
-                "wrote {} ({format}): scenario.json, measurements.jsonl ({} lines from {} scans), {}",
-                out_dir.display(),
-                e.lines,
-                e.scans,
-                e.truth_csv.as_ref().map_or_else(
-                    || "no truth.csv (no truth recorded)".to_owned(),
-                    |_| format!("truth.csv ({} rows)", e.truth_rows)
-                )
-            );
-            if e.multi {
-                out!(
-                    "  scan times snapped to the FORMAT-MULTI grid, by at most {:.4} s",
-                    e.max_time_shift_s
-                );
-            }
-            out!(
-                "  sensors {}; time 0 = {:.6} ({}); replay: harrier replay {} -e <estimator>",
-                e.sensors.join(", "),
-                e.epoch,
-                e.time_line,
-                out_dir.display()
-            );
+            export_lines(out_dir, &e)
         }
+    };
+    let mut stdout = std::io::stdout().lock();
+    for l in lines {
+        // A closed pipe (`| head`) is not an error.
+        let _ = writeln!(stdout, "{l}");
     }
     Ok(())
 }
