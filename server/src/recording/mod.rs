@@ -2,7 +2,7 @@
 //! (RECORDING.md documents the file).
 //!
 //! - [`schema`]: the file's layout, its marks (application id, schema version) and
-//!   [`schema::schema_problem`], which both sides use to recognise a session file;
+//!   `schema_problem`, which both sides use to recognise a session file;
 //! - [`writer`]: the live recorder ([`writer::Recorder`]), one writer thread fed by `try_send`,
 //!   and its counters ([`writer::RecorderStats`], also in Prometheus text);
 //! - [`reader`]: sessions listed and summarised from a file opened read-only ([`reader::list`],

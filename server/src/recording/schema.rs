@@ -1,6 +1,6 @@
 //! The session file's layout, shared by the writer and the readers: the schema (RECORDING.md),
 //! the marks that say a file is a Harrier session file of a version this build reads
-//! ([`schema_problem`]), and every statement the writer runs.
+//! (`schema_problem`), and every statement the writer runs.
 
 use harrier_core::scenario::MeasKind;
 use rusqlite::Connection;
