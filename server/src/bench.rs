@@ -31,6 +31,7 @@
 //! every `--progress-s`; the summary to stdout, as a table or (`--json`) as JSON.
 
 mod publish;
+mod report;
 mod rest;
 mod stats;
 mod ws;
@@ -40,11 +41,15 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::Context as _;
-use serde::Serialize;
 use tokio::time::Instant;
 
 pub use self::publish::Phase;
 use self::publish::{Plan, Publishers};
+pub use self::report::{
+    OverloadReport, PhaseReport, PublishReport, Report, RssReport, ServerReport, Setup,
+    summary_lines,
+};
+use self::report::{Sample, overload_report, report};
 pub use self::rest::RestReport;
 use self::rest::{Api, RestLoad};
 pub use self::stats::{Counters, CpuUse, Machine, Percentiles, ServerLatency};
@@ -240,150 +245,6 @@ impl BenchArgs {
     }
 }
 
-/// How the run was set up.
-#[derive(Debug, Clone, Serialize)]
-pub struct Setup {
-    /// `in-process`, or the URL of the server attached to.
-    pub server: String,
-    /// Track filter of the in-process server.
-    pub estimator: Option<String>,
-    /// `tracker.reorder_window_s` of the in-process server.
-    pub reorder_window_s: Option<f64>,
-    /// `tracker.queue` of the in-process server.
-    pub queue: Option<usize>,
-    /// `api.ws_queue` of the in-process server.
-    pub ws_queue: Option<usize>,
-    /// Vehicles publishing.
-    pub vehicles: u8,
-    /// Scans per second per vehicle.
-    pub rate_hz: f64,
-    /// Publication phases.
-    pub phase: Phase,
-    /// Detections per scan.
-    pub detections: usize,
-    /// Warm-up (s).
-    pub warmup_s: f64,
-    /// Measured steady state (s).
-    pub duration_s: f64,
-    /// Lag (ms) below which the service counts as recovered after an overload.
-    pub recovered_lag_ms: f64,
-}
-
-/// What the vehicles published.
-#[derive(Debug, Clone, Serialize)]
-pub struct PublishReport {
-    /// Scans published (`put` accepted by Zenoh), warm-up and steady state.
-    pub scans: u64,
-    /// Detections in them.
-    pub detections: u64,
-    /// Failed `put`s.
-    pub failed: u64,
-    /// How long they published (s).
-    pub seconds: f64,
-    /// Scans per second achieved over the steady state (asked: vehicles × rate).
-    pub scans_per_s: f64,
-}
-
-/// What the server did with it.
-#[derive(Debug, Clone, Serialize)]
-pub struct ServerReport {
-    /// The counters of the vehicles (since the run started).
-    pub counters: Counters,
-    /// Scans published but not processed: never received plus dropped.
-    pub lost: u64,
-    /// Scans published but never received (lost in transport).
-    pub not_received: u64,
-    /// Scans processed per second over the steady state.
-    pub scans_per_s: f64,
-    /// Detections processed per second over the steady state.
-    pub detections_per_s: f64,
-    /// Largest tracker lag seen at a progress line: wall time − time of the last processed scan
-    /// (ms; the reorder window and a scan period are part of it).
-    pub max_lag_ms: f64,
-    /// Whether the server had processed or dropped everything it received when the run ended.
-    pub drained: bool,
-    /// The server's own latency over the steady state (`harrier_scan_latency_seconds`: payload
-    /// arrival → scan processed, reorder buffer included), if it reports it.
-    pub latency: Option<ServerLatency>,
-}
-
-/// Resident memory over the steady state.
-#[derive(Debug, Clone, Serialize)]
-pub struct RssReport {
-    /// What was measured: this whole process (server, publishers and clients), or the server's
-    /// process (`--server-pid`), or nothing.
-    pub scope: String,
-    /// At the start of the steady state (KiB).
-    pub start_kib: Option<u64>,
-    /// At its end (KiB).
-    pub end_kib: Option<u64>,
-    /// End − start (KiB).
-    pub growth_kib: Option<i64>,
-}
-
-/// One phase of an overload run, sampled about once a second.
-#[derive(Debug, Clone, Serialize)]
-pub struct PhaseReport {
-    /// Scans per second asked of each vehicle.
-    pub rate_hz: f64,
-    /// Length (s).
-    pub seconds: f64,
-    /// Scans published in it (`put` accepted).
-    pub published: u64,
-    /// Scans processed per second.
-    pub scans_per_s: f64,
-    /// Drops in it, by reason (`harrier_scans_dropped_total`).
-    pub dropped: std::collections::BTreeMap<String, u64>,
-    /// Largest tracker lag at a sample (ms): wall time − time of the last processed scan.
-    pub max_lag_ms: f64,
-    /// Tracker lag at its last sample (ms).
-    pub end_lag_ms: f64,
-    /// Largest resident memory at a sample (KiB).
-    pub rss_max_kib: Option<u64>,
-}
-
-/// The overload: 10× (say) the nominal rate for a while, then the nominal rate again.
-#[derive(Debug, Clone, Serialize)]
-pub struct OverloadReport {
-    /// Rate factor of the overload.
-    pub factor: f64,
-    /// Resident memory at the end of the steady state, before the overload (KiB).
-    pub rss_before_kib: Option<u64>,
-    /// The overload phase.
-    pub overload: PhaseReport,
-    /// The nominal phase after it.
-    pub recovery: PhaseReport,
-    /// Seconds from the end of the overload to the first sample from which on the lag stays
-    /// ≤ `--recovered-lag-ms` and nothing is dropped (`None`: not within `--recovery-s`).
-    pub recovered_after_s: Option<f64>,
-    /// Drops from that sample to the end (0 when recovered).
-    pub dropped_after_recovery: u64,
-}
-
-/// Everything a run measured.
-#[derive(Debug, Clone, Serialize)]
-pub struct Report {
-    /// The run.
-    pub setup: Setup,
-    /// The machine.
-    pub machine: Machine,
-    /// The publishers.
-    pub publish: PublishReport,
-    /// The server's side.
-    pub server: ServerReport,
-    /// The WebSocket clients (none: `--ws-clients 0`).
-    pub websocket: Option<WsReport>,
-    /// The REST load (none: `--rest-connections 0`).
-    pub rest: Option<RestReport>,
-    /// Resident memory.
-    pub rss: RssReport,
-    /// CPU over the steady state: the measured processes (this one, and the server's with
-    /// `--server-pid`), the machine, everything else (unknown without `/proc`).
-    pub cpu: Option<CpuUse>,
-    /// The overload and the recovery after it (`--overload-s`).
-    pub overload: Option<OverloadReport>,
-}
-
 /// Runs the load test and prints its figures.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     crate::init_logging("warn,zenoh=error");
@@ -475,202 +336,355 @@ pub fn measure(args: &BenchArgs) -> anyhow::Result<Report> {
 /// receive it, after the publishers stopped.
 const DRAIN_TIMEOUT: Duration = Duration::from_secs(20);
 
-/// The load, on the load's runtime.
+/// The load, on the load's runtime: the warm-up, the steady state, the overload if asked, the
+/// drain; then the report.
 async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyhow::Result<Report> {
-    let ids = args.vehicle_ids();
-    let ours = |v: &str| v.parse::<u8>().is_ok_and(|id| ids.contains(&id));
-    let api = &target.api;
-    let counters = || async {
-        let text = api
-            .get("/api/v1/metrics")
-            .await
-            .context("reading the server's counters")?;
-        Ok::<_, anyhow::Error>(Counters::parse(&text, &ours))
+    let probe = Probe {
+        api: &target.api,
+        ids: args.vehicle_ids(),
     };
-    let base = counters().await?;
-
-    let clients = if args.ws_clients > 0 {
-        let mut url = format!("ws://{}/api/v1/ws", api.addr);
-        if let Some(t) = &api.token {
-            url.push_str(&format!("?token={t}"));
-        }
-        let c = Clients::connect(&url, args.ws_clients).await?;
-        eprintln!(
-            "harrier bench: {} WebSocket clients connected",
-            args.ws_clients
-        );
-        Some(c)
+    let base = probe.counters().await?;
+    let mut load = Load::start(args, target).await?;
+    let steady = steady_state(args, target, &probe, &mut load, &base).await?;
+    let overload = if args.overload_s > 0.0 {
+        Some(overload(args, target, &probe, &load, &base, steady.rss_end).await?)
     } else {
         None
     };
-    let listen = free_loopback_endpoint()?;
-    let publishers = Publishers::start(&Plan {
-        vehicles: ids.clone(),
-        rate_hz: args.rate_hz,
-        detections: args.detections,
-        origin: live::config::DEFAULT_ORIGIN,
-        connect: target.zenoh.clone(),
-        listen,
-        phase: args.phase,
-    })
-    .await?;
-    let started = Instant::now();
-    eprintln!(
-        "harrier bench: {} vehicles × {} Hz × {} detections publishing to {}; warm-up {} s, \
-         then {} s measured",
-        args.vehicles, args.rate_hz, args.detections, target.url, args.warmup_s, args.duration_s
-    );
-    tokio::time::sleep(Duration::from_secs_f64(args.warmup_s)).await;
+    let drained = drain(&probe, load, &base).await?;
+    machine.load_end = load_1m();
+    Ok(report(args, target, machine, &steady, drained, overload))
+}
 
-    // The steady state.
+/// The server's counters of this run's vehicles, from its `/api/v1/metrics`.
+struct Probe<'a> {
+    api: &'a Api,
+    ids: Vec<u8>,
+}
+
+impl Probe<'_> {
+    async fn counters(&self) -> anyhow::Result<Counters> {
+        let text = self
+            .api
+            .get("/api/v1/metrics")
+            .await
+            .context("reading the server's counters")?;
+        let ours = |v: &str| v.parse::<u8>().is_ok_and(|id| self.ids.contains(&id));
+        Ok(Counters::parse(&text, &ours))
+    }
+}
+
+/// The tracker's lag: wall time − time of the last processed scan (s; 0 before the first).
+fn lag_s(c: &Counters) -> f64 {
+    c.last_scan_t.map_or(0.0, |t| now_unix() - t)
+}
+
+/// The load on the server: the publishers, the WebSocket clients, and the REST load from the
+/// steady state on.
+struct Load {
+    publishers: Publishers,
+    clients: Option<Clients>,
+    rest: Option<tokio::task::JoinHandle<RestReport>>,
+    /// When the publishers started.
+    started: Instant,
+}
+
+impl Load {
+    /// Connects the WebSocket clients, starts the publishers and waits out the warm-up.
+    async fn start(args: &BenchArgs, target: &Target) -> anyhow::Result<Self> {
+        let clients = if args.ws_clients > 0 {
+            let mut url = format!("ws://{}/api/v1/ws", target.api.addr);
+            if let Some(t) = &target.api.token {
+                url.push_str(&format!("?token={t}"));
+            }
+            let c = Clients::connect(&url, args.ws_clients).await?;
+            eprintln!(
+                "harrier bench: {} WebSocket clients connected",
+                args.ws_clients
+            );
+            Some(c)
+        } else {
+            None
+        };
+        let listen = free_loopback_endpoint()?;
+        let publishers = Publishers::start(&Plan {
+            vehicles: args.vehicle_ids(),
+            rate_hz: args.rate_hz,
+            detections: args.detections,
+            origin: live::config::DEFAULT_ORIGIN,
+            connect: target.zenoh.clone(),
+            listen,
+            phase: args.phase,
+        })
+        .await?;
+        let started = Instant::now();
+        eprintln!(
+            "harrier bench: {} vehicles × {} Hz × {} detections publishing to {}; warm-up {} s, \
+             then {} s measured",
+            args.vehicles,
+            args.rate_hz,
+            args.detections,
+            target.url,
+            args.warmup_s,
+            args.duration_s
+        );
+        tokio::time::sleep(Duration::from_secs_f64(args.warmup_s)).await;
+        Ok(Self {
+            publishers,
+            clients,
+            rest: None,
+            started,
+        })
+    }
+
+    /// `scan` messages the WebSocket clients received so far.
+    fn ws_scans(&self) -> u64 {
+        self.clients.as_ref().map_or(0, |c| c.stats().scans())
+    }
+}
+
+/// What the steady state measured.
+struct Steady {
+    /// The counters at its start.
+    c0: Counters,
+    /// Scans published at its start.
+    published0: u64,
+    /// Its last progress sample: its end.
+    last: Progress,
+    /// Its length (s).
+    seconds: f64,
+    /// Largest tracker lag at a progress sample (s).
+    max_lag_s: f64,
+    rss_start: Option<u64>,
+    rss_end: Option<u64>,
+    cpu: Option<CpuUse>,
+}
+
+/// One progress sample of the steady state.
+#[derive(Clone)]
+struct Progress {
+    at: Instant,
+    counters: Counters,
+    published: u64,
+    ws_scans: u64,
+    rest_ok: u64,
+    cpu: Option<CpuSample>,
+}
+
+/// The measured steady state: the REST load starts, the WebSocket clients record latencies,
+/// and a progress line goes to stderr every `--progress-s`.
+async fn steady_state(
+    args: &BenchArgs,
+    target: &Target,
+    probe: &Probe<'_>,
+    load: &mut Load,
+    base: &Counters,
+) -> anyhow::Result<Steady> {
     let steady = Instant::now();
     let end = steady + Duration::from_secs_f64(args.duration_s);
     let rss_start = rss_kib(target.rss_pid);
     let cpu_start = CpuSample::now(target.rss_pid);
-    let c0 = counters().await?;
-    let published0 = publishers.scans();
-    if let Some(c) = &clients {
+    let c0 = probe.counters().await?;
+    let published0 = load.publishers.scans();
+    if let Some(c) = &load.clients {
         c.stats().record(true);
     }
     let rest_load = Arc::new(RestLoad::default());
-    let rest = (args.rest_connections > 0).then(|| {
+    load.rest = (args.rest_connections > 0).then(|| {
         tokio::spawn(Arc::clone(&rest_load).run(
-            api.clone(),
+            target.api.clone(),
             args.rest_path.clone(),
             args.rest_connections,
             Duration::from_secs_f64(args.rest_duration_s.min(args.duration_s)),
         ))
     });
     let mut max_lag_s: f64 = 0.0;
-    let ws0 = clients.as_ref().map_or(0, |c| c.stats().scans());
-    let mut cpu_last = cpu_start;
-    let mut last = (Instant::now(), c0.clone(), published0, ws0, 0);
+    let mut last = Progress {
+        at: Instant::now(),
+        counters: c0.clone(),
+        published: published0,
+        ws_scans: load.ws_scans(),
+        rest_ok: 0,
+        cpu: cpu_start,
+    };
     loop {
         let next = (Instant::now() + Duration::from_secs_f64(args.progress_s)).min(end);
         tokio::time::sleep_until(next).await;
-        let c = counters().await?;
-        let lag = c.last_scan_t.map_or(0.0, |t| now_unix() - t);
+        let counters = probe.counters().await?;
+        let lag = lag_s(&counters);
         max_lag_s = max_lag_s.max(lag);
-        let now = Instant::now();
-        let ws_scans = clients.as_ref().map_or(0, |c| c.stats().scans());
-        let published = publishers.scans();
-        let dt = (now - last.0).as_secs_f64().max(1e-9);
-        let rate = |a: u64, b: u64| a.saturating_sub(b) as f64 / dt;
-        let ws = clients.as_ref().map_or(String::new(), |cl| {
-            format!(
-                "  ws {:.0} msg/s p99 {:.1} ms",
-                rate(ws_scans, last.3),
-                cl.stats().latency().p99
-            )
-        });
-        let rest_ok = rest_load.ok();
-        let cpu_now = CpuSample::now(target.rss_pid);
-        let cpu_line = cpu_last.zip(cpu_now).map_or(String::new(), |(a, b)| {
-            let u = a.until(&b);
-            format!(
-                "  cpu {:.2} + others {:.2}",
-                u.measured_cores, u.others_cores
-            )
-        });
-        cpu_last = cpu_now;
-        let rss_line = rss_kib(target.rss_pid).map_or(String::new(), |k| {
-            format!("  rss {:.1} MiB", k as f64 / 1024.0)
-        });
-        let rest_line = if rest.is_some() {
-            format!("  rest {:.0} req/s", rate(rest_ok, last.4))
-        } else {
-            String::new()
+        let now = Progress {
+            at: Instant::now(),
+            counters,
+            published: load.publishers.scans(),
+            ws_scans: load.ws_scans(),
+            rest_ok: rest_load.ok(),
+            cpu: CpuSample::now(target.rss_pid),
         };
         eprintln!(
-            "[{:7.1} s] published {:.0} scans/s  processed {:.0} scans/s {:.0} det/s  lag {:.1} ms  \
-             dropped {}{ws}{rest_line}{cpu_line}{rss_line}",
-            (now - steady).as_secs_f64(),
-            rate(published, last.2),
-            rate(c.ingested, last.1.ingested),
-            rate(c.detections, last.1.detections),
-            lag * 1e3,
-            c.since(&base).dropped_total(),
+            "[{:7.1} s] {}",
+            (now.at - steady).as_secs_f64(),
+            progress_line(&last, &now, lag, base, load, target.rss_pid)
         );
-        last = (now, c, published, ws_scans, rest_ok);
-        if now >= end {
+        last = now;
+        if last.at >= end {
             break;
         }
     }
-    let steady_s = steady.elapsed().as_secs_f64();
-    let c1 = &last.1;
-    let published1 = last.2;
+    let seconds = steady.elapsed().as_secs_f64();
     let rss_end = rss_kib(target.rss_pid);
     let cpu = cpu_start
         .zip(CpuSample::now(target.rss_pid))
         .map(|(a, b)| a.until(&b));
-    if let Some(c) = &clients {
+    if let Some(c) = &load.clients {
         c.stats().record(false);
     }
+    Ok(Steady {
+        c0,
+        published0,
+        last,
+        seconds,
+        max_lag_s,
+        rss_start,
+        rss_end,
+        cpu,
+    })
+}
 
-    // The overload, then the nominal rate again.
-    let overload = if args.overload_s > 0.0 {
-        let sample = async || -> anyhow::Result<Sample> {
-            let c = counters().await?;
-            Ok(Sample {
-                at: Instant::now(),
-                lag_s: c.last_scan_t.map_or(0.0, |t| now_unix() - t),
-                rss_kib: rss_kib(target.rss_pid),
-                published: publishers.scans(),
-                counters: c,
-            })
-        };
-        let every = Duration::from_secs_f64(args.progress_s.min(1.0));
-        let mut phases: Vec<(f64, Vec<Sample>)> = Vec::new();
-        for (factor, seconds) in [
-            (args.overload_factor, args.overload_s),
-            (1.0, args.recovery_s),
-        ] {
-            publishers.set_rate_factor(factor);
-            // A phase starts where the one before ended, so that no drop falls between them.
-            let start = match phases.last() {
-                Some((_, samples)) => samples[samples.len() - 1].clone(),
-                None => sample().await?,
-            };
-            let end = start.at + Duration::from_secs_f64(seconds);
-            let mut samples = vec![start];
-            loop {
-                tokio::time::sleep_until((Instant::now() + every).min(end)).await;
-                let s = sample().await?;
-                let last = samples.last().map_or(&s, |l| l);
-                eprintln!(
-                    "[{:5.1} s at {factor}×] published {:.0} scans/s  processed {:.0} scans/s  \
-                     lag {:.1} ms  dropped {}{}",
-                    (s.at - samples[0].at).as_secs_f64(),
-                    s.published.saturating_sub(last.published) as f64
-                        / (s.at - last.at).as_secs_f64().max(1e-9),
-                    s.counters.ingested.saturating_sub(last.counters.ingested) as f64
-                        / (s.at - last.at).as_secs_f64().max(1e-9),
-                    s.lag_s * 1e3,
-                    s.counters.since(&base).dropped_total(),
-                    s.rss_kib.map_or(String::new(), |k| format!(
-                        "  rss {:.1} MiB",
-                        k as f64 / 1024.0
-                    )),
-                );
-                let done = s.at >= end;
-                samples.push(s);
-                if done {
-                    break;
-                }
-            }
-            phases.push((args.rate_hz * factor, samples));
-        }
-        Some(overload_report(args, rss_end, &phases))
+/// A progress line: the rates between two samples, the lag, the drops since the run started,
+/// the WebSocket clients' latency, the REST rate, CPU and resident memory.
+fn progress_line(
+    last: &Progress,
+    now: &Progress,
+    lag: f64,
+    base: &Counters,
+    load: &Load,
+    rss_pid: Option<u32>,
+) -> String {
+    let dt = (now.at - last.at).as_secs_f64().max(1e-9);
+    let rate = |a: u64, b: u64| a.saturating_sub(b) as f64 / dt;
+    let ws = load.clients.as_ref().map_or(String::new(), |cl| {
+        format!(
+            "  ws {:.0} msg/s p99 {:.1} ms",
+            rate(now.ws_scans, last.ws_scans),
+            cl.stats().latency().p99
+        )
+    });
+    let cpu = last.cpu.zip(now.cpu).map_or(String::new(), |(a, b)| {
+        let u = a.until(&b);
+        format!(
+            "  cpu {:.2} + others {:.2}",
+            u.measured_cores, u.others_cores
+        )
+    });
+    let rss = rss_kib(rss_pid).map_or(String::new(), |k| {
+        format!("  rss {:.1} MiB", k as f64 / 1024.0)
+    });
+    let rest = if load.rest.is_some() {
+        format!("  rest {:.0} req/s", rate(now.rest_ok, last.rest_ok))
     } else {
-        None
+        String::new()
     };
+    let (c, c_last) = (&now.counters, &last.counters);
+    format!(
+        "published {:.0} scans/s  processed {:.0} scans/s {:.0} det/s  lag {:.1} ms  \
+         dropped {}{ws}{rest}{cpu}{rss}",
+        rate(now.published, last.published),
+        rate(c.ingested, c_last.ingested),
+        rate(c.detections, c_last.detections),
+        lag * 1e3,
+        c.since(base).dropped_total(),
+    )
+}
 
-    // The drain.
-    let (published, failed) = publishers.stop().await;
-    let publish_s = started.elapsed().as_secs_f64();
+/// The overload: every vehicle at `--overload-factor` × its rate for `--overload-s`, then the
+/// nominal rate for `--recovery-s`, each phase sampled about once a second.
+async fn overload(
+    args: &BenchArgs,
+    target: &Target,
+    probe: &Probe<'_>,
+    load: &Load,
+    base: &Counters,
+    rss_before: Option<u64>,
+) -> anyhow::Result<OverloadReport> {
+    let sample = async || -> anyhow::Result<Sample> {
+        let c = probe.counters().await?;
+        Ok(Sample {
+            at: Instant::now(),
+            lag_s: lag_s(&c),
+            rss_kib: rss_kib(target.rss_pid),
+            published: load.publishers.scans(),
+            counters: c,
+        })
+    };
+    let every = Duration::from_secs_f64(args.progress_s.min(1.0));
+    let mut phases: Vec<(f64, Vec<Sample>)> = Vec::new();
+    for (factor, seconds) in [
+        (args.overload_factor, args.overload_s),
+        (1.0, args.recovery_s),
+    ] {
+        load.publishers.set_rate_factor(factor);
+        // A phase starts where the one before ended, so that no drop falls between them.
+        let start = match phases.last() {
+            Some((_, samples)) => samples[samples.len() - 1].clone(),
+            None => sample().await?,
+        };
+        let end = start.at + Duration::from_secs_f64(seconds);
+        let mut samples = vec![start];
+        loop {
+            tokio::time::sleep_until((Instant::now() + every).min(end)).await;
+            let s = sample().await?;
+            let last = samples.last().map_or(&s, |l| l);
+            eprintln!(
+                "[{:5.1} s at {factor}×] published {:.0} scans/s  processed {:.0} scans/s  \
+                 lag {:.1} ms  dropped {}{}",
+                (s.at - samples[0].at).as_secs_f64(),
+                s.published.saturating_sub(last.published) as f64
+                    / (s.at - last.at).as_secs_f64().max(1e-9),
+                s.counters.ingested.saturating_sub(last.counters.ingested) as f64
+                    / (s.at - last.at).as_secs_f64().max(1e-9),
+                s.lag_s * 1e3,
+                s.counters.since(base).dropped_total(),
+                s.rss_kib.map_or(String::new(), |k| format!(
+                    "  rss {:.1} MiB",
+                    k as f64 / 1024.0
+                )),
+            );
+            let done = s.at >= end;
+            samples.push(s);
+            if done {
+                break;
+            }
+        }
+        phases.push((args.rate_hz * factor, samples));
+    }
+    Ok(overload_report(args, rss_before, &phases))
+}
+
+/// What the run published, and what the server and the clients made of it once drained.
+struct Drained {
+    /// Scans published (`put` accepted), and failed `put`s.
+    published: u64,
+    failed: u64,
+    /// How long the publishers ran (s).
+    publish_s: f64,
+    /// The counters since the run started.
+    totals: Counters,
+    /// Whether the server processed or dropped everything it received in time.
+    drained: bool,
+    websocket: Option<WsReport>,
+    rest: Option<RestReport>,
+}
+
+/// Stops the publishers, waits (at most [`DRAIN_TIMEOUT`]) until the server has processed or
+/// dropped every payload it received and every WebSocket client has the last scan, and
+/// collects the REST load's report.
+async fn drain(probe: &Probe<'_>, load: Load, base: &Counters) -> anyhow::Result<Drained> {
+    let (published, failed) = load.publishers.stop().await;
+    let publish_s = load.started.elapsed().as_secs_f64();
     let drain_start = Instant::now();
     let (totals, drained) = loop {
-        let c = counters().await?.since(&base);
+        let c = probe.counters().await?.since(base);
         let settled = c.ingested + c.dropped_total() >= c.received;
         if settled && c.received >= published {
             break (c, true);
@@ -685,319 +699,29 @@ async fn drive(args: &BenchArgs, target: &Target, mut machine: Machine) -> anyho
         tokio::time::sleep(Duration::from_millis(100)).await;
     };
     let final_seq = {
-        let body = api.get("/api/v1/tracks").await?;
+        let body = probe.api.get("/api/v1/tracks").await?;
         let v: serde_json::Value = serde_json::from_str(&body).context("GET /api/v1/tracks")?;
         v["seq"]
             .as_u64()
             .context("GET /api/v1/tracks: no seq in the answer")?
     };
-    let websocket = match clients {
+    let websocket = match load.clients {
         Some(c) => Some(c.finish(final_seq, DRAIN_TIMEOUT).await),
         None => None,
     };
-    let rest = match rest {
+    let rest = match load.rest {
         Some(t) => Some(t.await.context("the REST load")?),
         None => None,
     };
-    machine.load_end = load_1m();
-
-    let steady_counts = c1.since(&c0);
-    let lost = published.saturating_sub(totals.ingested);
-    let rss_scope = match (target.in_process, target.rss_pid) {
-        (true, _) => "this process: server, publishers and clients".to_string(),
-        (false, Some(pid)) => format!("server process {pid}"),
-        (false, None) => "not measured (give --server-pid)".to_string(),
-    };
-    let rss_known = target.in_process || target.rss_pid.is_some();
-    Ok(Report {
-        setup: Setup {
-            server: if target.in_process {
-                "in-process".into()
-            } else {
-                target.url.clone()
-            },
-            estimator: target
-                .in_process
-                .then(|| args.estimator.clone().unwrap_or_else(|| "ekf".into())),
-            reorder_window_s: target.in_process.then(|| {
-                args.reorder_window_s
-                    .unwrap_or(Config::default().tracker.reorder_window_s)
-            }),
-            queue: target
-                .in_process
-                .then(|| args.queue.unwrap_or(Config::default().tracker.queue)),
-            ws_queue: target
-                .in_process
-                .then(|| args.ws_queue.unwrap_or(Config::default().api.ws_queue)),
-            vehicles: args.vehicles,
-            rate_hz: args.rate_hz,
-            phase: args.phase,
-            detections: args.detections,
-            warmup_s: args.warmup_s,
-            duration_s: args.duration_s,
-            recovered_lag_ms: args.recovered_lag_ms,
-        },
-        machine,
-        publish: PublishReport {
-            scans: published,
-            detections: published * args.detections as u64,
-            failed,
-            seconds: publish_s,
-            scans_per_s: published1.saturating_sub(published0) as f64 / steady_s,
-        },
-        server: ServerReport {
-            not_received: published.saturating_sub(totals.received),
-            counters: totals,
-            lost,
-            scans_per_s: steady_counts.ingested as f64 / steady_s,
-            detections_per_s: steady_counts.detections as f64 / steady_s,
-            max_lag_ms: max_lag_s * 1e3,
-            drained,
-            latency: steady_counts.server_latency(),
-        },
+    Ok(Drained {
+        published,
+        failed,
+        publish_s,
+        totals,
+        drained,
         websocket,
         rest,
-        rss: RssReport {
-            scope: rss_scope,
-            start_kib: rss_start.filter(|_| rss_known),
-            end_kib: rss_end.filter(|_| rss_known),
-            growth_kib: match (rss_start, rss_end) {
-                (Some(a), Some(b)) if rss_known => Some(b as i64 - a as i64),
-                _ => None,
-            },
-        },
-        cpu,
-        overload,
     })
-}
-
-/// One sample of an overload phase.
-#[derive(Debug, Clone)]
-struct Sample {
-    at: Instant,
-    lag_s: f64,
-    rss_kib: Option<u64>,
-    published: u64,
-    counters: Counters,
-}
-
-/// A phase's figures from its samples (the first at its start).
-fn phase_report(rate_hz: f64, samples: &[Sample]) -> PhaseReport {
-    let (first, last) = (&samples[0], &samples[samples.len() - 1]);
-    let seconds = (last.at - first.at).as_secs_f64();
-    let d = last.counters.since(&first.counters);
-    PhaseReport {
-        rate_hz,
-        seconds,
-        published: last.published.saturating_sub(first.published),
-        scans_per_s: d.ingested as f64 / seconds.max(1e-9),
-        dropped: d.dropped.into_iter().filter(|(_, n)| *n > 0).collect(),
-        max_lag_ms: samples.iter().map(|s| s.lag_s).fold(0.0, f64::max) * 1e3,
-        end_lag_ms: last.lag_s * 1e3,
-        rss_max_kib: samples.iter().filter_map(|s| s.rss_kib).max(),
-    }
-}
-
-/// The overload report from the samples of the overload and of the recovery phase.
-fn overload_report(
-    args: &BenchArgs,
-    rss_before: Option<u64>,
-    phases: &[(f64, Vec<Sample>)],
-) -> OverloadReport {
-    let (over, after) = (&phases[0], &phases[1]);
-    let samples = &after.1;
-    let ok = |k: usize| {
-        samples[k].lag_s * 1e3 <= args.recovered_lag_ms
-            && (k == 0
-                || samples[k]
-                    .counters
-                    .since(&samples[k - 1].counters)
-                    .dropped_total()
-                    == 0)
-    };
-    // The first sample from which on every sample is fine.
-    let mut from = samples.len();
-    while from > 0 && ok(from - 1) {
-        from -= 1;
-    }
-    let end = &samples[samples.len() - 1];
-    let (recovered_after_s, dropped_after_recovery) = match samples.get(from) {
-        Some(s) => (
-            Some((s.at - samples[0].at).as_secs_f64()),
-            end.counters.since(&s.counters).dropped_total(),
-        ),
-        None => (
-            None,
-            end.counters.since(&samples[0].counters).dropped_total(),
-        ),
-    };
-    OverloadReport {
-        factor: args.overload_factor,
-        rss_before_kib: rss_before,
-        overload: phase_report(over.0, &over.1),
-        recovery: phase_report(after.0, samples),
-        recovered_after_s,
-        dropped_after_recovery,
-    }
-}
-
-/// Formats a percentile set (ms).
-fn percentiles_line(p: &Percentiles) -> String {
-    format!(
-        "p50 {:.2}  p90 {:.2}  p99 {:.2}  p99.9 {:.2}  max {:.2}  mean {:.2} ms  (n = {})",
-        p.p50, p.p90, p.p99, p.p999, p.max, p.mean, p.count
-    )
-}
-
-/// The summary table.
-pub fn summary_lines(r: &Report) -> Vec<String> {
-    let s = &r.setup;
-    let mut out = Vec::new();
-    let server = match (&s.estimator, s.reorder_window_s, s.queue, s.ws_queue) {
-        (Some(e), Some(w), Some(q), Some(wq)) => {
-            format!("in-process server: {e}, reorder window {w} s, queue {q}, ws_queue {wq}")
-        }
-        _ => format!("server {}", s.server),
-    };
-    out.push(format!(
-        "harrier bench: {} vehicles × {} Hz ({} phases) × {} detections; {} s measured after {} s warm-up; {server}",
-        s.vehicles,
-        s.rate_hz,
-        format!("{:?}", s.phase).to_lowercase(),
-        s.detections, s.duration_s, s.warmup_s
-    ));
-    let m = &r.machine;
-    out.push(format!(
-        "machine      {} CPUs ({}), {} MiB; load average {:.2} at start, {:.2} at end",
-        m.cpus, m.cpu_model, m.mem_total_mib, m.load_start, m.load_end
-    ));
-    let p = &r.publish;
-    out.push(format!(
-        "published    {} scans, {} detections in {:.1} s ({:.1} scans/s in the steady state, asked {:.1}); {} failed",
-        p.scans,
-        p.detections,
-        p.seconds,
-        p.scans_per_s,
-        f64::from(s.vehicles) * s.rate_hz,
-        p.failed
-    ));
-    let v = &r.server;
-    let c = &v.counters;
-    let drops = if c.dropped.is_empty() {
-        "none".to_string()
-    } else {
-        c.dropped
-            .iter()
-            .map(|(r, n)| format!("{r} {n}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    out.push(format!(
-        "server       received {}, processed {} scans ({} detections); lost {} (not received {}, dropped: {drops}); seq gaps {}{}",
-        c.received,
-        c.ingested,
-        c.detections,
-        v.lost,
-        v.not_received,
-        c.seq_lost,
-        if v.drained { "" } else { "; NOT DRAINED" }
-    ));
-    out.push(format!(
-        "ingest       {:.1} scans/s, {:.0} detections/s (steady state); tracker lag max {:.1} ms",
-        v.scans_per_s, v.detections_per_s, v.max_lag_ms
-    ));
-    if let Some(l) = &v.latency {
-        let ms = |x: Option<f64>| x.map_or("> last bucket".to_string(), |x| format!("≤ {x}"));
-        out.push(format!(
-            "server lat.  arrival → processed: mean {:.2} ms; p50 {}  p99 {}  p99.9 {} ms  (n = {})",
-            l.mean_ms,
-            ms(l.p50_le_ms),
-            ms(l.p99_le_ms),
-            ms(l.p999_le_ms),
-            l.count
-        ));
-    }
-    if let Some(w) = &r.websocket {
-        out.push(format!(
-            "websocket    {} clients: {} scan messages of {} expected; missing {}, resyncs {}, out of order {}, errors {}",
-            w.clients, w.scan_messages, w.expected, w.missing, w.resyncs, w.out_of_order, w.errors
-        ));
-        out.push(format!(
-            "latency      {}  (publication → WebSocket receipt)",
-            percentiles_line(&w.latency_ms)
-        ));
-    }
-    if let Some(h) = &r.rest {
-        out.push(format!(
-            "rest         GET {} on {} connections for {:.1} s: {} ok ({:.0} req/s), {} not 200, {} errors",
-            h.path, h.connections, h.duration_s, h.ok, h.req_per_s, h.non_ok, h.errors
-        ));
-        out.push(format!("rest latency {}", percentiles_line(&h.latency_ms)));
-    }
-    if let Some(c) = &r.cpu {
-        out.push(format!(
-            "cpu          {:.2} cores measured ({}), machine {:.2}, others {:.2} (steady state)",
-            c.measured_cores,
-            match (
-                r.setup.server == "in-process",
-                r.rss.scope.starts_with("server process")
-            ) {
-                (true, _) => "this process",
-                (false, true) => "this process and the server's",
-                (false, false) => "this process only",
-            },
-            c.machine_cores,
-            c.others_cores
-        ));
-    }
-    let mib = |k: Option<u64>| k.map_or("?".to_string(), |k| format!("{:.1}", k as f64 / 1024.0));
-    if let Some(o) = &r.overload {
-        let drops = |p: &PhaseReport| {
-            if p.dropped.is_empty() {
-                "none".to_string()
-            } else {
-                p.dropped
-                    .iter()
-                    .map(|(r, n)| format!("{r} {n}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            }
-        };
-        for (name, p) in [("overload", &o.overload), ("after", &o.recovery)] {
-            out.push(format!(
-                "{name:<12} {:.0} Hz per vehicle for {:.1} s: published {}, processed {:.0} scans/s; \
-                 dropped: {}; lag max {:.1} ms, at the end {:.1} ms; rss max {} MiB",
-                p.rate_hz,
-                p.seconds,
-                p.published,
-                p.scans_per_s,
-                drops(p),
-                p.max_lag_ms,
-                p.end_lag_ms,
-                mib(p.rss_max_kib)
-            ));
-        }
-        out.push(format!(
-            "recovery     {} ({} drops after); rss before the overload {} MiB",
-            o.recovered_after_s
-                .map_or("NOT recovered".to_string(), |s| format!(
-                    "lag ≤ {} ms and no drop from {s:.1} s after the overload on",
-                    r.setup.recovered_lag_ms
-                )),
-            o.dropped_after_recovery,
-            mib(o.rss_before_kib)
-        ));
-    }
-    out.push(format!(
-        "rss          {} → {} MiB, growth {} MiB ({})",
-        mib(r.rss.start_kib),
-        mib(r.rss.end_kib),
-        r.rss
-            .growth_kib
-            .map_or("?".to_string(), |g| format!("{:+.2}", g as f64 / 1024.0)),
-        r.rss.scope
-    ));
-    out
 }
 
 #[cfg(test)]

@@ -15,6 +15,9 @@
 //!   MAVLink GCS link and router ([`live::gcs`]) and the guidance loop ([`live::guidance`]);
 //!   configured by a TOML file ([`live::config`]). [`demo`] runs it with harrier-sim's world
 //!   in-process; [`bench`](mod@bench) loads it.
+//! * Recording: [`recording`], the session file: written by the live service
+//!   ([`recording::writer`]), read offline by `harrier sessions` and the `/sessions` routes
+//!   ([`recording::reader`], [`recording::export`]).
 //! * Offline tools: [`replay`] (`harrier replay`) and [`guidance_sim`] (`harrier guidance-sim`),
 //!   both getting their estimators from the registry; [`gen_multi`] (`harrier gen-multi`).
 
@@ -25,9 +28,10 @@ pub mod estimators;
 pub mod gen_multi;
 pub mod guidance_sim;
 pub mod live;
+pub mod prom;
+pub mod recording;
 pub mod registry;
 pub mod replay;
-pub mod sessions;
 
 /// Structured logs on stderr for the `harrier` commands: the `RUST_LOG` filter if set, else
 /// `default`; colours only when stderr is a terminal (a redirected log gets no escape codes).

@@ -66,7 +66,7 @@ enum Command {
     /// Run the demo: the service, an in-process Zenoh peer and simulated UAVs, in one process.
     Demo(harrier_server::demo::DemoArgs),
     /// List recorded sessions, or export one as a gcs-scenario/1 directory.
-    Sessions(harrier_server::sessions::SessionsArgs),
+    Sessions(harrier_server::recording::cli::SessionsArgs),
     /// Load-test the live service: simulated vehicles' detections in, WebSocket and REST clients
     /// out; prints rates, latencies and memory (BENCHMARKS.md).
     Bench(harrier_server::bench::BenchArgs),
@@ -102,7 +102,7 @@ fn main() -> ExitCode {
                 ExitCode::from(2)
             }
         },
-        Command::Sessions(args) => match harrier_server::sessions::run(&args) {
+        Command::Sessions(args) => match harrier_server::recording::cli::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("harrier sessions: error: {e:#}");

@@ -20,8 +20,8 @@ use tokio::sync::mpsc;
 
 use super::clock::{ClockConfig, SourceClock, unix_now};
 use super::metrics::{DropReason, Metrics, vehicle_label};
-use super::recorder::{Record, Recorder};
 use crate::engine::SensorScan;
+use crate::recording::writer::{Record, Recorder};
 
 /// A payload as it arrived: the vehicle label of its key and its bytes.
 #[derive(Debug)]

@@ -6,10 +6,10 @@
 //! without bound.
 
 use std::collections::BTreeMap;
-use std::fmt::Write as _;
 use std::sync::{Mutex, PoisonError};
 
 use super::clock::ClockEstimate;
+use crate::prom::{Family, Histogram};
 
 /// Why a payload or scan was dropped (the `reason` label).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -74,7 +74,7 @@ pub struct Metrics {
     inner: Mutex<Inner>,
 }
 
-#[derive(Debug, Default)]
+#[derive(Debug)]
 struct Inner {
     vehicles: BTreeMap<String, VehicleCounters>,
     tracks_confirmed: usize,
@@ -89,41 +89,28 @@ struct Inner {
     last_scan_t: Option<f64>,
 }
 
+impl Default for Inner {
+    fn default() -> Self {
+        Self {
+            vehicles: BTreeMap::new(),
+            tracks_confirmed: 0,
+            ws_clients: 0,
+            bound_resets: 0,
+            latency: Histogram::new(&LATENCY_BUCKETS),
+            ws_sent: 0,
+            ws_dropped: 0,
+            http_refused: BTreeMap::new(),
+            truth_refused: BTreeMap::new(),
+            tracks_tentative: 0,
+            last_scan_t: None,
+        }
+    }
+}
+
 /// Upper bounds (s) of the latency histogram's buckets.
 const LATENCY_BUCKETS: [f64; 12] = [
     0.0005, 0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 5.0,
 ];
-
-/// A Prometheus histogram over [`LATENCY_BUCKETS`].
-#[derive(Debug, Default)]
-struct Histogram {
-    counts: [u64; LATENCY_BUCKETS.len()],
-    count: u64,
-    sum: f64,
-}
-
-impl Histogram {
-    fn observe(&mut self, v: f64) {
-        if let Some(i) = LATENCY_BUCKETS.iter().position(|&b| v <= b) {
-            self.counts[i] += 1;
-        }
-        self.count += 1;
-        self.sum += v;
-    }
-
-    /// `name_bucket{le=…}` (cumulative), `name_sum`, `name_count`.
-    fn render(&self, out: &mut String, name: &str, help: &str) {
-        let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} histogram");
-        let mut cumulative = 0;
-        for (b, n) in LATENCY_BUCKETS.iter().zip(self.counts) {
-            cumulative += n;
-            let _ = writeln!(out, "{name}_bucket{{le=\"{b}\"}} {cumulative}");
-        }
-        let _ = writeln!(out, "{name}_bucket{{le=\"+Inf\"}} {}", self.count);
-        let _ = writeln!(out, "{name}_sum {}", self.sum);
-        let _ = writeln!(out, "{name}_count {}", self.count);
-    }
-}
 
 /// The label of a key's vehicle segment.
 pub fn vehicle_label(segment: &str) -> String {
@@ -240,181 +227,150 @@ impl Metrics {
     pub fn render(&self, uptime_s: f64) -> String {
         self.with(|i| {
             let mut out = String::new();
-            let mut family = |name: &str, kind: &str, help: &str, rows: Vec<(String, String)>| {
-                let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
-                for (labels, value) in rows {
-                    let _ = writeln!(out, "{name}{labels} {value}");
-                }
-            };
-            let per = |f: &dyn Fn(&VehicleCounters) -> u64| {
-                i.vehicles
-                    .iter()
-                    .map(|(id, v)| (format!("{{vehicle=\"{id}\"}}"), f(v).to_string()))
-                    .collect::<Vec<_>>()
-            };
-            family(
-                "harrier_payloads_received_total",
-                "counter",
-                "Detection payloads received per vehicle key.",
-                per(&|v| v.received),
-            );
-            family(
-                "harrier_scans_ingested_total",
-                "counter",
-                "Scans processed by the track engine.",
-                per(&|v| v.ingested),
-            );
-            family(
-                "harrier_detections_total",
-                "counter",
-                "Detections in the processed scans.",
-                per(&|v| v.detections),
-            );
-            let drops = i
-                .vehicles
-                .iter()
-                .flat_map(|(id, v)| {
-                    v.dropped.iter().map(move |(r, n)| {
-                        (
-                            format!("{{vehicle=\"{id}\",reason=\"{}\"}}", r.as_str()),
-                            n.to_string(),
-                        )
-                    })
-                })
-                .collect();
-            family(
-                "harrier_scans_dropped_total",
-                "counter",
-                "Payloads and scans dropped, by reason.",
-                drops,
-            );
-            family(
-                "harrier_scans_late_total",
-                "counter",
-                "Scans older than the last processed scan (dropped).",
-                per(&|v| v.dropped.get(&DropReason::Late).copied().unwrap_or(0)),
-            );
-            let clocks: Vec<_> = i
-                .vehicles
-                .iter()
-                .filter_map(|(id, v)| Some((id, v.clock?)))
-                .collect();
-            let clock = |f: &dyn Fn(&ClockEstimate) -> f64| {
-                clocks
-                    .iter()
-                    .map(|(id, c)| (format!("{{vehicle=\"{id}\"}}"), f(c).to_string()))
-                    .collect::<Vec<_>>()
-            };
-            family(
-                "harrier_clock_offset_seconds",
-                "gauge",
-                "Each vehicle's clock minus the server's, estimated from its scans.",
-                clock(&|c| c.offset_s),
-            );
-            family(
-                "harrier_clock_offset_sigma_seconds",
-                "gauge",
-                "Standard uncertainty of harrier_clock_offset_seconds.",
-                clock(&|c| c.sigma_s),
-            );
-            family(
-                "harrier_clock_drift_ppm",
-                "gauge",
-                "How fast each vehicle's clock offset grows (µs per s).",
-                clock(&|c| c.drift_ppm),
-            );
-            family(
-                "harrier_truth_refused_total",
-                "counter",
-                "Truth samples not used, by reason (invalid, clock).",
-                i.truth_refused
-                    .iter()
-                    .map(|(r, n)| (format!("{{reason=\"{r}\"}}"), n.to_string()))
-                    .collect(),
-            );
-            family(
-                "harrier_seq_lost_total",
-                "counter",
-                "Scans missing from the per-sensor seq sequences.",
-                per(&|v| v.seq_lost),
-            );
-            family(
-                "harrier_tracks",
-                "gauge",
-                "Live tracks by status.",
-                vec![
-                    (
-                        "{status=\"confirmed\"}".into(),
-                        i.tracks_confirmed.to_string(),
-                    ),
-                    (
-                        "{status=\"tentative\"}".into(),
-                        i.tracks_tentative.to_string(),
-                    ),
-                ],
-            );
-            if let Some(t) = i.last_scan_t {
-                family(
-                    "harrier_last_scan_time_seconds",
-                    "gauge",
-                    "Scan time of the last processed scan.",
-                    vec![(String::new(), t.to_string())],
-                );
-            }
-            family(
-                "harrier_bound_resets_total",
-                "counter",
-                "Set-membership bounds found inconsistent with a detection and restarted from it.",
-                vec![(String::new(), i.bound_resets.to_string())],
-            );
-            family(
-                "harrier_ws_clients",
-                "gauge",
-                "WebSocket clients connected.",
-                vec![(String::new(), i.ws_clients.to_string())],
-            );
-            family(
-                "harrier_ws_messages_sent_total",
-                "counter",
-                "Scan messages sent to WebSocket clients.",
-                vec![(String::new(), i.ws_sent.to_string())],
-            );
-            family(
-                "harrier_ws_dropped_total",
-                "counter",
-                "Scan messages slow WebSocket clients missed (each got a snapshot instead).",
-                vec![(String::new(), i.ws_dropped.to_string())],
-            );
-            family(
-                "harrier_http_refused_total",
-                "counter",
-                "API requests refused, by reason and status.",
-                i.http_refused
-                    .iter()
-                    .map(|((r, st), n)| {
-                        (format!("{{reason=\"{r}\",status=\"{st}\"}}"), n.to_string())
-                    })
-                    .collect(),
-            );
+            i.render_vehicles(&mut out);
+            i.render_service(&mut out);
             i.latency.render(
                 &mut out,
                 "harrier_scan_latency_seconds",
                 "From a payload's arrival to its scan processed by the track engine.",
             );
-            let mut family = |name: &str, kind: &str, help: &str, rows: Vec<(String, String)>| {
-                let _ = writeln!(out, "# HELP {name} {help}\n# TYPE {name} {kind}");
-                for (labels, value) in rows {
-                    let _ = writeln!(out, "{name}{labels} {value}");
-                }
-            };
-            family(
+            Family::gauge(
+                &mut out,
                 "harrier_uptime_seconds",
-                "gauge",
                 "Seconds since the service started.",
-                vec![(String::new(), format!("{uptime_s:.3}"))],
-            );
+            )
+            .value(format_args!("{uptime_s:.3}"));
             out
         })
+    }
+}
+
+impl Inner {
+    /// The counters per vehicle, their drops and clocks, and the refused truth samples.
+    fn render_vehicles(&self, out: &mut String) {
+        let per = |out: &mut String, name, help, f: &dyn Fn(&VehicleCounters) -> u64| {
+            let mut family = Family::counter(out, name, help);
+            for (id, v) in &self.vehicles {
+                family.sample(&[("vehicle", id)], f(v));
+            }
+        };
+        per(
+            out,
+            "harrier_payloads_received_total",
+            "Detection payloads received per vehicle key.",
+            &|v| v.received,
+        );
+        per(
+            out,
+            "harrier_scans_ingested_total",
+            "Scans processed by the track engine.",
+            &|v| v.ingested,
+        );
+        per(
+            out,
+            "harrier_detections_total",
+            "Detections in the processed scans.",
+            &|v| v.detections,
+        );
+        let mut drops = Family::counter(
+            out,
+            "harrier_scans_dropped_total",
+            "Payloads and scans dropped, by reason.",
+        );
+        for (id, v) in &self.vehicles {
+            for (r, n) in &v.dropped {
+                drops.sample(&[("vehicle", id), ("reason", &r.as_str())], n);
+            }
+        }
+        per(
+            out,
+            "harrier_scans_late_total",
+            "Scans older than the last processed scan (dropped).",
+            &|v| v.dropped.get(&DropReason::Late).copied().unwrap_or(0),
+        );
+        let clock = |out: &mut String, name, help, f: &dyn Fn(&ClockEstimate) -> f64| {
+            let mut family = Family::gauge(out, name, help);
+            for (id, v) in &self.vehicles {
+                if let Some(c) = &v.clock {
+                    family.sample(&[("vehicle", id)], f(c));
+                }
+            }
+        };
+        clock(
+            out,
+            "harrier_clock_offset_seconds",
+            "Each vehicle's clock minus the server's, estimated from its scans.",
+            &|c| c.offset_s,
+        );
+        clock(
+            out,
+            "harrier_clock_offset_sigma_seconds",
+            "Standard uncertainty of harrier_clock_offset_seconds.",
+            &|c| c.sigma_s,
+        );
+        clock(
+            out,
+            "harrier_clock_drift_ppm",
+            "How fast each vehicle's clock offset grows (µs per s).",
+            &|c| c.drift_ppm,
+        );
+        let mut truth = Family::counter(
+            out,
+            "harrier_truth_refused_total",
+            "Truth samples not used, by reason (invalid, clock).",
+        );
+        for (r, n) in &self.truth_refused {
+            truth.sample(&[("reason", r)], n);
+        }
+        per(
+            out,
+            "harrier_seq_lost_total",
+            "Scans missing from the per-sensor seq sequences.",
+            &|v| v.seq_lost,
+        );
+    }
+
+    /// The tracks, the set-membership bounds, the WebSocket clients and the refused requests.
+    fn render_service(&self, out: &mut String) {
+        Family::gauge(out, "harrier_tracks", "Live tracks by status.")
+            .sample(&[("status", &"confirmed")], self.tracks_confirmed)
+            .sample(&[("status", &"tentative")], self.tracks_tentative);
+        if let Some(t) = self.last_scan_t {
+            Family::gauge(
+                out,
+                "harrier_last_scan_time_seconds",
+                "Scan time of the last processed scan.",
+            )
+            .value(t);
+        }
+        Family::counter(
+            out,
+            "harrier_bound_resets_total",
+            "Set-membership bounds found inconsistent with a detection and restarted from it.",
+        )
+        .value(self.bound_resets);
+        Family::gauge(out, "harrier_ws_clients", "WebSocket clients connected.")
+            .value(self.ws_clients);
+        Family::counter(
+            out,
+            "harrier_ws_messages_sent_total",
+            "Scan messages sent to WebSocket clients.",
+        )
+        .value(self.ws_sent);
+        Family::counter(
+            out,
+            "harrier_ws_dropped_total",
+            "Scan messages slow WebSocket clients missed (each got a snapshot instead).",
+        )
+        .value(self.ws_dropped);
+        let mut refused = Family::counter(
+            out,
+            "harrier_http_refused_total",
+            "API requests refused, by reason and status.",
+        );
+        for ((r, status), n) in &self.http_refused {
+            refused.sample(&[("reason", r), ("status", status)], n);
+        }
     }
 }
 

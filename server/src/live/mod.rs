@@ -44,7 +44,6 @@ pub mod http;
 pub mod ingest;
 pub mod metrics;
 pub mod publish;
-pub mod recorder;
 pub mod tracker;
 pub mod wire;
 pub mod world;
@@ -64,10 +63,10 @@ use self::config::{Config, ConfigError};
 use self::http::{ApiState, ApiToken, Auth, Control, Recording, Service, Tracking};
 use self::ingest::{Ingest, Payload};
 use self::metrics::{DropReason, Metrics};
-use self::recorder::{Recorder, SessionMeta};
 use self::tracker::{Recent, ScanEvents, Snapshot, TrackFilterState, TrackerActor};
 use self::world::{TruthBody, WorldBody};
 use crate::engine::{EngineError, TrackView};
+use crate::recording::writer::{self as recorder, Recorder, SessionMeta};
 
 /// Why the service could not start.
 #[derive(Debug, thiserror::Error)]

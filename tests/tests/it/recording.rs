@@ -3,8 +3,9 @@
 //! directory) tracks harrier-sim's `cimm-road` world (two grounded vehicles in this process whose
 //! cameras geolocate the road target at 1 Hz, sped up 5×) over real Zenoh on loopback.
 //!
-//! Once the file holds enough scans (polled read-only through `harrier_server::sessions`, as a
-//! user would while the server runs) the server is killed with SIGKILL. Checked then: the file
+//! Once the file holds enough scans (polled read-only through
+//! `harrier_server::recording::reader`, as a user would while the server runs) the server is
+//! killed with SIGKILL. Checked then: the file
 //! opens, its session is not marked ended, the last scan it holds was received at most 1 s before
 //! the kill, it holds at least as many scans as this test's own Zenoh subscriber received from
 //! the server's first scan up to 1 s before the kill, and the session exports as a single-target `gcs-scenario/1` directory
@@ -26,9 +27,10 @@ use std::time::{Duration, Instant};
 
 use harrier_core::detection::DETECTIONS_KEY_ALL;
 use harrier_server::engine::Params;
-use harrier_server::live::recorder::{Recorder, SessionMeta};
+use harrier_server::recording::export;
+use harrier_server::recording::reader::{self, SessionInfo};
+use harrier_server::recording::writer::{Recorder, SessionMeta};
 use harrier_server::replay;
-use harrier_server::sessions::{self, SessionInfo};
 use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
@@ -163,7 +165,7 @@ fn wait_for_rows(db: &Path, server: &mut Server) -> SessionInfo {
     loop {
         server.assert_running();
         // Before the server has created its schema the file is missing or empty: not an error.
-        if let Ok(mut all) = sessions::list(db) {
+        if let Ok(mut all) = reader::list(db) {
             if let Some(s) = all.pop().filter(|s| s.scans >= SCANS && s.truth_rows > 0) {
                 assert!(all.is_empty(), "one session expected, also {all:?}");
                 return s;
@@ -172,7 +174,7 @@ fn wait_for_rows(db: &Path, server: &mut Server) -> SessionInfo {
         assert!(
             start.elapsed() < DEADLINE,
             "the recording did not reach {SCANS} scans within {DEADLINE:?}: {:?}\n{}",
-            sessions::list(db).map_err(|e| e.to_string()),
+            reader::list(db).map_err(|e| e.to_string()),
             server.log()
         );
         std::thread::sleep(Duration::from_millis(100));
@@ -275,7 +277,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
     sim.stop();
 
     // The file opens (read-only, after the kill) and holds what was received up to 1 s before.
-    let all = sessions::list(&db).expect("the killed server's file opens");
+    let all = reader::list(&db).expect("the killed server's file opens");
     assert_eq!(all.len(), 1, "{all:?}");
     let s = &all[0];
     assert!(
@@ -308,7 +310,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
         .count();
 
     // Export, replay, score.
-    let e = sessions::export(&db, s.id).expect("export");
+    let e = export::export(&db, s.id).expect("export");
     assert!(
         !e.multi && e.truth_csv.is_some() && e.time_line == "time_unix",
         "{e:?}"
@@ -345,7 +347,7 @@ fn a_killed_server_keeps_its_recording_which_exports_replays_and_scores() {
     let next = Recorder::open(&db, &meta, Duration::from_millis(200), 16).expect("reopen");
     assert_eq!(next.session_id(), s.id + 1);
     next.close().expect("close");
-    let all = sessions::list(&db).expect("list");
+    let all = reader::list(&db).expect("list");
     assert_eq!((all.len(), &all[0]), (2, s));
     assert!(all[1].ended_unix.is_some(), "{:?}", all[1]);
 

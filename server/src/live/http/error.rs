@@ -22,7 +22,7 @@ use super::state::{Service, Verdict};
 use crate::live::gcs::CommandError;
 use crate::live::guidance::AssignError;
 use crate::live::tracker::SetError;
-use crate::sessions::SessionError;
+use crate::recording::reader::SessionError;
 
 /// A refused request. `reason` is the label of `harrier_http_refused_total` where one status
 /// has several causes.

@@ -58,7 +58,7 @@ use self::error::{ApiError, count_refusals};
 use self::state::Verdict;
 pub use self::state::{ApiState, ApiToken, Auth, Control, Recording, Service, Tracking};
 use crate::live::clock::unix_now;
-use crate::live::recorder::Record;
+use crate::recording::writer::Record;
 
 /// The OpenAPI document's title, description, tags and security scheme; [`openapi`] adds the
 /// paths of every route file.

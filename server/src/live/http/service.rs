@@ -1,8 +1,6 @@
 //! `GET /health`, `GET /metrics` (Prometheus text; also at the root, `GET /metrics`, where
 //! scrapers look by default).
 
-use std::fmt::Write as _;
-
 use axum::extract::State;
 use axum::http::header;
 use axum::response::IntoResponse;
@@ -13,7 +11,7 @@ use utoipa::{OpenApi, ToSchema};
 
 use super::error::ErrorBody;
 use super::state::{ApiState, Control, Recording, Service, Tracking};
-use crate::live::recorder::RecorderStats;
+use crate::prom::Family;
 
 /// The routes of this file under `/api/v1`.
 pub(super) fn routes() -> Router<ApiState> {
@@ -87,16 +85,16 @@ async fn metrics(
 ) -> impl IntoResponse {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
     if let Some(recorder) = &r.recorder {
-        render_recorder(&mut text, &recorder.stats());
+        recorder.stats().render(&mut text);
     }
     if r.recorder.is_some() || r.error.is_some() {
-        let _ = writeln!(
-            text,
-            "# HELP harrier_recorder_up 1: recording; 0: recorder.path is set but the file could \
-             not be opened (see /api/v1/health).\n# TYPE harrier_recorder_up gauge\n\
-             harrier_recorder_up {}",
-            u8::from(r.recorder.is_some())
-        );
+        Family::gauge(
+            &mut text,
+            "harrier_recorder_up",
+            "1: recording; 0: recorder.path is set but the file could not be opened (see \
+             /api/v1/health).",
+        )
+        .value(u8::from(r.recorder.is_some()));
     }
     if let Some(l) = &c.link {
         l.render_metrics(&mut text);
@@ -127,47 +125,6 @@ async fn root_metrics(
     c: State<Control>,
 ) -> impl IntoResponse {
     metrics(s, r, c).await
-}
-
-/// The recorder's counters in the Prometheus text format.
-fn render_recorder(out: &mut String, st: &RecorderStats) {
-    let _ = writeln!(
-        out,
-        "# HELP harrier_recorder_rows_total Rows committed to the session file, by table.\n\
-         # TYPE harrier_recorder_rows_total counter"
-    );
-    for (table, n) in [
-        ("scans", st.scans),
-        ("detections", st.detections),
-        ("tracks", st.track_rows),
-        ("truth", st.truth_rows),
-        ("actions", st.actions),
-        ("vehicle_log", st.vehicle_rows),
-    ] {
-        let _ = writeln!(out, "harrier_recorder_rows_total{{table=\"{table}\"}} {n}");
-    }
-    for (name, help, v) in [
-        (
-            "harrier_recorder_dropped_total",
-            "Records dropped because the writer's queue was full.",
-            st.dropped,
-        ),
-        (
-            "harrier_recorder_errors_total",
-            "Failed writes to the session file.",
-            st.errors,
-        ),
-        (
-            "harrier_recorder_commits_total",
-            "Transactions committed.",
-            st.commits,
-        ),
-    ] {
-        let _ = writeln!(
-            out,
-            "# HELP {name} {help}\n# TYPE {name} counter\n{name} {v}"
-        );
-    }
 }
 
 #[cfg(test)]

@@ -1,5 +1,5 @@
 //! `GET /sessions`, `GET /sessions/{id}`, `GET /sessions/{id}/export`: the sessions of this
-//! server's recording file ([`crate::sessions`] reads it).
+//! server's recording file ([`crate::recording`]'s reader and export read it).
 
 use std::path::Path;
 
@@ -12,7 +12,8 @@ use utoipa::{OpenApi, ToSchema};
 use super::error::{ApiError, ErrorBody};
 use super::extract::AppPath;
 use super::state::{ApiState, Recording};
-use crate::sessions::{self, Exported, SessionError, SessionInfo};
+use crate::recording::export::{Exported, export};
+use crate::recording::reader::{self, SessionError, SessionInfo};
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
@@ -80,7 +81,7 @@ async fn list_sessions(State(r): State<Recording>) -> Result<Json<SessionsBody>,
     Ok(Json(SessionsBody {
         file: Some(file),
         current: Some(current),
-        sessions: with_file(&r, sessions::list).await?,
+        sessions: with_file(&r, reader::list).await?,
     }))
 }
 
@@ -99,7 +100,7 @@ async fn session(
     AppPath(id): AppPath<String>,
 ) -> Result<Json<SessionInfo>, ApiError> {
     let id = session_id(&id)?;
-    Ok(Json(with_file(&r, move |p| sessions::info(p, id)).await?))
+    Ok(Json(with_file(&r, move |p| reader::info(p, id)).await?))
 }
 
 /// A recorded session exported as a `gcs-scenario/1` directory's files (`harrier replay` and
@@ -119,7 +120,7 @@ async fn export_session(
     AppPath(id): AppPath<String>,
 ) -> Result<Json<Exported>, ApiError> {
     let id = session_id(&id)?;
-    Ok(Json(with_file(&r, move |p| sessions::export(p, id)).await?))
+    Ok(Json(with_file(&r, move |p| export(p, id)).await?))
 }
 
 #[cfg(test)]

@@ -11,9 +11,9 @@ use tokio::sync::{broadcast, mpsc, watch};
 use crate::live::gcs::GcsLink;
 use crate::live::guidance::Guidance;
 use crate::live::metrics::Metrics;
-use crate::live::recorder::Recorder;
 use crate::live::tracker::{Command, Recent, ScanEvents, Snapshot};
 use crate::live::world::{TruthBody, WorldBody};
+use crate::recording::writer::Recorder;
 
 /// What the handlers read (cloned for each request: handles and channels only).
 #[derive(Debug, Clone)]

@@ -22,9 +22,9 @@ use crate::live::gcs::{self, GcsLink, LinkMetrics};
 use crate::live::guidance::{Guidance, GuidanceMetrics, GuidanceRequest};
 use crate::live::ingest::ReadyScan;
 use crate::live::metrics::Metrics;
-use crate::live::recorder::{Recorder, SessionMeta};
 use crate::live::tracker::{Recent, Snapshot, TrackFilterState, TrackerActor};
 use crate::live::world::{TruthBody, WorldBody};
+use crate::recording::writer::{Recorder, SessionMeta};
 
 /// The token the tests send.
 pub(super) const TOKEN: &str = "test-token-0123456789abcdef";

@@ -20,8 +20,8 @@ use super::state::{ApiState, Control, Recording, Service, Tracking};
 use crate::live::clock::unix_now;
 use crate::live::gcs::CommandOutcome;
 use crate::live::metrics::{DropReason, Metrics};
-use crate::live::recorder::Record;
 use crate::live::wire::VehicleEntry;
+use crate::recording::writer::Record;
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {

@@ -1,12 +1,13 @@
 //! The session recorder: every detection scan, track estimate, truth sample and API action of a
-//! live session into a SQLite file (RECORDING.md documents the schema).
+//! live session into a SQLite file (RECORDING.md documents the schema, [`super::schema`] holds
+//! it).
 //!
 //! [`Recorder::record`] never blocks: it `try_send`s onto a bounded queue, and a full queue drops
 //! the record and counts it. One writer thread (rusqlite is synchronous) owns the connection; it
 //! gathers records into one transaction and commits it at the latest `flush` after the
 //! transaction's first record, so a killed process loses at most what was queued plus the last
 //! `flush` of writes. The file is in WAL mode with `synchronous = NORMAL`: a commit survives the
-//! process being killed (not a power cut), and readers ([`crate::sessions`]) never block the
+//! process being killed (not a power cut), and readers ([`super::reader`]) never block the
 //! writer. A failing write is logged (at a bounded rate) and counted, never a panic.
 //!
 //! One file holds any number of sessions; each [`Recorder::open`] starts a new one.
@@ -20,135 +21,15 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
-use harrier_core::measurement::MeasKind;
 use rusqlite::{Connection, params};
 
-use super::clock::unix_now;
+use super::schema::{
+    APPLICATION_ID, END_SESSION, INSERT_ACTION, INSERT_DETECTION, INSERT_SCAN, INSERT_SENSOR,
+    INSERT_SESSION, INSERT_TRACK, INSERT_TRUTH, INSERT_VEHICLE_LOG, SCHEMA, SCHEMA_VERSION,
+    UPDATE_SUMMARY, kind_name, schema_problem,
+};
 use crate::engine::TrackView;
-
-/// `PRAGMA application_id` of a Harrier session file (`"HRR1"`).
-pub const APPLICATION_ID: i32 = 0x4852_5231;
-/// `PRAGMA user_version`: the schema version this build writes and reads.
-pub const SCHEMA_VERSION: i32 = 1;
-
-/// The schema (RECORDING.md). Every statement is idempotent.
-const SCHEMA: &str = "
-CREATE TABLE IF NOT EXISTS sessions (
-    id INTEGER PRIMARY KEY,
-    started_unix REAL NOT NULL,
-    ended_unix REAL,
-    origin_lat_deg REAL NOT NULL,
-    origin_lon_deg REAL NOT NULL,
-    origin_alt_m REAL NOT NULL,
-    plane_z REAL NOT NULL,
-    estimator TEXT NOT NULL,
-    config_json TEXT NOT NULL,
-    harrier_version TEXT NOT NULL,
-    scans INTEGER NOT NULL DEFAULT 0,
-    detections INTEGER NOT NULL DEFAULT 0,
-    track_rows INTEGER NOT NULL DEFAULT 0,
-    truth_rows INTEGER NOT NULL DEFAULT 0,
-    actions INTEGER NOT NULL DEFAULT 0,
-    dropped INTEGER NOT NULL DEFAULT 0,
-    first_received_unix REAL,
-    last_received_unix REAL,
-    last_commit_unix REAL
-);
-CREATE TABLE IF NOT EXISTS sensors (
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    vehicle INTEGER NOT NULL,
-    sensor TEXT NOT NULL,
-    kind TEXT NOT NULL,
-    first_received_unix REAL NOT NULL,
-    PRIMARY KEY (session, vehicle, sensor)
-) WITHOUT ROWID;
-CREATE TABLE IF NOT EXISTS scans (
-    id INTEGER PRIMARY KEY,
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    received_unix REAL NOT NULL,
-    t REAL NOT NULL,
-    time_unix REAL,
-    vehicle INTEGER NOT NULL,
-    sensor TEXT NOT NULL,
-    kind TEXT NOT NULL,
-    seq INTEGER NOT NULL,
-    n_detections INTEGER NOT NULL,
-    json TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS scans_session ON scans (session);
-CREATE TABLE IF NOT EXISTS detections (
-    scan INTEGER NOT NULL REFERENCES scans (id),
-    idx INTEGER NOT NULL,
-    z0 REAL,
-    z1 REAL,
-    z2 REAL,
-    PRIMARY KEY (scan, idx)
-) WITHOUT ROWID;
-CREATE TABLE IF NOT EXISTS tracks (
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    t REAL NOT NULL,
-    track INTEGER NOT NULL,
-    status TEXT NOT NULL,
-    x REAL, y REAL, z REAL, vx REAL, vy REAL, vz REAL,
-    cov_json TEXT NOT NULL,
-    cov_dims TEXT NOT NULL,
-    updated INTEGER NOT NULL,
-    age INTEGER NOT NULL,
-    last_update REAL,
-    mode_probabilities TEXT
-);
-CREATE INDEX IF NOT EXISTS tracks_session ON tracks (session, track, t);
-CREATE TABLE IF NOT EXISTS truth (
-    id INTEGER PRIMARY KEY,
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    t REAL NOT NULL,
-    time_unix REAL,
-    targets INTEGER NOT NULL,
-    json TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS truth_session ON truth (session);
-CREATE TABLE IF NOT EXISTS actions (
-    id INTEGER PRIMARY KEY,
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    time_unix REAL NOT NULL,
-    method TEXT NOT NULL,
-    path TEXT NOT NULL,
-    body TEXT NOT NULL,
-    status INTEGER NOT NULL
-);
-CREATE INDEX IF NOT EXISTS actions_session ON actions (session);
-CREATE TABLE IF NOT EXISTS vehicle_log (
-    id INTEGER PRIMARY KEY,
-    session INTEGER NOT NULL REFERENCES sessions (id),
-    time_unix REAL NOT NULL,
-    vehicle INTEGER,
-    kind TEXT NOT NULL,
-    json TEXT NOT NULL
-);
-CREATE INDEX IF NOT EXISTS vehicle_log_session ON vehicle_log (session);
-";
-
-const INSERT_SCAN: &str = "INSERT INTO scans (session, received_unix, t, time_unix, vehicle, \
-     sensor, kind, seq, n_detections, json) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)";
-const INSERT_VEHICLE_LOG: &str =
-    "INSERT INTO vehicle_log (session, time_unix, vehicle, kind, json) VALUES (?1, ?2, ?3, ?4, ?5)";
-const INSERT_DETECTION: &str =
-    "INSERT INTO detections (scan, idx, z0, z1, z2) VALUES (?1, ?2, ?3, ?4, ?5)";
-const INSERT_SENSOR: &str = "INSERT OR IGNORE INTO sensors (session, vehicle, sensor, kind, \
-     first_received_unix) VALUES (?1, ?2, ?3, ?4, ?5)";
-const INSERT_TRACK: &str = "INSERT INTO tracks (session, t, track, status, x, y, z, vx, vy, vz, \
-     cov_json, cov_dims, updated, age, last_update, mode_probabilities) \
-     VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16)";
-const INSERT_TRUTH: &str =
-    "INSERT INTO truth (session, t, time_unix, targets, json) VALUES (?1, ?2, ?3, ?4, ?5)";
-const INSERT_ACTION: &str = "INSERT INTO actions (session, time_unix, method, path, body, status) \
-     VALUES (?1, ?2, ?3, ?4, ?5, ?6)";
-const UPDATE_SUMMARY: &str = "UPDATE sessions SET scans = scans + ?2, \
-     detections = detections + ?3, track_rows = track_rows + ?4, truth_rows = truth_rows + ?5, \
-     actions = actions + ?6, dropped = ?7, \
-     first_received_unix = coalesce(min(first_received_unix, ?8), ?8, first_received_unix), \
-     last_received_unix = coalesce(max(last_received_unix, ?9), ?9, last_received_unix), \
-     last_commit_unix = ?10 WHERE id = ?1";
+use crate::prom::Family;
 
 /// What the session is: written once into its `sessions` row.
 #[derive(Debug, Clone, PartialEq)]
@@ -241,6 +122,41 @@ pub struct RecorderStats {
     pub last_commit_unix: Option<f64>,
 }
 
+impl RecorderStats {
+    /// Appends the counters in the Prometheus text format.
+    pub fn render(&self, out: &mut String) {
+        Family::counter(
+            out,
+            "harrier_recorder_rows_total",
+            "Rows committed to the session file, by table.",
+        )
+        .sample(&[("table", &"scans")], self.scans)
+        .sample(&[("table", &"detections")], self.detections)
+        .sample(&[("table", &"tracks")], self.track_rows)
+        .sample(&[("table", &"truth")], self.truth_rows)
+        .sample(&[("table", &"actions")], self.actions)
+        .sample(&[("table", &"vehicle_log")], self.vehicle_rows);
+        Family::counter(
+            out,
+            "harrier_recorder_dropped_total",
+            "Records dropped because the writer's queue was full.",
+        )
+        .value(self.dropped);
+        Family::counter(
+            out,
+            "harrier_recorder_errors_total",
+            "Failed writes to the session file.",
+        )
+        .value(self.errors);
+        Family::counter(
+            out,
+            "harrier_recorder_commits_total",
+            "Transactions committed.",
+        )
+        .value(self.commits);
+    }
+}
+
 /// Why the recorder could not start or finish.
 #[derive(Debug, thiserror::Error)]
 pub enum RecorderError {
@@ -308,38 +224,13 @@ pub struct Recorder {
     inner: Arc<Inner>,
 }
 
-/// Why a file is not a Harrier session file this build can read, or `None` when it is one (or is
-/// empty: `allow_empty`, for a file about to be set up).
-pub(crate) fn schema_problem(
-    conn: &Connection,
-    allow_empty: bool,
-) -> rusqlite::Result<Option<String>> {
-    let app: i32 = conn.query_row("PRAGMA application_id", [], |r| r.get(0))?;
-    let version: i32 = conn.query_row("PRAGMA user_version", [], |r| r.get(0))?;
-    let tables: i64 = conn.query_row("SELECT count(*) FROM sqlite_schema", [], |r| r.get(0))?;
-    Ok(if app == 0 && tables == 0 {
-        (!allow_empty).then(|| "empty file: no session recorded yet".to_owned())
-    } else if app != APPLICATION_ID {
-        Some(format!(
-            "not a Harrier session file (application_id {app:#x}, expected {APPLICATION_ID:#x})"
-        ))
-    } else if version > SCHEMA_VERSION {
-        Some(format!(
-            "schema version {version} is newer than this harrier's ({SCHEMA_VERSION})"
-        ))
-    } else {
-        None
-    })
-}
-
-/// Name of a measurement kind, as in the JSON payloads.
-pub(crate) fn kind_name(k: MeasKind) -> &'static str {
-    match k {
-        MeasKind::Position => "position",
-        MeasKind::RangeBearing => "range_bearing",
-        MeasKind::AzEl => "az_el",
-        MeasKind::BearingSize => "bearing_size",
-    }
+/// Now as UNIX time (s), for the commit and end times. The recording reads the wall clock
+/// itself, as `live::clock::unix_now` does for the live service, so that nothing in
+/// `recording/` imports `live/`.
+fn unix_now() -> f64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// JSON text of the small vectors of a track row (plain numbers: serialisation cannot fail).
@@ -401,9 +292,7 @@ impl Recorder {
         ))
         .map_err(sql)?;
         conn.execute(
-            "INSERT INTO sessions (started_unix, origin_lat_deg, origin_lon_deg, origin_alt_m, \
-             plane_z, estimator, config_json, harrier_version) \
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)",
+            INSERT_SESSION,
             params![
                 meta.started_unix,
                 meta.origin.lat_deg,
@@ -561,7 +450,7 @@ impl Writer {
         }
         self.commit();
         self.conn.execute(
-            "UPDATE sessions SET ended_unix = ?2, dropped = ?3 WHERE id = ?1",
+            END_SESSION,
             params![
                 self.session,
                 unix_now(),
@@ -805,367 +694,5 @@ impl Writer {
                 self.sensors.clear();
             }
         }
-    }
-}
-
-/// Records for the tests of this module and of [`crate::sessions`].
-#[cfg(test)]
-pub(crate) mod testing {
-    use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, PlatformPose, TargetTruth};
-    use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
-
-    use super::*;
-
-    /// PX4 SITL's home, the session's origin.
-    pub(crate) const HOME: GeoPoint = crate::live::config::DEFAULT_ORIGIN;
-    /// UNIX time of the tests' scan time 0.
-    pub(crate) const T0_UNIX: f64 = 1_795_430_400.25;
-
-    /// The session of a server at [`HOME`] on the ground plane z = 0.
-    pub(crate) fn meta(estimator: &str) -> SessionMeta {
-        SessionMeta {
-            started_unix: T0_UNIX - 5.0,
-            origin: HOME,
-            plane_z: 0.0,
-            estimator: estimator.into(),
-            config_json: json(&serde_json::json!({"tracker": {
-                "scan_period_s": 1.0,
-                "motion": {"accel_std": 0.5, "models": [{"name": "CV", "type": "CV"}]}
-            }})),
-        }
-    }
-
-    /// A `position` scan (10 m noise) of `vehicle`'s `cam` at time `t` (UNIX `T0_UNIX + t`)
-    /// from a platform at `pos`, with detections `z`.
-    pub(crate) fn scan(vehicle: u8, seq: u64, t: f64, pos: [f64; 3], z: &[[f64; 2]]) -> Record {
-        let frame = harrier_link::geo::LocalFrame::new(HOME);
-        Record::Scan {
-            received_unix: T0_UNIX + t + 0.01,
-            scan: DetectionScan {
-                schema: DETECTIONS_SCHEMA.into(),
-                t,
-                time_unix: Some(T0_UNIX + t),
-                vehicle,
-                seq,
-                sensor: "cam".into(),
-                kind: MeasKind::Position,
-                origin: HOME,
-                platform: PlatformPose {
-                    pos,
-                    vel: [1.0, 0.0, 0.0],
-                    attitude: [0.0; 3],
-                    geodetic: Some(frame.from_enu(&nalgebra::Vector3::from(pos))),
-                },
-                noise_std: vec![10.0, 10.0],
-                detections: z.iter().map(|z| Detection { z: z.to_vec() }).collect(),
-            },
-        }
-    }
-
-    /// Truth at `t` of targets `(id, state)`.
-    pub(crate) fn truth(t: f64, targets: &[(&str, [f64; 6])]) -> Record {
-        Record::Truth(TruthSample {
-            schema: TRUTH_SCHEMA.into(),
-            t,
-            time_unix: Some(T0_UNIX + t),
-            origin: HOME,
-            targets: targets
-                .iter()
-                .map(|(id, state)| TargetTruth {
-                    id: (*id).into(),
-                    state: *state,
-                    mode: "CV".into(),
-                })
-                .collect(),
-        })
-    }
-
-    /// A confirmed planar track `id` at `state`.
-    pub(crate) fn track(id: u64, t: f64, state: [f64; 6]) -> TrackView {
-        TrackView {
-            id,
-            status: crate::engine::TrackStatus::Confirmed,
-            t,
-            state,
-            cov: vec![vec![4.0, 0.0, 0.0, 0.0]; 4],
-            cov_dims: vec![0, 1, 3, 4],
-            updated: true,
-            age: 3,
-            last_update: t,
-            mode_probabilities: vec![0.9, 0.1],
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::testing::*;
-    use super::*;
-
-    fn count(conn: &Connection, sql: &str) -> i64 {
-        conn.query_row(sql, [], |r| r.get(0)).expect(sql)
-    }
-
-    fn reader(path: &Path) -> Connection {
-        Connection::open_with_flags(path, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
-            .expect("open read-only")
-    }
-
-    #[test]
-    fn records_land_in_their_tables_and_a_second_open_is_a_new_session() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("sub/rec.sqlite");
-        let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(50), 64).expect("open");
-        assert_eq!(r.session_id(), 1);
-        let clone = r.clone();
-        clone.record(scan(
-            1,
-            0,
-            0.0,
-            [0.0, 0.0, 100.0],
-            &[[10.0, 20.0], [30.0, -40.0]],
-        ));
-        r.record(truth(0.0, &[("T0", [10.0, 20.0, 0.0, 1.0, 0.0, 0.0])]));
-        r.record(Record::Tracks {
-            t: T0_UNIX,
-            tracks: vec![
-                track(1, T0_UNIX, [10.0, 20.0, 0.0, 1.0, 0.0, 0.0]),
-                track(2, T0_UNIX, [30.0, -40.0, 0.0, 0.0, 0.0, 0.0]),
-            ],
-        });
-        r.record(Record::Action {
-            time_unix: T0_UNIX + 1.0,
-            method: "POST".into(),
-            path: "/api/v1/estimator".into(),
-            body: r#"{"name":"imm"}"#.into(),
-            status: 200,
-        });
-        let stats = clone.close().expect("close");
-        assert_eq!(r.close().expect("idempotent"), stats);
-        assert_eq!(
-            (
-                stats.scans,
-                stats.detections,
-                stats.track_rows,
-                stats.truth_rows,
-                stats.actions
-            ),
-            (1, 2, 2, 1, 1),
-            "{stats:?}"
-        );
-        assert_eq!((stats.dropped, stats.errors), (0, 0));
-        assert!(stats.commits >= 1 && stats.last_commit_unix.is_some());
-        r.record(scan(1, 1, 1.0, [0.0; 3], &[]));
-        assert_eq!(
-            r.stats().dropped,
-            1,
-            "a record after close is dropped and counted"
-        );
-
-        let c = reader(&path);
-        assert_eq!(count(&c, "SELECT count(*) FROM detections"), 2);
-        assert_eq!(
-            count(
-                &c,
-                "SELECT count(*) FROM tracks WHERE mode_probabilities = '[0.9,0.1]'"
-            ),
-            2
-        );
-        let (scans, ended, kind): (i64, Option<f64>, String) = c
-            .query_row(
-                "SELECT s.scans, s.ended_unix, k.kind FROM sessions s JOIN scans k \
-                 ON k.session = s.id WHERE s.id = 1",
-                [],
-                |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
-            )
-            .expect("session row");
-        assert_eq!(
-            (scans, ended.is_some(), kind.as_str()),
-            (1, true, "position")
-        );
-        let z1: f64 = c
-            .query_row("SELECT z1 FROM detections WHERE idx = 1", [], |r| r.get(0))
-            .expect("z1");
-        assert_eq!(z1, -40.0);
-        drop(c);
-
-        let again =
-            Recorder::open(&path, &meta("imm"), Duration::from_millis(50), 64).expect("reopen");
-        assert_eq!(again.session_id(), 2);
-        again.close().expect("close");
-    }
-
-    #[test]
-    fn a_record_is_committed_within_the_flush_interval_without_close() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("rec.sqlite");
-        let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(50), 64).expect("open");
-        let sent = Instant::now();
-        r.record(scan(1, 0, 0.0, [0.0; 3], &[[1.0, 2.0]]));
-        let c = reader(&path);
-        while count(&c, "SELECT count(*) FROM scans") == 0 {
-            assert!(
-                sent.elapsed() < Duration::from_secs(5),
-                "no commit within 5 s"
-            );
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        let lag = sent.elapsed();
-        assert!(lag < Duration::from_secs(1), "committed after {lag:?}");
-        let (scans, last): (i64, Option<f64>) = c
-            .query_row(
-                "SELECT scans, last_received_unix FROM sessions WHERE id = 1",
-                [],
-                |r| Ok((r.get(0)?, r.get(1)?)),
-            )
-            .expect("summary");
-        assert_eq!((scans, last), (1, Some(T0_UNIX + 0.01)));
-        assert_eq!(r.stats().scans, 1);
-        r.close().expect("close");
-    }
-
-    #[test]
-    fn a_full_queue_drops_and_counts_and_never_blocks() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("rec.sqlite");
-        let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(20), 4).expect("open");
-        // Another connection holds the write lock: the writer waits on its first insert.
-        let blocker = Connection::open(&path).expect("open");
-        blocker.execute_batch("BEGIN IMMEDIATE").expect("lock");
-        let n = 100;
-        let start = Instant::now();
-        for i in 0..n {
-            r.record(scan(1, i, i as f64, [0.0; 3], &[]));
-        }
-        let took = start.elapsed();
-        blocker.execute_batch("COMMIT").expect("unlock");
-        let s = r.close().expect("close");
-        assert!(
-            took < Duration::from_millis(500),
-            "record blocked: {took:?}"
-        );
-        assert_eq!(s.scans + s.dropped, n, "{s:?}");
-        assert!(s.dropped >= n - 5, "queue of 4 (+1 in hand) but {s:?}");
-        let dropped: i64 = reader(&path)
-            .query_row("SELECT dropped FROM sessions WHERE id = 1", [], |r| {
-                r.get(0)
-            })
-            .expect("dropped");
-        assert_eq!(dropped as u64, s.dropped);
-    }
-
-    #[test]
-    fn a_record_that_fails_half_way_leaves_no_row_and_is_counted() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("rec.sqlite");
-        let r = Recorder::open(&path, &meta("ekf"), Duration::from_millis(20), 64).expect("open");
-        // A real SQLite trigger refuses one detection: its scan fails after its scan row.
-        Connection::open(&path)
-            .and_then(|c| {
-                c.execute_batch(
-                    "CREATE TRIGGER refuse BEFORE INSERT ON detections WHEN NEW.z0 = 666 \
-                     BEGIN SELECT RAISE(ABORT, 'refused by the test'); END;",
-                )
-            })
-            .expect("trigger");
-        r.record(scan(1, 0, 0.0, [0.0; 3], &[[1.0, 2.0]]));
-        r.record(scan(2, 0, 0.0, [0.0; 3], &[[1.0, 2.0], [666.0, 0.0]]));
-        r.record(scan(1, 1, 1.0, [0.0; 3], &[[3.0, 4.0]]));
-        let s = r.close().expect("close");
-        assert_eq!((s.scans, s.detections, s.errors), (2, 2, 1), "{s:?}");
-        let c = reader(&path);
-        assert_eq!(count(&c, "SELECT count(*) FROM scans"), 2);
-        assert_eq!(count(&c, "SELECT count(*) FROM detections"), 2);
-        assert_eq!(count(&c, "SELECT count(*) FROM scans WHERE vehicle = 2"), 0);
-        assert_eq!(
-            count(&c, "SELECT count(*) FROM sensors"),
-            1,
-            "vehicle 2's sensor row went with its scan"
-        );
-        assert_eq!(count(&c, "SELECT scans FROM sessions"), 2);
-    }
-
-    #[test]
-    fn other_files_are_refused_with_their_path() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let other = dir.path().join("other.sqlite");
-        Connection::open(&other)
-            .and_then(|c| c.execute_batch("CREATE TABLE t (x)"))
-            .expect("other db");
-        let e = Recorder::open(&other, &meta("ekf"), Duration::from_millis(50), 4)
-            .expect_err("not ours");
-        assert!(
-            e.to_string().contains("other.sqlite") && e.to_string().contains("not a Harrier"),
-            "{e}"
-        );
-        let text = dir.path().join("notes.txt");
-        std::fs::write(
-            &text,
-            "not a database, just some text that is long enough ".repeat(20),
-        )
-        .expect("write");
-        let e = Recorder::open(&text, &meta("ekf"), Duration::from_millis(50), 4)
-            .expect_err("not sqlite");
-        assert!(e.to_string().contains("notes.txt"), "{e}");
-    }
-
-    /// Writes `n` scans (one detection each) and `n` track rows as fast as they can be queued;
-    /// returns the seconds from the first record to the end of `close`.
-    fn burst(n: u64) -> (f64, RecorderStats) {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let path = dir.path().join("rec.sqlite");
-        let queue = usize::try_from(2 * n).expect("queue");
-        let r =
-            Recorder::open(&path, &meta("ekf"), Duration::from_millis(200), queue).expect("open");
-        let start = Instant::now();
-        for i in 0..n {
-            let t = i as f64 * 0.002;
-            let v = (i % 10) as u8 + 1;
-            r.record(scan(v, i / 10, t, [0.0, 0.0, 100.0], &[[t, 2.0 * t]]));
-            r.record(Record::Tracks {
-                t: T0_UNIX + t,
-                tracks: vec![track(1, T0_UNIX + t, [t, 2.0 * t, 0.0, 1.0, 2.0, 0.0])],
-            });
-        }
-        let s = r.close().expect("close");
-        (start.elapsed().as_secs_f64(), s)
-    }
-
-    #[test]
-    fn the_writer_keeps_up_with_ten_vehicles_at_50_hz() {
-        // 5000 scans = 10 s of 10 vehicles × 50 Hz, with a detection and a track row each.
-        let (secs, s) = burst(5000);
-        let rows = s.scans + s.detections + s.track_rows;
-        eprintln!(
-            "recorder: {} scans + {} detections + {} track rows in {secs:.3} s: {:.0} scans/s, \
-             {:.0} rows/s, {} commits",
-            s.scans,
-            s.detections,
-            s.track_rows,
-            s.scans as f64 / secs,
-            rows as f64 / secs,
-            s.commits
-        );
-        assert_eq!((s.scans, s.dropped, s.errors), (5000, 0, 0), "{s:?}");
-        assert!(
-            s.scans as f64 / secs > 500.0,
-            "only {:.0} scans/s",
-            s.scans as f64 / secs
-        );
-    }
-
-    /// `cargo test -p harrier-server --lib bench_recorder -- --ignored --nocapture`
-    #[test]
-    #[ignore = "benchmark"]
-    fn bench_recorder_burst() {
-        let (secs, s) = burst(50_000);
-        let rows = s.scans + s.detections + s.track_rows;
-        eprintln!(
-            "recorder burst: {rows} rows in {secs:.2} s = {:.0} rows/s ({:.0} scans/s with a \
-             detection and a track row each), {} commits",
-            rows as f64 / secs,
-            s.scans as f64 / secs,
-            s.commits
-        );
     }
 }

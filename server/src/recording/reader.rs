@@ -1,0 +1,287 @@
+//! Reading session files offline: [`list`] and [`info`] summarise the sessions of a file
+//! written by [`super::writer`] (RECORDING.md). Files are opened read-only, so this works while
+//! a server is still writing (WAL mode) and on the file of a killed one.
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use harrier_link::scenario_out::WriteError;
+use rusqlite::{Connection, OpenFlags, OptionalExtension};
+
+use super::schema::schema_problem;
+
+/// A session's summary.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+pub struct SessionInfo {
+    /// Session id in its file.
+    pub id: i64,
+    /// When the service started (UNIX s).
+    pub started_unix: f64,
+    /// When the recorder was closed (UNIX s); `None` while it runs, or when it was killed.
+    pub ended_unix: Option<f64>,
+    /// Track filter at the start.
+    pub estimator: String,
+    /// WGS-84 origin of the session's ENU frame: latitude (deg).
+    pub origin_lat_deg: f64,
+    /// Longitude (deg).
+    pub origin_lon_deg: f64,
+    /// Altitude (m).
+    pub origin_alt_m: f64,
+    /// Up coordinate of the ground plane (m).
+    pub plane_z: f64,
+    /// Scan rows.
+    pub scans: u64,
+    /// Detection rows.
+    pub detections: u64,
+    /// Track rows.
+    pub track_rows: u64,
+    /// Truth rows.
+    pub truth_rows: u64,
+    /// Action rows.
+    pub actions: u64,
+    /// Records the recorder dropped (queue full), as of its last commit.
+    pub dropped: u64,
+    /// Receive time of the first scan (UNIX s).
+    pub first_received_unix: Option<f64>,
+    /// Receive time of the last scan (UNIX s).
+    pub last_received_unix: Option<f64>,
+    /// Time of the last commit (UNIX s).
+    pub last_commit_unix: Option<f64>,
+    /// Vehicles (MAVLink system ids) that sent scans.
+    pub vehicles: Vec<String>,
+    /// Their sensors, `vehicle/sensor` (e.g. `1/cam`).
+    pub sensors: Vec<String>,
+}
+
+/// Why a session file or session cannot be read or exported. Messages name the file and session.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The file does not exist or SQLite cannot open it.
+    #[error("{}: cannot open: {source}", path.display())]
+    Open {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        source: rusqlite::Error,
+    },
+    /// The file is not a Harrier session file (or of a newer schema).
+    #[error("{}: {message}", path.display())]
+    NotSessionFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
+    /// A query failed.
+    #[error("{}: {source}", path.display())]
+    Sqlite {
+        /// The file.
+        path: PathBuf,
+        /// SQLite's error.
+        source: rusqlite::Error,
+    },
+    /// No session has this id.
+    #[error("{}: no session {id}", path.display())]
+    NotFound {
+        /// The file.
+        path: PathBuf,
+        /// The id asked for.
+        id: i64,
+    },
+    /// A row cannot be read (names the table and row).
+    #[error("{}: session {id}: {message}", path.display())]
+    Malformed {
+        /// The file.
+        path: PathBuf,
+        /// The session.
+        id: i64,
+        /// What is wrong, and where.
+        message: String,
+    },
+    /// The session cannot be written as a scenario (no scans, scans off any grid, …).
+    #[error("{}: session {id}: cannot export: {message}", path.display())]
+    Export {
+        /// The file.
+        path: PathBuf,
+        /// The session.
+        id: i64,
+        /// Why.
+        message: String,
+    },
+    /// The directory cannot be written.
+    #[error(transparent)]
+    Write(#[from] WriteError),
+}
+
+/// A session file opened read-only.
+pub(super) struct Db<'a> {
+    path: &'a Path,
+    conn: Connection,
+}
+
+impl<'a> Db<'a> {
+    pub(super) fn open(path: &'a Path) -> Result<Self, SessionError> {
+        let open = |source| SessionError::Open {
+            path: path.to_path_buf(),
+            source,
+        };
+        if !path.is_file() {
+            return Err(open(rusqlite::Error::InvalidPath(path.to_path_buf())));
+        }
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .map_err(open)?;
+        let db = Self { path, conn };
+        db.conn
+            .busy_timeout(std::time::Duration::from_secs(5))
+            .map_err(|e| db.sql(e))?;
+        if let Some(message) = schema_problem(&db.conn, false).map_err(|e| db.sql(e))? {
+            return Err(SessionError::NotSessionFile {
+                path: path.to_path_buf(),
+                message,
+            });
+        }
+        Ok(db)
+    }
+
+    pub(super) fn sql(&self, source: rusqlite::Error) -> SessionError {
+        SessionError::Sqlite {
+            path: self.path.to_path_buf(),
+            source,
+        }
+    }
+
+    pub(super) fn malformed(&self, id: i64, message: String) -> SessionError {
+        SessionError::Malformed {
+            path: self.path.to_path_buf(),
+            id,
+            message,
+        }
+    }
+
+    pub(super) fn export_error(&self, id: i64, message: impl Into<String>) -> SessionError {
+        SessionError::Export {
+            path: self.path.to_path_buf(),
+            id,
+            message: message.into(),
+        }
+    }
+
+    fn ids(&self) -> Result<Vec<i64>, SessionError> {
+        let mut st = self
+            .conn
+            .prepare("SELECT id FROM sessions ORDER BY id")
+            .map_err(|e| self.sql(e))?;
+        st.query_map([], |r| r.get(0))
+            .and_then(Iterator::collect)
+            .map_err(|e| self.sql(e))
+    }
+
+    pub(super) fn info(&self, id: i64) -> Result<SessionInfo, SessionError> {
+        let count = |v: i64| u64::try_from(v).unwrap_or(0);
+        let row = self
+            .conn
+            .query_row(
+                "SELECT started_unix, ended_unix, estimator, origin_lat_deg, origin_lon_deg, \
+                 origin_alt_m, plane_z, scans, detections, track_rows, truth_rows, actions, \
+                 dropped, first_received_unix, last_received_unix, last_commit_unix \
+                 FROM sessions WHERE id = ?1",
+                [id],
+                |r| {
+                    Ok(SessionInfo {
+                        id,
+                        started_unix: r.get(0)?,
+                        ended_unix: r.get(1)?,
+                        estimator: r.get(2)?,
+                        origin_lat_deg: r.get(3)?,
+                        origin_lon_deg: r.get(4)?,
+                        origin_alt_m: r.get(5)?,
+                        plane_z: r.get(6)?,
+                        scans: count(r.get(7)?),
+                        detections: count(r.get(8)?),
+                        track_rows: count(r.get(9)?),
+                        truth_rows: count(r.get(10)?),
+                        actions: count(r.get(11)?),
+                        dropped: count(r.get(12)?),
+                        first_received_unix: r.get(13)?,
+                        last_received_unix: r.get(14)?,
+                        last_commit_unix: r.get(15)?,
+                        vehicles: Vec::new(),
+                        sensors: Vec::new(),
+                    })
+                },
+            )
+            .optional()
+            .map_err(|e| self.malformed(id, format!("sessions row: {e}")))?;
+        let mut info = row.ok_or_else(|| SessionError::NotFound {
+            path: self.path.to_path_buf(),
+            id,
+        })?;
+        let mut st = self
+            .conn
+            .prepare(
+                "SELECT vehicle, sensor FROM sensors WHERE session = ?1 ORDER BY vehicle, sensor",
+            )
+            .map_err(|e| self.sql(e))?;
+        let pairs: Vec<(i64, String)> = st
+            .query_map([id], |r| Ok((r.get(0)?, r.get(1)?)))
+            .and_then(Iterator::collect)
+            .map_err(|e| self.malformed(id, format!("sensors rows: {e}")))?;
+        let vehicles: BTreeSet<i64> = pairs.iter().map(|p| p.0).collect();
+        info.vehicles = vehicles.iter().map(i64::to_string).collect();
+        info.sensors = pairs.iter().map(|(v, s)| format!("{v}/{s}")).collect();
+        Ok(info)
+    }
+
+    /// The `json` column of every row of `table` of session `id`, in row order, parsed by
+    /// `parse`, with each row's id.
+    pub(super) fn rows<T, E: std::fmt::Display>(
+        &self,
+        table: &str,
+        id: i64,
+        parse: impl Fn(&[u8]) -> Result<T, E>,
+    ) -> Result<Vec<(i64, T)>, SessionError> {
+        let mut st = self
+            .conn
+            .prepare(&format!(
+                "SELECT id, json FROM {table} WHERE session = ?1 ORDER BY id"
+            ))
+            .map_err(|e| self.sql(e))?;
+        let mut rows = st.query([id]).map_err(|e| self.sql(e))?;
+        let mut out = Vec::new();
+        while let Some(r) = rows.next().map_err(|e| self.sql(e))? {
+            let row: i64 = r.get(0).map_err(|e| self.sql(e))?;
+            let text: String = r
+                .get(1)
+                .map_err(|e| self.malformed(id, format!("{table} row {row}: json: {e}")))?;
+            let v = parse(text.as_bytes())
+                .map_err(|e| self.malformed(id, format!("{table} row {row}: {e}")))?;
+            out.push((row, v));
+        }
+        Ok(out)
+    }
+
+    /// The configuration session `id` ran with, as JSON.
+    pub(super) fn config_json(&self, id: i64) -> Result<String, SessionError> {
+        self.conn
+            .query_row(
+                "SELECT config_json FROM sessions WHERE id = ?1",
+                [id],
+                |r| r.get(0),
+            )
+            .map_err(|e| self.malformed(id, format!("sessions row: config_json: {e}")))
+    }
+}
+
+/// Every session in `db`, in id order. Opens the file read-only.
+pub fn list(db: &Path) -> Result<Vec<SessionInfo>, SessionError> {
+    let d = Db::open(db)?;
+    d.ids()?.into_iter().map(|id| d.info(id)).collect()
+}
+
+/// The session `id` of `db` ([`SessionError::NotFound`] when there is none).
+pub fn info(db: &Path, id: i64) -> Result<SessionInfo, SessionError> {
+    Db::open(db)?.info(id)
+}
