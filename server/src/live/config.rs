@@ -741,6 +741,31 @@ fn deployment_problem(motion: &Motion, roads: &[Road]) -> Option<String> {
     None
 }
 
+impl From<&GuidanceConfig> for super::guidance::GuidanceSettings {
+    /// The guidance loop's settings: `airframe` as its flight envelope, the obstacles as discs.
+    fn from(g: &GuidanceConfig) -> Self {
+        use harrier_core::guidance::{Limits, obstacle::Obstacle};
+        Self {
+            rate_hz: g.rate_hz,
+            limits: if g.airframe == "fixed_wing" {
+                Limits::fixed_wing()
+            } else {
+                Limits::multirotor()
+            },
+            speed: g.speed_m_s,
+            takeoff_height: g.takeoff_height_m,
+            obstacles: g
+                .obstacles
+                .iter()
+                .map(|o| Obstacle {
+                    center: nalgebra::Vector2::new(o.x_m, o.y_m),
+                    radius: o.radius_m,
+                })
+                .collect(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,5 +1,5 @@
 //! What the live service knows of the world besides the tracks: the simulator's truth (converted
-//! into the server's frame by the Zenoh callback of [`super::start`]) and the static world of the
+//! into the server's frame by the service's Zenoh callback, `bus.rs`) and the static world of the
 //! configuration (roads, obstacles). The HTTP routes `GET /api/v1/truth` and `GET /api/v1/world`
 //! serve these values as they are, the truth with each track's error against it
 //! ([`TruthBody::with_scores`]).

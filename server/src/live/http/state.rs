@@ -8,6 +8,7 @@ use axum::extract::{FromRef, Request};
 use axum::http::header;
 use tokio::sync::{broadcast, mpsc, watch};
 
+use crate::live::config::ApiConfig;
 use crate::live::gcs::GcsLink;
 use crate::live::guidance::Guidance;
 use crate::live::metrics::Metrics;
@@ -136,6 +137,27 @@ pub(super) enum Verdict {
 }
 
 impl Auth {
+    /// The rule of `[api]`: `main` (the service's token, from `HARRIER_TOKEN`, `api.token` or
+    /// generated; named `main`, no expiry), then every `[[api.tokens]]` entry.
+    pub fn new(main: &str, api: &ApiConfig) -> Self {
+        let named = api.tokens.iter().map(|t| ApiToken {
+            name: t.name.clone(),
+            secret: t.token.clone(),
+            // `Config::check` refuses a bad expiry; were one to get here, the token is refused
+            // rather than accepted forever.
+            expires: t.expiry().unwrap_or(Some(SystemTime::UNIX_EPOCH)),
+        });
+        let main = ApiToken {
+            name: "main".into(),
+            secret: main.into(),
+            expires: None,
+        };
+        Self {
+            tokens: std::iter::once(main).chain(named).collect(),
+            reads: api.auth_reads,
+        }
+    }
+
     /// What `req` carries (header, or `token=` in the query of a WebSocket upgrade), judged at
     /// `now`. Every token is compared, each in constant time.
     pub(super) fn check(&self, req: &Request, now: SystemTime) -> Verdict {
@@ -244,6 +266,26 @@ mod tests {
             check(&format!("/api/v1/tracks?{q}"), None, 0),
             Verdict::Missing
         );
+    }
+
+    #[test]
+    fn the_rule_of_the_configuration_has_the_main_token_first_then_the_named_ones() {
+        let api: ApiConfig = toml::from_str(
+            "auth_reads = true\n\
+             [[tokens]]\nname = \"ci\"\ntoken = \"ci-secret-0123456789ab\"\n\
+             expires = \"1970-01-01T00:16:40Z\"\n\
+             [[tokens]]\nname = \"ops\"\ntoken = \"ops-secret-0123456789\"\n",
+        )
+        .expect("an [api] table");
+        let got = Auth::new("main-secret-0123456789", &api);
+        let mut want = auth();
+        want.tokens.push(ApiToken {
+            name: "ops".into(),
+            secret: "ops-secret-0123456789".into(),
+            expires: None,
+        });
+        want.reads = true;
+        assert_eq!(got, want);
     }
 
     #[test]
