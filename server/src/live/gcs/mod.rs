@@ -23,8 +23,9 @@
 //!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
 //!   routed (counted as malformed).
 //! - Garbage datagrams and undecodable frames are counted per endpoint and skipped.
-//! - MAVLink 2 signing (`[mavlink.signing]`, harrier-link's [`Signer`], one for the whole link):
-//!   the ground station signs its own frames; every frame received on any endpoint is checked
+//! - MAVLink 2 signing (`[mavlink.signing]`, harrier-link's
+//!   [`Signer`](harrier_link::signing::Signer), one for the whole link): the ground station signs
+//!   its own frames; every frame received on any endpoint is checked
 //!   before the actor sees it, and a refused one (`unsigned` in `signed_only` mode,
 //!   `bad_signature`, `replay`) is counted by side and reason, logged at a bounded rate, and goes
 //!   nowhere: not to the vehicle table, the ACKs, the guidance, the `.tlog` or the router.
