@@ -769,9 +769,10 @@ mod tests {
         assert!(Cli::try_parse_from(["bench", "--vehicles", "0"]).is_err());
     }
 
-    /// Overload: 2 vehicles × 10 Hz × 100 detections, then 50× that (1 000 scans/s of 100
-    /// detections: 100 000 detections/s, past what the GNN assignment of 100 tracks keeps up
-    /// with) for 3 s into a queue of 8, then 10 Hz again for 6 s (a reorder window of 0.3 s, so
+    /// Overload: 2 vehicles × 10 Hz × 400 detections, then 50× that (1 000 scans/s of 400
+    /// detections: 400 000 detections/s, about 3× what the GNN assignment of 400-detection scans
+    /// keeps up with on an idle machine, BENCHMARKS "Live service" 2; with 100 detections an
+    /// idle machine kept up and nothing was dropped) for 3 s into a queue of 8, then 10 Hz again for 6 s (a reorder window of 0.3 s, so
     /// that the two vehicles' scans wait for each other): the overload's drops are
     /// counted by reason in `/metrics` (`queue_full`), memory stops growing, and the service
     /// recovers within 4 s (lag back under 250 ms, no drop after).
@@ -783,7 +784,7 @@ mod tests {
             "--rate-hz",
             "10",
             "--detections",
-            "100",
+            "400",
             "--reorder-window-s",
             "0.3",
             "--duration-s",
@@ -832,7 +833,8 @@ mod tests {
             o.overload.rss_max_kib.expect("rss"),
             o.recovery.rss_max_kib.expect("rss"),
         );
-        assert!(max < before + 128 * 1024, "rss {before} → {max} KiB");
+        // 400-detection payloads: the Zenoh buffers of the overload hold ~130 MiB at its peak.
+        assert!(max < before + 256 * 1024, "rss {before} → {max} KiB");
         assert!(
             after <= max + 16 * 1024,
             "rss {max} → {after} KiB after the overload"
