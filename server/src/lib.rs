@@ -22,6 +22,7 @@
 //!   both getting their estimators from the registry; [`gen_multi`] (`harrier gen-multi`).
 
 pub mod bench;
+pub mod clock;
 pub mod demo;
 pub mod engine;
 pub mod estimators;

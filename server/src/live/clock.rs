@@ -1,7 +1,7 @@
 //! The server's clock, and what it knows of every source's clock.
 //!
-//! This is the one place the live service reads the time of day ([`unix_now`]). Scans carry the
-//! instant of their detections as `time_unix`, on the sending computer's clock; one wrong clock
+//! The live service reads the time of day through [`unix_now`] (`crate::clock`, which the
+//! recording shares). Scans carry the instant of their detections as `time_unix`, on the sending computer's clock; one wrong clock
 //! must not move the tracker's time for everyone. So, when sources run on real time
 //! ([`ClockConfig::real_time`]):
 //!
@@ -26,12 +26,7 @@ use std::collections::VecDeque;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-/// Now as UNIX time (s).
-pub fn unix_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
-}
+pub use crate::clock::unix_now;
 
 /// `[clock]`: how far the sources' clocks are trusted.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]

@@ -28,6 +28,7 @@ use super::schema::{
     INSERT_SESSION, INSERT_TRACK, INSERT_TRUTH, INSERT_VEHICLE_LOG, SCHEMA, SCHEMA_VERSION,
     UPDATE_SUMMARY, kind_name, schema_problem,
 };
+use crate::clock::unix_now;
 use crate::engine::TrackView;
 use crate::prom::Family;
 
@@ -222,15 +223,6 @@ struct Inner {
 #[derive(Debug, Clone)]
 pub struct Recorder {
     inner: Arc<Inner>,
-}
-
-/// Now as UNIX time (s), for the commit and end times. The recording reads the wall clock
-/// itself, as `live::clock::unix_now` does for the live service, so that nothing in
-/// `recording/` imports `live/`.
-fn unix_now() -> f64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64())
 }
 
 /// JSON text of the small vectors of a track row (plain numbers: serialisation cannot fail).
