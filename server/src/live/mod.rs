@@ -250,11 +250,13 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let control = Control::spawn(config, &pipeline.snapshot, recorder, &stop_rx).await?;
 
     let token = token(config);
+    let connections = Arc::new(http::ConnectionStats::default());
     let service = Service {
         metrics: Arc::clone(&metrics),
         auth: Arc::new(Auth::new(&token.0, &config.api)),
         started,
         stop: stop_rx.clone(),
+        connections: Arc::clone(&connections),
     };
     let state = api_state(
         config,
@@ -265,7 +267,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         service,
     );
     let app = http::app(state, web_dir(config).as_deref(), &config.api.cors_origins);
-    let api = tokio::spawn(serve(listener, app, stop_rx));
+    let limits = http::Limits::from(&config.api);
+    let api = tokio::spawn(http::serve(listener, app, limits, connections, stop_rx));
     tracing::info!(%addr, estimator = config.tracker.estimator, "live service started");
     Ok(LiveServer {
         addr,
@@ -350,30 +353,5 @@ fn open_recording(config: &Config, estimator: &str) -> http::Recording {
                 error: Some(Arc::from(e.to_string())),
             }
         }
-    }
-}
-
-/// Serves `app` on `listener` until `stop`.
-async fn serve(
-    listener: tokio::net::TcpListener,
-    app: axum::Router,
-    mut stop: watch::Receiver<bool>,
-) {
-    let shutdown = async move {
-        let _ = stop.wait_for(|s| *s).await;
-    };
-    // Small WebSocket messages must leave at once: Nagle's algorithm held them back by up
-    // to 40 ms (p99 58 ms → 19 ms detection-to-WebSocket in `harrier bench`).
-    use axum::serve::ListenerExt as _;
-    let listener = listener.tap_io(|s| {
-        if let Err(e) = s.set_nodelay(true) {
-            tracing::debug!("TCP_NODELAY: {e}");
-        }
-    });
-    if let Err(e) = axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
-        .await
-    {
-        tracing::error!("api: {e}");
     }
 }

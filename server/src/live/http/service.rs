@@ -86,6 +86,7 @@ async fn metrics(
     State(c): State<Control>,
 ) -> impl IntoResponse {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
+    s.connections.render(&mut text);
     if let Some(recorder) = &r.recorder {
         render_recorder(&mut text, &recorder.stats());
     }
