@@ -232,7 +232,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     };
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
-    let (listener, addr) = bind(config.api.listen).await?;
+    let (listener, addr) = bind(config.api.listen)?;
     let (stop, stop_rx) = watch::channel(false);
 
     let recording = open_recording(config, &config.tracker.estimator);
@@ -310,10 +310,25 @@ fn api_state(
     }
 }
 
+/// Connections the kernel completes and queues for the API before they are accepted (capped by
+/// `net.core.somaxconn`, 4 096 on Linux since 5.4). tokio's 1 024 overflowed under a flood of
+/// connections on a busy machine, and a dropped SYN costs a client a 1 s retransmission.
+const BACKLOG: u32 = 4096;
+
 /// The API's listener and the address it got.
-async fn bind(addr: SocketAddr) -> Result<(tokio::net::TcpListener, SocketAddr), LiveError> {
+fn bind(addr: SocketAddr) -> Result<(tokio::net::TcpListener, SocketAddr), LiveError> {
     let bind = |source| LiveError::Bind { addr, source };
-    let listener = tokio::net::TcpListener::bind(addr).await.map_err(bind)?;
+    let socket = match addr {
+        SocketAddr::V4(_) => tokio::net::TcpSocket::new_v4(),
+        SocketAddr::V6(_) => tokio::net::TcpSocket::new_v6(),
+    }
+    .map_err(bind)?;
+    // As `TcpListener::bind` does on Unix: a restarted server binds its port while the old
+    // one's connections linger (TIME_WAIT).
+    #[cfg(unix)]
+    socket.set_reuseaddr(true).map_err(bind)?;
+    socket.bind(addr).map_err(bind)?;
+    let listener = socket.listen(BACKLOG).map_err(bind)?;
     let local = listener.local_addr().map_err(bind)?;
     Ok((listener, local))
 }
