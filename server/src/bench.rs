@@ -241,6 +241,9 @@ impl BenchArgs {
         if let Some(q) = self.ws_queue {
             c.api.ws_queue = q;
         }
+        // Every client of the run at once, and room for its own requests (/metrics, /tracks).
+        let clients = self.ws_clients + self.rest_connections + 16;
+        c.api.max_connections = c.api.max_connections.max(clients);
         c
     }
 }

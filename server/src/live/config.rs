@@ -264,6 +264,15 @@ pub struct ApiConfig {
     pub web_dir: String,
     /// Messages queued per WebSocket client before it is dropped to the latest state.
     pub ws_queue: usize,
+    /// Longest wait (s) for a request's head (request line and headers) on a connection, from
+    /// its opening or its last response; the connection is then closed.
+    pub header_timeout_s: f64,
+    /// Longest time (s) from a request's head to the end of its body; then 408.
+    pub body_timeout_s: f64,
+    /// Most connections open at once, WebSockets included (lowered at start to fit the
+    /// open-file limit). At the cap a new connection replaces the oldest one that has not sent
+    /// a whole request head yet, or is closed at once when every connection has.
+    pub max_connections: usize,
 }
 
 /// One `[[api.tokens]]` entry.
@@ -387,6 +396,9 @@ impl Default for ApiConfig {
             cors_origins: Vec::new(),
             web_dir: String::new(),
             ws_queue: 256,
+            header_timeout_s: 10.0,
+            body_timeout_s: 10.0,
+            max_connections: 512,
         }
     }
 }
@@ -521,6 +533,17 @@ impl Config {
         t.bound.check().map_err(ConfigError::Invalid)?;
         if self.api.ws_queue == 0 {
             return bad("api.ws_queue must be ≥ 1".into());
+        }
+        for (key, s) in [
+            ("header_timeout_s", self.api.header_timeout_s),
+            ("body_timeout_s", self.api.body_timeout_s),
+        ] {
+            if !(s.is_finite() && s > 0.0 && s <= 3600.0) {
+                return bad(format!("api.{key} must be in (0, 3600] s, got {s}"));
+            }
+        }
+        if self.api.max_connections == 0 {
+            return bad("api.max_connections must be ≥ 1".into());
         }
         let r = &self.recorder;
         if !(1..=1000).contains(&r.flush_ms) {

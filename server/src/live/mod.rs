@@ -234,7 +234,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     };
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
-    let (listener, addr) = bind(config.api.listen).await?;
+    let (listener, addr) = bind(config.api.listen)?;
     let (stop, stop_rx) = watch::channel(false);
 
     let recording = open_recording(config, &config.tracker.estimator);
@@ -252,11 +252,13 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let control = Control::spawn(config, &pipeline.snapshot, recorder, &stop_rx).await?;
 
     let token = token(config);
+    let connections = Arc::new(http::ConnectionStats::default());
     let service = Service {
         metrics: Arc::clone(&metrics),
         auth: Arc::new(Auth::new(&token.0, &config.api)),
         started,
         stop: stop_rx.clone(),
+        connections: Arc::clone(&connections),
     };
     let state = api_state(
         config,
@@ -267,7 +269,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         service,
     );
     let app = http::app(state, web_dir(config).as_deref(), &config.api.cors_origins);
-    let api = tokio::spawn(serve(listener, app, stop_rx));
+    let limits = http::Limits::from(&config.api);
+    let api = tokio::spawn(http::serve(listener, app, limits, connections, stop_rx));
     tracing::info!(%addr, estimator = config.tracker.estimator, "live service started");
     Ok(LiveServer {
         addr,
@@ -309,10 +312,25 @@ fn api_state(
     }
 }
 
+/// Connections the kernel completes and queues for the API before they are accepted (capped by
+/// `net.core.somaxconn`, 4 096 on Linux since 5.4). tokio's 1 024 overflowed under a flood of
+/// connections on a busy machine, and a dropped SYN costs a client a 1 s retransmission.
+const BACKLOG: u32 = 4096;
+
 /// The API's listener and the address it got.
-async fn bind(addr: SocketAddr) -> Result<(tokio::net::TcpListener, SocketAddr), LiveError> {
+fn bind(addr: SocketAddr) -> Result<(tokio::net::TcpListener, SocketAddr), LiveError> {
     let bind = |source| LiveError::Bind { addr, source };
-    let listener = tokio::net::TcpListener::bind(addr).await.map_err(bind)?;
+    let socket = match addr {
+        SocketAddr::V4(_) => tokio::net::TcpSocket::new_v4(),
+        SocketAddr::V6(_) => tokio::net::TcpSocket::new_v6(),
+    }
+    .map_err(bind)?;
+    // As `TcpListener::bind` does on Unix: a restarted server binds its port while the old
+    // one's connections linger (TIME_WAIT).
+    #[cfg(unix)]
+    socket.set_reuseaddr(true).map_err(bind)?;
+    socket.bind(addr).map_err(bind)?;
+    let listener = socket.listen(BACKLOG).map_err(bind)?;
     let local = listener.local_addr().map_err(bind)?;
     Ok((listener, local))
 }
@@ -352,30 +370,5 @@ fn open_recording(config: &Config, estimator: &str) -> http::Recording {
                 error: Some(Arc::from(e.to_string())),
             }
         }
-    }
-}
-
-/// Serves `app` on `listener` until `stop`.
-async fn serve(
-    listener: tokio::net::TcpListener,
-    app: axum::Router,
-    mut stop: watch::Receiver<bool>,
-) {
-    let shutdown = async move {
-        let _ = stop.wait_for(|s| *s).await;
-    };
-    // Small WebSocket messages must leave at once: Nagle's algorithm held them back by up
-    // to 40 ms (p99 58 ms → 19 ms detection-to-WebSocket in `harrier bench`).
-    use axum::serve::ListenerExt as _;
-    let listener = listener.tap_io(|s| {
-        if let Err(e) = s.set_nodelay(true) {
-            tracing::debug!("TCP_NODELAY: {e}");
-        }
-    });
-    if let Err(e) = axum::serve(listener, app)
-        .with_graceful_shutdown(shutdown)
-        .await
-    {
-        tracing::error!("api: {e}");
     }
 }

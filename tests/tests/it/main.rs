@@ -26,6 +26,7 @@ mod clock;
 mod dashboard;
 mod fuzz_regressions;
 mod guidance;
+mod http_limits;
 mod live_server;
 mod mavlink_gcs;
 mod mavproxy_client;

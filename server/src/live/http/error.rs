@@ -48,6 +48,10 @@ pub(super) enum ApiError {
         reason: &'static str,
         message: String,
     },
+    /// 408 (`body_timeout`): a body that had not arrived by the body deadline of
+    /// [`super::serve`].
+    #[error("{0}")]
+    RequestTimeout(String),
     /// 413: a body over the guard's limit (`too_large`) or axum's (`json`).
     #[error("{message}")]
     PayloadTooLarge {
@@ -85,6 +89,17 @@ impl ApiError {
         }
     }
 
+    /// 408, when `e` (a body that could not be read) is the body deadline passing.
+    pub(super) fn body_timeout(e: &(dyn std::error::Error + 'static)) -> Option<Self> {
+        let timed_out = std::iter::successors(Some(e), |e| e.source())
+            .any(|e| e.is::<tower_http::timeout::TimeoutError>());
+        timed_out.then(|| {
+            Self::RequestTimeout(
+                "the request body did not arrive in time (api.body_timeout_s)".into(),
+            )
+        })
+    }
+
     /// 404.
     pub(super) fn not_found(message: impl Into<String>) -> Self {
         Self::NotFound(message.into())
@@ -105,6 +120,7 @@ impl ApiError {
             Self::Unauthorized(_) => StatusCode::UNAUTHORIZED,
             Self::NotFound(_) => StatusCode::NOT_FOUND,
             Self::Conflict { .. } => StatusCode::CONFLICT,
+            Self::RequestTimeout(_) => StatusCode::REQUEST_TIMEOUT,
             Self::PayloadTooLarge { .. } => StatusCode::PAYLOAD_TOO_LARGE,
             Self::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Self::Unprocessable { .. } => StatusCode::UNPROCESSABLE_ENTITY,
@@ -123,6 +139,7 @@ impl ApiError {
             | Self::Unavailable { reason, .. } => reason,
             Self::Unauthorized(v) => unauthorized(v).0,
             Self::NotFound(_) => "not_found",
+            Self::RequestTimeout(_) => "body_timeout",
             Self::UnsupportedMediaType(_) => "json",
             Self::Internal(_) => "internal",
         }
@@ -196,8 +213,11 @@ pub(super) async fn count_refusals(State(s): State<Service>, req: Request, next:
 
 impl From<JsonRejection> for ApiError {
     /// A body axum's `Json` refused: 400 syntax, 415 content type, 422 data, 413 too large; all
-    /// under `json`.
+    /// under `json`; 408 (`body_timeout`) when it did not arrive in time.
     fn from(e: JsonRejection) -> Self {
+        if let Some(timeout) = Self::body_timeout(&e) {
+            return timeout;
+        }
         let message = e.body_text();
         let reason = "json";
         match e.status() {

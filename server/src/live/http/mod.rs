@@ -17,8 +17,9 @@
 //! its OpenAPI `Doc`; a handler takes the part of [`ApiState`] it reads (`State<Tracking>`, …)
 //! and returns `Result<Json<T>, ApiError>`. Every refusal is one `ApiError` (`error.rs`): JSON
 //! `{"error": "…"}` with its status — a body that is not JSON 400, JSON of the wrong shape 422
-//! (naming the field), no or a wrong token 401, an unknown id or route 404 — counted once, by
-//! the `count_refusals` middleware, in `harrier_http_refused_total{reason, status}`.
+//! (naming the field), no or a wrong token 401, an unknown id or route 404, a body that did not
+//! arrive in time 408 — counted once, by the `count_refusals` middleware, in
+//! `harrier_http_refused_total{reason, status}`.
 //!
 //! Every mutating request needs `Authorization: Bearer <token>`: `api.token`, or one of the
 //! named `[[api.tokens]]` before its expiry (a missing, wrong or expired token: 401, counted as
@@ -26,12 +27,14 @@
 //! WebSocket, which browsers cannot give headers, also takes `?token=`).
 //! CORS is same-origin unless `api.cors_origins` lists origins. [`app`] builds the router from
 //! an [`ApiState`], so tests call it in-process (`app(state).oneshot(request)`) or serve it on
-//! any listener.
+//! any listener; the service serves it with [`serve`] (`serve.rs`: a header timeout, a cap on
+//! open connections, a body deadline).
 
 pub mod assignments;
 mod error;
 pub mod estimator;
 mod extract;
+mod serve;
 pub mod service;
 pub mod sessions;
 mod state;
@@ -55,6 +58,7 @@ use axum::{Json, Router};
 use utoipa::OpenApi;
 
 use self::error::{ApiError, count_refusals};
+pub use self::serve::{ConnectionStats, Limits, serve};
 use self::state::Verdict;
 pub use self::state::{ApiState, ApiToken, Auth, Control, Recording, Service, Tracking};
 use crate::live::clock::unix_now;
@@ -185,11 +189,11 @@ async fn guard(State(s): State<ApiState>, req: Request, next: Next) -> Response 
     let path = req.uri().path().to_string();
     let (parts, body) = req.into_parts();
     let (response, body) = match axum::body::to_bytes(body, MAX_BODY).await {
-        Err(_) => {
-            let e = ApiError::PayloadTooLarge {
+        Err(e) => {
+            let e = ApiError::body_timeout(&e).unwrap_or_else(|| ApiError::PayloadTooLarge {
                 reason: "too_large",
                 message: format!("request bodies are limited to {MAX_BODY} bytes"),
-            };
+            });
             (e.into_response(), String::new())
         }
         Ok(bytes) => {

@@ -84,6 +84,7 @@ async fn metrics(
     State(c): State<Control>,
 ) -> impl IntoResponse {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
+    s.connections.render(&mut text);
     if let Some(recorder) = &r.recorder {
         recorder.stats().render(&mut text);
     }

@@ -8,6 +8,7 @@ use axum::extract::{FromRef, Request};
 use axum::http::header;
 use tokio::sync::{broadcast, mpsc, watch};
 
+use super::serve::ConnectionStats;
 use crate::live::config::ApiConfig;
 use crate::live::gcs::GcsLink;
 use crate::live::guidance::Guidance;
@@ -75,6 +76,8 @@ pub struct Service {
     pub started: Instant,
     /// Becomes `true` when the service stops (ends the WebSocket streams).
     pub stop: watch::Receiver<bool>,
+    /// The API's connections, as [`super::serve`] counts them.
+    pub connections: Arc<ConnectionStats>,
 }
 
 impl FromRef<ApiState> for Tracking {

@@ -126,6 +126,7 @@ impl TestApp {
                 }),
                 started: Instant::now(),
                 stop: stop_rx,
+                connections: Arc::default(),
             },
         };
         Self {
