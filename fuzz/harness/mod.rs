@@ -641,8 +641,8 @@ pub(crate) fn link(data: &[u8]) {
 /// number in the view is finite (JSON has no NaN), the rate and loss are within their ranges,
 /// and a lost vehicle that speaks again is connected.
 pub(crate) fn gcs(data: &[u8]) {
-    use harrier_server::live::gcs::transport::Peer;
-    use harrier_server::live::gcs::vehicle::{LinkState, VehicleLink};
+    use harrier_server::gcs::transport::Peer;
+    use harrier_server::gcs::vehicle::{LinkState, VehicleLink};
     use std::time::{Duration, Instant};
 
     let mut b = Bytes { data };
@@ -704,7 +704,7 @@ pub(crate) fn gcs(data: &[u8]) {
 /// which is not a number to the API's clients.
 fn assert_no_null_numbers(
     json: &serde_json::Value,
-    view: &harrier_server::live::gcs::vehicle::VehicleLinkView,
+    view: &harrier_server::gcs::vehicle::VehicleLinkView,
 ) {
     let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
     let opt = |x: Option<f64>| x.is_none_or(f64::is_finite);
@@ -732,9 +732,9 @@ fn assert_no_null_numbers(
 /// frames and parses back to itself) and `PUT /estimator` (the estimator built from the name and
 /// parameters, as the tracker does, then run on a scan: finite tracks or an error).
 pub(crate) fn rest(data: &[u8]) {
-    use harrier_server::live::guidance::{AssignmentRequest, GuidanceSettings};
-    use harrier_server::live::http::estimator::EstimatorChange;
-    use harrier_server::live::http::vehicles::CommandRequest;
+    use harrier_server::guidance::{AssignmentRequest, GuidanceSettings};
+    use harrier_server::http::estimator::EstimatorChange;
+    use harrier_server::http::vehicles::CommandRequest;
 
     let Some((&which, body)) = data.split_first() else {
         return;
@@ -792,14 +792,14 @@ pub(crate) fn rest(data: &[u8]) {
 }
 
 /// Builds the estimator of a `PUT /estimator` body as the tracker does and runs it on two scans.
-fn estimator_change(change: &harrier_server::live::http::estimator::EstimatorChange) {
-    use harrier_server::engine::{Deployment, Params, SensorScan};
+fn estimator_change(change: &harrier_server::http::estimator::EstimatorChange) {
+    use harrier_engine::{Deployment, Params, SensorScan};
     static DEPLOYMENT: OnceLock<Deployment> = OnceLock::new();
     let deployment =
-        DEPLOYMENT.get_or_init(|| harrier_server::live::config::Config::default().deployment());
+        DEPLOYMENT.get_or_init(|| harrier_server::config::Config::default().deployment());
     let params = Params::from(&change.params);
     let Ok(mut engine) =
-        harrier_server::registry::build_track_filter(&change.name, deployment, &params)
+        harrier_engine::registry::build_track_filter(&change.name, deployment, &params)
     else {
         return;
     };

@@ -37,6 +37,7 @@
 #![deny(missing_docs)]
 
 pub mod bus;
+pub mod clock;
 pub mod command;
 pub mod detections;
 pub mod frame;

@@ -1,8 +1,8 @@
 //! The Prometheus text exposition format (version 0.0.4), the one writer of `/metrics`: a
 //! [`Family`] writes a metric's `# HELP` and `# TYPE` lines and then its samples, a [`Histogram`]
 //! counts observations into fixed buckets and writes them cumulatively with their sum and count.
-//! The live service's counters (`live::metrics`), the GCS link's (`live::gcs::metrics`), the
-//! guidance loop's and the recorder's ([`crate::recording::writer::RecorderStats`]) all write
+//! The live service's counters (`crate::metrics`), the GCS link's (`crate::gcs::metrics`), the
+//! guidance loop's and the recorder's ([`harrier_recording::writer::RecorderStats`]) all write
 //! through it. A leaf module: it imports nothing from the crate.
 
 use std::fmt::{Display, Write as _};

@@ -564,10 +564,7 @@ fn timesync_reply(clock: &ClockSkew, m: &MavMessage, now: f64) -> Option<MavMess
     if t.tc1 != 0 {
         return None;
     }
-    let unix = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
-    let reading = unix + clock.offset_s + clock.drift_ppm * 1e-6 * now;
+    let reading = harrier_link::clock::unix_now() + clock.offset_s + clock.drift_ppm * 1e-6 * now;
     Some(MavMessage::TIMESYNC(TIMESYNC_DATA {
         tc1: (reading * 1e9) as i64,
         ts1: t.ts1,

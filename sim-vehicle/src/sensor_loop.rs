@@ -6,7 +6,7 @@
 //! the vehicles fly whatever their MAVLink clients command, when the packets arrive.
 
 use std::sync::{Arc, Mutex, PoisonError};
-use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant};
 
 use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
 
@@ -108,9 +108,7 @@ pub fn spawn(
     let c = Arc::clone(&counters);
     let start = Instant::now();
     // Scans carry `t` (simulated seconds since this start) and the same instant as UNIX time.
-    let start_unix = SystemTime::now()
-        .duration_since(UNIX_EPOCH)
-        .map_or(0.0, |d| d.as_secs_f64());
+    let start_unix = harrier_link::clock::unix_now();
     let mut next_truth = 0.0;
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
         let t = start.elapsed().as_secs_f64() * speedup;

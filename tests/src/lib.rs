@@ -41,9 +41,9 @@ pub fn score_py(dir: &Path, estimates: &Path) -> anyhow::Result<serde_json::Valu
 }
 
 /// Replays the reference scenario `name` with `estimator` and default parameters.
-pub fn replay(name: &str, estimator: &str) -> harrier_server::replay::ReplayReport {
-    let data = harrier_server::replay::load(&scenario(name)).expect("reference scenario loads");
-    harrier_server::replay::run(&data, estimator, &harrier_server::engine::Params::default())
+pub fn replay(name: &str, estimator: &str) -> harrier_tools::replay::ReplayReport {
+    let data = harrier_tools::replay::load(&scenario(name)).expect("reference scenario loads");
+    harrier_tools::replay::run(&data, estimator, &harrier_engine::Params::default())
         .expect("replay runs")
 }
 
@@ -66,14 +66,14 @@ pub fn replay_score(name: &str, estimator: &str) -> harrier_core::metrics::Score
 
 /// Writes the estimates of `report` (a replay of the reference scenario `name`) to a temporary file,
 /// scores it with `score.py` and asserts that the state metrics harrier-core computed agree to 1e-9.
-pub fn assert_score_py_agrees(name: &str, report: &harrier_server::replay::ReplayReport) {
+pub fn assert_score_py_agrees(name: &str, report: &harrier_tools::replay::ReplayReport) {
     let s = report
         .score
         .clone()
         .expect("reference scenarios have truth");
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("estimates.jsonl");
-    harrier_server::replay::write_estimates(&out, &report.estimates).expect("write estimates");
+    harrier_tools::replay::write_estimates(&out, &report.estimates).expect("write estimates");
     let py = score_py(&scenario(name), &out).expect("score.py runs");
     let close = |what: &str, a: f64, b: &serde_json::Value| {
         let b = b.as_f64().unwrap_or(f64::NAN);
@@ -184,7 +184,7 @@ pub fn free_tcp_port() -> u16 {
 
 /// `target/<profile>/<name>`, a binary of the workspace beside the running test executable's
 /// `deps/` directory: `cargo test --workspace` builds them; run alone, build it first (`cargo
-/// build -p harrier-server` for `harrier`, `-p harrier-sim` for `harrier-sim`).
+/// build -p harrier-cli` for `harrier`, `-p harrier-sim` for `harrier-sim`).
 pub fn target_bin(name: &str) -> PathBuf {
     let exe = std::env::current_exe().expect("test executable");
     let bin = exe
@@ -262,7 +262,7 @@ pub async fn publish_standing_target(
     .await
     .expect("a publisher within 10 s")
     .expect("publisher");
-    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
+    let origin = harrier_server::config::DEFAULT_ORIGIN;
     tokio::spawn(async move {
         let frame = harrier_link::geo::LocalFrame::new(origin);
         let pos = nalgebra::Vector3::from(platform);

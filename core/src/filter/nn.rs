@@ -13,7 +13,7 @@
 //! ```
 //!
 //! Here `e` is the training error in acceleration units (the caller maps the residual through the
-//! filter's gain, see `harrier-server`'s `mpekf-nn`). The discrete law below is this gradient
+//! filter's gain, see `harrier-engine`'s `mpekf-nn`). The discrete law below is this gradient
 //! step, normalised by `1 + ‖σ‖²` (normalised LMS, so that the step `γ < 1` is scale-free), plus a
 //! projection of Ŵ onto a Frobenius ball of radius `w_max`: since |σᵢ| ≤ 1 the output is bounded by
 //! `w_max·√H` whatever the data. The training error is saturated at that bound and V̂ is projected

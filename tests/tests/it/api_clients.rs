@@ -27,10 +27,7 @@ use std::net::SocketAddr;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use harrier_server::live::{
-    self,
-    config::{Config, MavlinkConfig, TokenConfig},
-};
+use harrier_server::config::{Config, MavlinkConfig, TokenConfig};
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
@@ -168,7 +165,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
         .expect("runtime");
     let server = runtime
         .block_on(async {
-            tokio::time::timeout(Duration::from_secs(10), live::start(&config)).await
+            tokio::time::timeout(Duration::from_secs(10), harrier_server::start(&config)).await
         })
         .expect("start within 10 s")
         .expect("start the live server");
@@ -245,7 +242,7 @@ fn python_clients_and_schemathesis_use_the_live_api() {
 /// A position scan of vehicle 1 at `t` (UNIX s) with `n` detections on a line.
 fn scan_json(seq: u64, t: f64, n: usize) -> String {
     use harrier_core::detection::{DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose};
-    let origin = harrier_server::live::config::DEFAULT_ORIGIN;
+    let origin = harrier_server::config::DEFAULT_ORIGIN;
     DetectionScan {
         schema: DETECTIONS_SCHEMA.into(),
         t,
@@ -293,7 +290,7 @@ fn a_slow_websocket_client_is_dropped_to_the_latest_snapshot() {
         .expect("runtime");
     runtime.block_on(async {
         let within = |secs| Duration::from_secs(secs);
-        let server = tokio::time::timeout(within(10), live::start(&config))
+        let server = tokio::time::timeout(within(10), harrier_server::start(&config))
             .await
             .expect("start within 10 s")
             .expect("start the live server");

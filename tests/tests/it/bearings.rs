@@ -6,9 +6,9 @@
 //! Reference (independent implementations): 0.90 m on `_known` (all libraries); FilterPy EKF
 //! 34.6 m (NEES-95 % ok 0.10) and UKF 140 m on `bearings_leader` (size unknown).
 
-use harrier_server::engine::Params;
-use harrier_server::replay;
+use harrier_engine::Params;
 use harrier_tests::{nees_ok, pos_rmse as rmse, replay as run, replay_score as score, scenario};
+use harrier_tools::replay;
 
 #[test]
 fn known_size_is_accurate_and_consistent_with_and_without_the_network() {

@@ -12,9 +12,9 @@
 //! Every parameter comes from `scenario.json` (models, transition matrix, initial probabilities,
 //! `accel_std`, sensor noise, road `sigma_m`) or from the estimators' documented defaults.
 
-use harrier_server::engine::Params;
-use harrier_server::replay;
+use harrier_engine::Params;
 use harrier_tests::{nees_ok, pos_rmse as rmse, replay as run, replay_score as score, scenario};
+use harrier_tools::replay;
 
 #[test]
 fn three_uavs_imm_and_cimm_meet_the_reference() {

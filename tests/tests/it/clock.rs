@@ -19,9 +19,9 @@ use harrier_core::tracker::format::MultiScenario;
 use harrier_core::tracker::generate::{GenConfig, generate};
 use harrier_core::tracker::metrics::gospa;
 use harrier_link::geo::LocalFrame;
-use harrier_server::live::config::{Config, DEFAULT_ORIGIN, MavlinkConfig};
-use harrier_server::live::metrics::DropReason;
-use harrier_server::live::{self, LiveServer};
+use harrier_server::LiveServer;
+use harrier_server::config::{Config, DEFAULT_ORIGIN, MavlinkConfig};
+use harrier_server::metrics::DropReason;
 use harrier_sim::bus::BusConfig;
 use harrier_tests::{SimProcess, free_tcp_port, runtime, within};
 use nalgebra::Vector2;
@@ -44,7 +44,7 @@ async fn server(configure: impl FnOnce(&mut Config)) -> (LiveServer, String) {
     config.zenoh.tracks_key = String::new();
     config.mavlink = MavlinkConfig::ephemeral();
     configure(&mut config);
-    let server = within(20, "start the server", live::start(&config))
+    let server = within(20, "start the server", harrier_server::start(&config))
         .await
         .expect("the server starts");
     (server, zenoh)
@@ -216,7 +216,7 @@ async fn run_held_out(sc: &MultiScenario, bad_clock: bool) -> f64 {
     let estimates: Vec<Vector2<f64>> = snap
         .tracks
         .iter()
-        .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
+        .filter(|k| k.status == harrier_engine::TrackStatus::Confirmed)
         .map(|k| Vector2::new(k.state[0], k.state[1]))
         .collect();
     let truths: Vec<Vector2<f64>> = sc

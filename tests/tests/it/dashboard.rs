@@ -1,6 +1,6 @@
 //! The web dashboard (`web/`) in a real browser: `tests/python/test_dashboard.py` drives headless
 //! Chromium (Debian's `/usr/bin/chromium`) with Playwright for Python against `harrier demo`'s
-//! world started here in-process (`harrier_server::demo::start`, three UAVs on the ground with
+//! world started here in-process (`harrier_cli::demo::start`, three UAVs on the ground with
 //! their MAVLink link, `no_assign`, a road with two cars, the CIMM track engine):
 //!
 //! - the page loads with no console error and, within 30 s, draws at least one track with its
@@ -43,10 +43,10 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use harrier_cli::demo::{self, Demo, DemoConfig};
 use harrier_core::scenario::Segment;
-use harrier_server::demo::{self, Demo, DemoConfig};
-use harrier_server::live::config::ObstacleConfig;
-use harrier_server::live::gcs::vehicle::LinkState;
+use harrier_server::config::ObstacleConfig;
+use harrier_server::gcs::vehicle::LinkState;
 use harrier_tests::{SimProcess, kill_group, require_python_module};
 
 /// The vehicle whose link the page sees lost: a `harrier-sim` process this test starts and kills.

@@ -10,7 +10,7 @@ use harrier_core::guidance::kinematics::step;
 use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::togvf::Togvf;
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState, hold};
-use harrier_server::guidance_sim::{
+use harrier_tools::guidance_sim::{
     Case, LawKind, R, SimConfig, SimResult, Summary, plot_svg, run, write_trajectories,
 };
 use nalgebra::Vector3;
@@ -21,7 +21,7 @@ fn sim(case: Case, law: LawKind) -> SimResult {
         ..SimConfig::new(case)
     };
     let res = run(&cfg).expect("simulation runs");
-    for line in harrier_server::guidance_sim::summary_lines(&res.summary) {
+    for line in harrier_tools::guidance_sim::summary_lines(&res.summary) {
         println!("{line}");
     }
     check_limits(&res.summary);

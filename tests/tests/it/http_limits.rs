@@ -19,7 +19,7 @@
 //! (BENCHMARKS.md, "HTTP limits").
 //!
 //! The binary is `target/<profile>/harrier`, next to this test's directory: build it first with
-//! `cargo build -p harrier-server` (`cargo test --workspace` does). Every wait is on a real event
+//! `cargo build -p harrier-cli` (`cargo test --workspace` does). Every wait is on a real event
 //! (a line printed, a reply, a close) under a deadline; the processes are killed if the test
 //! fails.
 
@@ -30,7 +30,7 @@ use std::process::{Child, ChildStdout, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use harrier_server::live::config::ApiConfig;
+use harrier_server::config::ApiConfig;
 use harrier_tests::{free_tcp_port, kill_group, python_script, target_bin, wait_with_deadline};
 
 /// Processes the flood is spread over.

@@ -1,6 +1,6 @@
 //! The live server end to end, real parts only: harrier-sim's world in this process
 //! ([`SimWorld`]: vehicles on real UDP sockets, the live sensor loop publishing on a real Zenoh
-//! session on loopback), `harrier_server::live` subscribed to it, its API on a port-0 listener,
+//! session on loopback), `harrier_server` subscribed to it, its API on a port-0 listener,
 //! queried with hyper's HTTP/1 client. No sleeps wait for readiness: every step polls a real
 //! condition, and every await is under a timeout.
 //!
@@ -22,11 +22,11 @@ use std::net::SocketAddr;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use harrier_cli::demo::{self, DemoConfig};
 use harrier_core::detection::{TRUTH_KEY, TruthSample};
 use harrier_core::tracker::TrackEvent;
-use harrier_server::demo::{self, DemoConfig};
-use harrier_server::engine::TrackView;
-use harrier_server::live::{self, LiveServer, config::Config};
+use harrier_engine::TrackView;
+use harrier_server::{LiveServer, config::Config};
 use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
@@ -703,7 +703,7 @@ impl Pooled {
         for g in targets_at(s, t) {
             let e = tracks
                 .iter()
-                .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
+                .filter(|k| k.status == harrier_engine::TrackStatus::Confirmed)
                 .map(|k| {
                     let dt = t - k.t;
                     let x = [k.state[0] + k.state[3] * dt, k.state[1] + k.state[4] * dt];
@@ -761,7 +761,7 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
             config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
             config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
             config.zenoh.connect = vec![sim_endpoint.clone()];
-            let server = within(10, "start", live::start(&config))
+            let server = within(10, "start", harrier_server::start(&config))
                 .await
                 .expect("start a live server");
             servers.push(server);
@@ -927,9 +927,9 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
         config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
         config.zenoh.listen = vec![zenoh.clone()];
         config.zenoh.tracks_key = String::new();
-        config.mavlink = live::config::MavlinkConfig::ephemeral();
+        config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
         config.tracker.params.insert("misses".into(), MISSES);
-        let server = within(20, "start the server", live::start(&config))
+        let server = within(20, "start the server", harrier_server::start(&config))
             .await
             .expect("start the server");
         let addr = server.local_addr();
@@ -1075,7 +1075,7 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
 /// callsign `T<id>`), where `/api/v1/tracks` has it. The target stands still (vehicle 8's scans
 /// at 10 Hz, over Zenoh): the message and REST, read up to a second apart, differ only by the
 /// estimate's jitter between two scans (the conversion itself is exact to a centimetre: unit
-/// test in `server/src/live/gcs/traffic.rs`).
+/// test in `server/src/gcs/traffic.rs`).
 #[test]
 fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
     const STANDING: [f64; 2] = [250.0, -120.0];
@@ -1086,12 +1086,12 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
         config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
         config.zenoh.listen = vec![zenoh.clone()];
         config.zenoh.tracks_key = String::new();
-        config.mavlink = live::config::MavlinkConfig {
+        config.mavlink = harrier_server::config::MavlinkConfig {
             router: vec!["udpin:127.0.0.1:0".into()],
             tracks_hz: 5.0,
-            ..live::config::MavlinkConfig::ephemeral()
+            ..harrier_server::config::MavlinkConfig::ephemeral()
         };
-        let server = within(20, "start the server", live::start(&config))
+        let server = within(20, "start the server", harrier_server::start(&config))
             .await
             .expect("start the server");
         let addr = server.local_addr();
@@ -1136,7 +1136,7 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
             .find(|t| t["callsign"] == format!("T{id}"))
             .unwrap_or_else(|| panic!("no ADSB_VEHICLE of track {id}: {out}"));
         assert_eq!(t["icao"].as_u64(), Some(id), "{t}");
-        let frame = harrier_link::geo::LocalFrame::new(live::config::DEFAULT_ORIGIN);
+        let frame = harrier_link::geo::LocalFrame::new(harrier_server::config::DEFAULT_ORIGIN);
         let enu = frame.to_enu(&harrier_link::geo::Geodetic {
             lat_deg: t["lat"].as_f64().expect("lat"),
             lon_deg: t["lon"].as_f64().expect("lon"),

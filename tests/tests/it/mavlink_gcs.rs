@@ -33,8 +33,8 @@ use std::time::{Duration, Instant};
 
 use harrier_link::frame::{Frame, parse_datagram};
 use harrier_link::signing::{Signer, Signing, SigningKey, SigningMode};
-use harrier_server::live::config::{Config, MavlinkConfig, SigningConfig};
-use harrier_server::live::{self, LiveServer};
+use harrier_server::LiveServer;
+use harrier_server::config::{Config, MavlinkConfig, SigningConfig};
 use harrier_sim::mavlink::MavHeader;
 use harrier_sim::mavlink::dialects::common::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavModeFlag, MavType,
@@ -65,7 +65,7 @@ async fn server_on(record: Option<&Path>, router: Vec<String>, zenoh_port: u16) 
     if let Some(p) = record {
         config.recorder.path = p.display().to_string();
     }
-    within(20, "start the server", live::start(&config))
+    within(20, "start the server", harrier_server::start(&config))
         .await
         .expect("start the server")
 }
@@ -232,7 +232,7 @@ fn a_killed_simulator_is_lost_then_found() {
         let view = server.link().expect("link").vehicles.borrow().clone();
         assert_eq!(
             view.iter().find(|v| v.view.id == 7).map(|v| v.view.state),
-            Some(harrier_server::live::gcs::vehicle::LinkState::Lost)
+            Some(harrier_server::gcs::vehicle::LinkState::Lost)
         );
         // Started again: heard again.
         let restarted = Instant::now();
@@ -294,7 +294,7 @@ fn a_lost_vehicle_flies_its_assignment_again() {
                     .borrow_and_update()
                     .tracks
                     .iter()
-                    .find(|t| t.status == harrier_server::engine::TrackStatus::Confirmed)
+                    .find(|t| t.status == harrier_engine::TrackStatus::Confirmed)
                 {
                     return t.id;
                 }
@@ -305,7 +305,7 @@ fn a_lost_vehicle_flies_its_assignment_again() {
         let a = server
             .guidance()
             .expect("guidance")
-            .create(harrier_server::live::guidance::AssignmentRequest {
+            .create(harrier_server::guidance::AssignmentRequest {
                 vehicles: vec![7],
                 track,
                 law: "togvf".into(),
@@ -464,7 +464,7 @@ fn signed_only_link_refuses_unsigned_forged_and_replayed_frames() {
             },
             ..MavlinkConfig::ephemeral()
         };
-        within(20, "start the server", live::start(&config))
+        within(20, "start the server", harrier_server::start(&config))
             .await
             .expect("start the server")
     });

@@ -4,20 +4,20 @@
 //! cameras geolocate the road target at 1 Hz, sped up 5×) over real Zenoh on loopback.
 //!
 //! Once the file holds enough scans (polled read-only through
-//! `harrier_server::recording::reader`, as a user would while the server runs) the server is
+//! `harrier_recording::reader`, as a user would while the server runs) the server is
 //! killed with SIGKILL. Checked then: the file
 //! opens, its session is not marked ended, the last scan it holds was received at most 1 s before
 //! the kill, it holds at least as many scans as this test's own Zenoh subscriber received from
 //! the server's first scan up to 1 s before the kill, and the session exports as a single-target `gcs-scenario/1` directory
-//! that `kf` replays (`harrier_server::replay`) and `score.py` scores, agreeing with harrier's
+//! that `kf` replays (`harrier_tools::replay`) and `score.py` scores, agreeing with harrier's
 //! own score. SQLite itself (rusqlite, read-only) finds `PRAGMA integrity_check` ok and every
 //! sensor's `seq` without a gap; the seconds between the last recorded scan and the kill (the
 //! data lost) are printed. A new recorder then opens the same file and starts session 2, the
 //! killed one unchanged.
 //!
 //! The binary is `target/<profile>/harrier`, next to this test's directory: `cargo test
-//! --workspace` builds it (server/tests/cli.rs needs it); run alone, build it first with `cargo
-//! build -p harrier-server`. Every wait polls a real condition under a deadline; the server is
+//! --workspace` builds it (cli/tests/cli.rs needs it); run alone, build it first with `cargo
+//! build -p harrier-cli`. Every wait polls a real condition under a deadline; the server is
 //! killed if the test fails.
 
 use std::path::{Path, PathBuf};
@@ -26,16 +26,16 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::DETECTIONS_KEY_ALL;
-use harrier_server::engine::Params;
-use harrier_server::recording::export;
-use harrier_server::recording::reader::{self, SessionInfo};
-use harrier_server::recording::writer::{Recorder, SessionMeta};
-use harrier_server::replay;
+use harrier_engine::Params;
+use harrier_recording::export;
+use harrier_recording::reader::{self, SessionInfo};
+use harrier_recording::writer::{Recorder, SessionMeta};
 use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
 use harrier_tests::{free_tcp_port, publish_standing_target, within};
+use harrier_tools::replay;
 use zenoh::Wait as _;
 
 /// Simulated seconds per wall second.
@@ -63,7 +63,7 @@ fn harrier_bin() -> PathBuf {
         .expect("target directory");
     assert!(
         bin.is_file(),
-        "{} not found: build it with `cargo build -p harrier-server` (cargo test --workspace does)",
+        "{} not found: build it with `cargo build -p harrier-cli` (cargo test --workspace does)",
         bin.display()
     );
     bin
@@ -449,19 +449,19 @@ fn metric(text: &str, series: &str) -> Option<f64> {
 async fn recording_server(
     path: &Path,
 ) -> (
-    harrier_server::live::LiveServer,
+    harrier_server::LiveServer,
     zenoh::Session,
     tokio::task::JoinHandle<()>,
 ) {
     let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let mut config = harrier_server::live::config::Config::default();
+    let mut config = harrier_server::config::Config::default();
     config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
     config.zenoh.listen = vec![endpoint.clone()];
     config.zenoh.tracks_key = String::new();
     config.mavlink.gcs.clear();
     config.recorder.path = path.display().to_string();
     config.recorder.flush_ms = 100;
-    let server = within(20, "start", harrier_server::live::start(&config))
+    let server = within(20, "start", harrier_server::start(&config))
         .await
         .expect("the server starts, whatever its recording place");
     let session = within(
@@ -484,7 +484,7 @@ async fn recording_server(
 }
 
 /// Waits until the server holds a confirmed track and has processed `more` scans after now.
-async fn tracking_goes_on(server: &harrier_server::live::LiveServer, more: u64) {
+async fn tracking_goes_on(server: &harrier_server::LiveServer, more: u64) {
     let from = server.metrics().scans_ingested();
     let mut snap = server.snapshot();
     within(30, "live tracking", async {
@@ -493,7 +493,7 @@ async fn tracking_goes_on(server: &harrier_server::live::LiveServer, more: u64) 
                 .borrow_and_update()
                 .tracks
                 .iter()
-                .any(|t| t.status == harrier_server::engine::TrackStatus::Confirmed);
+                .any(|t| t.status == harrier_engine::TrackStatus::Confirmed);
             if confirmed && server.metrics().scans_ingested() >= from + more {
                 return;
             }
@@ -516,7 +516,7 @@ async fn until(secs: u64, what: &str, mut f: impl FnMut() -> bool) {
 /// Fault: the recording place is read-only, or fills up, with a real filesystem (a tmpfs mounted
 /// for the test; skipped, loudly, where mounting is not permitted).
 ///
-/// (a) Read-only at start (`mount -o remount,ro`: root cannot write it either): `live::start`
+/// (a) Read-only at start (`mount -o remount,ro`: root cannot write it either): `harrier_server::start`
 /// succeeds without a recording, says why naming the path (`recording_error`, `/api/v1/health`,
 /// `harrier_recorder_up 0` in `/metrics`), and tracks.
 /// (b) Full during a session: once the recording holds scans, a file fills the tmpfs; the

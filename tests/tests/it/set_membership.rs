@@ -2,9 +2,9 @@
 //! contain the truth at every step, the minimum-volume one with a mean volume close to the
 //! reference implementation's (5.42), and the independent scorer must agree with Harrier's.
 
-use harrier_server::engine::Params;
-use harrier_server::replay;
+use harrier_engine::Params;
 use harrier_tests::{scenario, score_py};
+use harrier_tools::replay;
 
 /// Containment and mean volume of one estimator, checked against `score.py`.
 fn run(estimator: &str) -> (f64, f64) {

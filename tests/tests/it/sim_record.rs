@@ -12,10 +12,10 @@
 use std::path::Path;
 
 use harrier_core::scenario::{Scenario, ScenarioData};
-use harrier_server::engine::Params;
-use harrier_server::replay::{self, ReplayReport};
+use harrier_engine::Params;
 use harrier_sim::record::{self, RecordArgs, RecordConfig, Recording};
 use harrier_sim::setup::{ScenarioError, SimScenario};
+use harrier_tools::replay::{self, ReplayReport};
 use nalgebra::{Matrix2, Matrix2x4, Matrix4, Vector2};
 
 fn record_preset(name: &str, seed: u64, duration_s: f64, count: u8) -> Recording {

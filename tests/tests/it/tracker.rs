@@ -510,11 +510,11 @@ fn cameras_and_radar_fuse_into_one_track_per_target() {
 #[test]
 fn track_engines_by_name_on_the_cimm_reference() {
     use harrier_core::measurement::SensorModel;
-    use harrier_server::engine::{Params, SensorScan};
-    use harrier_server::registry::build_track_filter;
-    let data = harrier_server::replay::load(&harrier_tests::scenario("cimm_road_3uav")).unwrap();
+    use harrier_engine::registry::build_track_filter;
+    use harrier_engine::{Params, SensorScan};
+    let data = harrier_tools::replay::load(&harrier_tests::scenario("cimm_road_3uav")).unwrap();
     let sc = &data.scenario;
-    let deployment = &harrier_server::engine::Deployment::from(sc);
+    let deployment = &harrier_engine::Deployment::from(sc);
     let truth = data.truth.as_ref().unwrap();
     let mut rmse = Vec::new();
     for name in ["ekf", "cdkf", "imm", "cimm"] {
@@ -538,14 +538,14 @@ fn track_engines_by_name_on_the_cimm_reference() {
             let confirmed: Vec<_> = engine
                 .snapshot()
                 .into_iter()
-                .filter(|k| k.status == harrier_server::engine::TrackStatus::Confirmed)
+                .filter(|k| k.status == harrier_engine::TrackStatus::Confirmed)
                 .collect();
             let row = truth.iter().find(|r| (r.t - m.t).abs() < 1e-6).unwrap();
             if m.t >= 100.0 {
                 // The CV filters (q = motion.accel_std²) lose the target in the turns and start
                 // again; the IMM tracks follow it with one id.
                 let Some(k) = confirmed.iter().min_by(|a, b| {
-                    let d = |k: &harrier_server::engine::TrackView| {
+                    let d = |k: &harrier_engine::TrackView| {
                         (k.state[0] - row.state[0]).hypot(k.state[1] - row.state[1])
                     };
                     d(a).total_cmp(&d(b))
@@ -585,11 +585,10 @@ fn track_engines_by_name_on_the_cimm_reference() {
 #[test]
 fn replays_a_generated_scenario() {
     let dir = tempfile::tempdir().unwrap();
-    harrier_server::gen_multi::write(dir.path(), 5).unwrap();
-    let data = harrier_server::replay::load(dir.path()).unwrap();
+    harrier_tools::gen_multi::write(dir.path(), 5).unwrap();
+    let data = harrier_tools::replay::load(dir.path()).unwrap();
     let report =
-        harrier_server::replay::run(&data, "tracker", &harrier_server::engine::Params::default())
-            .unwrap();
+        harrier_tools::replay::run(&data, "tracker", &harrier_engine::Params::default()).unwrap();
     assert!(report.rejected.is_empty());
     let last = report.estimates.last().unwrap();
     assert!(last.state.is_none());
@@ -601,6 +600,6 @@ fn replays_a_generated_scenario() {
         assert_eq!(k["cov_dims"], serde_json::json!([0, 1, 3, 4]));
     }
     // A parameter out of range is a setup error.
-    let bad = harrier_server::engine::Params::parse(&["n=1.5"]).unwrap();
-    assert!(harrier_server::replay::run(&data, "tracker", &bad).is_err());
+    let bad = harrier_engine::Params::parse(&["n=1.5"]).unwrap();
+    assert!(harrier_tools::replay::run(&data, "tracker", &bad).is_err());
 }

@@ -2,9 +2,9 @@
 //! error-space estimate method against the CA Kalman filter and the strong tracking filter, scored
 //! in-process and cross-checked with `score.py`.
 
-use harrier_server::engine::Params;
-use harrier_server::replay::{self, ReplayReport};
+use harrier_engine::Params;
 use harrier_tests::{scenario, score_py};
+use harrier_tools::replay::{self, ReplayReport};
 
 fn run(name: &str) -> ReplayReport {
     let data = replay::load(&scenario("zenith_pass")).expect("zenith_pass loads");

@@ -28,7 +28,7 @@
 //!   between two clients of `zenohd`, all on loopback (BENCHMARKS.md).
 //!
 //! `zenohd` is `$HARRIER_ZENOHD`, else `~/.cache/harrier/zenohd/bin/zenohd`; the binaries are
-//! `target/<profile>/{harrier,harrier-sim}` (`cargo build -p harrier-server -p harrier-sim`).
+//! `target/<profile>/{harrier,harrier-sim}` (`cargo build -p harrier-cli -p harrier-sim`).
 
 use std::io::{Read as _, Write as _};
 use std::net::{SocketAddr, TcpStream};

@@ -1,0 +1,489 @@
+//! `harrier demo`: the live service, an in-process Zenoh peer and simulated UAVs in one process.
+//!
+//! [`start`] opens the live service ([`harrier_server::start`]) with its Zenoh session listening on a
+//! free loopback port, then starts harrier-sim's world ([`SimWorld`]) whose session connects to
+//! it: the `cimm-road` preset with its car slowed to 5 m/s, a second car ahead on the road and a
+//! camera slaved to each car on every UAV. The UAVs stand on the ground at home and send their
+//! MAVLink to the service's GCS link (`--gcs`, PX4's UDP 14550). The service tracks with the
+//! preset's road and motion models (CIMM by default); once a track is confirmed, the demo assigns
+//! every UAV to the slowest one with TOGVF and phase spacing (`--radius`, `--height`), and the
+//! guidance loop arms them, takes them off and flies the standoff. [`run`] is the command: it
+//! starts the demo, prints where to point a browser and waits for Ctrl-C.
+
+use std::net::SocketAddr;
+use std::path::PathBuf;
+
+use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
+use harrier_sim::sensor_loop::SensorLoopConfig;
+use harrier_sim::setup::{ScenarioError, SensorType, SimScenario, TargetMotion};
+
+use harrier_server::config::{Config, ObstacleConfig, SigningConfig};
+use harrier_server::{LiveError, LiveServer};
+
+/// Arguments of `harrier demo`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct DemoArgs {
+    /// Address of the web page and the HTTP API (port 0: any free port).
+    #[arg(long, default_value = "127.0.0.1:8080")]
+    pub listen: SocketAddr,
+    /// Simulated seconds per wall-clock second, in (0, 100].
+    #[arg(long, default_value_t = 1.0)]
+    pub speedup: f64,
+    /// Seed of the simulated world and of every sensor's noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Number of simulated UAVs (MAVLink system ids 1…N), spread along the road.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..))]
+    pub vehicles: u8,
+    /// Record the session into this SQLite file (created if missing; `harrier sessions` reads
+    /// it).
+    #[arg(long, value_name = "SQLITE")]
+    pub record: Option<PathBuf>,
+    /// Track filter: ekf, cdkf, imm or cimm (road-constrained IMM on the demo's road).
+    #[arg(long, short, default_value = "cimm")]
+    pub estimator: String,
+    /// The GCS link the simulated UAVs send their MAVLink to (PX4's UDP 14550).
+    #[arg(long, default_value = "udpin:127.0.0.1:14550")]
+    pub gcs: String,
+    /// MAVLink router endpoints for QGroundControl, MAVProxy or MAVSDK (repeatable; `none`
+    /// for none).
+    #[arg(long = "router", default_values = ["udpin:127.0.0.1:14551", "tcpin:127.0.0.1:5760"])]
+    pub router: Vec<String>,
+    /// Do not assign the UAVs to a track (fly nothing; assign through the API or the page).
+    #[arg(long)]
+    pub no_assign: bool,
+    /// Standoff radius R (m) of the demo's assignment.
+    #[arg(long, default_value_t = 150.0)]
+    pub radius: f64,
+    /// Height H (m) above the target of the demo's assignment.
+    #[arg(long, default_value_t = 300.0)]
+    pub height: f64,
+    /// A no-fly circle `EAST,NORTH,RADIUS` (m, in the demo's frame) that the `formation` law
+    /// steers around and the map draws (repeatable).
+    #[arg(long = "obstacle", value_name = "X,Y,R", value_parser = parse_obstacle)]
+    pub obstacles: Vec<ObstacleConfig>,
+    /// MAVLink 2 signing, `signed_only`, of the GCS link, the router and the simulated UAVs, with
+    /// this key file (64 hex characters or 32 raw bytes; docs/mavlink-signing.md).
+    #[arg(long, value_name = "PATH")]
+    pub signing_key_file: Option<PathBuf>,
+}
+
+/// `X,Y,R` of `--obstacle`.
+fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|x| x.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{s:?}: expected EAST,NORTH,RADIUS in metres: {e}"))?;
+    match v[..] {
+        [x_m, y_m, radius_m]
+            if x_m.is_finite() && y_m.is_finite() && radius_m.is_finite() && radius_m > 0.0 =>
+        {
+            Ok(ObstacleConfig { x_m, y_m, radius_m })
+        }
+        _ => Err(format!(
+            "{s:?}: expected EAST,NORTH,RADIUS with finite numbers and RADIUS > 0"
+        )),
+    }
+}
+
+/// What [`start`] runs (the command's arguments).
+pub type DemoConfig = DemoArgs;
+
+impl DemoConfig {
+    /// The default demo with its API on `listen`, its GCS link on a free loopback port and no
+    /// router: for tests, where the well-known ports may be taken.
+    pub fn ephemeral(listen: SocketAddr) -> Self {
+        Self {
+            listen,
+            gcs: "udpin:127.0.0.1:0".into(),
+            router: Vec::new(),
+            ..Self::default()
+        }
+    }
+}
+
+impl Default for DemoConfig {
+    fn default() -> Self {
+        Self {
+            listen: SocketAddr::from(([127, 0, 0, 1], 8080)),
+            speedup: 1.0,
+            seed: 1,
+            vehicles: 3,
+            record: None,
+            estimator: "cimm".into(),
+            gcs: "udpin:127.0.0.1:14550".into(),
+            router: vec![
+                "udpin:127.0.0.1:14551".into(),
+                "tcpin:127.0.0.1:5760".into(),
+            ],
+            no_assign: false,
+            radius: 150.0,
+            height: 300.0,
+            obstacles: Vec::new(),
+            signing_key_file: None,
+        }
+    }
+}
+
+/// Why the demo could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DemoError {
+    /// An option is out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The demo's scenario does not build.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The live service did not start.
+    #[error(transparent)]
+    Live(#[from] LiveError),
+    /// The simulated world did not start.
+    #[error("simulator: {0}")]
+    World(#[from] WorldError),
+    /// No free loopback port for a Zenoh endpoint.
+    #[error("no free port for the Zenoh session: {0}")]
+    Port(std::io::Error),
+    /// A blocking start or stop task failed.
+    #[error("{0}")]
+    Task(String),
+}
+
+/// Slant range of the demo's cameras (m): every point of the road is within it from a station.
+const CAMERA_RANGE_M: f64 = 2_500.0;
+/// Speed of the first car (m/s).
+const FIRST_CAR_SPEED: f64 = 5.0;
+/// Where the second car starts on the road (m of arc length) and its speed (m/s).
+const SECOND_CAR: (f64, f64) = (1_800.0, 7.0);
+
+/// The demo's world: the `cimm-road` preset with a second, slower car ahead of the first on the
+/// same road, and one camera slaved to each car (geolocated `position`, 10 m, 1 Hz).
+pub fn scenario() -> Result<SimScenario, ScenarioError> {
+    let mut s = SimScenario::load("cimm-road")?;
+    s.name = "demo".into();
+    s.description = "harrier demo: two cars on the cimm-road road, UAVs on station along it, \
+                     a camera slaved to each car on every UAV."
+        .into();
+    // The first car slower than the preset's 10 m/s: the multirotors (15 m/s at most) keep
+    // their standoff circle around it with speed to spare for the phase spacing.
+    if let TargetMotion::Road { speed_mps, .. } = &mut s.targets[0].motion {
+        *speed_mps = FIRST_CAR_SPEED;
+    }
+    let mut second = s.targets[0].clone();
+    second.id = "tgt2".into();
+    if let TargetMotion::Road {
+        start_m, speed_mps, ..
+    } = &mut second.motion
+    {
+        (*start_m, *speed_mps) = SECOND_CAR;
+    }
+    s.targets.push(second);
+    let mut cam2 = s.sensors[0].clone();
+    cam2.id = "cam2".into();
+    if let SensorType::Camera { pointing, .. } = &mut cam2.model {
+        *pointing = harrier_sim::setup::Pointing::Track { target: 1 };
+    }
+    s.sensors.push(cam2);
+    for c in &mut s.sensors {
+        c.max_range_m = CAMERA_RANGE_M;
+    }
+    Ok(s)
+}
+
+/// A Zenoh TCP endpoint on a loopback port that is free now (Zenoh's stable API does not report
+/// the port it bound for port 0).
+fn free_loopback_endpoint() -> Result<String, DemoError> {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map_err(DemoError::Port)?
+        .port();
+    Ok(format!("tcp/127.0.0.1:{port}"))
+}
+
+/// The running demo. Stop it with [`Demo::stop`].
+#[derive(Debug)]
+pub struct Demo {
+    server: LiveServer,
+    world: SimWorld,
+    endpoints: Vec<String>,
+    /// Assigns the UAVs once they are on station and a track is confirmed.
+    assigner: Option<tokio::task::JoinHandle<()>>,
+}
+
+impl Demo {
+    /// The live service.
+    pub fn server(&self) -> &LiveServer {
+        &self.server
+    }
+    /// The simulated world (vehicles, their MAVLink addresses, publication counters).
+    pub fn world(&self) -> &SimWorld {
+        &self.world
+    }
+    /// The Zenoh endpoints to connect to, to see everything published: the service's session and
+    /// the simulator's (peers do not forward each other's data).
+    pub fn zenoh_endpoints(&self) -> &[String] {
+        &self.endpoints
+    }
+
+    /// Stops the service, then the simulated world.
+    pub async fn stop(self) {
+        if let Some(a) = self.assigner {
+            a.abort();
+        }
+        self.server.shutdown().await;
+        let world = self.world;
+        if let Err(e) = tokio::task::spawn_blocking(move || world.stop()).await {
+            tracing::warn!("stopping the simulator: {e}");
+        }
+    }
+}
+
+/// Starts the live service and the simulated world; returns once the API accepts requests and
+/// the simulator publishes.
+pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
+    if !(config.speedup.is_finite() && config.speedup > 0.0 && config.speedup <= 100.0) {
+        return Err(DemoError::Invalid(format!(
+            "--speedup must be in (0, 100], got {}",
+            config.speedup
+        )));
+    }
+    if config.vehicles == 0 {
+        return Err(DemoError::Invalid("--vehicles must be ≥ 1".into()));
+    }
+    let scenario = scenario()?;
+    let server_endpoint = free_loopback_endpoint()?;
+    let sim_endpoint = free_loopback_endpoint()?;
+
+    let mut server_config = Config::default();
+    server_config.frame.origin = scenario.origin;
+    server_config.frame.plane_z = scenario.plane_z();
+    server_config.api.listen = config.listen;
+    server_config
+        .tracker
+        .estimator
+        .clone_from(&config.estimator);
+    server_config.tracker.roads.clone_from(&scenario.roads);
+    server_config
+        .guidance
+        .obstacles
+        .clone_from(&config.obstacles);
+    if let Some(motion) = &scenario.estimator.motion {
+        server_config.tracker.motion = motion.clone();
+    }
+    server_config.zenoh.listen = vec![server_endpoint.clone()];
+    server_config.zenoh.connect = Vec::new();
+    if config.speedup != 1.0 {
+        // The simulator's `time_unix` runs `speedup` times faster than any real clock.
+        server_config.clock.real_time = false;
+        tracing::info!(
+            speedup = config.speedup,
+            "clock.real_time = false: simulated time runs faster than the server's clock"
+        );
+    }
+    if let Some(path) = &config.record {
+        server_config.recorder.path = path.display().to_string();
+    }
+    server_config.mavlink.gcs = vec![config.gcs.clone()];
+    server_config.mavlink.router = config
+        .router
+        .iter()
+        .filter(|r| r.as_str() != "none")
+        .cloned()
+        .collect();
+    if let Some(key_file) = &config.signing_key_file {
+        server_config.mavlink.signing = SigningConfig {
+            mode: "signed_only".into(),
+            key_file: key_file.display().to_string(),
+            ..SigningConfig::default()
+        };
+    }
+    let signing = server_config
+        .mavlink
+        .signing
+        .resolve()
+        .map_err(|e| DemoError::Invalid(e.to_string()))?;
+    // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
+    server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
+    let server = harrier_server::start(&server_config).await?;
+    let gcs = server
+        .link()
+        .and_then(|l| l.gcs().next().map(|e| e.addr()))
+        .ok_or_else(|| DemoError::Invalid("the demo needs a GCS link".into()))?;
+    let gcs = if gcs.ip().is_unspecified() {
+        SocketAddr::from(([127, 0, 0, 1], gcs.port()))
+    } else {
+        gcs
+    };
+
+    let mut world_config = WorldConfig::new(SensorLoopConfig {
+        scenario: scenario.clone(),
+        seed: config.seed,
+        speedup: config.speedup,
+        truth_hz: 10.0,
+        clock: Default::default(),
+    });
+    world_config.vehicles = (1..=config.vehicles).map(WorldVehicle::grounded).collect();
+    world_config.zenoh.connect = vec![server_endpoint.clone()];
+    world_config.zenoh.listen = vec![sim_endpoint.clone()];
+    world_config.gcs = Some(gcs);
+    world_config.signing = signing;
+    let world = match tokio::task::spawn_blocking(move || SimWorld::start(&world_config)).await {
+        Ok(Ok(w)) => w,
+        Ok(Err(e)) => {
+            server.shutdown().await;
+            return Err(e.into());
+        }
+        Err(e) => {
+            server.shutdown().await;
+            return Err(DemoError::Task(format!("starting the simulator: {e}")));
+        }
+    };
+    tracing::info!(
+        vehicles = config.vehicles,
+        speedup = config.speedup,
+        seed = config.seed,
+        "simulated world started"
+    );
+    let assigner = (!config.no_assign).then(|| {
+        tokio::spawn(assign_when_ready(
+            server.guidance().cloned(),
+            server.link().cloned(),
+            server.snapshot(),
+            config.vehicles,
+            config.radius,
+            config.height,
+        ))
+    });
+    Ok(Demo {
+        server,
+        world,
+        endpoints: vec![server_endpoint, sim_endpoint],
+        assigner,
+    })
+}
+
+/// Relative speed of the demo's standoff law (m/s).
+const DEMO_SPEED_M_S: f64 = 5.0;
+
+/// Waits until every UAV is heard on the GCS link (on the ground at home) and a track is
+/// confirmed, then assigns all
+/// UAVs to the slowest confirmed track with TOGVF and phase spacing.
+async fn assign_when_ready(
+    guidance: Option<harrier_server::guidance::Guidance>,
+    link: Option<harrier_server::gcs::GcsLink>,
+    mut snapshot: tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
+    n: u8,
+    radius: f64,
+    height: f64,
+) {
+    let (Some(guidance), Some(link)) = (guidance, link) else {
+        return;
+    };
+    loop {
+        if snapshot.changed().await.is_err() {
+            return;
+        }
+        let heard = link
+            .vehicles
+            .borrow()
+            .iter()
+            .filter(|v| v.view.position.is_some() && v.status.is_some())
+            .count();
+        let track = snapshot
+            .borrow()
+            .tracks
+            .iter()
+            .filter(|t| t.status == harrier_engine::TrackStatus::Confirmed && t.age >= 5)
+            .min_by(|a, b| {
+                let speed = |t: &harrier_engine::TrackView| t.state[3].hypot(t.state[4]);
+                speed(a).total_cmp(&speed(b))
+            })
+            .map(|t| t.id);
+        let (Some(track), true) = (track, heard >= usize::from(n)) else {
+            continue;
+        };
+        let request = harrier_server::guidance::AssignmentRequest {
+            vehicles: (1..=n).collect(),
+            track,
+            law: "togvf".into(),
+            radius_m: Some(radius),
+            height_m: Some(height),
+            spacing_deg: None,
+            speed_m_s: None,
+            orbit: None,
+        };
+        match guidance.create(request).await {
+            Ok(a) => {
+                tracing::info!(
+                    assignment = a.id,
+                    track,
+                    "demo: UAVs assigned to standoff-track"
+                );
+                return;
+            }
+            Err(e) => tracing::warn!("demo: assignment refused ({e}); retrying"),
+        }
+    }
+}
+
+/// Runs the demo until Ctrl-C: structured logs on stderr (`RUST_LOG`), the URLs on stdout.
+pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
+    use std::io::Write as _;
+    crate::init_logging("info,zenoh=warn");
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    runtime.block_on(async {
+        let demo = start(args).await?;
+        let addr = demo.server().local_addr();
+        let mavlink: Vec<String> = demo
+            .world()
+            .mavlink_addrs()
+            .iter()
+            .map(|(id, a)| format!("{id}: udp {a}"))
+            .collect();
+        let token = match demo.server().token() {
+            (token, harrier_server::TokenSource::Generated) => token.to_owned(),
+            (_, source) => format!("(from {source:?})"),
+        };
+        let (gcs, router) = demo
+            .server()
+            .link()
+            .map_or_else(Default::default, harrier_server::gcs::GcsLink::describe);
+        let _ = writeln!(
+            std::io::stdout().lock(),
+            "harrier demo: ready\n  dashboard  http://{addr}/\n  API        http://{addr}/api/v1 \
+             (e.g. /api/v1/tracks)\n  API token  {token} (`Authorization: Bearer <token>` on \
+             mutating requests)\n  zenoh      {}\n  UAVs       {}\n  MAVLink    GCS link {gcs}; \
+             router (QGroundControl, MAVProxy, MAVSDK) {router}\nPress Ctrl-C to stop.",
+            demo.zenoh_endpoints().join(", "),
+            mavlink.join(", ")
+        );
+        tokio::signal::ctrl_c().await?;
+        tracing::info!("interrupted: shutting down");
+        demo.stop().await;
+        Ok(())
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The demo's world: two cars on one road that never meet (the slower one behind), a
+    /// camera slaved to each.
+    #[test]
+    fn two_cars_that_never_meet() {
+        let s = scenario().expect("demo scenario");
+        assert_eq!(s.targets.len(), 2);
+        assert_eq!(s.sensors.len(), 2);
+        let road = |t: &harrier_sim::setup::TargetSpec| match t.motion {
+            TargetMotion::Road {
+                start_m, speed_mps, ..
+            } => (start_m, speed_mps),
+            _ => panic!("not on the road"),
+        };
+        let (a, b) = (road(&s.targets[0]), road(&s.targets[1]));
+        assert!(a.0 < b.0 && a.1 < b.1, "{a:?} {b:?}");
+    }
+}

@@ -1,0 +1,424 @@
+//! The multi-target tracker of `harrier_core::tracker` (χ² gating, global nearest neighbour over
+//! confirmed and tentative tracks, single-point initiation from any detection kind with M-of-N
+//! confirmation, miss/covariance deletion) as a [`TrackEngine`], `MultiTargetEngine`, one per
+//! **track filter** — the filter of each track: `ekf` (the KF on `position` sensors), `cdkf`,
+//! `imm`, `cimm` ([`TrackFilterInfo`]s, the live service's choice) — built for a [`Deployment`].
+//!
+//! The replay estimator `tracker` runs the `ekf` track filter over a multi-target scenario
+//! (FORMAT-MULTI.md): any number of sensors of any kind whose scans carry unlabeled detections,
+//! clutter included. Each sensor's detections of one time are one scan, under that sensor's model
+//! at its platform pose. Each estimate line holds every confirmed track after the scan
+//! (`"state": null`, `"tracks"`): see FORMAT-MULTI.md §4.
+
+use harrier_core::filter::{CentralDifference, Extended, ModeModel};
+use harrier_core::measurement::{MeasKind, SensorModel};
+use harrier_core::motion::ConstantVelocity;
+use harrier_core::road::RoadNetwork;
+use harrier_core::scenario::{Estimate, Scenario};
+use harrier_core::tracker::{
+    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
+    TrackFilter, Tracker, TrackerConfig,
+};
+use serde_json::{Value, json};
+
+use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
+use crate::{
+    Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan,
+    Step, TrackEngine, TrackFilterInfo, TrackView, setup,
+};
+use harrier_core::state::Gaussian;
+use nalgebra::{SMatrix, SVector};
+
+/// `tracker`: GNN multi-target tracker.
+pub const TRACKER: EstimatorInfo = EstimatorInfo {
+    name: "tracker",
+    summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
+    params: TRACKER_PARAMS,
+    build: |sc, p| {
+        if sc.sensors.is_empty() {
+            return Err(setup("the tracker needs at least one sensor"));
+        }
+        if let Some(s) = sc
+            .sensors
+            .iter()
+            .find(|s| s.kind == MeasKind::BearingSize && sc.target.size_m.is_none())
+        {
+            return Err(setup(format!(
+                "sensor {:?}: bearing_size detections need target.size_m to start tracks",
+                s.id
+            )));
+        }
+        Ok(Box::new(MultiTracker::new(sc, p)?))
+    },
+};
+
+type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
+
+/// The tracker's tuning, shared by every track filter and the replay estimator `tracker`.
+const TRACKER_PARAMS: &[(&str, &str)] = &[
+    Q_PARAM,
+    ("vel_std", "velocity prior of a new track, m/s (default 12)"),
+    (
+        "up_std",
+        "height prior of a new 3-D track when its first detection gives none, m (default 50)",
+    ),
+    (
+        "gate",
+        "gate probability of confirmed tracks (default 0.999)",
+    ),
+    (
+        "tentative_gate",
+        "gate probability of tentative tracks (default 0.95)",
+    ),
+    ("m", "confirmation: M hits … (default 2)"),
+    ("n", "… within the first N scans (default 4)"),
+    (
+        "misses",
+        "consecutive missed scans that delete a confirmed track (default 5 per sensor)",
+    ),
+    (
+        "max_pos_var",
+        "position-variance trace that deletes a track, m² (default 1e5)",
+    ),
+];
+
+/// `ekf`: tracks of EKFs (the KF on `position` sensors) with the CV model.
+pub const TRACK_FILTER_EKF: TrackFilterInfo = TrackFilterInfo {
+    name: "ekf",
+    summary: "EKF tracks, CV model (the KF on position sensors)",
+    params: TRACKER_PARAMS,
+    build: |d, p| match d.dims {
+        2 => multi_target_engine::<4, _>(d, p, ekf(d, p)?),
+        _ => multi_target_engine::<6, _>(d, p, ekf(d, p)?),
+    },
+};
+
+/// `cdkf`: tracks of central-difference filters with the CV model.
+pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
+    name: "cdkf",
+    summary: "central-difference Kalman filter tracks, CV model",
+    params: TRACKER_PARAMS,
+    build: |d, p| {
+        let q = d.q(p)?;
+        let filter = CentralDifference::default();
+        match d.dims {
+            2 => multi_target_engine::<4, _>(
+                d,
+                p,
+                GaussianFilter {
+                    filter,
+                    motion: ConstantVelocity::<4>::new(q),
+                },
+            ),
+            _ => multi_target_engine::<6, _>(
+                d,
+                p,
+                GaussianFilter {
+                    filter,
+                    motion: ConstantVelocity::<6>::new(q),
+                },
+            ),
+        }
+    },
+};
+
+/// `imm`: IMM tracks over `motion.models` (planar).
+pub const TRACK_FILTER_IMM: TrackFilterInfo = TrackFilterInfo {
+    name: "imm",
+    summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
+    params: TRACKER_PARAMS,
+    build: |d, p| imm_engine(d, p, None),
+};
+
+/// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
+pub const TRACK_FILTER_CIMM: TrackFilterInfo = TrackFilterInfo {
+    name: "cimm",
+    summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
+    params: TRACKER_PARAMS,
+    build: |d, p| {
+        let roads = RoadNetwork::from_scenario(&d.roads)
+            .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
+        if roads.is_empty() {
+            return Err(setup("the cimm track filter needs roads"));
+        }
+        imm_engine(d, p, Some(roads))
+    },
+};
+
+fn ekf<const N: usize>(d: &Deployment, p: &Params) -> Result<Ekf<N>, EngineError> {
+    Ok(GaussianFilter {
+        filter: Extended,
+        motion: ConstantVelocity::<N>::new(d.q(p)?),
+    })
+}
+
+/// The IMM (or, with roads, CIMM) engine for R = the number of `motion.models`.
+fn imm_engine(
+    d: &Deployment,
+    p: &Params,
+    roads: Option<RoadNetwork>,
+) -> Result<Box<dyn TrackEngine>, EngineError> {
+    if d.dims != 2 {
+        return Err(setup("the IMM track filters are planar (dims = 2)"));
+    }
+    let models = mode_models(d.motion.as_ref(), d.q(p)?)?;
+    fn boxed<const R: usize>(
+        d: &Deployment,
+        p: &Params,
+        models: &[ModeModel],
+        roads: Option<RoadNetwork>,
+    ) -> Result<Box<dyn TrackEngine>, EngineError> {
+        let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
+        let imm = ImmFilter { imm, initial_probs };
+        match roads {
+            None => multi_target_engine::<4, _>(d, p, imm),
+            Some(roads) => {
+                let sigma_m = roads
+                    .roads()
+                    .iter()
+                    .map(|r| r.sigma_m())
+                    .fold(0.0, f64::max);
+                let cimm = CimmFilter {
+                    imm,
+                    roads,
+                    sigma_v: sigma_m / d.scan_period_s.max(1e-3),
+                    max_offset_m: 3.0 * sigma_m + 10.0,
+                };
+                multi_target_engine::<4, _>(d, p, cimm)
+            }
+        }
+    }
+    match models.len() {
+        1 => boxed::<1>(d, p, &models, roads),
+        2 => boxed::<2>(d, p, &models, roads),
+        3 => boxed::<3>(d, p, &models, roads),
+        4 => boxed::<4>(d, p, &models, roads),
+        5 => boxed::<5>(d, p, &models, roads),
+        n => Err(setup(format!(
+            "motion.models has {n} models; the IMM track filters support 1 to 5"
+        ))),
+    }
+}
+
+/// A multi-target tracker over the track filter `F` on N-state CV-layout states: the
+/// [`TrackEngine`] every track filter builds.
+#[derive(Debug)]
+struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
+    tracker: Tracker<F, SinglePointInitiator, N>,
+    /// The ground plane of planar tracks (their estimate lines' z).
+    plane_z: f64,
+}
+
+/// An integer parameter ≥ 1.
+fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
+    let v = p.get(name, f64::from(default));
+    if v.fract() != 0.0 || !(1.0..=1e6).contains(&v) {
+        return Err(setup(format!("--param {name} must be a whole number ≥ 1")));
+    }
+    Ok(v as u32)
+}
+
+/// The engine over `filter` with the tracker tuning of `p`.
+fn multi_target_engine<const N: usize, F>(
+    d: &Deployment,
+    p: &Params,
+    filter: F,
+) -> Result<Box<dyn TrackEngine>, EngineError>
+where
+    F: TrackFilter<N> + Send + std::fmt::Debug + 'static,
+    F::State: Send,
+{
+    let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
+    // Every sensor's scan counts as a scan for M-of-N and misses.
+    let config = TrackerConfig {
+        gater: Gater::chi2(p.get("gate", 0.999), 2)?,
+        tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
+        confirm: MOfN::new(count(p, "m", 2)?, count(p, "n", 4)?)?,
+        deleter: Deleter::new(
+            count(p, "misses", 5 * d.sensors)?,
+            p.get("max_pos_var", 1e5),
+            usize::from(d.dims),
+        )?,
+    };
+    Ok(Box::new(MultiTargetEngine {
+        tracker: Tracker::new(filter, init, config),
+        plane_z: d.plane_z,
+    }))
+}
+
+impl<F, const N: usize> TrackEngine for MultiTargetEngine<F, N>
+where
+    F: TrackFilter<N> + Send + std::fmt::Debug,
+    F::State: Send,
+{
+    fn ingest(&mut self, scan: &SensorScan) -> Result<Vec<TrackEvent>, EngineError> {
+        let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
+        Ok(self.tracker.step_any(scan.t, &scan.sensor, &dets)?)
+    }
+
+    fn snapshot(&self) -> Vec<TrackView> {
+        self.tracker
+            .snapshot()
+            .into_iter()
+            .map(|k| {
+                let e = cv_estimate(self.plane_z, k.t, &k.estimate);
+                TrackView {
+                    id: k.id,
+                    status: k.status.into(),
+                    t: k.t,
+                    state: e.state.unwrap_or_default(),
+                    cov: e.cov.unwrap_or_default(),
+                    cov_dims: e.cov_dims.unwrap_or_default(),
+                    updated: k.updated,
+                    age: k.age,
+                    last_update: k.last_update,
+                    mode_probabilities: k.mode_probabilities,
+                }
+            })
+            .collect()
+    }
+
+    fn time(&self) -> Option<f64> {
+        self.tracker.time()
+    }
+
+    fn handover(&self) -> Handover {
+        Handover {
+            t: self.tracker.time(),
+            dim: N,
+            tracks: self
+                .tracker
+                .records()
+                .into_iter()
+                .zip(self.tracker.snapshot())
+                .map(|(r, s)| {
+                    let cov = s.estimate.cov.transpose().as_slice().to_vec();
+                    (r, s.estimate.mean.as_slice().to_vec(), cov)
+                })
+                .collect(),
+        }
+    }
+
+    fn adopt(&mut self, h: &Handover) -> Result<(), EngineError> {
+        if h.dim != N {
+            return Err(setup(format!(
+                "cannot adopt {}-state tracks into a {N}-state engine",
+                h.dim
+            )));
+        }
+        let Some(t) = h.t else {
+            return Ok(());
+        };
+        let mut tracks = Vec::with_capacity(h.tracks.len());
+        for (record, mean, cov) in &h.tracks {
+            if mean.len() != N || cov.len() != N * N {
+                return Err(setup(format!(
+                    "track {}: estimate of the wrong size",
+                    record.id
+                )));
+            }
+            let g = Gaussian::new(
+                SVector::<f64, N>::from_column_slice(mean),
+                SMatrix::<f64, N, N>::from_row_slice(cov),
+            )?;
+            tracks.push((record.clone(), g));
+        }
+        Ok(self.tracker.adopt(t, &tracks)?)
+    }
+}
+
+/// The replay estimator `tracker`: the tracker with the `ekf` track filter, fed one scan per sensor
+/// and time.
+#[derive(Debug)]
+struct MultiTracker {
+    engine: Box<dyn TrackEngine>,
+    sc: Scenario,
+    /// The model of the last scan, for the empty scans between measurement lines.
+    last_model: Option<SensorModel>,
+}
+
+impl MultiTracker {
+    fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
+        Ok(Self {
+            engine: (TRACK_FILTER_EKF.build)(&Deployment::from(sc), p)?,
+            sc: sc.clone(),
+            last_model: None,
+        })
+    }
+}
+
+impl ReplayEstimator for MultiTracker {
+    fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
+        let geo = geometry(&self.sc);
+        // One scan per sensor (measurements come sorted by sensor id).
+        let mut scans: Vec<SensorScan> = Vec::new();
+        let mut last_sensor: Option<&str> = None;
+        for m in step.measurements {
+            if last_sensor != Some(m.sensor.as_str()) {
+                scans.push(SensorScan {
+                    t: step.t,
+                    sensor: model_for(&self.sc, geo, m, None)?,
+                    detections: Vec::new(),
+                });
+                last_sensor = Some(m.sensor.as_str());
+            }
+            if let Some(scan) = scans.last_mut() {
+                scan.detections.push(m.z.clone());
+            }
+        }
+        // Scans without any detection have no measurement line: run them as empty scans so that
+        // the M-of-N and miss counts see them (scan times t0 + k·dt, FORMAT-MULTI.md §3).
+        let mut all = Vec::new();
+        if let (Some(last), Some(model)) = (self.engine.time(), self.last_model) {
+            let dt = self.sc.time.dt;
+            let gap = ((step.t - last) / dt - 0.5).floor().clamp(0.0, 1e6) as u32;
+            all.extend((1..=gap).map(|k| SensorScan {
+                t: last + f64::from(k) * dt,
+                sensor: model,
+                detections: Vec::new(),
+            }));
+        }
+        // Check every scan before the first is ingested, so that a bad step changes nothing.
+        for scan in &scans {
+            if let Some(z) = scan
+                .detections
+                .iter()
+                .find(|z| z.len() != scan.sensor.dim())
+            {
+                return Err(setup(format!(
+                    "a measurement has {} components, its sensor {}",
+                    z.len(),
+                    scan.sensor.dim()
+                )));
+            }
+        }
+        all.extend(scans);
+        for scan in &all {
+            self.engine.ingest(scan)?;
+        }
+        if let Some(scan) = all.last() {
+            self.last_model = Some(scan.sensor);
+        }
+        let tracks: Vec<Value> = self
+            .engine
+            .snapshot()
+            .into_iter()
+            .filter(|k| k.status == crate::TrackStatus::Confirmed)
+            .map(|k| {
+                json!({
+                    "id": k.id,
+                    "state": k.state,
+                    "cov": k.cov,
+                    "cov_dims": k.cov_dims,
+                    "updated": k.updated,
+                })
+            })
+            .collect();
+        let mut est = Estimate {
+            t: step.t,
+            ..Estimate::default()
+        };
+        est.extra.insert("tracks".into(), Value::Array(tracks));
+        Ok(Some(est))
+    }
+}

@@ -1,0 +1,49 @@
+//! # harrier-engine
+//!
+//! The estimation engine: what an estimator looks like once its filter types are erased, in its
+//! two shapes, the drivers that build them from harrier-core's filters, and the registry that
+//! names them. No I/O: the live service (harrier-server) and the offline tools (harrier-tools)
+//! both run estimators through it.
+//!
+//! - [`replay`]: every estimator Harrier can run by name over a scenario implements
+//!   [`ReplayEstimator`] and is described by an [`EstimatorInfo`]. A `Box<dyn ReplayEstimator>` is
+//!   the only form in which the offline tools (`replay`, `guidance-sim`) see a filter.
+//! - [`track`]: the live service's multi-target tracker, [`TrackEngine`], described by a
+//!   [`TrackFilterInfo`].
+//!
+//! The drivers in [`estimators`] build both from a scenario and [`Params`], and [`registry`]
+//! lists them and builds one by name: the one place where a name becomes a
+//! `Box<dyn ReplayEstimator>` ([`registry::build`]) or a `Box<dyn TrackEngine>`
+//! ([`registry::build_track_filter`]). The crate root re-exports what [`replay`] and [`track`]
+//! define, so users name `harrier_engine::…`.
+//!
+//! [`replay`] and [`track`] are leaves: drivers depend on them and never on the registry.
+
+pub mod estimators;
+pub mod registry;
+pub mod replay;
+pub mod track;
+
+use harrier_core::EstimationError;
+
+pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
+pub use track::{
+    Deployment, Handover, SensorScan, TrackEngine, TrackFilterBuildFn, TrackFilterInfo,
+    TrackStatus, TrackView,
+};
+
+/// Why an estimator could not be built or could not process a time step.
+#[derive(Debug, thiserror::Error)]
+pub enum EngineError {
+    /// The scenario lacks something the estimator needs, or a parameter is wrong.
+    #[error("{0}")]
+    Setup(String),
+    /// A numeric failure on this step's data; the estimator's state is unchanged.
+    #[error(transparent)]
+    Estimation(#[from] EstimationError),
+}
+
+/// Shorthand for a setup error.
+pub fn setup(msg: impl Into<String>) -> EngineError {
+    EngineError::Setup(msg.into())
+}

@@ -1,0 +1,180 @@
+//! The live shape: a multi-target tracker whose track filter type is erased ([`TrackEngine`]),
+//! fed one [`SensorScan`] at a time, reporting [`TrackView`]s, handing its tracks over to another
+//! ([`Handover`]); built for a [`Deployment`] by a named track filter ([`TrackFilterInfo`]).
+
+use harrier_core::scenario::{Motion, Road, Scenario};
+
+use super::{EngineError, Params};
+
+/// The setting a track engine is built for, and everything a track engine reads of it: where
+/// the targets move, how, and how often scans come. The live service makes it from its
+/// configuration (`Config::deployment`), `harrier replay -e tracker` from the scenario
+/// ([`Deployment::from`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Deployment {
+    /// 2: planar targets on the ground plane (states `[x, y, vx, vy]`); 3: targets in 3-D.
+    pub dims: u8,
+    /// Up coordinate (m) of the ground plane of a planar deployment.
+    pub plane_z: f64,
+    /// Motion hints (`gcs-scenario/1` `motion`): `accel_std` gives the default `q`; `models`,
+    /// `transition_matrix` and `initial_probs` the modes of the IMM track filters.
+    pub motion: Option<Motion>,
+    /// The road network (`gcs-scenario/1` `roads`) of the road-constrained track filter (`cimm`).
+    pub roads: Vec<Road>,
+    /// Nominal scan period (s): CIMM's road velocity noise is a road's σ over it.
+    pub scan_period_s: f64,
+    /// The sensors whose scans feed the tracker (≥ 1). Every sensor's scan counts as a scan for
+    /// M-of-N and misses, so the default `misses` is 5 per sensor. The live service, whose
+    /// sensors come and go, counts one.
+    pub sensors: u32,
+}
+
+impl Deployment {
+    /// The `q` (m²/s³) of the kinematic models: `p`'s `q`, else `motion.accel_std²`.
+    pub fn q(&self, p: &Params) -> Result<f64, EngineError> {
+        p.q_or(self.motion.as_ref().and_then(Motion::accel_q))
+    }
+}
+
+/// A scenario's deployment: its `dims`, `plane_z`, `motion`, `roads`, `time.dt` and number of
+/// sensors.
+impl From<&Scenario> for Deployment {
+    fn from(sc: &Scenario) -> Self {
+        Self {
+            dims: sc.dims,
+            plane_z: sc.plane_z(),
+            motion: sc.motion.clone(),
+            roads: sc.roads.clone(),
+            scan_period_s: sc.time.dt,
+            sensors: u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX),
+        }
+    }
+}
+
+/// One sensor scan as a track engine takes it, in the engine's local ENU frame: the time, the
+/// sensor's measurement model at the platform pose of the scan (kind, position, noise), and the
+/// detections, each with the model's number of components. This is what the live service makes
+/// of a `DetectionScan` and what `harrier replay` makes of one sensor's measurement lines of one
+/// time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorScan {
+    /// Scan time (s).
+    pub t: f64,
+    /// Measurement model of the sensor at this scan.
+    pub sensor: harrier_core::measurement::SensorModel,
+    /// The detections (clutter included), each a measurement vector.
+    pub detections: Vec<Vec<f64>>,
+}
+
+/// Life-cycle stage of a live track: `tentative` (not yet through the M-of-N rule) or
+/// `confirmed` (reported). The wire spelling is the snake-case name.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, utoipa::ToSchema,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum TrackStatus {
+    /// Started by an unassociated detection, not yet confirmed.
+    Tentative,
+    /// Confirmed by the M-of-N rule.
+    Confirmed,
+}
+
+impl TrackStatus {
+    /// `"tentative"` or `"confirmed"` (as on the wire; the recording's `status` column).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Tentative => "tentative",
+            Self::Confirmed => "confirmed",
+        }
+    }
+}
+
+impl From<harrier_core::tracker::TrackStatus> for TrackStatus {
+    fn from(s: harrier_core::tracker::TrackStatus) -> Self {
+        match s {
+            harrier_core::tracker::TrackStatus::Tentative => Self::Tentative,
+            harrier_core::tracker::TrackStatus::Confirmed => Self::Confirmed,
+        }
+    }
+}
+
+/// What a track engine reports of one track: the estimate in the canonical state layout of an
+/// estimate line (`[x, y, z, vx, vy, vz]`, FORMAT.md §5) with its covariance over `cov_dims`.
+/// Not a wire type: the API sends it as a `harrier_server::wire::TrackDto`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrackView {
+    /// Stable track id.
+    pub id: u64,
+    /// Tentative or confirmed.
+    pub status: TrackStatus,
+    /// Time of the estimate (s).
+    pub t: f64,
+    /// `[x, y, z, vx, vy, vz]` (planar: z = the ground plane, vz = 0).
+    pub state: [f64; 6],
+    /// Covariance over the state indices `cov_dims`.
+    pub cov: Vec<Vec<f64>>,
+    /// The state indices `cov` covers.
+    pub cov_dims: Vec<usize>,
+    /// Whether the last scan updated the track (`false`: it coasted).
+    pub updated: bool,
+    /// Scans since initiation.
+    pub age: u32,
+    /// Time of the last associated detection (s).
+    pub last_update: f64,
+    /// Mode probabilities of an IMM track (empty otherwise).
+    pub mode_probabilities: Vec<f64>,
+}
+
+/// A multi-target tracker whose track filter type is erased: the live shape of an estimator. It
+/// ingests one sensor scan at a time (any kind, any platform) and says what happened as
+/// [`TrackEvent`](harrier_core::tracker::TrackEvent)s; a snapshot serves the API.
+pub trait TrackEngine: Send + std::fmt::Debug {
+    /// Processes one scan. On error (time earlier than the last scan, a non-finite detection, a
+    /// detection of the wrong size) nothing changes.
+    fn ingest(
+        &mut self,
+        scan: &SensorScan,
+    ) -> Result<Vec<harrier_core::tracker::TrackEvent>, EngineError>;
+    /// Every live track, tentative and confirmed, in id order.
+    fn snapshot(&self) -> Vec<TrackView>;
+    /// Time of the last scan.
+    fn time(&self) -> Option<f64>;
+    /// The live tracks in a form any engine of the same deployment can [`adopt`](Self::adopt).
+    fn handover(&self) -> Handover;
+    /// Replaces this engine's tracks with `h`'s (a change of track filter at run time): ids, status
+    /// and hit/miss records are kept, each estimate starts this engine's filter. On error
+    /// nothing changes.
+    fn adopt(&mut self, h: &Handover) -> Result<(), EngineError>;
+}
+
+/// Tracks passed from one track engine to another: each track's record and its Gaussian estimate
+/// in the engine's state layout (`dim` = 4 planar `[x, y, vx, vy]`, 6 in 3-D), covariance
+/// row-major.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Handover {
+    /// Time of the last scan.
+    pub t: Option<f64>,
+    /// State dimension of every estimate.
+    pub dim: usize,
+    /// Record, mean and covariance of each track.
+    pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
+}
+
+/// Builds the track engine of a track filter for a deployment.
+pub type TrackFilterBuildFn = fn(&Deployment, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
+
+/// A named **track filter** — the filter each track of the live multi-target tracker runs (`ekf`,
+/// `cdkf`, `imm`, `cimm`) — as a driver declares it and [`crate::registry::TRACK_FILTERS`] lists
+/// it. It is what `[tracker] estimator` and `PUT /api/v1/estimator` choose, and not the replay
+/// estimator of the same name (an [`EstimatorInfo`](super::EstimatorInfo)).
+#[derive(Debug)]
+pub struct TrackFilterInfo {
+    /// Name.
+    pub name: &'static str,
+    /// One line for `harrier estimators`.
+    pub summary: &'static str,
+    /// Accepted parameter names with a description (and default).
+    pub params: &'static [(&'static str, &'static str)],
+    /// Builds the track engine that runs it.
+    pub build: TrackFilterBuildFn,
+}

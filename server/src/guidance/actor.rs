@@ -1,0 +1,628 @@
+//! The guidance actor ([`start`]): it owns the assignments, answers the API's requests, follows
+//! the COMMAND_ACKs and, every tick, flies each active assignment (see the module documentation
+//! of [`super`]).
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use harrier_core::guidance::lgvf::Lgvf;
+use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
+use harrier_core::guidance::togvf::Togvf;
+use harrier_core::guidance::{Command, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_link::command::set_mode;
+use harrier_link::mavlink::dialects::common::MavMessage;
+use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase};
+use harrier_link::px4::{FlightMode, VehicleStatus};
+use nalgebra::Vector3;
+use tokio::sync::{broadcast, mpsc, watch};
+
+use super::formation::FormationState;
+use super::plan::{AssignmentRequest, AssignmentView, Plan, SlotView};
+use super::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest, GuidanceSettings};
+use crate::clock::unix_now;
+use crate::gcs::transport::stopped;
+use crate::gcs::vehicle::LinkState;
+use crate::gcs::{GcsLink, Request, VehicleSample};
+use crate::tracker::Snapshot;
+use harrier_engine::TrackView;
+
+/// One vehicle of an assignment.
+#[derive(Debug)]
+struct Slot {
+    vehicle: u8,
+    sequence: Option<OffboardSequence>,
+    state: &'static str,
+    error: Option<String>,
+    range_error: Option<f64>,
+    phase: Option<f64>,
+    commanded: Option<Vector3<f64>>,
+}
+
+/// An assignment: its track, law and plan, and its vehicles.
+#[derive(Debug)]
+struct Assignment {
+    id: u64,
+    track: u64,
+    law: String,
+    plan: Plan,
+    created_unix: f64,
+    ended: Option<String>,
+    slots: Vec<Slot>,
+    formation: FormationState,
+}
+
+impl Assignment {
+    fn view(&self) -> AssignmentView {
+        let p = &self.plan;
+        AssignmentView {
+            id: self.id,
+            track: self.track,
+            law: self.law.clone(),
+            radius_m: p.radius,
+            height_m: p.height,
+            spacing_deg: p.spacing.to_degrees(),
+            speed_m_s: p.speed,
+            orbit: if p.orbit == Orbit::Cw { "cw" } else { "ccw" }.into(),
+            state: if self.ended.is_some() {
+                "ended"
+            } else {
+                "active"
+            }
+            .into(),
+            ended_reason: self.ended.clone(),
+            created_unix: self.created_unix,
+            vehicles: self
+                .slots
+                .iter()
+                .map(|s| SlotView {
+                    vehicle: s.vehicle,
+                    state: s.state.into(),
+                    error: s.error.clone(),
+                    range_error_m: s.range_error,
+                    phase_deg: s.phase.map(f64::to_degrees),
+                    commanded_velocity: s.commanded.map(Into::into),
+                })
+                .collect(),
+        }
+    }
+
+    fn law(&self) -> Box<dyn StandoffLaw + Send> {
+        let p = &self.plan;
+        match self.law.as_str() {
+            "lgvf" => Box::new(Lgvf {
+                orbit: p.orbit,
+                ..Lgvf::new(p.radius, p.height, p.speed)
+            }),
+            _ => Box::new(Togvf {
+                orbit: p.orbit,
+                ..Togvf::new(p.radius, p.height, p.speed)
+            }),
+        }
+    }
+}
+
+/// A vehicle within this share of R of the circle takes part in the phase coordination.
+const ON_CIRCLE: f64 = 0.25;
+
+/// Longest extrapolation of a track to now (s): beyond it the last estimate is used as is.
+const MAX_PREDICTION_S: f64 = 2.0;
+
+/// The track's estimate at time `now` of the tracker's time line (constant velocity from its
+/// last update).
+fn predict(track: &TrackView, now: f64) -> TargetEstimate {
+    let [x, y, z, vx, vy, vz] = track.state;
+    let dt = (now - track.t).clamp(0.0, MAX_PREDICTION_S);
+    let dt = if dt.is_finite() { dt } else { 0.0 };
+    TargetEstimate {
+        position: Vector3::new(x + vx * dt, y + vy * dt, z + vz * dt),
+        velocity: Vector3::new(vx, vy, vz),
+    }
+}
+
+struct Actor {
+    settings: GuidanceSettings,
+    link: GcsLink,
+    snapshot: watch::Receiver<Arc<Snapshot>>,
+    assignments: BTreeMap<u64, Assignment>,
+    next_id: u64,
+    watch: watch::Sender<Arc<Vec<AssignmentView>>>,
+    events: broadcast::Sender<AssignmentView>,
+    metrics: Arc<GuidanceMetrics>,
+}
+
+/// Starts the loop.
+pub fn start(
+    settings: GuidanceSettings,
+    link: GcsLink,
+    snapshot: watch::Receiver<Arc<Snapshot>>,
+    stop: watch::Receiver<bool>,
+) -> (Guidance, tokio::task::JoinHandle<()>) {
+    let (requests, rx) = mpsc::channel(64);
+    let (watch_tx, watch_rx) = watch::channel(Arc::new(Vec::new()));
+    let (events, _) = broadcast::channel(256);
+    let metrics = Arc::new(GuidanceMetrics::default());
+    let acks = link.acks.subscribe();
+    let actor = Actor {
+        settings,
+        link,
+        snapshot,
+        assignments: BTreeMap::new(),
+        next_id: 1,
+        watch: watch_tx,
+        events: events.clone(),
+        metrics: Arc::clone(&metrics),
+    };
+    let task = tokio::spawn(actor.run(rx, acks, stop));
+    (
+        Guidance {
+            requests,
+            assignments: watch_rx,
+            events,
+            metrics,
+        },
+        task,
+    )
+}
+
+impl Actor {
+    async fn run(
+        mut self,
+        mut requests: mpsc::Receiver<GuidanceRequest>,
+        mut acks: broadcast::Receiver<(u8, harrier_link::mavlink::dialects::common::MavMessage)>,
+        mut stop: watch::Receiver<bool>,
+    ) {
+        let period = Duration::from_secs_f64(1.0 / self.settings.rate_hz);
+        let mut tick = tokio::time::interval(period);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                Some(r) = requests.recv() => self.on_request(r),
+                a = acks.recv() => match a {
+                    Ok((vehicle, msg)) => self.on_ack(vehicle, &msg),
+                    Err(broadcast::error::RecvError::Lagged(n)) => {
+                        tracing::warn!("guidance: {n} COMMAND_ACKs missed");
+                    }
+                    Err(broadcast::error::RecvError::Closed) => break,
+                },
+                scheduled = tick.tick() => {
+                    let now = Instant::now();
+                    // Lateness against the schedule: the jitter of the loop.
+                    self.metrics.late(now.duration_since(scheduled.into_std()).as_micros() as u64);
+                    self.on_tick(now);
+                }
+                () = stopped(&mut stop) => break,
+            }
+        }
+    }
+
+    fn t(&self, now: Instant) -> f64 {
+        now.duration_since(self.link.epoch).as_secs_f64()
+    }
+
+    fn send(&self, vehicle: u8, message: harrier_link::mavlink::dialects::common::MavMessage) {
+        if self
+            .link
+            .requests
+            .try_send(Request::Send { vehicle, message })
+            .is_err()
+        {
+            tracing::debug!(vehicle, "guidance: link queue full, message dropped");
+        }
+    }
+
+    fn hold(&self, vehicle: u8) {
+        let link = self.link.clone();
+        tokio::spawn(async move {
+            match link
+                .command(vehicle, set_mode(vehicle, FlightMode::Hold))
+                .await
+            {
+                Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent to Hold"),
+                Ok(o) => tracing::warn!(vehicle, result = o.result, "guidance: Hold refused"),
+                Err(e) => tracing::warn!(vehicle, "guidance: Hold not sent: {e}"),
+            }
+        });
+    }
+
+    fn on_request(&mut self, r: GuidanceRequest) {
+        match r {
+            GuidanceRequest::Create(req, reply) => {
+                let r = self.create(req);
+                if let Ok(v) = &r {
+                    self.metrics.created.fetch_add(1, Ordering::Relaxed);
+                    let _ = self.events.send(v.clone());
+                    tracing::info!(id = v.id, track = v.track, vehicles = ?v.vehicles.iter().map(|s| s.vehicle).collect::<Vec<_>>(), law = v.law, "assignment created");
+                }
+                let _ = reply.send(r);
+                self.publish();
+            }
+            GuidanceRequest::End(id, reply) => {
+                let v = self.end(id, "ended by the operator".into());
+                let _ = reply.send(v);
+                self.publish();
+            }
+        }
+    }
+
+    fn create(&mut self, r: AssignmentRequest) -> Result<AssignmentView, AssignError> {
+        let plan = r.plan(&self.settings).map_err(AssignError::Invalid)?;
+        let vehicles = self.link.vehicles.borrow().clone();
+        for id in &r.vehicles {
+            if !vehicles.iter().any(|s| s.view.id == *id) {
+                return Err(AssignError::NotFound(format!("no vehicle {id}")));
+            }
+            if let Some(a) = self
+                .assignments
+                .values()
+                .find(|a| a.ended.is_none() && a.slots.iter().any(|s| s.vehicle == *id))
+            {
+                return Err(AssignError::Conflict(format!(
+                    "vehicle {id} already flies assignment {}",
+                    a.id
+                )));
+            }
+        }
+        if !self
+            .snapshot
+            .borrow()
+            .tracks
+            .iter()
+            .any(|t| t.id == r.track)
+        {
+            return Err(AssignError::NotFound(format!("no track {}", r.track)));
+        }
+        let id = self.next_id;
+        self.next_id += 1;
+        let a = Assignment {
+            id,
+            track: r.track,
+            law: r.law,
+            plan,
+            created_unix: unix_now(),
+            ended: None,
+            formation: FormationState::default(),
+            slots: r
+                .vehicles
+                .iter()
+                .map(|&vehicle| Slot {
+                    vehicle,
+                    sequence: None,
+                    state: "waiting",
+                    error: None,
+                    range_error: None,
+                    phase: None,
+                    commanded: None,
+                })
+                .collect(),
+        };
+        let view = a.view();
+        self.assignments.insert(id, a);
+        Ok(view)
+    }
+
+    fn end(&mut self, id: u64, reason: String) -> Option<AssignmentView> {
+        let a = self.assignments.get_mut(&id)?;
+        if a.ended.is_none() {
+            tracing::info!(id, reason, "assignment ended");
+            a.ended = Some(reason);
+            let holds: Vec<u8> = a
+                .slots
+                .iter_mut()
+                .filter(|s| s.state != "lost" && s.state != "waiting")
+                .map(|s| {
+                    s.state = "hold";
+                    s.sequence = None;
+                    s.vehicle
+                })
+                .collect();
+            let view = a.view();
+            for v in holds {
+                self.hold(v);
+            }
+            self.metrics.ended.fetch_add(1, Ordering::Relaxed);
+            let _ = self.events.send(view);
+        }
+        self.assignments.get(&id).map(Assignment::view)
+    }
+
+    fn on_ack(&mut self, vehicle: u8, msg: &harrier_link::mavlink::dialects::common::MavMessage) {
+        let t = self.t(Instant::now());
+        let mut failed = None;
+        for a in self.assignments.values_mut().filter(|a| a.ended.is_none()) {
+            for s in a.slots.iter_mut().filter(|s| s.vehicle == vehicle) {
+                if let Some(seq) = &mut s.sequence
+                    && let Err(e) = seq.handle(t, msg)
+                {
+                    s.state = "failed";
+                    s.error = Some(e.to_string());
+                    s.sequence = None;
+                    failed = Some(vehicle);
+                }
+            }
+        }
+        if let Some(v) = failed {
+            tracing::warn!(vehicle = v, "guidance: launch failed; vehicle to Hold");
+            self.hold(v);
+        }
+    }
+
+    /// One tick of the loop: every active assignment flown on the latest snapshot and vehicle
+    /// states, then what that decided done, and the assignments published.
+    fn on_tick(&mut self, now: Instant) {
+        self.metrics.ticks.fetch_add(1, Ordering::Relaxed);
+        if self.assignments.values().all(|a| a.ended.is_some()) {
+            return;
+        }
+        let snapshot = self.snapshot.borrow().clone();
+        let vehicles = Arc::clone(&self.link.vehicles.borrow());
+        let tick = Tick {
+            t: self.t(now),
+            snapshot: &snapshot,
+            vehicles: &vehicles,
+            settings: &self.settings,
+        };
+        let mut decisions = Decisions::default();
+        for a in self.assignments.values_mut().filter(|a| a.ended.is_none()) {
+            tick.fly(a, &mut decisions);
+        }
+        self.carry_out(decisions);
+        self.publish();
+    }
+
+    /// Does what a tick decided: sends the messages (counting the setpoints), sends vehicles to
+    /// Hold, ends assignments, and announces the assignments whose vehicles changed state.
+    fn carry_out(&mut self, d: Decisions) {
+        let setpoints = d
+            .send
+            .iter()
+            .filter(|(_, m)| matches!(m, MavMessage::SET_POSITION_TARGET_LOCAL_NED(_)))
+            .count() as u64;
+        for (vehicle, m) in d.send {
+            self.send(vehicle, m);
+        }
+        self.metrics
+            .setpoints
+            .fetch_add(setpoints, Ordering::Relaxed);
+        for v in d.hold {
+            self.hold(v);
+        }
+        for (id, reason) in d.end {
+            self.end(id, reason);
+        }
+        let mut changed = d.changed;
+        changed.dedup();
+        for id in changed {
+            if let Some(a) = self.assignments.get(&id) {
+                let _ = self.events.send(a.view());
+            }
+        }
+    }
+
+    fn publish(&self) {
+        let views: Vec<AssignmentView> = self.assignments.values().map(Assignment::view).collect();
+        self.watch.send_replace(Arc::new(views));
+    }
+}
+
+/// What a tick reads: the link's clock, the tracker's snapshot, the vehicles and the settings.
+struct Tick<'a> {
+    /// Now on the link's clock (s since its epoch).
+    t: f64,
+    snapshot: &'a Snapshot,
+    vehicles: &'a [VehicleSample],
+    settings: &'a GuidanceSettings,
+}
+
+/// What a tick decided, done once every assignment has been flown ([`Actor::carry_out`]).
+#[derive(Debug, Default)]
+struct Decisions {
+    /// Assignments to end, with the reason.
+    end: Vec<(u64, String)>,
+    /// Messages to the vehicles.
+    send: Vec<(u8, MavMessage)>,
+    /// Vehicles to send to Hold.
+    hold: Vec<u8>,
+    /// Assignments whose vehicles changed state.
+    changed: Vec<u64>,
+}
+
+impl<'a> Tick<'a> {
+    /// Flies assignment `a` for one tick: its track predicted to the tracker's time, then for
+    /// each vehicle its link state, or its range and phase, its command from the formation or
+    /// the law with phase coordination, and its offboard sequence advanced. Ends the assignment
+    /// when its track is gone.
+    fn fly(&self, a: &mut Assignment, out: &mut Decisions) {
+        let Some(track) = self.snapshot.tracks.iter().find(|k| k.id == a.track) else {
+            out.end.push((a.id, format!("track {} deleted", a.track)));
+            return;
+        };
+        // To the tracker's latest scan time: its time line may run ahead of the wall clock
+        // (a simulator with a speed-up), so the wall clock is not used.
+        let t_track = self.snapshot.t.unwrap_or(track.t);
+        let target = predict(track, t_track);
+        let law = a.law();
+        let limits = &self.settings.limits;
+        let states = self.measured(&a.slots);
+        let ring = Ring::of(&states, &target, &a.plan);
+        let formation = (a.law == "formation").then(|| {
+            let uavs: Vec<Option<UavState>> =
+                states.iter().map(|s| s.as_ref().map(|(u, _)| *u)).collect();
+            a.formation.commands(
+                &uavs,
+                &target,
+                &a.plan,
+                t_track,
+                limits,
+                &self.settings.obstacles,
+            )
+        });
+        let all_on_ring = ring.slots.len() == a.slots.len();
+        for (i, slot) in a.slots.iter_mut().enumerate() {
+            let before = (slot.state, slot.error.clone());
+            match (&states[i], self.vehicle(slot.vehicle)) {
+                (None, Some(v)) if v.view.state == LinkState::Lost => {
+                    if slot.state != "failed" {
+                        slot.state = "lost";
+                        slot.sequence = None;
+                    }
+                }
+                (None, _) => {
+                    if slot.state != "failed" && slot.state != "lost" {
+                        slot.state = "waiting";
+                    }
+                }
+                (Some(_), _) if slot.state == "failed" => {}
+                (Some((uav, v)), _) => {
+                    let (p, centre) = (uav.horizontal_position(), target.position.xy());
+                    slot.range_error = Some((p - centre).norm() - a.plan.radius);
+                    slot.phase = Some(phase_of(p, centre));
+                    let cmd = match formation.as_ref().and_then(|c| c[i]) {
+                        Some(c) => c,
+                        None => {
+                            let spacing = all_on_ring.then_some(a.plan.spacing);
+                            let neighbours = ring.neighbours(i, spacing);
+                            law.command(uav, Some(&target), limits, neighbours.as_ref())
+                                .or_hold(uav, limits)
+                        }
+                    };
+                    self.advance(slot, v, cmd, out);
+                }
+            }
+            if before != (slot.state, slot.error.clone()) {
+                out.changed.push(a.id);
+            }
+        }
+    }
+
+    /// The vehicle `id`, when the link knows it.
+    fn vehicle(&self, id: u8) -> Option<&'a VehicleSample> {
+        self.vehicles.iter().find(|v| v.view.id == id)
+    }
+
+    /// The measured state of each slot's vehicle: while it is connected and has sent its
+    /// position and velocity.
+    fn measured(&self, slots: &[Slot]) -> Vec<Option<(UavState, &'a VehicleSample)>> {
+        slots
+            .iter()
+            .map(|s| {
+                let v = self.vehicle(s.vehicle)?;
+                if v.view.state != LinkState::Connected {
+                    return None;
+                }
+                let p = v.view.position?;
+                let vel = v.view.velocity?;
+                Some((UavState::new(p.into(), vel.into()), v))
+            })
+            .collect()
+    }
+
+    /// Advances `slot`'s offboard sequence (arm, take off, stream setpoints, OFFBOARD) with
+    /// `cmd`; a sequence that fails leaves the vehicle `failed`, sent to Hold.
+    fn advance(&self, slot: &mut Slot, v: &VehicleSample, cmd: Command, out: &mut Decisions) {
+        let status = v.status.unwrap_or(VehicleStatus {
+            armed: false,
+            mode: None,
+            at: 0.0,
+        });
+        let takeoff_height = self.settings.takeoff_height;
+        let seq = slot.sequence.get_or_insert_with(|| {
+            let takeoff = v.home_amsl.map(|h| (h + takeoff_height) as f32);
+            OffboardSequence::new(slot.vehicle, OffboardConfig::new(takeoff))
+        });
+        match seq.next(self.t, &status, Some(cmd.velocity)) {
+            Ok(msgs) => {
+                out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
+                slot.state = match seq.phase() {
+                    Phase::Arming => "arming",
+                    Phase::TakingOff => "taking_off",
+                    Phase::Offboard => "offboard",
+                };
+                slot.commanded = Some(cmd.velocity);
+            }
+            Err(e) => {
+                slot.state = "failed";
+                slot.error = Some(e.to_string());
+                slot.sequence = None;
+                out.hold.push(slot.vehicle);
+            }
+        }
+    }
+}
+
+/// The ring of the phase coordination (\[CIMM\] §4.3): the slots whose vehicle is on the
+/// circle (within [`ON_CIRCLE`] of R), in their order along the orbit, with their phases. A
+/// vehicle still on its way flies the law alone, at full speed: its phase error would only slow
+/// its approach (\[CIMM\] coordinates UAVs already on the limit cycle).
+#[derive(Debug)]
+struct Ring {
+    /// Slot indices in ring order.
+    slots: Vec<usize>,
+    /// Their phases (rad).
+    phases: Vec<f64>,
+}
+
+impl Ring {
+    fn of(
+        states: &[Option<(UavState, &VehicleSample)>],
+        target: &TargetEstimate,
+        plan: &Plan,
+    ) -> Self {
+        let mut ring: Vec<(usize, f64)> = states
+            .iter()
+            .enumerate()
+            .filter_map(|(i, s)| {
+                let (u, _) = s.as_ref()?;
+                let d = u.horizontal_position() - target.position.xy();
+                ((d.norm() - plan.radius).abs() <= ON_CIRCLE * plan.radius)
+                    .then(|| (i, d.y.atan2(d.x)))
+            })
+            .collect();
+        let sign = plan.orbit.sign();
+        ring.sort_by(|x, y| (sign * x.1).total_cmp(&(sign * y.1)));
+        Self {
+            slots: ring.iter().map(|r| r.0).collect(),
+            phases: ring.iter().map(|r| r.1).collect(),
+        }
+    }
+
+    /// The phase neighbours of slot `i` when it is on the ring, `spacing` apart when given (the
+    /// assignment's, once every vehicle is on the ring).
+    fn neighbours(&self, i: usize, spacing: Option<f64>) -> Option<PhaseNeighbours> {
+        let k = self.slots.iter().position(|&s| s == i)?;
+        PhaseNeighbours::ring(&self.phases, k).map(|mut nb| {
+            if let Some(s) = spacing {
+                nb.spacing = s;
+            }
+            nb
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn prediction_is_bounded() {
+        let track = TrackView {
+            id: 1,
+            status: harrier_engine::TrackStatus::Confirmed,
+            t: 100.0,
+            state: [0.0, 0.0, 0.0, 2.0, -1.0, 0.0],
+            cov: Vec::new(),
+            cov_dims: Vec::new(),
+            updated: true,
+            age: 3,
+            last_update: 100.0,
+            mode_probabilities: Vec::new(),
+        };
+        let e = predict(&track, 100.5);
+        assert_eq!(e.position, Vector3::new(1.0, -0.5, 0.0));
+        // Far ahead: at most MAX_PREDICTION_S; behind or non-finite: the estimate as is.
+        assert_eq!(predict(&track, 1e9).position.x, 2.0 * MAX_PREDICTION_S);
+        assert_eq!(predict(&track, 0.0).position.x, 0.0);
+        assert_eq!(predict(&track, f64::NAN).position.x, 0.0);
+    }
+}

@@ -1,0 +1,364 @@
+//! `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands`: the vehicles (their
+//! MAVLink link and their detections) and commands with their COMMAND_ACK result.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use axum::extract::State;
+use axum::http::StatusCode;
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use harrier_link::command::{arm, disarm, land, set_mode, takeoff};
+use harrier_link::mavlink::dialects::common::MavMessage;
+use harrier_link::px4::FlightMode;
+use serde::{Deserialize, Serialize};
+use utoipa::{OpenApi, ToSchema};
+
+use super::error::{ApiError, ErrorBody};
+use super::extract::{AppJson, AppPath};
+use super::state::{ApiState, Control, Recording, Service, Tracking};
+use crate::clock::unix_now;
+use crate::gcs::CommandOutcome;
+use crate::metrics::{DropReason, Metrics};
+use crate::wire::VehicleEntry;
+use harrier_recording::writer::Record;
+
+/// The routes of this file.
+pub(super) fn routes() -> Router<ApiState> {
+    Router::new()
+        .route("/vehicles", get(vehicles))
+        .route("/vehicles/{id}", get(vehicle))
+        .route("/vehicles/{id}/commands", post(command))
+}
+
+/// The OpenAPI paths of this file.
+#[derive(Debug, OpenApi)]
+#[openapi(paths(vehicles, vehicle, command))]
+pub(super) struct Doc;
+
+/// The vehicles.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct VehicleList {
+    /// By system id.
+    pub vehicles: Vec<VehicleEntry>,
+}
+
+/// Every vehicle, from both sources, by system id.
+pub(super) fn vehicle_entries(
+    control: &Control,
+    tracking: &Tracking,
+    metrics: &Metrics,
+) -> Vec<VehicleEntry> {
+    let mut out: BTreeMap<u8, VehicleEntry> = BTreeMap::new();
+    if let Some(link) = &control.link {
+        for v in link.vehicles.borrow().iter() {
+            let id = v.view.id;
+            out.entry(id).or_insert_with(|| VehicleEntry::new(id)).link = Some(v.view.clone());
+        }
+    }
+    let snap = Arc::clone(&tracking.snapshot.borrow());
+    for d in snap.vehicles.iter() {
+        // Scans are only taken from a key whose id is the payload's system id.
+        let Ok(id) = d.vehicle.parse::<u8>() else {
+            continue;
+        };
+        out.entry(id)
+            .or_insert_with(|| VehicleEntry::new(id))
+            .detections = Some(d.clone());
+    }
+    for (label, estimate) in metrics.clocks() {
+        let Ok(id) = label.parse::<u8>() else {
+            continue;
+        };
+        let e = out.entry(id).or_insert_with(|| VehicleEntry::new(id));
+        e.clock = Some(estimate);
+        e.clock_refused = metrics
+            .vehicle_counters(&label)
+            .dropped
+            .get(&DropReason::Clock)
+            .copied()
+            .unwrap_or(0);
+    }
+    out.into_values().collect()
+}
+
+/// The vehicles.
+#[utoipa::path(get, path = "/api/v1/vehicles", tag = "vehicles",
+    responses(
+        (status = 200, body = VehicleList),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn vehicles(
+    State(c): State<Control>,
+    State(t): State<Tracking>,
+    State(s): State<Service>,
+) -> Json<VehicleList> {
+    Json(VehicleList {
+        vehicles: vehicle_entries(&c, &t, &s.metrics),
+    })
+}
+
+/// One vehicle.
+#[utoipa::path(get, path = "/api/v1/vehicles/{id}", tag = "vehicles",
+    params(("id" = u8, Path, description = "MAVLink system id")),
+    responses(
+        (status = 200, body = VehicleEntry),
+        (status = 400, description = "Not a system id", body = ErrorBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+        (status = 404, description = "No such vehicle", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn vehicle(
+    State(c): State<Control>,
+    State(t): State<Tracking>,
+    State(s): State<Service>,
+    AppPath(id): AppPath<u8>,
+) -> Result<Json<VehicleEntry>, ApiError> {
+    vehicle_entries(&c, &t, &s.metrics)
+        .into_iter()
+        .find(|v| v.id == id)
+        .map(Json)
+        .ok_or_else(|| ApiError::not_found(format!("no vehicle {id}")))
+}
+
+/// A command to a vehicle.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CommandRequest {
+    /// `arm`, `disarm`, `takeoff`, `land`, `hold` or `set_mode`.
+    #[schema(pattern = "^(arm|disarm|takeoff|land|hold|set_mode)$")]
+    pub command: String,
+    /// `takeoff`: height above home (m); default: the vehicle's own takeoff altitude.
+    #[serde(default)]
+    pub altitude_m: Option<f64>,
+    /// `set_mode`: `hold`, `position`, `offboard`, `takeoff` or `land`.
+    #[serde(default)]
+    pub mode: Option<String>,
+    /// `disarm`: force it in flight.
+    #[serde(default)]
+    pub force: Option<bool>,
+}
+
+impl CommandRequest {
+    /// The COMMAND_LONG for vehicle `id` (`home`: its home altitude AMSL, when known), or an
+    /// error naming the bad field.
+    pub fn message(&self, id: u8, home: Option<f64>) -> Result<MavMessage, String> {
+        Ok(match self.command.as_str() {
+            "arm" => arm(id),
+            "disarm" => disarm(id, self.force.unwrap_or(false)),
+            "land" => land(id),
+            "hold" => set_mode(id, FlightMode::Hold),
+            "takeoff" => {
+                let amsl = match (self.altitude_m, home) {
+                    (None, _) => None,
+                    (Some(h), Some(home)) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
+                        Some((home + h) as f32)
+                    }
+                    (Some(h), None) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
+                        return Err(format!(
+                            "vehicle {id}: home altitude unknown yet (no GLOBAL_POSITION_INT); omit altitude_m"
+                        ));
+                    }
+                    (Some(h), _) => {
+                        return Err(format!("altitude_m must be in (0, 10000], got {h}"));
+                    }
+                };
+                takeoff(id, amsl)
+            }
+            "set_mode" => {
+                let mode = match self.mode.as_deref() {
+                    Some("hold") => FlightMode::Hold,
+                    Some("position") => FlightMode::Position,
+                    Some("offboard") => FlightMode::Offboard,
+                    Some("takeoff") => FlightMode::Takeoff,
+                    Some("land") => FlightMode::Land,
+                    m => {
+                        return Err(format!(
+                            "mode {m:?}: expected hold, position, offboard, takeoff or land"
+                        ));
+                    }
+                };
+                set_mode(id, mode)
+            }
+            c => {
+                return Err(format!(
+                    "command {c:?}: expected arm, disarm, takeoff, land, hold or set_mode"
+                ));
+            }
+        })
+    }
+}
+
+/// Sends a command and answers with the vehicle's COMMAND_ACK.
+#[utoipa::path(post, path = "/api/v1/vehicles/{id}/commands", tag = "vehicles",
+    params(("id" = u8, Path, description = "MAVLink system id")),
+    request_body = CommandRequest,
+    responses(
+        (status = 200, description = "The vehicle answered (`ok` false: it refused; `result` says why)", body = CommandOutcome),
+        (status = 400, description = "Malformed path or JSON", body = ErrorBody),
+        (status = 401, description = "Missing or wrong token", body = ErrorBody),
+        (status = 404, description = "No such vehicle", body = ErrorBody),
+        (status = 409, description = "The vehicle is lost, or the same command is waiting for its ACK", body = ErrorBody),
+        (status = 415, description = "Not JSON", body = ErrorBody),
+        (status = 422, description = "Unknown command or bad parameter", body = ErrorBody),
+        (status = 503, description = "No MAVLink link configured", body = ErrorBody),
+        (status = 504, description = "No acknowledgement after every attempt (`result` = `timeout`)", body = CommandOutcome),
+    ),
+    security(("bearer" = [])))]
+async fn command(
+    State(c): State<Control>,
+    State(r): State<Recording>,
+    AppPath(id): AppPath<u8>,
+    AppJson(req): AppJson<CommandRequest>,
+) -> Result<(StatusCode, Json<CommandOutcome>), ApiError> {
+    let link = c
+        .link
+        .as_ref()
+        .ok_or_else(|| ApiError::unavailable("no_link", "no MAVLink link: set mavlink.gcs"))?;
+    let home = link
+        .vehicles
+        .borrow()
+        .iter()
+        .find(|v| v.view.id == id)
+        .and_then(|v| v.home_amsl);
+    let message = req
+        .message(id, home)
+        .map_err(|message| ApiError::Unprocessable {
+            reason: "invalid",
+            message,
+        })?;
+    let outcome = link.command(id, message).await?;
+    if let Some(r) = &r.recorder {
+        r.record(Record::Vehicle {
+            time_unix: unix_now(),
+            vehicle: Some(id),
+            kind: "command",
+            json: serde_json::to_string(&outcome).unwrap_or_default(),
+        });
+    }
+    let status = if outcome.result == "timeout" {
+        StatusCode::GATEWAY_TIMEOUT
+    } else {
+        StatusCode::OK
+    };
+    Ok((status, Json(outcome)))
+}
+
+#[cfg(test)]
+mod tests {
+    use axum::http::{Method, StatusCode};
+
+    use super::super::testing::TestApp;
+    use crate::gcs::{CommandOutcome, Request};
+
+    #[tokio::test]
+    async fn a_vehicle_seen_in_its_detections_has_the_one_vehicle_shape() {
+        let app = TestApp::new();
+        assert_eq!(
+            app.get("/api/v1/vehicles").await.json()["vehicles"],
+            serde_json::json!([])
+        );
+        app.scan(2, 0.0, &[[100.0, 50.0]]).await;
+        let list = app.get("/api/v1/vehicles").await;
+        assert_eq!(list.status, StatusCode::OK);
+        let v = &list.json()["vehicles"][0];
+        assert_eq!((v["id"].as_u64(), v["link"].is_null()), (Some(2), true));
+        assert_eq!(v["detections"]["vehicle"], "2");
+        assert_eq!(v["detections"]["sensors"], serde_json::json!(["cam"]));
+        let one = app.get("/api/v1/vehicles/2").await;
+        assert_eq!(one.status, StatusCode::OK);
+        assert_eq!(&one.json(), v);
+    }
+
+    #[tokio::test]
+    async fn an_unknown_or_malformed_vehicle_is_refused() {
+        let app = TestApp::new();
+        let r = app.get("/api/v1/vehicles/9").await;
+        assert_eq!(r.status, StatusCode::NOT_FOUND);
+        assert_eq!(r.error(), "no vehicle 9");
+        let r = app.get("/api/v1/vehicles/300").await;
+        assert_eq!(r.status, StatusCode::BAD_REQUEST);
+        assert_eq!(r.error(), "Invalid URL: Cannot parse `300` to a `u8`");
+        assert_eq!(
+            (app.refused("not_found", 404), app.refused("path", 400)),
+            (1, 1)
+        );
+    }
+
+    #[tokio::test]
+    async fn a_command_is_answered_with_its_ack_or_504_after_the_attempts() {
+        let (app, mut link) = TestApp::new().with_link();
+        tokio::spawn(async move {
+            while let Some(Request::Command { vehicle, reply, .. }) = link.recv().await {
+                let result = if vehicle == 1 { "accepted" } else { "timeout" };
+                let _ = reply.send(Ok(CommandOutcome {
+                    vehicle,
+                    command: "MAV_CMD_COMPONENT_ARM_DISARM".into(),
+                    result: result.into(),
+                    ok: vehicle == 1,
+                    attempts: 3,
+                    elapsed_ms: 1.0,
+                }));
+            }
+        });
+        let arm = r#"{"command":"arm"}"#;
+        let r = app
+            .send(Method::POST, "/api/v1/vehicles/1/commands", arm)
+            .await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(
+            (r.json()["result"].as_str(), r.json()["ok"].as_bool()),
+            (Some("accepted"), Some(true))
+        );
+        let r = app
+            .send(Method::POST, "/api/v1/vehicles/4/commands", arm)
+            .await;
+        assert_eq!(r.status, StatusCode::GATEWAY_TIMEOUT);
+        assert_eq!(r.json()["result"], "timeout");
+        assert_eq!(app.refused_total(), 0);
+    }
+
+    #[tokio::test]
+    async fn a_command_without_link_out_of_range_or_to_a_stopped_link_is_refused() {
+        let app = TestApp::new();
+        let r = app
+            .send(
+                Method::POST,
+                "/api/v1/vehicles/1/commands",
+                r#"{"command":"arm"}"#,
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(r.error(), "no MAVLink link: set mavlink.gcs");
+        let (app, link) = TestApp::new().with_link();
+        let fly = r#"{"command":"takeoff","altitude_m":-3}"#;
+        let r = app
+            .send(Method::POST, "/api/v1/vehicles/1/commands", fly)
+            .await;
+        assert_eq!(r.status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert_eq!(r.error(), "altitude_m must be in (0, 10000], got -3");
+        assert_eq!(app.refused("invalid", 422), 1);
+        let r = app
+            .send(
+                Method::POST,
+                "/api/v1/vehicles/x/commands",
+                r#"{"command":"arm"}"#,
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::BAD_REQUEST);
+        assert_eq!(app.refused("path", 400), 1);
+        // The link's actor has stopped: 503, and counted (it was not before).
+        drop(link);
+        let r = app
+            .send(
+                Method::POST,
+                "/api/v1/vehicles/1/commands",
+                r#"{"command":"arm"}"#,
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(r.error(), "the MAVLink link is not running");
+        assert_eq!(app.refused("no_link", 503), 1);
+    }
+}

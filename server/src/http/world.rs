@@ -1,0 +1,132 @@
+//! `GET /truth`, `GET /world`: the simulator's latest truth and the configuration's roads and
+//! obstacles ([`crate::world`]), for the map.
+
+use axum::extract::State;
+use axum::routing::get;
+use axum::{Json, Router};
+use utoipa::OpenApi;
+
+use super::error::ErrorBody;
+use super::state::{ApiState, Tracking};
+use crate::world::{TruthBody, WorldBody};
+
+/// The routes of this file.
+pub(super) fn routes() -> Router<ApiState> {
+    Router::new()
+        .route("/truth", get(truth))
+        .route("/world", get(world))
+}
+
+/// The OpenAPI paths of this file.
+#[derive(Debug, OpenApi)]
+#[openapi(paths(truth, world))]
+pub(super) struct Doc;
+
+/// The latest simulation truth (`harrier/v1/sim/truth`), for drawing, with each live track's
+/// error and NEES against the nearest target.
+#[utoipa::path(get, path = "/api/v1/truth", tag = "tracks",
+    responses(
+        (status = 200, body = TruthBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn truth(State(s): State<Tracking>) -> Json<TruthBody> {
+    let truth = std::sync::Arc::clone(&s.truth.borrow());
+    let snap = std::sync::Arc::clone(&s.snapshot.borrow());
+    Json(truth.with_scores(&snap.tracks))
+}
+
+/// The static world: roads and obstacles of the configuration, for the map.
+#[utoipa::path(get, path = "/api/v1/world", tag = "tracks",
+    responses(
+        (status = 200, body = WorldBody),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn world(State(s): State<Tracking>) -> Json<WorldBody> {
+    Json(s.world.as_ref().clone())
+}
+
+#[cfg(test)]
+mod tests {
+    use std::sync::Arc;
+
+    use axum::http::StatusCode;
+
+    use super::super::testing::TestApp;
+    use crate::world::{ObstacleView, TruthBody, TruthTarget, WorldBody};
+
+    #[tokio::test]
+    async fn the_truth_and_the_world_are_served_as_they_are() {
+        let mut app = TestApp::new();
+        app.state.tracking.world = Arc::new(WorldBody {
+            roads: Vec::new(),
+            obstacles: vec![ObstacleView {
+                x_m: 10.0,
+                y_m: -5.0,
+                radius_m: 3.0,
+            }],
+        });
+        assert_eq!(
+            app.get("/api/v1/truth").await.json(),
+            serde_json::json!({"targets": [], "scores": []})
+        );
+        app.truth.send_replace(Arc::new(TruthBody {
+            targets: vec![TruthTarget {
+                id: "car-1".into(),
+                t: 12.5,
+                position: [1.0, 2.0, 0.0],
+                velocity: [3.0, 0.0, 0.0],
+            }],
+            scores: Vec::new(),
+        }));
+        let r = app.get("/api/v1/truth").await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(r.json()["targets"][0]["id"], "car-1");
+        assert_eq!(r.json()["scores"], serde_json::json!([]));
+        let r = app.get("/api/v1/world").await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(
+            r.json(),
+            serde_json::json!({"roads": [], "obstacles": [{"x_m": 10.0, "y_m": -5.0, "radius_m": 3.0}]})
+        );
+    }
+
+    #[tokio::test]
+    async fn a_track_near_a_target_is_scored_against_it() {
+        let app = TestApp::new();
+        let id = app.confirmed_track().await;
+        let t = app.state.tracking.snapshot.borrow().t.expect("a scan");
+        // Two targets: the track (at about (100, 50)) is scored against the nearer one, moved
+        // on to the track's time.
+        let target = |id: &str, x: f64| TruthTarget {
+            id: id.into(),
+            t: t - 1.0,
+            position: [x - 3.0, 50.0, 0.0],
+            velocity: [3.0, 0.0, 0.0],
+        };
+        app.truth.send_replace(Arc::new(TruthBody {
+            targets: vec![target("far", 160.0), target("near", 103.0)],
+            scores: Vec::new(),
+        }));
+        let body = app.get("/api/v1/truth").await.json();
+        let s = &body["scores"][0];
+        assert_eq!(
+            (&s["track"], &s["target"], &s["dof"]),
+            (&id.into(), &"near".into(), &2.into())
+        );
+        let error = s["error_m"].as_f64().expect("an error");
+        assert!((1.0..5.0).contains(&error), "{s}");
+        assert!(s["nees"].as_f64().is_some_and(|n| n > 0.0), "{s}");
+    }
+
+    #[tokio::test]
+    async fn the_world_needs_the_token_when_reads_do() {
+        let app = TestApp::new().reads_need_token();
+        for uri in ["/api/v1/truth", "/api/v1/world"] {
+            assert_eq!(app.get(uri).await.status, StatusCode::UNAUTHORIZED);
+            assert_eq!(app.get_with_token(uri).await.status, StatusCode::OK);
+        }
+        assert_eq!(app.refused("auth_missing", 401), 2);
+    }
+}

@@ -1,0 +1,629 @@
+//! The tracker actor: owns the `Box<dyn TrackEngine>` and feeds it scans in time order.
+//!
+//! Scans wait in a short reorder buffer until no older scan can still come: a scan is processed
+//! once every active source (vehicle and sensor) has delivered a scan at least as new — a source
+//! is active while its newest scan is within `reorder_window_s` (scan time) of the newest scan of
+//! all — or once a scan `reorder_window_s` newer has arrived, or when nothing has arrived for that
+//! long in wall time (at least 20 ms). So a scan waits for the slowest active source, never longer
+//! than the window; a lone source is not delayed at all. A scan older than the last processed one
+//! is late: counted and dropped (the first scan of a new source can be). After each scan the actor publishes the engine's snapshot on a `watch` channel (the
+//! latest state, never blocking) and the scan's track events on a bounded `broadcast` channel (a
+//! slow subscriber loses events, tracking never waits for it).
+
+use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::time::Duration;
+
+use harrier_core::detection::GeoPoint;
+use harrier_core::measurement::MeasKind;
+use harrier_core::tracker::TrackEvent;
+use serde::Serialize;
+use tokio::sync::{broadcast, mpsc, oneshot, watch};
+
+use super::bound::{BoundConfig, BoundView, Bounds};
+use super::ingest::ReadyScan;
+use super::metrics::{DropReason, Metrics};
+use harrier_engine::{Deployment, Params, TrackEngine, TrackStatus, TrackView};
+
+/// Scans kept for `GET /api/v1/detections`.
+pub const RECENT_SCANS: usize = 512;
+/// Positions kept per track for its history.
+pub const HISTORY_LEN: usize = 200;
+
+/// The track filter the tracker runs, and its parameters. On the wire it keeps the name
+/// "estimator": `GET`/`PUT /api/v1/estimator` read and select the track filter.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, utoipa::ToSchema)]
+#[schema(as = EstimatorState)]
+pub struct TrackFilterState {
+    /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
+    pub name: String,
+    /// Parameters given (the others have their defaults).
+    pub params: BTreeMap<String, f64>,
+}
+
+/// A vehicle as seen in its detections.
+#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
+pub struct VehicleView {
+    /// Vehicle label (MAVLink system id).
+    pub vehicle: String,
+    /// Time of its last processed scan (the tracker's time line).
+    pub last_t: f64,
+    /// Scans of it processed.
+    pub scans: u64,
+    /// Its sensors seen so far.
+    pub sensors: Vec<String>,
+    /// Platform position at its last scan (ENU, m, in the server's frame).
+    pub position: [f64; 3],
+    /// Platform position at its last scan (WGS-84: `lat_deg`, `lon_deg`, `alt_m`).
+    #[schema(value_type = Object)]
+    pub geodetic: GeoPoint,
+}
+
+/// The engine's state after a scan.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Snapshot {
+    /// Time of the last processed scan.
+    pub t: Option<f64>,
+    /// Scans processed so far (the `seq` of the last [`ScanEvents`]).
+    pub seq: u64,
+    /// Every live track, in id order.
+    pub tracks: Arc<Vec<TrackView>>,
+    /// Every vehicle seen, by label.
+    pub vehicles: Arc<Vec<VehicleView>>,
+    /// The estimator running.
+    pub estimator: Arc<TrackFilterState>,
+}
+
+/// One processed scan: what it held and what it did to the tracks.
+#[derive(Debug)]
+pub struct ScanEvents {
+    /// Processed-scan counter, from 1 (a subscriber that sees a gap lost messages).
+    pub seq: u64,
+    /// Scan time.
+    pub t: f64,
+    /// The vehicle label of the scan.
+    pub vehicle: String,
+    /// Sensor id on the vehicle.
+    pub sensor: String,
+    /// Measurement kind.
+    pub kind: MeasKind,
+    /// Sensor (platform) position, ENU.
+    pub platform: [f64; 3],
+    /// The detections, in the server's frame (FORMAT.md §3 layout of `kind`).
+    pub detections: Vec<Vec<f64>>,
+    /// What happened.
+    pub events: Vec<TrackEvent>,
+    /// Every live track after the scan.
+    pub tracks: Arc<Vec<TrackView>>,
+    /// The WebSocket message, serialised once for every client (`crate::wire::scan_json`).
+    json: OnceLock<String>,
+}
+
+impl ScanEvents {
+    /// The tracks this scan started, confirmed or updated, after the scan.
+    pub fn changed_tracks(&self) -> impl Iterator<Item = &TrackView> {
+        self.tracks
+            .iter()
+            .filter(|k| self.events.iter().any(|e| changes(e, k.id)))
+    }
+
+    /// Where `crate::wire::scan_json` keeps this scan's serialised WebSocket message.
+    pub fn wire_cache(&self) -> &OnceLock<String> {
+        &self.json
+    }
+}
+
+/// Whether `e` changed track `id`'s estimate or status (born, confirmed, updated).
+pub fn changes(e: &TrackEvent, id: u64) -> bool {
+    matches!(e,
+        TrackEvent::Born { id: k, .. }
+        | TrackEvent::Confirmed { id: k }
+        | TrackEvent::Updated { id: k, .. } if *k == id)
+}
+
+/// What the API asks of the tracker.
+#[derive(Debug)]
+pub enum Command {
+    /// Change the estimator; live tracks are handed over (ids kept).
+    SetEstimator {
+        /// The new estimator.
+        to: TrackFilterState,
+        /// The result: the estimator now running, or why the change was refused.
+        reply: oneshot::Sender<Result<TrackFilterState, SetError>>,
+    },
+}
+
+/// Why a change of estimator was refused (nothing changed).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SetError {
+    /// Unknown estimator or parameter, or a parameter out of range.
+    #[error("{0}")]
+    Invalid(String),
+    /// The live tracks cannot be handed over to the new estimator.
+    #[error("{0}")]
+    Handover(String),
+}
+
+/// Shared read access to the recent scans and track histories.
+#[derive(Debug, Default)]
+pub struct Recent {
+    scans: Mutex<VecDeque<Arc<ScanEvents>>>,
+    history: Mutex<HashMap<u64, VecDeque<[f64; 4]>>>,
+    bounds: Mutex<HashMap<u64, BoundView>>,
+}
+
+impl Recent {
+    /// The scans processed after `seq` (at most [`RECENT_SCANS`]), oldest first.
+    pub fn scans_after(&self, seq: u64) -> Vec<Arc<ScanEvents>> {
+        let q = self.scans.lock().unwrap_or_else(PoisonError::into_inner);
+        q.iter().filter(|s| s.seq > seq).cloned().collect()
+    }
+    /// Track `id`'s set-membership bound, when bounds run and it has one.
+    pub fn bound(&self, id: u64) -> Option<BoundView> {
+        let b = self.bounds.lock().unwrap_or_else(PoisonError::into_inner);
+        b.get(&id).cloned()
+    }
+    /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
+    pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
+        let h = self.history.lock().unwrap_or_else(PoisonError::into_inner);
+        h.get(&id)
+            .map(|q| q.iter().copied().collect())
+            .unwrap_or_default()
+    }
+}
+
+/// The tracker actor.
+#[derive(Debug)]
+pub struct TrackerActor {
+    engine: Box<dyn TrackEngine>,
+    deployment: Deployment,
+    estimator: Arc<TrackFilterState>,
+    window: f64,
+    metrics: Arc<Metrics>,
+    pending: Vec<ReadyScan>,
+    /// Newest scan time of each source (`vehicle/sensor`).
+    sources: HashMap<String, f64>,
+    seq: u64,
+    vehicles: BTreeMap<String, VehicleView>,
+    recent: Arc<Recent>,
+    snapshot: watch::Sender<Arc<Snapshot>>,
+    events: broadcast::Sender<Arc<ScanEvents>>,
+    /// Called with every processed scan (the recorder, the Zenoh publisher): must not block.
+    sinks: Sinks,
+    /// The set-membership bounds, when they run.
+    bounds: Option<Bounds>,
+}
+
+/// A consumer of every processed scan.
+pub type Sink = Box<dyn Fn(&Arc<ScanEvents>) + Send>;
+
+/// The consumers of every processed scan.
+#[derive(Default)]
+struct Sinks(Vec<Sink>);
+
+impl std::fmt::Debug for Sinks {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} sinks", self.0.len())
+    }
+}
+
+impl TrackerActor {
+    /// An actor over `engine` (built as `estimator` for `deployment`) holding scans `window`
+    /// seconds of scan time.
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(
+        engine: Box<dyn TrackEngine>,
+        deployment: Deployment,
+        estimator: TrackFilterState,
+        window: f64,
+        metrics: Arc<Metrics>,
+        recent: Arc<Recent>,
+        snapshot: watch::Sender<Arc<Snapshot>>,
+        events: broadcast::Sender<Arc<ScanEvents>>,
+    ) -> Self {
+        let estimator = Arc::new(estimator);
+        snapshot.send_modify(|s| {
+            *s = Arc::new(Snapshot {
+                estimator: Arc::clone(&estimator),
+                ..Snapshot::default()
+            });
+        });
+        Self {
+            engine,
+            deployment,
+            estimator,
+            window,
+            metrics,
+            pending: Vec::new(),
+            sources: HashMap::new(),
+            seq: 0,
+            vehicles: BTreeMap::new(),
+            recent,
+            snapshot,
+            events,
+            sinks: Sinks::default(),
+            bounds: None,
+        }
+    }
+
+    /// Runs a set-membership bound beside every track ([`super::bound`]).
+    pub fn with_bounds(mut self, config: BoundConfig) -> Self {
+        self.bounds = config.enabled.then(|| Bounds::new(config));
+        self
+    }
+
+    /// Adds a consumer of every processed scan; it runs on the tracker's task, so it must only
+    /// hand the scan on (`try_send`).
+    pub fn add_sink(&mut self, sink: Sink) {
+        self.sinks.0.push(sink);
+    }
+
+    /// Takes one scan into the reorder buffer, then processes what the window releases.
+    pub fn push(&mut self, s: ReadyScan) {
+        if self.engine.time().is_some_and(|last| s.scan.t < last) {
+            self.metrics.dropped(&s.vehicle, DropReason::Late);
+            tracing::debug!(vehicle = s.vehicle, t = s.scan.t, "late scan dropped");
+            return;
+        }
+        let source = format!("{}/{}", s.vehicle, s.sensor);
+        let t = s.scan.t;
+        let newest_of_source = self.sources.entry(source).or_insert(t);
+        *newest_of_source = newest_of_source.max(t);
+        let newest = self.sources.values().copied().fold(t, f64::max);
+        let floor = newest - self.window;
+        // Sources silent for longer than the window are forgotten: they no longer hold scans back.
+        self.sources.retain(|_, &mut last| last >= floor);
+        let all_caught_up = self.sources.values().copied().fold(newest, f64::min);
+        self.pending.push(s);
+        self.release(all_caught_up.max(floor));
+    }
+
+    /// Processes every buffered scan with time ≤ `until`, oldest first (equal times by vehicle
+    /// and sensor).
+    pub fn release(&mut self, until: f64) {
+        self.pending.sort_by(|a, b| {
+            a.scan
+                .t
+                .total_cmp(&b.scan.t)
+                .then_with(|| a.vehicle.cmp(&b.vehicle))
+                .then_with(|| a.sensor.cmp(&b.sensor))
+        });
+        let n = self.pending.partition_point(|p| p.scan.t <= until);
+        let ready: Vec<ReadyScan> = self.pending.drain(..n).collect();
+        for s in ready {
+            self.process(s);
+        }
+    }
+
+    fn process(&mut self, s: ReadyScan) {
+        let events = match self.engine.ingest(&s.scan) {
+            Ok(events) => events,
+            Err(e) => {
+                self.metrics.dropped(&s.vehicle, DropReason::Rejected);
+                tracing::warn!(vehicle = s.vehicle, t = s.scan.t, "scan rejected: {e}");
+                return;
+            }
+        };
+        let tracks = Arc::new(self.engine.snapshot());
+        self.metrics.latency(s.received.elapsed().as_secs_f64());
+        let confirmed = tracks
+            .iter()
+            .filter(|k| k.status == TrackStatus::Confirmed)
+            .count();
+        self.metrics.ingested(
+            &s.vehicle,
+            s.scan.detections.len(),
+            s.scan.t,
+            confirmed,
+            tracks.len(),
+        );
+        self.seq += 1;
+        let v = self
+            .vehicles
+            .entry(s.vehicle.clone())
+            .or_insert_with(|| VehicleView {
+                vehicle: s.vehicle.clone(),
+                last_t: s.scan.t,
+                scans: 0,
+                sensors: Vec::new(),
+                position: s.platform,
+                geodetic: s.geodetic,
+            });
+        v.last_t = s.scan.t;
+        v.scans += 1;
+        v.position = s.platform;
+        v.geodetic = s.geodetic;
+        if !v.sensors.contains(&s.sensor) {
+            v.sensors.push(s.sensor.clone());
+            v.sensors.sort();
+        }
+        self.remember(&events, &tracks);
+        if let Some(b) = &mut self.bounds {
+            let kind = s.scan.sensor.kind();
+            let changed = b.on_scan(s.scan.t, kind, &s.noise_std, &s.scan.detections, &events);
+            self.metrics.bound_resets(b.resets());
+            let mut views = self
+                .recent
+                .bounds
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            for e in &events {
+                if let TrackEvent::Deleted { id, .. } = e {
+                    views.remove(id);
+                }
+            }
+            for id in changed {
+                if let Some(v) = b.view(id) {
+                    views.insert(id, v);
+                }
+            }
+        }
+        let scan = Arc::new(ScanEvents {
+            seq: self.seq,
+            t: s.scan.t,
+            kind: s.scan.sensor.kind(),
+            vehicle: s.vehicle,
+            sensor: s.sensor,
+            platform: s.platform,
+            detections: s.scan.detections,
+            events,
+            tracks: Arc::clone(&tracks),
+            json: OnceLock::new(),
+        });
+        self.publish(Some(s.scan.t), tracks);
+        {
+            let mut q = self
+                .recent
+                .scans
+                .lock()
+                .unwrap_or_else(PoisonError::into_inner);
+            if q.len() >= RECENT_SCANS {
+                q.pop_front();
+            }
+            q.push_back(Arc::clone(&scan));
+        }
+        for sink in &self.sinks.0 {
+            sink(&scan);
+        }
+        // No subscriber is not an error.
+        let _ = self.events.send(scan);
+    }
+
+    /// Appends updated tracks to their histories, forgets deleted ones.
+    fn remember(&self, events: &[TrackEvent], tracks: &[TrackView]) {
+        let mut h = self
+            .recent
+            .history
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        for e in events {
+            match e {
+                TrackEvent::Updated { id, .. } | TrackEvent::Born { id, .. } => {
+                    if let Some(k) = tracks.iter().find(|k| k.id == *id) {
+                        let q = h.entry(*id).or_default();
+                        if q.len() >= HISTORY_LEN {
+                            q.pop_front();
+                        }
+                        q.push_back([k.t, k.state[0], k.state[1], k.state[2]]);
+                    }
+                }
+                TrackEvent::Deleted { id, .. } => {
+                    h.remove(id);
+                }
+                _ => {}
+            }
+        }
+    }
+
+    fn publish(&self, t: Option<f64>, tracks: Arc<Vec<TrackView>>) {
+        self.snapshot.send_replace(Arc::new(Snapshot {
+            t,
+            seq: self.seq,
+            tracks,
+            vehicles: Arc::new(self.vehicles.values().cloned().collect()),
+            estimator: Arc::clone(&self.estimator),
+        }));
+    }
+
+    /// Builds `to` for the deployment and hands the live tracks over to it.
+    fn set_estimator(&mut self, to: TrackFilterState) -> Result<TrackFilterState, SetError> {
+        let params = Params::from(&to.params);
+        let mut engine =
+            harrier_engine::registry::build_track_filter(&to.name, &self.deployment, &params)
+                .map_err(|e| SetError::Invalid(e.to_string()))?;
+        engine.adopt(&self.engine.handover()).map_err(|e| {
+            SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
+        })?;
+        tracing::info!(
+            from = self.estimator.name,
+            to = to.name,
+            "estimator changed"
+        );
+        self.engine = engine;
+        self.estimator = Arc::new(to.clone());
+        let t = self.engine.time();
+        self.publish(t, Arc::new(self.engine.snapshot()));
+        Ok(to)
+    }
+
+    fn command(&mut self, c: Command) {
+        match c {
+            Command::SetEstimator { to, reply } => {
+                // Scans already received are processed by the engine they arrived under.
+                self.release(f64::INFINITY);
+                let _ = reply.send(self.set_estimator(to));
+            }
+        }
+    }
+
+    /// Runs until the scan queue closes, then processes what is left.
+    pub async fn run(
+        mut self,
+        mut rx: mpsc::Receiver<ReadyScan>,
+        mut commands: mpsc::Receiver<Command>,
+    ) {
+        let idle = Duration::from_secs_f64(self.window).max(Duration::from_millis(20));
+        loop {
+            tokio::select! {
+                biased;
+                Some(c) = commands.recv() => self.command(c),
+                r = tokio::time::timeout(idle, rx.recv()) => match r {
+                    Ok(Some(s)) => self.push(s),
+                    Ok(None) => break,
+                    Err(_) => self.release(f64::INFINITY),
+                },
+            }
+        }
+        self.release(f64::INFINITY);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::{Config, DEFAULT_ORIGIN};
+    use harrier_core::measurement::{Geometry, SensorModel};
+    use harrier_engine::SensorScan;
+    use nalgebra::Vector3;
+
+    fn scan(t: f64, vehicle: &str) -> ReadyScan {
+        let sensor = SensorModel::new(
+            MeasKind::Position,
+            Geometry::planar(0.0),
+            Vector3::zeros(),
+            &[10.0, 10.0],
+            None,
+        )
+        .expect("model");
+        ReadyScan {
+            vehicle: vehicle.into(),
+            sensor: "cam".into(),
+            scan: SensorScan {
+                t,
+                sensor,
+                detections: vec![vec![100.0 + t, 50.0]],
+            },
+            platform: [0.0; 3],
+            geodetic: DEFAULT_ORIGIN,
+            received: std::time::Instant::now(),
+            noise_std: vec![10.0, 10.0],
+        }
+    }
+
+    type Parts = (
+        TrackerActor,
+        Arc<Metrics>,
+        watch::Receiver<Arc<Snapshot>>,
+        broadcast::Receiver<Arc<ScanEvents>>,
+    );
+
+    fn actor(window: f64) -> Parts {
+        let c = Config::default();
+        let deployment = c.deployment();
+        let engine = harrier_engine::registry::build_track_filter("ekf", &deployment, &c.params())
+            .expect("engine");
+        let metrics = Arc::new(Metrics::default());
+        let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
+        let (ev_tx, ev_rx) = broadcast::channel(16);
+        let a = TrackerActor::new(
+            engine,
+            deployment,
+            TrackFilterState {
+                name: "ekf".into(),
+                params: BTreeMap::new(),
+            },
+            window,
+            Arc::clone(&metrics),
+            Arc::new(Recent::default()),
+            snap_tx,
+            ev_tx,
+        );
+        (a, metrics, snap_rx, ev_rx)
+    }
+
+    #[test]
+    fn scans_are_reordered_within_the_window_and_late_ones_dropped() {
+        let (mut a, metrics, snap_rx, mut ev_rx) = actor(2.0);
+        a.push(scan(0.0, "1")); // a lone source: processed at once
+        assert_eq!(snap_rx.borrow().t, Some(0.0));
+        a.push(scan(0.0, "2")); // a second source, same time: in order
+        assert_eq!(snap_rx.borrow().seq, 2);
+        a.push(scan(1.0, "1")); // waits for source 2 …
+        assert_eq!(snap_rx.borrow().t, Some(0.0));
+        a.push(scan(0.8, "2")); // … which is behind: 0.8 first, 1.0 still waits
+        assert_eq!(snap_rx.borrow().t, Some(0.8));
+        a.push(scan(1.1, "2")); // source 2 caught up: 1.0 goes
+        assert_eq!(snap_rx.borrow().t, Some(1.0));
+        let seqs: Vec<_> = std::iter::from_fn(|| ev_rx.try_recv().ok())
+            .map(|e| (e.seq, e.t))
+            .collect();
+        assert_eq!(seqs, [(1, 0.0), (2, 0.0), (3, 0.8), (4, 1.0)]);
+        a.push(scan(2.0, "1")); // 1.1 goes, 2.0 waits for source 2
+        assert_eq!(snap_rx.borrow().t, Some(1.1));
+        a.push(scan(3.5, "1")); // source 2 silent for > 2 s: forgotten, nothing waits for it
+        assert_eq!(snap_rx.borrow().t, Some(3.5));
+        a.push(scan(3.0, "2")); // older than the last processed: late
+        assert_eq!(
+            metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
+            Some(&1)
+        );
+        a.release(f64::INFINITY);
+        assert_eq!(snap_rx.borrow().seq, 7);
+        assert_eq!(metrics.scans_ingested(), 7);
+        assert!(!snap_rx.borrow().tracks.is_empty());
+        let vehicles: Vec<_> = snap_rx
+            .borrow()
+            .vehicles
+            .iter()
+            .map(|v| (v.vehicle.clone(), v.scans))
+            .collect();
+        assert_eq!(vehicles, [("1".to_string(), 4), ("2".to_string(), 3)]);
+        assert_eq!(a.recent.scans_after(4).len(), 3);
+        let first = crate::wire::scan_json(&a.recent.scans_after(0)[0]).to_owned();
+        assert!(first.contains(r#""type":"scan""#), "{first}");
+    }
+
+    #[test]
+    fn a_change_of_estimator_keeps_the_tracks() {
+        let (mut a, _, snap_rx, _) = actor(0.0);
+        for k in 0..4 {
+            a.push(scan(f64::from(k), "1"));
+        }
+        a.release(f64::INFINITY);
+        let before = snap_rx.borrow().tracks.clone();
+        assert_eq!(before.len(), 1);
+        let bad = a.set_estimator(TrackFilterState {
+            name: "nonesuch".into(),
+            params: BTreeMap::new(),
+        });
+        assert!(
+            matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")),
+            "{bad:?}"
+        );
+        let bad = a.set_estimator(TrackFilterState {
+            name: "cdkf".into(),
+            params: BTreeMap::from([("m".to_string(), 0.5)]),
+        });
+        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
+        assert_eq!(snap_rx.borrow().estimator.name, "ekf");
+        let now = a
+            .set_estimator(TrackFilterState {
+                name: "cdkf".into(),
+                params: BTreeMap::new(),
+            })
+            .expect("cdkf");
+        assert_eq!(now.name, "cdkf");
+        let after = snap_rx.borrow().tracks.clone();
+        assert_eq!(snap_rx.borrow().estimator.name, "cdkf");
+        assert_eq!(after.len(), 1);
+        assert_eq!(
+            (after[0].id, after[0].status),
+            (before[0].id, before[0].status)
+        );
+        assert_eq!(after[0].state, before[0].state);
+        a.push(scan(4.0, "1"));
+        a.release(f64::INFINITY);
+        let k = &snap_rx.borrow().tracks[0];
+        assert_eq!((k.id, k.updated), (before[0].id, true));
+    }
+}

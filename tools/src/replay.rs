@@ -1,0 +1,229 @@
+//! `harrier replay`: runs a named estimator over a `gcs-scenario/1` directory, writes
+//! `estimates.jsonl` (atomically: nothing is written when the run fails) and scores the result
+//! against `truth.csv` when it is there.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use harrier_core::metrics::{self, Score};
+use harrier_core::scenario::{Estimate, FormatError, ScenarioData, ScenarioFile};
+
+use harrier_engine::registry;
+use harrier_engine::{EngineError, Params, Step};
+
+/// Why a replay failed. Every variant is the user's input being wrong (exit code 2) except `Io`
+/// on the output side.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// A scenario file could not be read.
+    #[error("{path}: {source}")]
+    Read {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+    /// A scenario file is malformed or inconsistent.
+    #[error("{path}{}: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    Format {
+        /// File.
+        path: PathBuf,
+        /// 1-based line.
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+    /// The estimator cannot run on this scenario (or a parameter is wrong).
+    #[error("{0}")]
+    Setup(String),
+    /// The output could not be written.
+    #[error("writing {path}: {source}")]
+    Write {
+        /// File.
+        path: PathBuf,
+        /// Cause.
+        source: std::io::Error,
+    },
+}
+
+impl ReplayError {
+    /// Process exit code: 2 for bad input, 1 for output failures.
+    pub fn exit_code(&self) -> u8 {
+        match self {
+            Self::Write { .. } => 1,
+            _ => 2,
+        }
+    }
+}
+
+/// Loads a scenario directory; errors name the file and line.
+pub fn load(dir: &Path) -> Result<ScenarioData, ReplayError> {
+    let read = |f: ScenarioFile| {
+        let path = dir.join(f.file_name());
+        std::fs::read_to_string(&path).map_err(|source| ReplayError::Read { path, source })
+    };
+    let sc = read(ScenarioFile::Scenario)?;
+    let meas = read(ScenarioFile::Measurements)?;
+    let truth_path = dir.join(ScenarioFile::Truth.file_name());
+    let truth = truth_path
+        .exists()
+        .then(|| read(ScenarioFile::Truth))
+        .transpose()?;
+    ScenarioData::parse(&sc, &meas, truth.as_deref()).map_err(|e: FormatError| {
+        ReplayError::Format {
+            path: dir.join(e.file.file_name()),
+            line: e.line,
+            message: e.message,
+        }
+    })
+}
+
+/// What a replay did.
+#[derive(Debug, Clone)]
+pub struct ReplayReport {
+    /// Estimate lines, one per processed measurement time.
+    pub estimates: Vec<Estimate>,
+    /// Measurements read.
+    pub measurements: usize,
+    /// Measurements skipped because a component was NaN/null/inf.
+    pub skipped_nonfinite: usize,
+    /// Measurement times whose update failed numerically (state kept, see the log).
+    pub rejected: Vec<(f64, String)>,
+    /// Score against `truth.csv`, when present.
+    pub score: Option<Score>,
+    /// Wall time of the estimation loop.
+    pub elapsed: Duration,
+}
+
+/// Runs `estimator` over the scenario `data`.
+pub fn run(
+    data: &ScenarioData,
+    estimator: &str,
+    params: &Params,
+) -> Result<ReplayReport, ReplayError> {
+    let sc = &data.scenario;
+    let mut est =
+        registry::build(estimator, sc, params).map_err(|e| ReplayError::Setup(e.to_string()))?;
+    // Measurement times per sensor, for Step::next_time.
+    let mut times: HashMap<&str, Vec<f64>> = HashMap::new();
+    for m in data.measurements.iter().filter(|m| m.is_finite()) {
+        times.entry(m.sensor.as_str()).or_default().push(m.t);
+    }
+    let skipped = data.measurements.iter().filter(|m| !m.is_finite()).count();
+    let mut estimates = Vec::new();
+    let mut rejected = Vec::new();
+    let start = Instant::now();
+    for (t, group) in data.groups() {
+        let finite: Vec<_> = group.into_iter().filter(|m| m.is_finite()).collect();
+        if finite.is_empty() {
+            continue;
+        }
+        let next_time = |sensor: &str| {
+            let v = times.get(sensor)?;
+            v.get(v.partition_point(|x| *x <= t + 1e-9)).copied()
+        };
+        let step = Step {
+            t,
+            measurements: &finite,
+            next_time: &next_time,
+        };
+        match est.step(&step) {
+            Ok(Some(e)) => estimates.push(e),
+            Ok(None) => {}
+            Err(EngineError::Estimation(e)) => rejected.push((t, e.to_string())),
+            Err(e @ EngineError::Setup(_)) => return Err(ReplayError::Setup(e.to_string())),
+        }
+    }
+    let elapsed = start.elapsed();
+    let score = data
+        .truth
+        .as_ref()
+        .map(|truth| metrics::score(sc, &data.measurements, truth, &estimates, sc.target.size_m));
+    Ok(ReplayReport {
+        estimates,
+        measurements: data.measurements.len(),
+        skipped_nonfinite: skipped,
+        rejected,
+        score,
+        elapsed,
+    })
+}
+
+/// Writes estimate lines to `path` through a temporary file in the same directory, so a failed
+/// run never leaves a partial file.
+pub fn write_estimates(path: &Path, estimates: &[Estimate]) -> Result<(), ReplayError> {
+    let werr = |source| ReplayError::Write {
+        path: path.to_path_buf(),
+        source,
+    };
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let file_name = path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let tmp = dir.join(format!(".{file_name}.tmp"));
+    let result = (|| {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(&tmp)?);
+        for e in estimates {
+            serde_json::to_writer(&mut w, e)?;
+            w.write_all(b"\n")?;
+        }
+        w.into_inner()
+            .map_err(std::io::IntoInnerError::into_error)?
+            .sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(werr)
+}
+
+/// Human-readable summary of a score, in the spirit of `score.py`'s.
+pub fn summary_lines(score: &Score) -> Vec<String> {
+    let f = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+    let mut out = Vec::new();
+    if score.pos_rmse.is_some() {
+        out.push(format!(
+            "pos RMSE {} m, vel RMSE {} m/s, max pos err {} m ({} scored)",
+            f(score.pos_rmse),
+            f(score.vel_rmse),
+            f(score.pos_max),
+            score.scored
+        ));
+    }
+    if score.pos_rmse_by_mode.len() > 1 {
+        let by: Vec<_> = score
+            .pos_rmse_by_mode
+            .iter()
+            .map(|(k, v)| format!("{k} {v:.4}"))
+            .collect();
+        out.push(format!("pos RMSE by mode: {}", by.join(", ")));
+    }
+    for (name, n) in [("nees", &score.nees), ("nees_pos", &score.nees_pos)] {
+        if let Some(n) = n {
+            out.push(format!(
+                "{name}: mean {:.4} (dof {}, per-dof {:.4}), within chi2 95%: {:.3}",
+                n.mean, n.dof, n.mean_per_dof, n.frac_within_95
+            ));
+        }
+    }
+    if let Some(e) = &score.ellipsoid {
+        out.push(format!(
+            "ellipsoid dims {:?}: containment {:.4} ({} violations), mean volume {:.4}",
+            e.dims, e.containment, e.violations, e.mean_volume
+        ));
+    }
+    for (kind, p) in &score.prediction {
+        out.push(format!(
+            "one-step prediction ({kind}): max|err| vs truth {:?}, RMS {:?}",
+            p.max_abs_vs_truth, p.rms_vs_truth
+        ));
+    }
+    out
+}
