@@ -19,31 +19,15 @@
 //!
 //! [`replay`] and [`track`] are leaves: drivers depend on them and never on the registry.
 
+mod error;
 pub mod estimators;
 pub mod registry;
 pub mod replay;
 pub mod track;
 
-use harrier_core::EstimationError;
-
+pub use error::{EngineError, setup};
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
     Deployment, Handover, SensorScan, TrackEngine, TrackFilterBuildFn, TrackFilterInfo,
     TrackStatus, TrackView,
 };
-
-/// Why an estimator could not be built or could not process a time step.
-#[derive(Debug, thiserror::Error)]
-pub enum EngineError {
-    /// The scenario lacks something the estimator needs, or a parameter is wrong.
-    #[error("{0}")]
-    Setup(String),
-    /// A numeric failure on this step's data; the estimator's state is unchanged.
-    #[error(transparent)]
-    Estimation(#[from] EstimationError),
-}
-
-/// Shorthand for a setup error.
-pub fn setup(msg: impl Into<String>) -> EngineError {
-    EngineError::Setup(msg.into())
-}

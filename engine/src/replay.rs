@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 
 use harrier_core::scenario::{Estimate, Measurement, Scenario};
 
-use super::{EngineError, setup};
+use crate::error::{EngineError, setup};
 
 /// One time step of a replay: every finite measurement with time `t`.
 pub struct Step<'a> {

@@ -4,7 +4,8 @@
 
 use harrier_core::scenario::{Motion, Road, Scenario};
 
-use super::{EngineError, Params};
+use crate::error::EngineError;
+use crate::replay::Params;
 
 /// The setting a track engine is built for, and everything a track engine reads of it: where
 /// the targets move, how, and how often scans come. The live service makes it from its

@@ -13,12 +13,12 @@ use harrier_link::geo::LocalFrame;
 use tokio::sync::{mpsc, watch};
 use zenoh::pubsub::{Publisher, Subscriber};
 
-use super::LiveError;
 use super::clock::{self, ClockConfig};
 use super::config::Config;
 use super::ingest::Payload;
 use super::metrics::{DropReason, Metrics};
 use super::world::TruthBody;
+use crate::error::LiveError;
 use harrier_recording::writer::{Record, Recorder};
 
 /// The session and its subscriptions.

@@ -8,12 +8,12 @@ use std::sync::Arc;
 use tokio::sync::watch;
 use tokio::task::JoinHandle;
 
-use super::LiveError;
 use super::clock;
 use super::config::Config;
 use super::gcs::{self, GcsLink};
 use super::guidance::{self, Guidance};
 use super::tracker::Snapshot;
+use crate::error::LiveError;
 use harrier_recording::writer::{Record, Recorder};
 
 /// The running link and guidance, and their tasks.

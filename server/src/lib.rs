@@ -48,6 +48,7 @@ mod bus;
 pub mod clock;
 pub mod config;
 mod control;
+mod error;
 pub mod gcs;
 pub mod guidance;
 pub mod http;
@@ -69,40 +70,16 @@ use tokio::sync::{broadcast, watch};
 use tokio::task::JoinHandle;
 
 use self::bus::Bus;
-use self::config::{Config, ConfigError};
+use self::config::Config;
 use self::control::Control;
 use self::http::{ApiState, Auth, Service, Tracking};
 use self::metrics::Metrics;
 use self::pipeline::Pipeline;
 use self::tracker::{ScanEvents, Snapshot, TrackFilterState};
 use self::world::{TruthBody, WorldBody};
-use harrier_engine::EngineError;
 use harrier_recording::writer::{Recorder, SessionMeta};
 
-/// Why the service could not start.
-#[derive(Debug, thiserror::Error)]
-pub enum LiveError {
-    /// The configuration is unusable.
-    #[error(transparent)]
-    Config(#[from] ConfigError),
-    /// The track engine cannot be built.
-    #[error("track engine: {0}")]
-    Engine(#[from] EngineError),
-    /// The API address cannot be bound.
-    #[error("cannot listen on {addr}: {source}")]
-    Bind {
-        /// The address.
-        addr: SocketAddr,
-        /// Why.
-        source: std::io::Error,
-    },
-    /// The Zenoh session or subscriber cannot be opened.
-    #[error("zenoh: {0}")]
-    Zenoh(String),
-    /// The MAVLink link cannot start.
-    #[error(transparent)]
-    Gcs(#[from] gcs::GcsError),
-}
+pub use self::error::LiveError;
 
 /// Where the API token came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -9,11 +9,63 @@
 //!
 //! A [`Command`] is a desired velocity vector; [`step`] moves the state towards it for `dt` seconds
 //! while enforcing every limit, so any command — including a non-finite one, which is replaced by
-//! [`hold`](super::hold) — yields a feasible trajectory.
+//! [`hold`] — yields a feasible trajectory.
 
 use nalgebra::{Vector2, Vector3};
 
-use super::{Command, angle_between, clampf, rotate};
+use super::geometry::{angle_between, clampf, perp, rotate};
+
+/// A commanded velocity (ENU, m/s). The kinematics enforce the limits; laws already respect the
+/// speed bounds where they can.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Command {
+    /// Desired velocity `[vx, vy, vz]` (m/s).
+    pub velocity: Vector3<f64>,
+}
+
+impl Command {
+    /// A command with the horizontal velocity `vh` and the vertical speed `vz`.
+    #[inline]
+    pub fn new(vh: Vector2<f64>, vz: f64) -> Self {
+        Self {
+            velocity: Vector3::new(vh.x, vh.y, vz),
+        }
+    }
+    /// Whether every component is finite.
+    #[inline]
+    pub fn is_finite(&self) -> bool {
+        self.velocity.iter().all(|v| v.is_finite())
+    }
+    /// This command if it is finite, else [`hold`] for `uav`.
+    #[inline]
+    pub fn or_hold(self, uav: &UavState, limits: &Limits) -> Self {
+        if self.is_finite() {
+            self
+        } else {
+            hold(uav, limits)
+        }
+    }
+}
+
+/// The defined safe command when the target estimate is missing or invalid: keep station.
+///
+/// A vehicle that can hover ([`Limits::can_hover`]) is commanded to stop (zero velocity). A
+/// fixed-wing vehicle is commanded into a left loiter turn at its minimum speed: the commanded
+/// direction is the current velocity rotated by +90°, which the kinematics turn into a
+/// minimum-radius circle. Vertical speed zero (hold altitude). With a non-finite UAV state the
+/// command is zero, which the kinematics also treat as "hold".
+pub fn hold(uav: &UavState, limits: &Limits) -> Command {
+    let vh = uav.horizontal_velocity();
+    if limits.can_hover() || !vh.iter().all(|v| v.is_finite()) {
+        return Command::new(Vector2::zeros(), 0.0);
+    }
+    let dir = if vh.norm() > 1e-9 {
+        vh / vh.norm()
+    } else {
+        Vector2::new(1.0, 0.0)
+    };
+    Command::new(perp(dir) * limits.v_min, 0.0)
+}
 
 /// Flight envelope of a vehicle.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -121,7 +173,7 @@ impl UavState {
 /// velocity direction turns towards the commanded one by at most `ω_max·dt` (a hovering vehicle
 /// below [`Limits::pivot_speed`] may point anywhere); the vertical speed moves towards
 /// `clamp(v_z,cmd, ±v_z,max)` by at most `a_z,max·dt`. Position is integrated with the mean of the
-/// old and new velocity. A non-finite command is replaced by [`hold`](super::hold); a non-finite
+/// old and new velocity. A non-finite command is replaced by [`hold`]; a non-finite
 /// state or `dt`, or a step whose result would not be finite (a position near `f64::MAX`, a `dt`
 /// of 1e300), returns the state unchanged.
 pub fn step(state: &UavState, cmd: &Command, limits: &Limits, dt: f64) -> UavState {

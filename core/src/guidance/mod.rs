@@ -28,6 +28,7 @@
 //!   Unmanned Aircraft Flight Control", JGCD 31(5), 2008.
 
 pub mod formation;
+mod geometry;
 pub mod kinematics;
 pub mod lgvf;
 pub mod observability;
@@ -37,39 +38,8 @@ pub mod togvf;
 
 use nalgebra::{Vector2, Vector3};
 
-pub use kinematics::{Limits, UavState};
-
-/// A commanded velocity (ENU, m/s). The kinematics enforce the limits; laws already respect the
-/// speed bounds where they can.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Command {
-    /// Desired velocity `[vx, vy, vz]` (m/s).
-    pub velocity: Vector3<f64>,
-}
-
-impl Command {
-    /// A command with the horizontal velocity `vh` and the vertical speed `vz`.
-    #[inline]
-    pub fn new(vh: Vector2<f64>, vz: f64) -> Self {
-        Self {
-            velocity: Vector3::new(vh.x, vh.y, vz),
-        }
-    }
-    /// Whether every component is finite.
-    #[inline]
-    pub fn is_finite(&self) -> bool {
-        self.velocity.iter().all(|v| v.is_finite())
-    }
-    /// This command if it is finite, else [`hold`] for `uav`.
-    #[inline]
-    pub fn or_hold(self, uav: &UavState, limits: &Limits) -> Self {
-        if self.is_finite() {
-            self
-        } else {
-            hold(uav, limits)
-        }
-    }
-}
+pub(crate) use geometry::{angle_between, clampf, perp, rotate};
+pub use kinematics::{Command, Limits, UavState, hold};
 
 /// What the guidance knows about the target: a ground position and velocity estimate (ENU).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -118,52 +88,6 @@ impl Orbit {
             Orbit::Ccw | Orbit::Auto => 1.0,
         }
     }
-}
-
-/// The defined safe command when the target estimate is missing or invalid: keep station.
-///
-/// A vehicle that can hover ([`Limits::can_hover`]) is commanded to stop (zero velocity). A
-/// fixed-wing vehicle is commanded into a left loiter turn at its minimum speed: the commanded
-/// direction is the current velocity rotated by +90°, which the kinematics turn into a
-/// minimum-radius circle. Vertical speed zero (hold altitude). With a non-finite UAV state the
-/// command is zero, which the kinematics also treat as "hold".
-pub fn hold(uav: &UavState, limits: &Limits) -> Command {
-    let vh = uav.horizontal_velocity();
-    if limits.can_hover() || !vh.iter().all(|v| v.is_finite()) {
-        return Command::new(Vector2::zeros(), 0.0);
-    }
-    let dir = if vh.norm() > 1e-9 {
-        vh / vh.norm()
-    } else {
-        Vector2::new(1.0, 0.0)
-    };
-    Command::new(perp(dir) * limits.v_min, 0.0)
-}
-
-/// `max(lo, min(hi, x))` without `f64::clamp`'s panic on `lo > hi` or NaN bounds (limits and
-/// gains come from callers).
-#[inline]
-pub(crate) fn clampf(x: f64, lo: f64, hi: f64) -> f64 {
-    x.min(hi).max(lo)
-}
-
-/// `v` rotated by +90° (counter-clockwise).
-#[inline]
-pub(crate) fn perp(v: Vector2<f64>) -> Vector2<f64> {
-    Vector2::new(-v.y, v.x)
-}
-
-/// `v` rotated by `a` radians counter-clockwise.
-#[inline]
-pub(crate) fn rotate(v: Vector2<f64>, a: f64) -> Vector2<f64> {
-    let (s, c) = a.sin_cos();
-    Vector2::new(c * v.x - s * v.y, s * v.x + c * v.y)
-}
-
-/// Signed angle from `a` to `b` in `[-π, π]`.
-#[inline]
-pub(crate) fn angle_between(a: Vector2<f64>, b: Vector2<f64>) -> f64 {
-    (a.x * b.y - a.y * b.x).atan2(a.dot(&b))
 }
 
 /// The validated inputs shared by the standoff laws, or `None` when [`hold`] applies.

@@ -19,21 +19,12 @@ use harrier_core::detection::GeoPoint;
 use harrier_core::scenario::{Motion, Road};
 use serde::{Deserialize, Serialize};
 
+mod check;
 mod parse;
 mod presets;
 
-pub use parse::{ScenarioError, Source};
-use parse::{non_negative, positive, probability};
-
-/// Names of the built-in scenarios, for `--scenario NAME`.
-pub const PRESETS: [&str; 6] = [
-    "cimm-road",
-    "leader",
-    "radar",
-    "radar-abrupt",
-    "radar-markov",
-    "crossing",
-];
+pub use check::{PRESETS, ScenarioError, Source};
+use check::{non_negative, positive, probability};
 
 /// A simulation: world, sensors, vehicle behaviour and the hints written for estimators.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]

@@ -16,17 +16,17 @@ use nalgebra::Vector3;
 
 /// The flight modes the vehicle flies (harrier-link's PX4 codec).
 pub use harrier_link::px4::FlightMode;
-pub use params::Param;
+pub use tables::Param;
 
 mod params;
 mod physics;
 mod protocol;
+mod tables;
 mod telemetry;
 #[cfg(test)]
 mod tests;
 
-use params::default_params;
-use telemetry::{Stream, default_streams};
+use tables::{Stream, default_params, default_streams};
 
 /// Airframe: which kinematic limits apply and which MAV_TYPE is reported.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -4,42 +4,6 @@ use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA, PARAM_
 
 use super::Vehicle;
 
-/// A tunable parameter (all REAL32).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Param {
-    /// Name (at most 16 characters).
-    pub name: &'static str,
-    /// Value.
-    pub value: f32,
-    /// Smallest accepted value.
-    pub min: f32,
-    /// Largest accepted value.
-    pub max: f32,
-}
-
-pub(super) fn default_params() -> Vec<Param> {
-    vec![
-        Param {
-            name: "MIS_TAKEOFF_ALT",
-            value: 2.5,
-            min: 0.5,
-            max: 500.0,
-        },
-        Param {
-            name: "COM_OF_LOSS_T",
-            value: 0.5,
-            min: 0.1,
-            max: 60.0,
-        },
-        Param {
-            name: "MPC_LAND_SPEED",
-            value: 0.7,
-            min: 0.1,
-            max: 5.0,
-        },
-    ]
-}
-
 impl Vehicle {
     pub(super) fn param_value(&self, index: usize) -> MavMessage {
         let p = self.params[index];

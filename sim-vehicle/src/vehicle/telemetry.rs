@@ -13,41 +13,6 @@ use mavlink::dialects::common::{
 
 use super::Vehicle;
 
-/// Telemetry streams and their default intervals (s).
-pub(super) const STREAMS: [(u32, f64); 9] = [
-    (HEARTBEAT_DATA::ID, 1.0),
-    (SYS_STATUS_DATA::ID, 1.0),
-    (EXTENDED_SYS_STATE_DATA::ID, 1.0),
-    (BATTERY_STATUS_DATA::ID, 1.0),
-    (HOME_POSITION_DATA::ID, 2.0),
-    (GPS_RAW_INT_DATA::ID, 0.2),
-    (GLOBAL_POSITION_INT_DATA::ID, 0.1),
-    (LOCAL_POSITION_NED_DATA::ID, 0.1),
-    (ATTITUDE_DATA::ID, 0.1),
-];
-
-#[derive(Debug, Clone, Copy)]
-pub(super) struct Stream {
-    id: u32,
-    default_interval: f64,
-    /// Interval (s); `None` when disabled.
-    interval: Option<f64>,
-    next_due: f64,
-}
-
-/// The streams at their default intervals, all due at wall time `now`.
-pub(super) fn default_streams(now: f64) -> Vec<Stream> {
-    STREAMS
-        .iter()
-        .map(|&(id, dt)| Stream {
-            id,
-            default_interval: dt,
-            interval: Some(dt),
-            next_due: now,
-        })
-        .collect()
-}
-
 impl Vehicle {
     pub(super) fn set_message_interval(
         &mut self,

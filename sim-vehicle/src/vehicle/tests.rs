@@ -1,6 +1,6 @@
 //! Unit tests of the vehicle: commands, modes, offboard timeout, parameters, intervals.
 
-use super::telemetry::STREAMS;
+use super::tables::STREAMS;
 use super::*;
 use harrier_link::command::command_long;
 use mavlink::MessageData;

@@ -4,7 +4,7 @@
 use harrier_core::guidance::obstacle::Obstacle;
 use nalgebra::{Vector2, Vector3};
 
-use super::SimError;
+use super::error::SimError;
 
 /// A built-in scenario.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

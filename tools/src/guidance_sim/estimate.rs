@@ -16,7 +16,7 @@
 use harrier_core::scenario::{Estimate, Measurement, Prior, Scenario};
 use nalgebra::Vector4;
 
-use super::SimError;
+use super::error::SimError;
 use super::truth;
 use harrier_engine::registry::{self, ESTIMATORS};
 use harrier_engine::{EngineError, Params, ReplayEstimator, Step};

@@ -5,7 +5,7 @@ use harrier_core::guidance::phase::{phase_of, spacing_errors};
 use nalgebra::Vector2;
 
 use super::cases::{H, R};
-use super::{SimConfig, Summary, Trajectory, UavFigures};
+use super::types::{SimConfig, Summary, Trajectory, UavFigures};
 
 /// Truth-based figures of one UAV's standoff run.
 pub(super) fn standoff_figures(

@@ -15,7 +15,7 @@ use rand_distr::{Distribution, Normal};
 use super::cases::{SHAPE, formation_obstacles};
 use super::figures::base_summary;
 use super::truth::{LEADER_SPEED, leader_heading};
-use super::{SimConfig, SimResult, Trajectory};
+use super::types::{SimConfig, SimResult, Trajectory};
 
 pub(super) fn run(cfg: &SimConfig, duration: f64) -> SimResult {
     let limits = Limits {

@@ -17,10 +17,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
+use super::error::SimError;
 use super::estimate::{self, SimEstimator};
 use super::figures::base_summary;
 use super::truth::LEADER_SPEED;
-use super::{SimConfig, SimError, SimResult, Trajectory};
+use super::types::{SimConfig, SimResult, Trajectory};
 use harrier_engine::Params;
 
 /// Altitude of the leader and the follower (m).

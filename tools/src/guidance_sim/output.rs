@@ -6,7 +6,8 @@ use std::path::Path;
 
 use serde::Serialize;
 
-use super::{SimError, Summary, Trajectory};
+use super::error::SimError;
+use super::types::{Summary, Trajectory};
 
 /// The summary as text lines for stdout.
 pub fn summary_lines(s: &Summary) -> Vec<String> {

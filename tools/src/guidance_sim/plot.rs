@@ -5,7 +5,8 @@ use std::path::Path;
 
 use nalgebra::Vector2;
 
-use super::{SimError, SimResult};
+use super::error::SimError;
+use super::types::SimResult;
 
 /// Draws the horizontal paths, the standoff circle and the obstacles as an SVG (plotters), with
 /// at most `max_points` points per track.

@@ -16,10 +16,11 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 
 use super::cases::{Case, H, R, STATIC_TARGET, V0};
+use super::error::SimError;
 use super::estimate::{self, FIX_PERIOD, FIX_STD, SimEstimator};
 use super::figures::{base_summary, phase_figures, standoff_figures};
 use super::truth::road_target;
-use super::{LawKind, SimConfig, SimError, SimResult, Trajectory};
+use super::types::{LawKind, SimConfig, SimResult, Trajectory};
 
 pub(super) fn run(cfg: &SimConfig, duration: f64) -> Result<SimResult, SimError> {
     let moving = cfg.case.moving();

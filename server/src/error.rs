@@ -1,0 +1,33 @@
+//! Why the service could not start ([`LiveError`]): a leaf the start-up steps share.
+
+use std::net::SocketAddr;
+
+use harrier_engine::EngineError;
+
+use crate::config::ConfigError;
+use crate::gcs;
+
+/// Why the service could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// The configuration is unusable.
+    #[error(transparent)]
+    Config(#[from] ConfigError),
+    /// The track engine cannot be built.
+    #[error("track engine: {0}")]
+    Engine(#[from] EngineError),
+    /// The API address cannot be bound.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// The address.
+        addr: SocketAddr,
+        /// Why.
+        source: std::io::Error,
+    },
+    /// The Zenoh session or subscriber cannot be opened.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// The MAVLink link cannot start.
+    #[error(transparent)]
+    Gcs(#[from] gcs::GcsError),
+}
