@@ -28,8 +28,8 @@ use harrier_core::EstimationError;
 
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
-    Deployment, Handover, SensorScan, TrackEngine, TrackFilterBuildFn, TrackFilterInfo,
-    TrackStatus, TrackView,
+    Deployment, Handover, ScanOutcome, SensorScan, TrackEngine, TrackFilterBuildFn,
+    TrackFilterInfo, TrackStatus, TrackView,
 };
 
 /// Why an estimator could not be built or could not process a time step.
