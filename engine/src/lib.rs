@@ -28,6 +28,6 @@ pub mod track;
 pub use error::{EngineError, setup};
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
-    Deployment, Handover, SensorScan, TrackEngine, TrackFilterBuildFn, TrackFilterInfo,
-    TrackStatus, TrackView,
+    Deployment, Handover, ScanOutcome, SensorScan, TrackEngine, TrackFilterBuildFn,
+    TrackFilterInfo, TrackStatus, TrackView,
 };

@@ -126,17 +126,72 @@ pub struct TrackView {
     pub mode_probabilities: Vec<f64>,
 }
 
+/// What one scan did ([`TrackEngine::ingest`]): harrier-core's events, and the view after the
+/// scan of every track the scan changed.
+///
+/// A scan changes every track that lives through it, not only those it updates: each is aged
+/// (`age` + 1) and brought to the scan time (`t`; its estimate predicted when the time moved),
+/// then updated (`updated`, `last_update`, the estimate) or coasted (`updated` false), and
+/// maybe confirmed. So `changed` holds every live track after the scan — the tracks it started
+/// included — and the tracks it deleted are the ones missing (each has a
+/// [`Deleted`](harrier_core::tracker::TrackEvent::Deleted) event). [`ScanOutcome::apply`] turns
+/// the tracks before the scan into those after it, which is what [`TrackEngine::snapshot`]
+/// gives then.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ScanOutcome {
+    /// What happened, in the order harrier-core's tracker reports it.
+    pub events: Vec<harrier_core::tracker::TrackEvent>,
+    /// The view after the scan of each track whose view the scan changed, in id order.
+    pub changed: Vec<TrackView>,
+}
+
+impl ScanOutcome {
+    /// The ids of the tracks the scan deleted.
+    pub fn deleted(&self) -> impl Iterator<Item = u64> + '_ {
+        self.events.iter().filter_map(|e| match e {
+            harrier_core::tracker::TrackEvent::Deleted { id, .. } => Some(*id),
+            _ => None,
+        })
+    }
+
+    /// The live tracks after the scan, from `before`, those before it in id order (the engine's
+    /// [`snapshot`](TrackEngine::snapshot), or what this function gave for the previous scan):
+    /// the deleted ones removed, the changed ones replaced or added, the others kept as they
+    /// were; in id order. Returns them with the events.
+    pub fn apply(
+        self,
+        before: &[TrackView],
+    ) -> (Vec<TrackView>, Vec<harrier_core::tracker::TrackEvent>) {
+        let deleted: Vec<u64> = self.deleted().collect();
+        let mut after = Vec::with_capacity(before.len().max(self.changed.len()));
+        let mut changed = self.changed.into_iter().peekable();
+        for k in before {
+            while let Some(c) = changed.next_if(|c| c.id < k.id) {
+                after.push(c);
+            }
+            if let Some(c) = changed.next_if(|c| c.id == k.id) {
+                after.push(c);
+            } else if !deleted.contains(&k.id) {
+                after.push(k.clone());
+            }
+        }
+        after.extend(changed);
+        (after, self.events)
+    }
+}
+
 /// A multi-target tracker whose track filter type is erased: the live shape of an estimator. It
 /// ingests one sensor scan at a time (any kind, any platform) and says what happened as
-/// [`TrackEvent`](harrier_core::tracker::TrackEvent)s; a snapshot serves the API.
+/// [`TrackEvent`](harrier_core::tracker::TrackEvent)s with the views of the tracks that changed
+/// ([`ScanOutcome`]); a snapshot gives every track at once.
 pub trait TrackEngine: Send + std::fmt::Debug {
-    /// Processes one scan. On error (time earlier than the last scan, a non-finite detection, a
-    /// detection of the wrong size) nothing changes.
-    fn ingest(
-        &mut self,
-        scan: &SensorScan,
-    ) -> Result<Vec<harrier_core::tracker::TrackEvent>, EngineError>;
-    /// Every live track, tentative and confirmed, in id order.
+    /// Processes one scan: what happened, and the views of the tracks it changed. On error (time
+    /// earlier than the last scan, a non-finite detection, a detection of the wrong size)
+    /// nothing changes.
+    fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError>;
+    /// Every live track, tentative and confirmed, in id order: for a start, or after
+    /// [`adopt`](Self::adopt); after each scan, [`ScanOutcome::apply`] keeps such a list up to
+    /// date.
     fn snapshot(&self) -> Vec<TrackView>;
     /// Time of the last scan.
     fn time(&self) -> Option<f64>;
@@ -178,4 +233,55 @@ pub struct TrackFilterInfo {
     pub params: &'static [(&'static str, &'static str)],
     /// Builds the track engine that runs it.
     pub build: TrackFilterBuildFn,
+}
+
+#[cfg(test)]
+mod tests {
+    use harrier_core::tracker::{DeleteReason, TrackEvent};
+
+    use super::*;
+
+    fn view(id: u64, age: u32) -> TrackView {
+        TrackView {
+            id,
+            status: TrackStatus::Tentative,
+            t: f64::from(age),
+            state: [0.0; 6],
+            cov: vec![vec![1.0]],
+            cov_dims: vec![0],
+            updated: true,
+            age,
+            last_update: 0.0,
+            mode_probabilities: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn an_outcome_removes_the_deleted_replaces_the_changed_and_keeps_the_rest() {
+        let before = [view(1, 3), view(2, 3), view(4, 2), view(6, 1)];
+        let outcome = ScanOutcome {
+            events: vec![
+                TrackEvent::Deleted {
+                    id: 2,
+                    reason: DeleteReason::Misses,
+                },
+                TrackEvent::Coasted { id: 4, misses: 1 },
+                TrackEvent::Born {
+                    id: 7,
+                    detection: 0,
+                },
+            ],
+            changed: vec![view(3, 1), view(4, 3), view(7, 1)],
+        };
+        assert_eq!(outcome.deleted().collect::<Vec<_>>(), [2]);
+        let events = outcome.events.clone();
+        let (after, back) = outcome.apply(&before);
+        assert_eq!(back, events);
+        assert_eq!(
+            after,
+            [view(1, 3), view(3, 1), view(4, 3), view(6, 1), view(7, 1)]
+        );
+        let (after, _) = ScanOutcome::default().apply(&before);
+        assert_eq!(after, before);
+    }
 }

@@ -6,9 +6,14 @@
 //! all — or once a scan `reorder_window_s` newer has arrived, or when nothing has arrived for that
 //! long in wall time (at least 20 ms). So a scan waits for the slowest active source, never longer
 //! than the window; a lone source is not delayed at all. A scan older than the last processed one
-//! is late: counted and dropped (the first scan of a new source can be). After each scan the actor publishes the engine's snapshot on a `watch` channel (the
-//! latest state, never blocking) and the scan's track events on a bounded `broadcast` channel (a
-//! slow subscriber loses events, tracking never waits for it).
+//! is late: counted and dropped (the first scan of a new source can be).
+//!
+//! The actor keeps the list of live tracks from what each scan returns (the engine's
+//! [`ScanOutcome`]: the events and the views of the tracks the scan changed), asking the engine
+//! for all of them ([`TrackEngine::snapshot`]) only at the start and after a change of track
+//! filter. After each scan it publishes that list on a `watch` channel (the latest state, never
+//! blocking) and the scan's track events on a bounded `broadcast` channel (a slow subscriber
+//! loses events, tracking never waits for it).
 
 use std::collections::{BTreeMap, HashMap, VecDeque};
 use std::sync::{Arc, Mutex, OnceLock, PoisonError};
@@ -23,7 +28,7 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use harrier_engine::{Deployment, Params, TrackEngine, TrackStatus, TrackView};
+use harrier_engine::{Deployment, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
@@ -93,14 +98,18 @@ pub struct ScanEvents {
     pub detections: Vec<Vec<f64>>,
     /// What happened.
     pub events: Vec<TrackEvent>,
-    /// Every live track after the scan.
+    /// Every live track after the scan (the actor's list, brought up to date by the scan's
+    /// [`ScanOutcome`]).
     pub tracks: Arc<Vec<TrackView>>,
     /// The WebSocket message, serialised once for every client (`crate::wire::scan_json`).
     json: OnceLock<String>,
 }
 
 impl ScanEvents {
-    /// The tracks this scan started, confirmed or updated, after the scan.
+    /// The tracks this scan started, confirmed or updated, after the scan: those the WebSocket
+    /// `scan` message carries and the recording keeps. (The scan changed the others too — aged,
+    /// predicted, coasted — but they are not sent: a coasted track keeps its last state on the
+    /// page.)
     pub fn changed_tracks(&self) -> impl Iterator<Item = &TrackView> {
         self.tracks
             .iter()
@@ -176,6 +185,9 @@ impl Recent {
 #[derive(Debug)]
 pub struct TrackerActor {
     engine: Box<dyn TrackEngine>,
+    /// The engine's live tracks, in id order: its snapshot at the start and after a change of
+    /// track filter, then kept up to date from each scan's [`ScanOutcome`].
+    tracks: Arc<Vec<TrackView>>,
     deployment: Deployment,
     estimator: Arc<TrackFilterState>,
     window: f64,
@@ -229,6 +241,7 @@ impl TrackerActor {
             });
         });
         Self {
+            tracks: Arc::new(engine.snapshot()),
             engine,
             deployment,
             estimator,
@@ -296,15 +309,17 @@ impl TrackerActor {
     }
 
     fn process(&mut self, s: ReadyScan) {
-        let events = match self.engine.ingest(&s.scan) {
-            Ok(events) => events,
+        let outcome: ScanOutcome = match self.engine.ingest(&s.scan) {
+            Ok(outcome) => outcome,
             Err(e) => {
                 self.metrics.dropped(&s.vehicle, DropReason::Rejected);
                 tracing::warn!(vehicle = s.vehicle, t = s.scan.t, "scan rejected: {e}");
                 return;
             }
         };
-        let tracks = Arc::new(self.engine.snapshot());
+        let (tracks, events) = outcome.apply(&self.tracks);
+        let tracks = Arc::new(tracks);
+        self.tracks = Arc::clone(&tracks);
         self.metrics.latency(s.received.elapsed().as_secs_f64());
         let confirmed = tracks
             .iter()
@@ -442,7 +457,8 @@ impl TrackerActor {
         self.engine = engine;
         self.estimator = Arc::new(to.clone());
         let t = self.engine.time();
-        self.publish(t, Arc::new(self.engine.snapshot()));
+        self.tracks = Arc::new(self.engine.snapshot());
+        self.publish(t, Arc::clone(&self.tracks));
         Ok(to)
     }
 
@@ -541,6 +557,11 @@ mod tests {
         (a, metrics, snap_rx, ev_rx)
     }
 
+    /// The published tracks, kept from the scans' outcomes, are the engine's snapshot.
+    fn in_step(a: &TrackerActor, snap_rx: &watch::Receiver<Arc<Snapshot>>) {
+        assert_eq!(*snap_rx.borrow().tracks, a.engine.snapshot());
+    }
+
     #[test]
     fn scans_are_reordered_within_the_window_and_late_ones_dropped() {
         let (mut a, metrics, snap_rx, mut ev_rx) = actor(2.0);
@@ -554,6 +575,7 @@ mod tests {
         assert_eq!(snap_rx.borrow().t, Some(0.8));
         a.push(scan(1.1, "2")); // source 2 caught up: 1.0 goes
         assert_eq!(snap_rx.borrow().t, Some(1.0));
+        in_step(&a, &snap_rx);
         let seqs: Vec<_> = std::iter::from_fn(|| ev_rx.try_recv().ok())
             .map(|e| (e.seq, e.t))
             .collect();
@@ -568,6 +590,7 @@ mod tests {
             Some(&1)
         );
         a.release(f64::INFINITY);
+        in_step(&a, &snap_rx);
         assert_eq!(snap_rx.borrow().seq, 7);
         assert_eq!(metrics.scans_ingested(), 7);
         assert!(!snap_rx.borrow().tracks.is_empty());
@@ -614,6 +637,7 @@ mod tests {
             .expect("cdkf");
         assert_eq!(now.name, "cdkf");
         let after = snap_rx.borrow().tracks.clone();
+        in_step(&a, &snap_rx);
         assert_eq!(snap_rx.borrow().estimator.name, "cdkf");
         assert_eq!(after.len(), 1);
         assert_eq!(
@@ -623,6 +647,7 @@ mod tests {
         assert_eq!(after[0].state, before[0].state);
         a.push(scan(4.0, "1"));
         a.release(f64::INFINITY);
+        in_step(&a, &snap_rx);
         let k = &snap_rx.borrow().tracks[0];
         assert_eq!((k.id, k.updated), (before[0].id, true));
     }

@@ -134,6 +134,35 @@ impl From<&TrackView> for TrackDto {
     }
 }
 
+/// A measurement kind (FORMAT.md §3) as the API sends harrier-core's `MeasKind`: that type's
+/// OpenAPI schema (component `MeasKind`), which harrier-core, without OpenAPI, does not derive.
+/// Fields of type `MeasKind` name it with `#[schema(value_type = MeasKindSchema)]`; the
+/// exhaustive [`From`] keeps the two alike.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+#[schema(as = MeasKind)]
+pub enum MeasKindSchema {
+    /// Absolute ENU position `[x, y]` or `[x, y, z]`.
+    Position,
+    /// `[range, azimuth]`.
+    RangeBearing,
+    /// `[azimuth, elevation]`.
+    AzEl,
+    /// `[azimuth, elevation, subtended]`.
+    BearingSize,
+}
+
+impl From<MeasKind> for MeasKindSchema {
+    fn from(k: MeasKind) -> Self {
+        match k {
+            MeasKind::Position => Self::Position,
+            MeasKind::RangeBearing => Self::RangeBearing,
+            MeasKind::AzEl => Self::AzEl,
+            MeasKind::BearingSize => Self::BearingSize,
+        }
+    }
+}
+
 /// Why a track was deleted.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
@@ -311,7 +340,7 @@ pub struct ScanMessage {
     /// Sensor id on the vehicle.
     pub sensor: String,
     /// Measurement kind (`position`, `range_bearing`, `az_el`, `bearing_size`).
-    #[schema(value_type = String)]
+    #[schema(value_type = MeasKindSchema)]
     pub kind: MeasKind,
     /// Sensor (platform) position (ENU, m).
     pub platform: [f64; 3],
@@ -640,5 +669,22 @@ mod tests {
             to_json(&m),
             r#"{"type":"vehicles","vehicles":[],"assignments":[]}"#
         );
+    }
+
+    #[test]
+    fn the_meas_kind_schema_names_what_a_meas_kind_sends() {
+        for k in [
+            MeasKind::Position,
+            MeasKind::RangeBearing,
+            MeasKind::AzEl,
+            MeasKind::BearingSize,
+        ] {
+            let sent = serde_json::to_value(k).expect("a kind");
+            assert_eq!(sent, json!(k.as_str()));
+            assert_eq!(
+                serde_json::to_value(MeasKindSchema::from(k)).ok(),
+                Some(sent)
+            );
+        }
     }
 }

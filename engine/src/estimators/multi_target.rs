@@ -16,15 +16,15 @@ use harrier_core::motion::ConstantVelocity;
 use harrier_core::road::RoadNetwork;
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::tracker::{
-    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackEvent,
-    TrackFilter, Tracker, TrackerConfig,
+    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackFilter,
+    TrackSnapshot, Tracker, TrackerConfig,
 };
 use serde_json::{Value, json};
 
 use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::{
-    Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator, SensorScan,
-    Step, TrackEngine, TrackFilterInfo, TrackView, setup,
+    Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator,
+    ScanOutcome, SensorScan, Step, TrackEngine, TrackFilterInfo, TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -209,6 +209,25 @@ struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     plane_z: f64,
 }
 
+impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
+    /// The engine's view of harrier-core's snapshot of a track.
+    fn view(&self, k: TrackSnapshot<N>) -> TrackView {
+        let e = cv_estimate(self.plane_z, k.t, &k.estimate);
+        TrackView {
+            id: k.id,
+            status: k.status.into(),
+            t: k.t,
+            state: e.state.unwrap_or_default(),
+            cov: e.cov.unwrap_or_default(),
+            cov_dims: e.cov_dims.unwrap_or_default(),
+            updated: k.updated,
+            age: k.age,
+            last_update: k.last_update,
+            mode_probabilities: k.mode_probabilities,
+        }
+    }
+}
+
 /// An integer parameter ≥ 1.
 fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
     let v = p.get(name, f64::from(default));
@@ -251,30 +270,23 @@ where
     F: TrackFilter<N> + Send + std::fmt::Debug,
     F::State: Send,
 {
-    fn ingest(&mut self, scan: &SensorScan) -> Result<Vec<TrackEvent>, EngineError> {
+    fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError> {
         let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
-        Ok(self.tracker.step_any(scan.t, &scan.sensor, &dets)?)
+        let events = self.tracker.step_any(scan.t, &scan.sensor, &dets)?;
+        // `Tracker::step` changes every track it keeps: `scans` + 1 (the view's `age`), the time
+        // (`t`), the prediction to it, then the update or the miss. So the changed views are all
+        // the live ones (the deleted are gone from the tracker).
+        Ok(ScanOutcome {
+            events,
+            changed: self.snapshot(),
+        })
     }
 
     fn snapshot(&self) -> Vec<TrackView> {
         self.tracker
             .snapshot()
             .into_iter()
-            .map(|k| {
-                let e = cv_estimate(self.plane_z, k.t, &k.estimate);
-                TrackView {
-                    id: k.id,
-                    status: k.status.into(),
-                    t: k.t,
-                    state: e.state.unwrap_or_default(),
-                    cov: e.cov.unwrap_or_default(),
-                    cov_dims: e.cov_dims.unwrap_or_default(),
-                    updated: k.updated,
-                    age: k.age,
-                    last_update: k.last_update,
-                    mode_probabilities: k.mode_probabilities,
-                }
-            })
+            .map(|k| self.view(k))
             .collect()
     }
 
@@ -420,5 +432,138 @@ impl ReplayEstimator for MultiTracker {
         };
         est.extra.insert("tracks".into(), Value::Array(tracks));
         Ok(Some(est))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use harrier_core::measurement::{Geometry, MeasKind};
+    use harrier_core::scenario::{Motion, Road};
+    use harrier_core::tracker::TrackEvent;
+    use harrier_core::tracker::generate::{GenConfig, generate};
+    use nalgebra::Vector3;
+    use serde_json::json;
+
+    use super::*;
+    use crate::registry::TRACK_FILTERS;
+
+    /// A planar deployment for every track filter: CV and two CT modes (`imm`, `cimm`), a road
+    /// across the region (`cimm`), 1 s scans from two sensors.
+    fn deployment() -> Deployment {
+        let motion: Motion = serde_json::from_value(json!({
+            "models": [{"name": "CV", "type": "CV"},
+                       {"name": "right", "type": "CT", "turn_rate": -0.02},
+                       {"name": "left", "type": "CT", "turn_rate": 0.02}],
+            "accel_std": 0.3,
+        }))
+        .expect("motion");
+        let road: Road = serde_json::from_value(json!({
+            "id": "r", "sigma_m": 2.0,
+            "segments": [{"type": "line", "start": [-3000.0, -2000.0], "end": [3000.0, 2500.0]}],
+        }))
+        .expect("a road");
+        Deployment {
+            dims: 2,
+            plane_z: 0.0,
+            motion: Some(motion),
+            roads: vec![road],
+            scan_period_s: 1.0,
+            sensors: 2,
+        }
+    }
+
+    /// harrier-core's seeded multi-target scenario (six targets crossing in pairs, Pd 0.9, 10 m
+    /// noise, three clutter detections a scan), each time's detections sent as two scans of that
+    /// time (the even and the odd ones), as two sensors would: the second one is not predicted.
+    fn scans(seed: u64) -> Vec<SensorScan> {
+        let config = GenConfig {
+            clutter_rate: 3.0,
+            ..GenConfig::default()
+        };
+        let g = generate(seed, &config).expect("a scenario");
+        let sensor = SensorModel::new(
+            MeasKind::Position,
+            Geometry::planar(0.0),
+            Vector3::zeros(),
+            &[10.0, 10.0],
+            None,
+        )
+        .expect("a position sensor");
+        let mut times: Vec<(f64, Vec<Vec<f64>>)> = Vec::new();
+        for line in g.measurements_jsonl.lines() {
+            let v: serde_json::Value = serde_json::from_str(line).expect("a line");
+            let t = v["t"].as_f64().expect("t");
+            let z: Vec<f64> = serde_json::from_value(v["z"].clone()).expect("z");
+            match times.last_mut() {
+                Some((t0, zs)) if *t0 == t => zs.push(z),
+                _ => times.push((t, vec![z])),
+            }
+        }
+        times
+            .into_iter()
+            .flat_map(|(t, zs)| {
+                let (even, odd): (Vec<_>, Vec<_>) =
+                    zs.into_iter().enumerate().partition(|(i, _)| i % 2 == 0);
+                [even, odd].map(|half| SensorScan {
+                    t,
+                    sensor,
+                    detections: half.into_iter().map(|(_, z)| z).collect(),
+                })
+            })
+            .collect()
+    }
+
+    /// The list the live service keeps from the outcomes equals the engine's snapshot after
+    /// every scan, for every track filter, through births, confirmations, updates, misses and
+    /// deletions, and after a change of track filter half-way (the list restarts from the new
+    /// engine's snapshot, as the tracker actor does).
+    #[test]
+    fn the_changed_views_keep_the_track_list_equal_to_the_snapshot() {
+        let d = deployment();
+        let scans = scans(11);
+        assert!(scans.len() > 300, "{} scans", scans.len());
+        for (f, info) in TRACK_FILTERS.iter().enumerate() {
+            let mut engine = (info.build)(&d, &Params::default()).expect(info.name);
+            let mut tracks = engine.snapshot();
+            let mut seen = [0usize; 5];
+            for (i, scan) in scans.iter().enumerate() {
+                if i == scans.len() / 2 {
+                    let next = &TRACK_FILTERS[(f + 1) % TRACK_FILTERS.len()];
+                    let mut other = (next.build)(&d, &Params::default()).expect(next.name);
+                    other.adopt(&engine.handover()).expect("a handover");
+                    engine = other;
+                    tracks = engine.snapshot();
+                }
+                let outcome = engine.ingest(scan).expect("a scan");
+                let ids: Vec<u64> = outcome.changed.iter().map(|k| k.id).collect();
+                assert!(ids.is_sorted(), "{}: changed views out of order", info.name);
+                let (after, events) = outcome.apply(&tracks);
+                tracks = after;
+                assert_eq!(tracks, engine.snapshot(), "{}, scan {i}", info.name);
+                for e in &events {
+                    let kind = match e {
+                        TrackEvent::Born { .. } => 0,
+                        TrackEvent::Confirmed { .. } => 1,
+                        TrackEvent::Updated { .. } => 2,
+                        TrackEvent::Coasted { .. } => 3,
+                        TrackEvent::Deleted { .. } => 4,
+                        TrackEvent::Rejected { .. } => continue,
+                    };
+                    seen[kind] += 1;
+                }
+            }
+            // Every kind of change happened (born, confirmed, updated, coasted, deleted).
+            assert!(seen.iter().all(|&n| n > 0), "{}: {seen:?}", info.name);
+            assert!(
+                tracks
+                    .iter()
+                    .filter(|k| k.status == crate::TrackStatus::Confirmed)
+                    .count()
+                    >= 4,
+                "{}: {} tracks",
+                info.name,
+                tracks.len()
+            );
+        }
     }
 }

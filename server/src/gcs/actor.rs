@@ -19,8 +19,8 @@ use super::tlog::Tlog;
 use super::transport::{self, EndpointHandle, Inbound, Outbound, Peer, stopped};
 use super::vehicle::{LinkState, VehicleLink};
 use super::{
-    CommandError, CommandOutcome, GcsConfig, GcsError, GcsLink, LinkEvent, LinkMetrics, PUBLISH_HZ,
-    Request, VehicleSample, timesync,
+    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, GcsLink, LinkEvent,
+    LinkEventKind, LinkMetrics, PUBLISH_HZ, Request, VehicleSample, timesync,
 };
 use crate::clock::unix_now;
 
@@ -34,13 +34,6 @@ struct Pending {
     first_sent: Instant,
     sent_at: Instant,
     reply: oneshot::Sender<Result<CommandOutcome, CommandError>>,
-}
-
-/// The `snake_case` name of a MAV_RESULT, without its prefix.
-fn result_name(r: MavResult) -> String {
-    format!("{r:?}")
-        .trim_start_matches("MAV_RESULT_")
-        .to_ascii_lowercase()
 }
 
 /// A COMMAND_LONG's MAV_CMD name.
@@ -259,7 +252,7 @@ impl Actor {
             Some(v) => v,
             None if is_vehicle_heartbeat => {
                 tracing::info!(vehicle = id, %peer, "vehicle connected");
-                self.event(id, "connected", None);
+                self.event(id, LinkEventKind::Connected, None);
                 self.vehicles
                     .entry(id)
                     .or_insert_with(|| VehicleLink::new(id, endpoint, peer, at))
@@ -268,7 +261,7 @@ impl Actor {
         };
         if v.on_frame(&f.header, &f.message, (endpoint, peer), at, t) {
             tracing::info!(vehicle = id, "vehicle recovered");
-            self.event(id, "recovered", None);
+            self.event(id, LinkEventKind::Recovered, None);
         }
         match &f.message {
             MavMessage::HEARTBEAT(_) => self.flight_events(id),
@@ -306,17 +299,22 @@ impl Actor {
         match before {
             Some((armed, m)) => {
                 if armed != s.armed {
-                    self.event(id, if s.armed { "armed" } else { "disarmed" }, mode.clone());
+                    let event = if s.armed {
+                        LinkEventKind::Armed
+                    } else {
+                        LinkEventKind::Disarmed
+                    };
+                    self.event(id, event, mode.clone());
                 }
                 if m != mode {
-                    self.event(id, "mode", mode);
+                    self.event(id, LinkEventKind::Mode, mode);
                 }
             }
-            None => self.event(id, "mode", mode),
+            None => self.event(id, LinkEventKind::Mode, mode),
         }
     }
 
-    fn event(&self, vehicle: u8, event: &'static str, mode: Option<String>) {
+    fn event(&self, vehicle: u8, event: LinkEventKind, mode: Option<String>) {
         let _ = self.events.send(LinkEvent {
             vehicle,
             event,
@@ -462,13 +460,13 @@ impl Actor {
             return;
         }
         let p = self.pending.swap_remove(i);
-        let name = result_name(result);
-        self.metrics.result(&name);
+        let outcome = CommandResult::from(result);
+        self.metrics.result(outcome);
         let _ = p.reply.send(Ok(CommandOutcome {
             vehicle,
             command: command_name(command),
-            ok: result == MavResult::MAV_RESULT_ACCEPTED,
-            result: name,
+            ok: outcome == CommandResult::Accepted,
+            result: outcome,
             attempts: p.attempts,
             elapsed_ms: at.duration_since(p.first_sent).as_secs_f64() * 1e3,
         }));
@@ -492,11 +490,11 @@ impl Actor {
             }
             if self.pending[i].attempts >= self.config.command_attempts {
                 let p = self.pending.swap_remove(i);
-                self.metrics.result("timeout");
+                self.metrics.result(CommandResult::Timeout);
                 let _ = p.reply.send(Ok(CommandOutcome {
                     vehicle: p.vehicle,
                     command: command_name(p.command),
-                    result: "timeout".into(),
+                    result: CommandResult::Timeout,
                     ok: false,
                     attempts: p.attempts,
                     elapsed_ms: now.duration_since(p.first_sent).as_secs_f64() * 1e3,
@@ -562,7 +560,7 @@ impl Actor {
         for id in lost {
             tracing::warn!(vehicle = id, "vehicle lost (silent {lost_after} s)");
             self.metrics.vehicles_lost.fetch_add(1, Ordering::Relaxed);
-            self.event(id, "lost", None);
+            self.event(id, LinkEventKind::Lost, None);
         }
     }
 }

@@ -27,7 +27,7 @@ pub struct LinkMetrics {
     pub(super) track_messages: AtomicU64,
     pub(super) commands: AtomicU64,
     pub(super) command_retries: AtomicU64,
-    acks: Mutex<BTreeMap<String, u64>>,
+    acks: Mutex<BTreeMap<&'static str, u64>>,
     pub(super) vehicles_lost: AtomicU64,
     pub(super) tlog_dropped: AtomicU64,
     /// Frames refused by the signing: [GCS side, router side] × [`Rejection::ALL`].
@@ -162,12 +162,12 @@ impl LinkMetrics {
     }
 
     /// A command's outcome.
-    pub(super) fn result(&self, result: &str) {
+    pub(super) fn result(&self, result: super::CommandResult) {
         *self
             .acks
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner)
-            .entry(result.to_owned())
+            .entry(result.as_str())
             .or_default() += 1;
     }
 }

@@ -48,10 +48,10 @@ use std::time::{Duration, Instant};
 
 use harrier_link::frame::{Endpoint, EndpointError};
 use harrier_link::geo::LocalFrame;
-use harrier_link::mavlink::dialects::common::MavMessage;
+use harrier_link::mavlink::dialects::common::{MavMessage, MavResult};
 use harrier_link::px4::VehicleStatus;
 use harrier_link::signing::Signing;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use utoipa::ToSchema;
 
@@ -118,15 +118,85 @@ pub struct CommandOutcome {
     pub vehicle: u8,
     /// The MAV_CMD sent.
     pub command: String,
-    /// `accepted`, `temporarily_rejected`, `denied`, `unsupported`, `failed`, `cancelled` (the
+    /// `accepted`, `temporarily_rejected`, `denied`, `unsupported`, `failed`, `cancelled`… (the
     /// vehicle's COMMAND_ACK), or `timeout` (no final ACK after every attempt).
-    pub result: String,
+    pub result: CommandResult,
     /// Whether the vehicle accepted it.
     pub ok: bool,
     /// Times it was sent.
     pub attempts: u32,
     /// From the first send to the answer (ms).
     pub elapsed_ms: f64,
+}
+
+/// How a command ended: the MAV_RESULT of the vehicle's final COMMAND_ACK (its name without
+/// `MAV_RESULT_`, in lower case), or `timeout`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum CommandResult {
+    /// `MAV_RESULT_ACCEPTED`: accepted and executed (`ok`).
+    Accepted,
+    /// `MAV_RESULT_TEMPORARILY_REJECTED`: valid, but not now; it may be tried again later.
+    TemporarilyRejected,
+    /// `MAV_RESULT_DENIED`: invalid (parameters out of range, or not allowed in this state).
+    Denied,
+    /// `MAV_RESULT_UNSUPPORTED`: the vehicle does not know this command.
+    Unsupported,
+    /// `MAV_RESULT_FAILED`: valid, but its execution failed.
+    Failed,
+    /// `MAV_RESULT_IN_PROGRESS`: still running. Never the final answer here: it restarts the
+    /// wait for the ACK.
+    InProgress,
+    /// `MAV_RESULT_CANCELLED`: cancelled by a COMMAND_CANCEL.
+    Cancelled,
+    /// `MAV_RESULT_COMMAND_LONG_ONLY`: to be sent as a COMMAND_LONG.
+    CommandLongOnly,
+    /// `MAV_RESULT_COMMAND_INT_ONLY`: to be sent as a COMMAND_INT.
+    CommandIntOnly,
+    /// `MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME`: its frame is not supported.
+    CommandUnsupportedMavFrame,
+    /// `MAV_RESULT_NOT_IN_CONTROL`: another ground station controls the vehicle.
+    NotInControl,
+    /// No final COMMAND_ACK after every attempt (answered with 504).
+    Timeout,
+}
+
+impl CommandResult {
+    /// The name on the wire (and the `result` label of `harrier_mavlink_command_results_total`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Accepted => "accepted",
+            Self::TemporarilyRejected => "temporarily_rejected",
+            Self::Denied => "denied",
+            Self::Unsupported => "unsupported",
+            Self::Failed => "failed",
+            Self::InProgress => "in_progress",
+            Self::Cancelled => "cancelled",
+            Self::CommandLongOnly => "command_long_only",
+            Self::CommandIntOnly => "command_int_only",
+            Self::CommandUnsupportedMavFrame => "command_unsupported_mav_frame",
+            Self::NotInControl => "not_in_control",
+            Self::Timeout => "timeout",
+        }
+    }
+}
+
+impl From<MavResult> for CommandResult {
+    fn from(r: MavResult) -> Self {
+        match r {
+            MavResult::MAV_RESULT_ACCEPTED => Self::Accepted,
+            MavResult::MAV_RESULT_TEMPORARILY_REJECTED => Self::TemporarilyRejected,
+            MavResult::MAV_RESULT_DENIED => Self::Denied,
+            MavResult::MAV_RESULT_UNSUPPORTED => Self::Unsupported,
+            MavResult::MAV_RESULT_FAILED => Self::Failed,
+            MavResult::MAV_RESULT_IN_PROGRESS => Self::InProgress,
+            MavResult::MAV_RESULT_CANCELLED => Self::Cancelled,
+            MavResult::MAV_RESULT_COMMAND_LONG_ONLY => Self::CommandLongOnly,
+            MavResult::MAV_RESULT_COMMAND_INT_ONLY => Self::CommandIntOnly,
+            MavResult::MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME => Self::CommandUnsupportedMavFrame,
+            MavResult::MAV_RESULT_NOT_IN_CONTROL => Self::NotInControl,
+        }
+    }
 }
 
 /// Why a command was not sent.
@@ -181,11 +251,29 @@ pub struct LinkEvent {
     pub vehicle: u8,
     /// `connected` (first heard), `lost`, `recovered`, `mode` (the PX4 mode changed), `armed`,
     /// `disarmed`.
-    pub event: &'static str,
+    pub event: LinkEventKind,
     /// The mode after the change.
     pub mode: Option<String>,
     /// When (UNIX s).
     pub time_unix: f64,
+}
+
+/// What happened to a vehicle's link or flight state (a [`LinkEvent`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum LinkEventKind {
+    /// First heard (its first HEARTBEAT on a GCS endpoint).
+    Connected,
+    /// Silent for `mavlink.lost_after_s`.
+    Lost,
+    /// Heard again after it was lost.
+    Recovered,
+    /// Its PX4 mode changed (`mode` is the new one).
+    Mode,
+    /// Its motors were armed.
+    Armed,
+    /// Its motors were disarmed.
+    Disarmed,
 }
 
 /// A vehicle's state for the guidance: its API view and its status (times on the link's clock,
@@ -272,3 +360,73 @@ impl GcsLink {
 
 /// Rate of the vehicles watch and of the timeout checks.
 pub const PUBLISH_HZ: f64 = 20.0;
+
+#[cfg(test)]
+mod tests {
+    use serde_json::json;
+
+    use super::*;
+
+    /// A command's `result` is the MAV_RESULT's name without its prefix, in lower case (as it was
+    /// when it was a string), or `timeout`; the metrics label is the same name.
+    #[test]
+    fn a_command_result_is_named_after_its_mav_result() {
+        use MavResult as R;
+        for r in [
+            R::MAV_RESULT_ACCEPTED,
+            R::MAV_RESULT_TEMPORARILY_REJECTED,
+            R::MAV_RESULT_DENIED,
+            R::MAV_RESULT_UNSUPPORTED,
+            R::MAV_RESULT_FAILED,
+            R::MAV_RESULT_IN_PROGRESS,
+            R::MAV_RESULT_CANCELLED,
+            R::MAV_RESULT_COMMAND_LONG_ONLY,
+            R::MAV_RESULT_COMMAND_INT_ONLY,
+            R::MAV_RESULT_COMMAND_UNSUPPORTED_MAV_FRAME,
+            R::MAV_RESULT_NOT_IN_CONTROL,
+        ] {
+            let former = format!("{r:?}")
+                .trim_start_matches("MAV_RESULT_")
+                .to_ascii_lowercase();
+            let result = CommandResult::from(r);
+            assert_eq!(json!(result), json!(former));
+            assert_eq!(result.as_str(), former);
+        }
+        assert_eq!(json!(CommandResult::Timeout), json!("timeout"));
+        assert_eq!(CommandResult::Timeout.as_str(), "timeout");
+    }
+
+    #[test]
+    fn a_link_event_is_sent_by_its_former_name() {
+        use LinkEventKind as E;
+        let kinds = [
+            E::Connected,
+            E::Lost,
+            E::Recovered,
+            E::Mode,
+            E::Armed,
+            E::Disarmed,
+        ];
+        assert_eq!(
+            json!(kinds),
+            json!([
+                "connected",
+                "lost",
+                "recovered",
+                "mode",
+                "armed",
+                "disarmed"
+            ])
+        );
+        let e = LinkEvent {
+            vehicle: 3,
+            event: E::Mode,
+            mode: Some("HOLD".into()),
+            time_unix: 1.5,
+        };
+        assert_eq!(
+            json!(e),
+            json!({"vehicle": 3, "event": "mode", "mode": "HOLD", "time_unix": 1.5})
+        );
+    }
+}

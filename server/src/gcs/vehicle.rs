@@ -9,10 +9,10 @@ use std::time::Instant;
 use harrier_core::detection::GeoPoint;
 use harrier_link::geo::{Geodetic, LocalFrame, ned_to_enu};
 use harrier_link::mavlink::MavHeader;
-use harrier_link::mavlink::dialects::common::{MavMessage, MavModeFlag};
+use harrier_link::mavlink::dialects::common::{MavMessage, MavModeFlag, MavState};
 use harrier_link::px4::{FlightMode, VehicleStatus};
 use nalgebra::Vector3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::timesync::{Timesync, TimesyncView};
@@ -26,6 +26,46 @@ pub enum LinkState {
     Connected,
     /// Silent for longer than the loss timeout (`mavlink.lost_after_s`).
     Lost,
+}
+
+/// A vehicle's MAV_STATE (its HEARTBEAT's `system_status`), sent by its MAVLink name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "SCREAMING_SNAKE_CASE")]
+pub enum SystemStatus {
+    /// `MAV_STATE_UNINIT`: uninitialized, state unknown.
+    MavStateUninit,
+    /// `MAV_STATE_BOOT`: booting up.
+    MavStateBoot,
+    /// `MAV_STATE_CALIBRATING`: calibrating, not flight-ready.
+    MavStateCalibrating,
+    /// `MAV_STATE_STANDBY`: grounded and on standby, ready to launch.
+    MavStateStandby,
+    /// `MAV_STATE_ACTIVE`: active, maybe airborne, motors engaged.
+    MavStateActive,
+    /// `MAV_STATE_CRITICAL`: in a failsafe mode, still navigating.
+    MavStateCritical,
+    /// `MAV_STATE_EMERGENCY`: in a failsafe mode, control lost (mayday).
+    MavStateEmergency,
+    /// `MAV_STATE_POWEROFF`: powering down.
+    MavStatePoweroff,
+    /// `MAV_STATE_FLIGHT_TERMINATION`: terminating itself (failsafe or commanded).
+    MavStateFlightTermination,
+}
+
+impl From<MavState> for SystemStatus {
+    fn from(s: MavState) -> Self {
+        match s {
+            MavState::MAV_STATE_UNINIT => Self::MavStateUninit,
+            MavState::MAV_STATE_BOOT => Self::MavStateBoot,
+            MavState::MAV_STATE_CALIBRATING => Self::MavStateCalibrating,
+            MavState::MAV_STATE_STANDBY => Self::MavStateStandby,
+            MavState::MAV_STATE_ACTIVE => Self::MavStateActive,
+            MavState::MAV_STATE_CRITICAL => Self::MavStateCritical,
+            MavState::MAV_STATE_EMERGENCY => Self::MavStateEmergency,
+            MavState::MAV_STATE_POWEROFF => Self::MavStatePoweroff,
+            MavState::MAV_STATE_FLIGHT_TERMINATION => Self::MavStateFlightTermination,
+        }
+    }
 }
 
 /// The PX4 mode name of a HEARTBEAT, as QGroundControl shows it.
@@ -59,7 +99,7 @@ pub struct VehicleLinkView {
     /// Motors armed.
     pub armed: bool,
     /// MAV_STATE of the last HEARTBEAT (`MAV_STATE_ACTIVE`…).
-    pub system_status: Option<String>,
+    pub system_status: Option<SystemStatus>,
     /// Position in the server's ENU frame (m), from GLOBAL_POSITION_INT.
     pub position: Option<[f64; 3]>,
     /// Position (WGS-84: `lat_deg`, `lon_deg`, `alt_m` AMSL).
@@ -105,7 +145,7 @@ pub struct VehicleLink {
     state: LinkState,
     status: Option<VehicleStatus>,
     custom_mode: u32,
-    system_status: Option<String>,
+    system_status: Option<SystemStatus>,
     geodetic: Option<Geodetic>,
     relative_alt: Option<f64>,
     velocity_ned: Option<Vector3<f64>>,
@@ -207,7 +247,7 @@ impl VehicleLink {
                 } else {
                     0
                 };
-                self.system_status = Some(format!("{:?}", hb.system_status));
+                self.system_status = Some(hb.system_status.into());
             }
             MavMessage::GLOBAL_POSITION_INT(p) => {
                 self.geodetic = Some(Geodetic {
@@ -282,7 +322,7 @@ impl VehicleLink {
             address: self.peer.to_string(),
             mode: self.mode(),
             armed: self.status.is_some_and(|s| s.armed),
-            system_status: self.system_status.clone(),
+            system_status: self.system_status,
             position: kin.map(|(p, _)| p.into()),
             geodetic: self
                 .geodetic
@@ -359,6 +399,7 @@ mod tests {
         assert!((view.loss_pct - 50.0).abs() < 1e-9);
         assert_eq!(view.mode.as_deref(), Some("OFFBOARD"));
         assert!(view.armed);
+        assert_eq!(view.system_status, Some(SystemStatus::MavStateUninit));
         let p = view.position.expect("position");
         assert!(p[0].abs() < 1e-6 && p[1].abs() < 1e-6 && (p[2] - 100.0).abs() < 1e-6);
         // NED (1, −2, −0.5) m/s is ENU (−2, 1, 0.5).
@@ -372,5 +413,27 @@ mod tests {
         assert!(v.on_frame(&header(6), &hb, peer, t0 + Duration::from_secs(5), 5.0));
         assert_eq!(v.state(), LinkState::Connected);
         assert_eq!(v.view(&frame, t0 + Duration::from_secs(5)).reconnects, 1);
+    }
+
+    /// `system_status` is sent by the MAV_STATE's name, as when it was a string.
+    #[test]
+    fn a_system_status_is_sent_by_its_mav_state_name() {
+        use MavState as S;
+        for s in [
+            S::MAV_STATE_UNINIT,
+            S::MAV_STATE_BOOT,
+            S::MAV_STATE_CALIBRATING,
+            S::MAV_STATE_STANDBY,
+            S::MAV_STATE_ACTIVE,
+            S::MAV_STATE_CRITICAL,
+            S::MAV_STATE_EMERGENCY,
+            S::MAV_STATE_POWEROFF,
+            S::MAV_STATE_FLIGHT_TERMINATION,
+        ] {
+            assert_eq!(
+                serde_json::to_value(SystemStatus::from(s)).ok(),
+                Some(serde_json::Value::String(format!("{s:?}")))
+            );
+        }
     }
 }

@@ -19,7 +19,9 @@ use nalgebra::Vector3;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use super::formation::FormationState;
-use super::plan::{AssignmentRequest, AssignmentView, Plan, SlotView};
+use super::plan::{
+    AssignmentRequest, AssignmentState, AssignmentView, Law, Plan, SlotState, SlotView,
+};
 use super::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest, GuidanceSettings};
 use crate::clock::unix_now;
 use crate::gcs::transport::stopped;
@@ -33,7 +35,7 @@ use harrier_engine::TrackView;
 struct Slot {
     vehicle: u8,
     sequence: Option<OffboardSequence>,
-    state: &'static str,
+    state: SlotState,
     error: Option<String>,
     range_error: Option<f64>,
     phase: Option<f64>,
@@ -45,7 +47,6 @@ struct Slot {
 struct Assignment {
     id: u64,
     track: u64,
-    law: String,
     plan: Plan,
     created_unix: f64,
     ended: Option<String>,
@@ -59,18 +60,17 @@ impl Assignment {
         AssignmentView {
             id: self.id,
             track: self.track,
-            law: self.law.clone(),
+            law: p.law,
             radius_m: p.radius,
             height_m: p.height,
             spacing_deg: p.spacing.to_degrees(),
             speed_m_s: p.speed,
-            orbit: if p.orbit == Orbit::Cw { "cw" } else { "ccw" }.into(),
+            orbit: p.orbit,
             state: if self.ended.is_some() {
-                "ended"
+                AssignmentState::Ended
             } else {
-                "active"
-            }
-            .into(),
+                AssignmentState::Active
+            },
             ended_reason: self.ended.clone(),
             created_unix: self.created_unix,
             vehicles: self
@@ -78,7 +78,7 @@ impl Assignment {
                 .iter()
                 .map(|s| SlotView {
                     vehicle: s.vehicle,
-                    state: s.state.into(),
+                    state: s.state,
                     error: s.error.clone(),
                     range_error_m: s.range_error,
                     phase_deg: s.phase.map(f64::to_degrees),
@@ -90,13 +90,14 @@ impl Assignment {
 
     fn law(&self) -> Box<dyn StandoffLaw + Send> {
         let p = &self.plan;
-        match self.law.as_str() {
-            "lgvf" => Box::new(Lgvf {
-                orbit: p.orbit,
+        match p.law {
+            Law::Lgvf => Box::new(Lgvf {
+                orbit: p.orbit.into(),
                 ..Lgvf::new(p.radius, p.height, p.speed)
             }),
-            _ => Box::new(Togvf {
-                orbit: p.orbit,
+            // The formation's vehicles fly TOGVF when the formation has no command for one.
+            Law::Togvf | Law::Formation => Box::new(Togvf {
+                orbit: p.orbit.into(),
                 ..Togvf::new(p.radius, p.height, p.speed)
             }),
         }
@@ -220,7 +221,13 @@ impl Actor {
                 .await
             {
                 Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent to Hold"),
-                Ok(o) => tracing::warn!(vehicle, result = o.result, "guidance: Hold refused"),
+                Ok(o) => {
+                    tracing::warn!(
+                        vehicle,
+                        result = o.result.as_str(),
+                        "guidance: Hold refused"
+                    );
+                }
                 Err(e) => tracing::warn!(vehicle, "guidance: Hold not sent: {e}"),
             }
         });
@@ -229,11 +236,11 @@ impl Actor {
     fn on_request(&mut self, r: GuidanceRequest) {
         match r {
             GuidanceRequest::Create(req, reply) => {
-                let r = self.create(req);
+                let r = self.create(&req);
                 if let Ok(v) = &r {
                     self.metrics.created.fetch_add(1, Ordering::Relaxed);
                     let _ = self.events.send(v.clone());
-                    tracing::info!(id = v.id, track = v.track, vehicles = ?v.vehicles.iter().map(|s| s.vehicle).collect::<Vec<_>>(), law = v.law, "assignment created");
+                    tracing::info!(id = v.id, track = v.track, vehicles = ?v.vehicles.iter().map(|s| s.vehicle).collect::<Vec<_>>(), law = v.law.as_str(), "assignment created");
                 }
                 let _ = reply.send(r);
                 self.publish();
@@ -246,7 +253,7 @@ impl Actor {
         }
     }
 
-    fn create(&mut self, r: AssignmentRequest) -> Result<AssignmentView, AssignError> {
+    fn create(&mut self, r: &AssignmentRequest) -> Result<AssignmentView, AssignError> {
         let plan = r.plan(&self.settings).map_err(AssignError::Invalid)?;
         let vehicles = self.link.vehicles.borrow().clone();
         for id in &r.vehicles {
@@ -278,7 +285,6 @@ impl Actor {
         let a = Assignment {
             id,
             track: r.track,
-            law: r.law,
             plan,
             created_unix: unix_now(),
             ended: None,
@@ -289,7 +295,7 @@ impl Actor {
                 .map(|&vehicle| Slot {
                     vehicle,
                     sequence: None,
-                    state: "waiting",
+                    state: SlotState::Waiting,
                     error: None,
                     range_error: None,
                     phase: None,
@@ -310,9 +316,9 @@ impl Actor {
             let holds: Vec<u8> = a
                 .slots
                 .iter_mut()
-                .filter(|s| s.state != "lost" && s.state != "waiting")
+                .filter(|s| !matches!(s.state, SlotState::Lost | SlotState::Waiting))
                 .map(|s| {
-                    s.state = "hold";
+                    s.state = SlotState::Hold;
                     s.sequence = None;
                     s.vehicle
                 })
@@ -335,7 +341,7 @@ impl Actor {
                 if let Some(seq) = &mut s.sequence
                     && let Err(e) = seq.handle(t, msg)
                 {
-                    s.state = "failed";
+                    s.state = SlotState::Failed;
                     s.error = Some(e.to_string());
                     s.sequence = None;
                     failed = Some(vehicle);
@@ -446,7 +452,7 @@ impl<'a> Tick<'a> {
         let limits = &self.settings.limits;
         let states = self.measured(&a.slots);
         let ring = Ring::of(&states, &target, &a.plan);
-        let formation = (a.law == "formation").then(|| {
+        let formation = (a.plan.law == Law::Formation).then(|| {
             let uavs: Vec<Option<UavState>> =
                 states.iter().map(|s| s.as_ref().map(|(u, _)| *u)).collect();
             a.formation.commands(
@@ -463,17 +469,17 @@ impl<'a> Tick<'a> {
             let before = (slot.state, slot.error.clone());
             match (&states[i], self.vehicle(slot.vehicle)) {
                 (None, Some(v)) if v.view.state == LinkState::Lost => {
-                    if slot.state != "failed" {
-                        slot.state = "lost";
+                    if slot.state != SlotState::Failed {
+                        slot.state = SlotState::Lost;
                         slot.sequence = None;
                     }
                 }
                 (None, _) => {
-                    if slot.state != "failed" && slot.state != "lost" {
-                        slot.state = "waiting";
+                    if !matches!(slot.state, SlotState::Failed | SlotState::Lost) {
+                        slot.state = SlotState::Waiting;
                     }
                 }
-                (Some(_), _) if slot.state == "failed" => {}
+                (Some(_), _) if slot.state == SlotState::Failed => {}
                 (Some((uav, v)), _) => {
                     let (p, centre) = (uav.horizontal_position(), target.position.xy());
                     slot.range_error = Some((p - centre).norm() - a.plan.radius);
@@ -535,14 +541,14 @@ impl<'a> Tick<'a> {
             Ok(msgs) => {
                 out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
                 slot.state = match seq.phase() {
-                    Phase::Arming => "arming",
-                    Phase::TakingOff => "taking_off",
-                    Phase::Offboard => "offboard",
+                    Phase::Arming => SlotState::Arming,
+                    Phase::TakingOff => SlotState::TakingOff,
+                    Phase::Offboard => SlotState::Offboard,
                 };
                 slot.commanded = Some(cmd.velocity);
             }
             Err(e) => {
-                slot.state = "failed";
+                slot.state = SlotState::Failed;
                 slot.error = Some(e.to_string());
                 slot.sequence = None;
                 out.hold.push(slot.vehicle);
@@ -579,7 +585,7 @@ impl Ring {
                     .then(|| (i, d.y.atan2(d.x)))
             })
             .collect();
-        let sign = plan.orbit.sign();
+        let sign = Orbit::from(plan.orbit).sign();
         ring.sort_by(|x, y| (sign * x.1).total_cmp(&(sign * y.1)));
         Self {
             slots: ring.iter().map(|r| r.0).collect(),

@@ -120,7 +120,6 @@ impl FormationState {
 
 #[cfg(test)]
 mod tests {
-    use harrier_core::guidance::Orbit;
     use nalgebra::Vector3;
 
     use super::*;
@@ -137,7 +136,8 @@ mod tests {
             height: 60.0,
             spacing: std::f64::consts::TAU,
             speed: 10.0,
-            orbit: Orbit::Ccw,
+            orbit: crate::guidance::OrbitDirection::Ccw,
+            law: crate::guidance::Law::Formation,
         };
         let run = |obstacles: &[Obstacle]| {
             let mut f = FormationState::default();

@@ -20,7 +20,8 @@
 //! - When the track is deleted, or the assignment is ended through the API, every vehicle of it
 //!   is sent to Hold (AUTO.LOITER) and the assignment is `ended` with the reason.
 //!
-//! The files: [`plan`] (the request, its checked [`plan::Plan`] and the views; pure),
+//! The files: [`plan`] (the request, its checked [`plan::Plan`], the views and their enums:
+//! [`Law`], [`OrbitDirection`], [`AssignmentState`], [`SlotState`]; pure),
 //! `formation` (the \[BOT\] formation's commands; pure) and `actor` ([`start`]: the assignments
 //! and the loop); this one holds the handle ([`Guidance`]), its requests, errors, settings and
 //! counters.
@@ -41,7 +42,9 @@ use harrier_core::guidance::obstacle::Obstacle;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 pub use self::actor::start;
-pub use self::plan::{AssignmentRequest, AssignmentView};
+pub use self::plan::{
+    AssignmentRequest, AssignmentState, AssignmentView, Law, OrbitDirection, SlotState, SlotView,
+};
 use crate::prom::{Family, Histogram};
 
 /// Why an assignment request was refused.

@@ -1,6 +1,8 @@
 //! An assignment as the API sees it: the request ([`AssignmentRequest`]), checked against the
 //! flight envelope into a [`Plan`], and its view ([`AssignmentView`], one [`SlotView`] per
-//! vehicle). Pure: no actor, no I/O.
+//! vehicle), with the fixed sets of values they carry as enums ([`Law`], [`OrbitDirection`],
+//! [`AssignmentState`], [`SlotState`]: OpenAPI components, each variant sent as its snake-case
+//! name). Pure: no actor, no I/O.
 
 use harrier_core::guidance::Orbit;
 use serde::{Deserialize, Serialize};
@@ -17,7 +19,8 @@ pub struct AssignmentRequest {
     pub vehicles: Vec<u8>,
     /// The track to follow (a live track id).
     pub track: u64,
-    /// `togvf`, `lgvf` or `formation`.
+    /// `togvf`, `lgvf` or `formation` (the `Law` schema; another name is refused with 422).
+    #[schema(value_type = Law)]
     pub law: String,
     /// Standoff radius R (m).
     #[serde(default)]
@@ -31,9 +34,107 @@ pub struct AssignmentRequest {
     /// Nominal speed relative to the target (m/s); default `guidance.speed_m_s`.
     #[serde(default)]
     pub speed_m_s: Option<f64>,
-    /// `ccw` or `cw` (default `ccw`).
+    /// `ccw` or `cw` (default `ccw`; the `OrbitDirection` schema; another value is refused with
+    /// 422).
     #[serde(default)]
+    #[schema(value_type = Option<OrbitDirection>)]
     pub orbit: Option<String>,
+}
+
+/// The guidance law of an assignment (GUIDANCE.md).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Law {
+    /// Time-optimal guidance vector field standoff (\[CIMM\] §4.1–4.2), with phase
+    /// coordination when several vehicles share the track.
+    Togvf,
+    /// Lyapunov guidance vector field standoff (the baseline), with phase coordination.
+    Lgvf,
+    /// The \[BOT\] formation: the track leads, the vehicles hold the line-of-sight ranges of a
+    /// shape around it, steered around the obstacles.
+    Formation,
+}
+
+impl Law {
+    /// Every law.
+    pub const ALL: [Self; 3] = [Self::Togvf, Self::Lgvf, Self::Formation];
+
+    /// The name on the wire (`togvf`, `lgvf`, `formation`).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Togvf => "togvf",
+            Self::Lgvf => "lgvf",
+            Self::Formation => "formation",
+        }
+    }
+
+    /// The law named `name`, if any.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|l| l.as_str() == name)
+    }
+}
+
+/// The direction of a standoff orbit, seen from above.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum OrbitDirection {
+    /// Counter-clockwise (the default).
+    Ccw,
+    /// Clockwise.
+    Cw,
+}
+
+impl OrbitDirection {
+    /// `ccw` or `cw`, if `name` is one of them.
+    pub fn parse(name: &str) -> Option<Self> {
+        match name {
+            "ccw" => Some(Self::Ccw),
+            "cw" => Some(Self::Cw),
+            _ => None,
+        }
+    }
+}
+
+/// The laws' sense of rotation.
+impl From<OrbitDirection> for Orbit {
+    fn from(o: OrbitDirection) -> Self {
+        match o {
+            OrbitDirection::Ccw => Self::Ccw,
+            OrbitDirection::Cw => Self::Cw,
+        }
+    }
+}
+
+/// Where an assignment is in its life.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum AssignmentState {
+    /// Its vehicles fly it.
+    Active,
+    /// Ended (by the operator, or its track was deleted: `ended_reason`); its vehicles were sent
+    /// to Hold.
+    Ended,
+}
+
+/// Where one vehicle of an assignment is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SlotState {
+    /// No usable telemetry yet (not connected, or no position and velocity).
+    Waiting,
+    /// Its offboard sequence is arming it.
+    Arming,
+    /// Its offboard sequence is taking it off.
+    TakingOff,
+    /// In OFFBOARD, flying the law's setpoints.
+    Offboard,
+    /// Its link is lost: paused, it flies the assignment again when it speaks again.
+    Lost,
+    /// Its offboard sequence failed (a refused or unacknowledged command, `error` says which):
+    /// sent to Hold, out of the assignment.
+    Failed,
+    /// The assignment ended: sent to Hold.
+    Hold,
 }
 
 /// Default standoff radius (m).
@@ -53,7 +154,9 @@ pub struct Plan {
     /// Speed relative to the target (m/s).
     pub speed: f64,
     /// Direction of the orbit.
-    pub orbit: Orbit,
+    pub orbit: OrbitDirection,
+    /// The law.
+    pub law: Law,
 }
 
 impl AssignmentRequest {
@@ -71,12 +174,12 @@ impl AssignmentRequest {
         if ids.len() != self.vehicles.len() || ids.contains(&0) {
             return bad("vehicles: ids must be 1-255 and distinct".into());
         }
-        if !matches!(self.law.as_str(), "togvf" | "lgvf" | "formation") {
+        let Some(law) = Law::parse(&self.law) else {
             return bad(format!(
                 "law {:?}: expected togvf, lgvf or formation",
                 self.law
             ));
-        }
+        };
         let radius = self.radius_m.unwrap_or(DEFAULT_RADIUS_M);
         let height = self.height_m.unwrap_or(DEFAULT_HEIGHT_M);
         let speed = self.speed_m_s.unwrap_or(settings.speed);
@@ -111,9 +214,9 @@ impl AssignmentRequest {
             ));
         }
         let orbit = match self.orbit.as_deref() {
-            None | Some("ccw") => Orbit::Ccw,
-            Some("cw") => Orbit::Cw,
-            Some(o) => return bad(format!("orbit {o:?}: expected ccw or cw")),
+            None => OrbitDirection::Ccw,
+            Some(o) => OrbitDirection::parse(o)
+                .ok_or_else(|| format!("orbit {o:?}: expected ccw or cw"))?,
         };
         Ok(Plan {
             radius,
@@ -121,6 +224,7 @@ impl AssignmentRequest {
             spacing,
             speed,
             orbit,
+            law,
         })
     }
 }
@@ -132,7 +236,7 @@ pub struct SlotView {
     pub vehicle: u8,
     /// `waiting` (no telemetry yet), `arming`, `taking_off`, `offboard`, `lost`, `failed`, `hold`
     /// (the assignment ended).
-    pub state: String,
+    pub state: SlotState,
     /// Why it failed, when it did.
     pub error: Option<String>,
     /// Horizontal distance to the track estimate minus R (m).
@@ -151,7 +255,7 @@ pub struct AssignmentView {
     /// The track.
     pub track: u64,
     /// The law.
-    pub law: String,
+    pub law: Law,
     /// R (m).
     pub radius_m: f64,
     /// H (m).
@@ -161,13 +265,65 @@ pub struct AssignmentView {
     /// Speed relative to the target (m/s).
     pub speed_m_s: f64,
     /// `ccw` or `cw`.
-    pub orbit: String,
+    pub orbit: OrbitDirection,
     /// `active` or `ended`.
-    pub state: String,
+    pub state: AssignmentState,
     /// Why it ended.
     pub ended_reason: Option<String>,
     /// When it was created (UNIX s).
     pub created_unix: f64,
     /// Its vehicles.
     pub vehicles: Vec<SlotView>,
+}
+
+#[cfg(test)]
+mod tests {
+    use serde::Serialize;
+    use serde_json::json;
+
+    use super::*;
+
+    fn names<T: Serialize>(values: &[T]) -> serde_json::Value {
+        serde_json::to_value(values).expect("names")
+    }
+
+    /// The names the page (`web/`) and the Python clients read.
+    #[test]
+    fn the_states_and_laws_are_sent_by_their_former_names() {
+        use SlotState as S;
+        let slots = [
+            S::Waiting,
+            S::Arming,
+            S::TakingOff,
+            S::Offboard,
+            S::Lost,
+            S::Failed,
+            S::Hold,
+        ];
+        assert_eq!(
+            names(&slots),
+            json!([
+                "waiting",
+                "arming",
+                "taking_off",
+                "offboard",
+                "lost",
+                "failed",
+                "hold"
+            ])
+        );
+        let states = [AssignmentState::Active, AssignmentState::Ended];
+        assert_eq!(names(&states), json!(["active", "ended"]));
+        assert_eq!(names(&Law::ALL), json!(["togvf", "lgvf", "formation"]));
+        for law in Law::ALL {
+            assert_eq!(Law::parse(law.as_str()), Some(law));
+            assert_eq!(json!(law.as_str()), json!(law));
+        }
+        assert_eq!(Law::parse("spiral"), None);
+        let orbits = [OrbitDirection::Ccw, OrbitDirection::Cw];
+        assert_eq!(names(&orbits), json!(["ccw", "cw"]));
+        for o in orbits {
+            assert_eq!(json!(o).as_str().and_then(OrbitDirection::parse), Some(o));
+        }
+    }
 }

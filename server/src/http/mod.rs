@@ -394,4 +394,85 @@ mod tests {
         }
         assert_eq!(doc["tags"].as_array().map(Vec::len), Some(7));
     }
+
+    /// Every fixed set of values that leaves the server is an enum component with its values,
+    /// referenced by the schemas that carry it, so that a client generates an enum type.
+    #[tokio::test]
+    async fn the_statuses_are_enum_components_referenced_where_they_are_sent() {
+        let doc = TestApp::new().get("/api/openapi.json").await.json();
+        let schemas = &doc["components"]["schemas"];
+        let enums: [(&str, &[&str]); 10] = [
+            ("TrackStatus", &["tentative", "confirmed"]),
+            (
+                "DeleteCause",
+                &["misses", "covariance", "unconfirmed", "failed"],
+            ),
+            (
+                "SlotState",
+                &[
+                    "waiting",
+                    "arming",
+                    "taking_off",
+                    "offboard",
+                    "lost",
+                    "failed",
+                    "hold",
+                ],
+            ),
+            ("AssignmentState", &["active", "ended"]),
+            ("Law", &["togvf", "lgvf", "formation"]),
+            ("OrbitDirection", &["ccw", "cw"]),
+            (
+                "LinkEventKind",
+                &[
+                    "connected",
+                    "lost",
+                    "recovered",
+                    "mode",
+                    "armed",
+                    "disarmed",
+                ],
+            ),
+            ("HealthStatus", &["ok"]),
+            (
+                "MeasKind",
+                &["position", "range_bearing", "az_el", "bearing_size"],
+            ),
+            ("LinkState", &["connected", "lost"]),
+        ];
+        for (name, values) in enums {
+            assert_eq!(schemas[name]["type"], "string", "{name}: {}", schemas[name]);
+            assert_eq!(schemas[name]["enum"], serde_json::json!(values), "{name}");
+        }
+        let results = schemas["CommandResult"]["enum"]
+            .as_array()
+            .expect("results");
+        for r in ["accepted", "denied", "temporarily_rejected", "timeout"] {
+            assert!(results.iter().any(|v| v == r), "{r}");
+        }
+        let refers = |schema: &str, field: &str, to: &str| {
+            let text = schemas[schema]["properties"][field].to_string();
+            assert!(
+                text.contains(&format!("\"#/components/schemas/{to}\"")),
+                "{schema}.{field}: {text}"
+            );
+        };
+        refers("TrackDto", "status", "TrackStatus");
+        refers("AssignmentView", "state", "AssignmentState");
+        refers("AssignmentView", "law", "Law");
+        refers("AssignmentView", "orbit", "OrbitDirection");
+        refers("SlotView", "state", "SlotState");
+        refers("AssignmentRequest", "law", "Law");
+        refers("AssignmentRequest", "orbit", "OrbitDirection");
+        refers("CommandOutcome", "result", "CommandResult");
+        refers("LinkEvent", "event", "LinkEventKind");
+        refers("HealthBody", "status", "HealthStatus");
+        refers("ScanMessage", "kind", "MeasKind");
+        refers("ScanView", "kind", "MeasKind");
+        refers("VehicleLinkView", "system_status", "SystemStatus");
+        let states = schemas["SystemStatus"]["enum"]
+            .as_array()
+            .expect("MAV_STATEs");
+        assert!(states.iter().any(|v| v == "MAV_STATE_ACTIVE"), "{states:?}");
+    }
 }

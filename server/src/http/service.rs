@@ -11,6 +11,7 @@ use utoipa::{OpenApi, ToSchema};
 
 use super::error::ErrorBody;
 use super::state::{ApiState, Control, Recording, Service, Tracking};
+use crate::guidance::AssignmentState;
 use crate::prom::Family;
 
 /// The routes of this file under `/api/v1`.
@@ -30,11 +31,19 @@ pub(super) fn root_routes() -> Router<ApiState> {
 #[openapi(paths(health, metrics, root_metrics))]
 pub(super) struct Doc;
 
+/// The service's state, as `GET /health` reports it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum HealthStatus {
+    /// Serving (the only state it answers in; a service that cannot serve does not answer).
+    Ok,
+}
+
 /// Service health.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct HealthBody {
     /// `ok`.
-    status: &'static str,
+    status: HealthStatus,
     /// Seconds since start.
     uptime_s: f64,
     /// The running track estimator.
@@ -62,7 +71,7 @@ async fn health(
     State(r): State<Recording>,
 ) -> Json<HealthBody> {
     Json(HealthBody {
-        status: "ok",
+        status: HealthStatus::Ok,
         uptime_s: s.started.elapsed().as_secs_f64(),
         estimator: t.snapshot.borrow().estimator.name.clone(),
         last_scan_t: s.metrics.last_scan_t(),
@@ -105,7 +114,7 @@ async fn metrics(
             .assignments
             .borrow()
             .iter()
-            .filter(|a| a.state == "active")
+            .filter(|a| a.state == AssignmentState::Active)
             .count();
         g.metrics.render(active, &mut text);
     }

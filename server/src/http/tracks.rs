@@ -13,7 +13,8 @@ use super::error::{ApiError, ErrorBody};
 use super::extract::{AppPath, AppQuery};
 use super::state::{ApiState, Tracking};
 use crate::bound::BoundView;
-use crate::wire::TrackDto;
+use crate::wire::{MeasKindSchema, TrackDto};
+use harrier_core::measurement::MeasKind;
 use harrier_engine::TrackStatus;
 
 /// The routes of this file.
@@ -132,7 +133,8 @@ pub struct ScanView {
     /// Sensor id.
     sensor: String,
     /// Measurement kind (`position`, `range_bearing`, `az_el`, `bearing_size`).
-    kind: String,
+    #[schema(value_type = MeasKindSchema)]
+    kind: MeasKind,
     /// Sensor position (ENU, m).
     platform: [f64; 3],
     /// The detections (FORMAT.md §3 layout of `kind`, server frame).
@@ -167,7 +169,7 @@ async fn detections(
             t: e.t,
             vehicle: e.vehicle.clone(),
             sensor: e.sensor.clone(),
-            kind: e.kind.as_str().to_string(),
+            kind: e.kind,
             platform: e.platform,
             detections: e.detections.clone(),
         })

@@ -18,7 +18,7 @@ use super::error::{ApiError, ErrorBody};
 use super::extract::{AppJson, AppPath};
 use super::state::{ApiState, Control, Recording, Service, Tracking};
 use crate::clock::unix_now;
-use crate::gcs::CommandOutcome;
+use crate::gcs::{CommandOutcome, CommandResult};
 use crate::metrics::{DropReason, Metrics};
 use crate::wire::VehicleEntry;
 use harrier_recording::writer::Record;
@@ -237,7 +237,7 @@ async fn command(
             json: serde_json::to_string(&outcome).unwrap_or_default(),
         });
     }
-    let status = if outcome.result == "timeout" {
+    let status = if outcome.result == CommandResult::Timeout {
         StatusCode::GATEWAY_TIMEOUT
     } else {
         StatusCode::OK
@@ -250,7 +250,7 @@ mod tests {
     use axum::http::{Method, StatusCode};
 
     use super::super::testing::TestApp;
-    use crate::gcs::{CommandOutcome, Request};
+    use crate::gcs::{CommandOutcome, CommandResult, Request};
 
     #[tokio::test]
     async fn a_vehicle_seen_in_its_detections_has_the_one_vehicle_shape() {
@@ -291,11 +291,15 @@ mod tests {
         let (app, mut link) = TestApp::new().with_link();
         tokio::spawn(async move {
             while let Some(Request::Command { vehicle, reply, .. }) = link.recv().await {
-                let result = if vehicle == 1 { "accepted" } else { "timeout" };
+                let result = if vehicle == 1 {
+                    CommandResult::Accepted
+                } else {
+                    CommandResult::Timeout
+                };
                 let _ = reply.send(Ok(CommandOutcome {
                     vehicle,
                     command: "MAV_CMD_COMPONENT_ARM_DISARM".into(),
-                    result: result.into(),
+                    result,
                     ok: vehicle == 1,
                     attempts: 3,
                     elapsed_ms: 1.0,

@@ -35,6 +35,8 @@ use harrier_link::frame::{Frame, parse_datagram};
 use harrier_link::signing::{Signer, Signing, SigningKey, SigningMode};
 use harrier_server::LiveServer;
 use harrier_server::config::{Config, MavlinkConfig, SigningConfig};
+use harrier_server::gcs::LinkEventKind;
+use harrier_server::guidance::{AssignmentState, SlotState};
 use harrier_sim::mavlink::MavHeader;
 use harrier_sim::mavlink::dialects::common::{
     COMMAND_LONG_DATA, HEARTBEAT_DATA, MavCmd, MavMessage, MavModeFlag, MavType,
@@ -213,19 +215,21 @@ fn a_killed_simulator_is_lost_then_found() {
         let server = server(None, Vec::new()).await;
         let gcs = gcs_addr(&server);
         let mut events = server.link().expect("link").events.subscribe();
-        let mut next_event = async |what: &str| loop {
-            let e = within(20, what, events.recv()).await.expect("link events");
+        let mut next_event = async |what: LinkEventKind| loop {
+            let e = within(20, &format!("{what:?}"), events.recv())
+                .await
+                .expect("link events");
             if e.vehicle == 7 && e.event == what {
                 return e;
             }
         };
         let mut sim = sim_process(7, gcs);
-        next_event("connected").await;
+        next_event(LinkEventKind::Connected).await;
         // Let it fly its telemetry for a moment, then kill it without warning.
         heard(&server, 7).await;
         sim.kill();
         let killed = Instant::now();
-        next_event("lost").await;
+        next_event(LinkEventKind::Lost).await;
         let after = killed.elapsed().as_secs_f64();
         eprintln!("harrier-sim killed: marked lost after {after:.2} s");
         assert!((2.5..=3.5).contains(&after), "lost after {after} s");
@@ -237,7 +241,7 @@ fn a_killed_simulator_is_lost_then_found() {
         // Started again: heard again.
         let restarted = Instant::now();
         let mut sim = sim_process(7, gcs);
-        next_event("recovered").await;
+        next_event(LinkEventKind::Recovered).await;
         eprintln!(
             "harrier-sim restarted: recovered after {:.2} s",
             restarted.elapsed().as_secs_f64()
@@ -248,16 +252,16 @@ fn a_killed_simulator_is_lost_then_found() {
 }
 
 /// Waits until assignment 1's slot of `vehicle` is in `state`.
-async fn slot_state(s: &LiveServer, vehicle: u8, state: &str) {
+async fn slot_state(s: &LiveServer, vehicle: u8, state: SlotState) {
     let mut rx = s.guidance().expect("guidance").assignments.clone();
-    within(60, &format!("vehicle {vehicle} {state}"), async {
+    within(60, &format!("vehicle {vehicle} {state:?}"), async {
         loop {
             let now = rx
                 .borrow_and_update()
                 .first()
                 .and_then(|a| a.vehicles.iter().find(|v| v.vehicle == vehicle))
-                .map(|v| v.state.clone());
-            if now.as_deref() == Some(state) {
+                .map(|v| v.state);
+            if now == Some(state) {
                 return;
             }
             rx.changed().await.expect("guidance running");
@@ -317,8 +321,8 @@ fn a_lost_vehicle_flies_its_assignment_again() {
             })
             .await
             .expect("assignment");
-        assert_eq!(a.state, "active");
-        slot_state(&server, 7, "offboard").await;
+        assert_eq!(a.state, AssignmentState::Active);
+        slot_state(&server, 7, SlotState::Offboard).await;
         let in_offboard = async {
             let mut rx = server.link().expect("link").vehicles.clone();
             loop {
@@ -336,14 +340,14 @@ fn a_lost_vehicle_flies_its_assignment_again() {
         within(30, "vehicle 7 in OFFBOARD", in_offboard).await;
         sim.kill();
         let killed = Instant::now();
-        slot_state(&server, 7, "lost").await;
+        slot_state(&server, 7, SlotState::Lost).await;
         eprintln!(
             "assigned harrier-sim killed: slot lost after {:.2} s",
             killed.elapsed().as_secs_f64()
         );
         let mut sim = sim_process(7, gcs);
         let restarted = Instant::now();
-        slot_state(&server, 7, "offboard").await;
+        slot_state(&server, 7, SlotState::Offboard).await;
         let mut rx = server.link().expect("link").vehicles.clone();
         within(30, "vehicle 7 in OFFBOARD again", async {
             loop {

@@ -506,7 +506,9 @@ fn cameras_and_radar_fuse_into_one_track_per_target() {
 
 /// The live service's track engines, built by name from the registry, on the \[CIMM\] reference
 /// scenario with three UAV cameras: one confirmed track on the target, and the road constraint
-/// pays off as it does for the single-target estimators (`cimm.rs`).
+/// pays off as it does for the single-target estimators (`cimm.rs`). The track list kept from
+/// each scan's outcome (as the tracker actor keeps it) is the engine's snapshot after every scan,
+/// the three cameras' scans of one time included.
 #[test]
 fn track_engines_by_name_on_the_cimm_reference() {
     use harrier_core::measurement::SensorModel;
@@ -519,6 +521,7 @@ fn track_engines_by_name_on_the_cimm_reference() {
     let mut rmse = Vec::new();
     for name in ["ekf", "cdkf", "imm", "cimm"] {
         let mut engine = build_track_filter(name, deployment, &Params::default()).unwrap();
+        let mut tracks = engine.snapshot();
         let (mut se, mut n, mut ids) = (0.0, 0usize, std::collections::BTreeSet::new());
         for m in &data.measurements {
             let sensor = SensorModel::new(
@@ -534,10 +537,10 @@ fn track_engines_by_name_on_the_cimm_reference() {
                 sensor,
                 detections: vec![m.z.clone()],
             };
-            engine.ingest(&scan).unwrap();
-            let confirmed: Vec<_> = engine
-                .snapshot()
-                .into_iter()
+            (tracks, _) = engine.ingest(&scan).unwrap().apply(&tracks);
+            assert_eq!(tracks, engine.snapshot(), "{name} at t = {}", m.t);
+            let confirmed: Vec<_> = tracks
+                .iter()
                 .filter(|k| k.status == harrier_engine::TrackStatus::Confirmed)
                 .collect();
             let row = truth.iter().find(|r| (r.t - m.t).abs() < 1e-6).unwrap();
