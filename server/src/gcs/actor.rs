@@ -1,6 +1,6 @@
 //! The link actor ([`start`]): it owns the vehicle table, the pending commands, the `.tlog`
 //! and the signer, and handles the endpoints' frames, the requests and a tick at
-//! [`PUBLISH_HZ`] (see the module documentation of [`super`]).
+//! [`PUBLISH_HZ`] (see the `gcs` module's documentation).
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::Arc;
@@ -15,13 +15,16 @@ use harrier_link::mavlink::dialects::common::{
 use harrier_link::signing::{Rejection, Signer, Signing};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
+use super::handle::GcsLink;
+use super::messages::{
+    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
+    PUBLISH_HZ, Request, VehicleSample,
+};
+use super::metrics::LinkMetrics;
+use super::timesync;
 use super::tlog::Tlog;
 use super::transport::{self, EndpointHandle, Inbound, Outbound, Peer, stopped};
 use super::vehicle::{LinkState, VehicleLink};
-use super::{
-    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, GcsLink, LinkEvent,
-    LinkEventKind, LinkMetrics, PUBLISH_HZ, Request, VehicleSample, timesync,
-};
 use crate::clock::unix_now;
 
 /// A command waiting for its ACK.

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use harrier_link::signing::Rejection;
 
-use super::VehicleSample;
+use super::messages::VehicleSample;
 use super::transport::EndpointHandle;
 use super::vehicle::LinkState;
 use crate::prom::Family;
@@ -162,7 +162,7 @@ impl LinkMetrics {
     }
 
     /// A command's outcome.
-    pub(super) fn result(&self, result: super::CommandResult) {
+    pub(super) fn result(&self, result: super::messages::CommandResult) {
         *self
             .acks
             .lock()

@@ -26,8 +26,9 @@ use harrier_link::mavlink::dialects::common::{
 use nalgebra::Vector3;
 use tokio::sync::watch;
 
+use super::handle::GcsLink;
+use super::messages::Request;
 use super::transport::stopped;
-use super::{GcsLink, Request};
 use crate::tracker::Snapshot;
 use harrier_engine::{TrackStatus, TrackView};
 

@@ -19,10 +19,11 @@ use nalgebra::Vector3;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use super::formation::FormationState;
+use super::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
 use super::plan::{
-    AssignmentRequest, AssignmentState, AssignmentView, Law, Plan, SlotState, SlotView,
+    AssignmentRequest, AssignmentState, AssignmentView, GuidanceSettings, Law, Plan, SlotState,
+    SlotView,
 };
-use super::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest, GuidanceSettings};
 use crate::clock::unix_now;
 use crate::gcs::transport::stopped;
 use crate::gcs::vehicle::LinkState;

@@ -8,7 +8,8 @@ use harrier_core::guidance::Orbit;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::GuidanceSettings;
+use harrier_core::guidance::Limits;
+use harrier_core::guidance::obstacle::Obstacle;
 
 /// A new assignment, as `POST /api/v1/assignments` takes it.
 #[derive(Debug, Clone, PartialEq, Deserialize, ToSchema)]
@@ -274,6 +275,21 @@ pub struct AssignmentView {
     pub created_unix: f64,
     /// Its vehicles.
     pub vehicles: Vec<SlotView>,
+}
+
+/// Settings of the loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GuidanceSettings {
+    /// Setpoint rate (Hz).
+    pub rate_hz: f64,
+    /// Flight envelope.
+    pub limits: Limits,
+    /// Default speed (m/s).
+    pub speed: f64,
+    /// Takeoff height above home (m).
+    pub takeoff_height: f64,
+    /// Obstacles the `formation` law steers around (ENU).
+    pub obstacles: Vec<Obstacle>,
 }
 
 #[cfg(test)]
