@@ -1,0 +1,198 @@
+//! The command line of `harrier bench` ([`BenchArgs`]), its checks, and the in-process
+//! server's configuration it gives.
+
+use std::net::SocketAddr;
+
+use harrier_server::config::Config;
+
+use super::publish::Phase;
+
+/// Arguments of `harrier bench`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct BenchArgs {
+    /// Simulated vehicles, each publishing one sensor's scans on its own key.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u8).range(1..))]
+    pub vehicles: u8,
+    /// MAVLink system id of the first vehicle (the others follow).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
+    pub first_vehicle: u8,
+    /// Scans per second of each vehicle.
+    #[arg(long, default_value_t = 50.0)]
+    pub rate_hz: f64,
+    /// Where in the scan period each vehicle publishes: spread (evenly), random (seeded) or
+    /// same (synchronised). A scan is processed once every vehicle has published a newer one.
+    #[arg(long, value_enum, default_value_t = Phase::Spread)]
+    pub phase: Phase,
+    /// Detections per scan: one of each target (the targets circle 300 m apart).
+    #[arg(long, default_value_t = 4)]
+    pub detections: usize,
+    /// Length of the measured steady state (s).
+    #[arg(long, default_value_t = 60.0)]
+    pub duration_s: f64,
+    /// Publishing before the measurement starts (s): tracks form, buffers fill.
+    #[arg(long, default_value_t = 2.0)]
+    pub warmup_s: f64,
+    /// WebSocket clients following `/api/v1/ws`.
+    #[arg(long, default_value_t = 1)]
+    pub ws_clients: usize,
+    /// Concurrent keep-alive HTTP/1 connections loading `--rest-path` (0: no REST load).
+    #[arg(long, default_value_t = 0)]
+    pub rest_connections: usize,
+    /// How long the REST load runs, from the start of the steady state (s; at most
+    /// `--duration-s`).
+    #[arg(long, default_value_t = 10.0)]
+    pub rest_duration_s: f64,
+    /// Route of the REST load.
+    #[arg(long, default_value = "/api/v1/tracks")]
+    pub rest_path: String,
+    /// Interval of the progress lines on stderr (s).
+    #[arg(long, default_value_t = 5.0)]
+    pub progress_s: f64,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+    /// In-process server: track filter (ekf, cdkf, imm, cimm; default ekf).
+    #[arg(long, short)]
+    pub estimator: Option<String>,
+    /// In-process server: `tracker.reorder_window_s` (default: the server's, 0.1 s). Scans wait
+    /// this long for older ones, so it is a floor of the latency.
+    #[arg(long)]
+    pub reorder_window_s: Option<f64>,
+    /// In-process server: `tracker.queue`, payloads and scans queued between its actors.
+    #[arg(long)]
+    pub queue: Option<usize>,
+    /// In-process server: `api.ws_queue`, messages queued per WebSocket client.
+    #[arg(long)]
+    pub ws_queue: Option<usize>,
+    /// Attach to a running server: its API, `http://HOST:PORT`.
+    #[arg(long, requires = "zenoh_connect")]
+    pub url: Option<String>,
+    /// With `--url`: the server's Zenoh endpoint, e.g. tcp/127.0.0.1:7447 (repeatable).
+    #[arg(long, value_name = "ENDPOINT", requires = "url")]
+    pub zenoh_connect: Vec<String>,
+    /// With `--url`: the API token (sent with every request; needed with `api.auth_reads`).
+    #[arg(long, requires = "url")]
+    pub token: Option<String>,
+    /// With `--url`: the server's process id, to measure its resident memory.
+    #[arg(long, requires = "url")]
+    pub server_pid: Option<u32>,
+    /// Overload after the steady state: every vehicle publishes at this factor × `--rate-hz`
+    /// for `--overload-s`, then at `--rate-hz` again for `--recovery-s` (1: no overload).
+    #[arg(long, default_value_t = 1.0)]
+    pub overload_factor: f64,
+    /// Length of the overload (s; 0: none).
+    #[arg(long, default_value_t = 0.0)]
+    pub overload_s: f64,
+    /// Length of the nominal phase after the overload, measured for recovery (s).
+    #[arg(long, default_value_t = 30.0)]
+    pub recovery_s: f64,
+    /// Recovered: from the first sample after the overload whose tracker lag is at most this
+    /// (ms), no more drops and no larger lag until the end.
+    #[arg(long, default_value_t = 250.0)]
+    pub recovered_lag_ms: f64,
+}
+
+impl BenchArgs {
+    /// Checks what clap cannot.
+    pub(super) fn check(&self) -> anyhow::Result<()> {
+        let bad = |ok: bool, m: &str| {
+            if ok {
+                Ok(())
+            } else {
+                Err(anyhow::anyhow!("{m}"))
+            }
+        };
+        bad(
+            self.rate_hz.is_finite() && self.rate_hz > 0.0 && self.rate_hz <= 10_000.0,
+            "--rate-hz must be in (0, 10000]",
+        )?;
+        bad(self.detections <= 10_000, "--detections must be ≤ 10000")?;
+        bad(
+            self.duration_s.is_finite() && self.duration_s > 0.0,
+            "--duration-s must be > 0",
+        )?;
+        bad(
+            self.warmup_s.is_finite() && self.warmup_s >= 0.0,
+            "--warmup-s must be ≥ 0",
+        )?;
+        bad(
+            self.progress_s.is_finite() && self.progress_s > 0.0,
+            "--progress-s must be > 0",
+        )?;
+        bad(
+            self.rest_connections == 0
+                || (self.rest_duration_s.is_finite() && self.rest_duration_s > 0.0),
+            "--rest-duration-s must be > 0",
+        )?;
+        bad(
+            self.ws_clients <= 10_000 && self.rest_connections <= 10_000,
+            "--ws-clients and --rest-connections must be ≤ 10000",
+        )?;
+        bad(
+            u16::from(self.first_vehicle) + u16::from(self.vehicles) - 1 <= 255,
+            "--first-vehicle + --vehicles - 1 must be ≤ 255 (MAVLink system ids)",
+        )?;
+        bad(
+            self.rest_path.starts_with('/'),
+            "--rest-path must start with /",
+        )?;
+        bad(
+            self.overload_factor.is_finite()
+                && self.overload_factor >= 1.0
+                && self.rate_hz * self.overload_factor <= 10_000.0,
+            "--overload-factor must be ≥ 1, and --rate-hz × --overload-factor ≤ 10000",
+        )?;
+        bad(
+            self.overload_s.is_finite()
+                && self.overload_s >= 0.0
+                && self.recovery_s.is_finite()
+                && self.recovery_s > 0.0
+                && self.recovered_lag_ms.is_finite()
+                && self.recovered_lag_ms > 0.0,
+            "--overload-s must be ≥ 0, --recovery-s and --recovered-lag-ms > 0",
+        )?;
+        if self.url.is_some() {
+            bad(
+                self.estimator.is_none()
+                    && self.reorder_window_s.is_none()
+                    && self.queue.is_none()
+                    && self.ws_queue.is_none(),
+                "--estimator, --reorder-window-s, --queue and --ws-queue configure the \
+                 in-process server; with --url, configure the server you run",
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The vehicles' MAVLink ids.
+    pub(super) fn vehicle_ids(&self) -> Vec<u8> {
+        (0..self.vehicles)
+            .map(|k| self.first_vehicle.saturating_add(k))
+            .collect()
+    }
+
+    /// The in-process server's configuration, its Zenoh session listening on `endpoint`.
+    pub(super) fn server_config(&self, endpoint: String) -> Config {
+        let mut c = Config::default();
+        c.mavlink.gcs.clear();
+        c.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        c.zenoh.listen = vec![endpoint];
+        c.zenoh.connect = Vec::new();
+        if let Some(e) = &self.estimator {
+            c.tracker.estimator.clone_from(e);
+        }
+        if let Some(w) = self.reorder_window_s {
+            c.tracker.reorder_window_s = w;
+        }
+        if let Some(q) = self.queue {
+            c.tracker.queue = q;
+        }
+        if let Some(q) = self.ws_queue {
+            c.api.ws_queue = q;
+        }
+        // Every client of the run at once, and room for its own requests (/metrics, /tracks).
+        let clients = self.ws_clients + self.rest_connections + 16;
+        c.api.max_connections = c.api.max_connections.max(clients);
+        c
+    }
+}

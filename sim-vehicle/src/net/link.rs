@@ -1,0 +1,320 @@
+//! One link of a vehicle ([`Link`]): its transport (UDP, or TCP as server or client), framing
+//! and signing of what is sent, and what a poll received from each peer.
+
+use std::io;
+use std::net::{SocketAddr, TcpListener, TcpStream, UdpSocket};
+use std::sync::Arc;
+use std::sync::mpsc::{self, Receiver, TryRecvError};
+use std::time::{Duration, Instant};
+
+use harrier_link::frame::{Endpoint, Frame, parse_datagram};
+use harrier_link::px4::COMPONENT_ID;
+use harrier_link::signing::{Rejection, Signer};
+use mavlink::MavHeader;
+use mavlink::dialects::common::MavMessage;
+
+use super::LinkError;
+use super::tcp::TcpConn;
+
+/// Where a message came from, so that its replies go back there.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Peer {
+    /// A UDP sender.
+    Udp(SocketAddr),
+    /// A TCP connection of the link, by its number.
+    Tcp(u64),
+}
+
+/// Messages received from one peer in one poll.
+#[derive(Debug)]
+pub(super) struct Received {
+    pub(super) from: Peer,
+    pub(super) messages: Vec<MavMessage>,
+    /// Datagrams without a valid frame, skipped stretches of a stream, undecodable frames.
+    pub(super) malformed: u64,
+    /// Frames refused by the signature check.
+    pub(super) rejected: Vec<Rejection>,
+}
+
+impl Received {
+    pub(super) fn new(from: Peer) -> Self {
+        Self {
+            from,
+            messages: Vec::new(),
+            malformed: 0,
+            rejected: Vec::new(),
+        }
+    }
+
+    /// Keeps the frames `signer` accepts (all of them without signing) and counts the others.
+    pub(super) fn take(&mut self, frames: Vec<Frame>, signer: Option<&Signer>) {
+        for f in frames {
+            match signer.map_or(Ok(()), |s| s.check(&f)) {
+                Ok(()) => self.messages.push(f.message),
+                Err(r) => self.rejected.push(r),
+            }
+        }
+    }
+}
+
+/// Wait between two connection attempts of a `tcpout` link.
+pub const TCP_RETRY: Duration = Duration::from_secs(1);
+/// Longest a `tcpout` connection attempt may take (on its helper thread).
+const TCP_CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// The sockets of a link.
+#[derive(Debug)]
+enum Transport {
+    Udp {
+        socket: UdpSocket,
+        /// Fixed destination (udpout) or the peers seen so far (udpin).
+        peers: Vec<SocketAddr>,
+    },
+    TcpIn {
+        listener: TcpListener,
+        clients: Vec<TcpConn>,
+    },
+    TcpOut {
+        server: SocketAddr,
+        conn: Option<TcpConn>,
+        /// The connection attempt under way, on its helper thread.
+        connecting: Option<Receiver<io::Result<TcpStream>>>,
+        /// When the next attempt may start.
+        retry_at: Instant,
+    },
+}
+
+/// One link of a vehicle.
+#[derive(Debug)]
+pub struct Link {
+    transport: Transport,
+    sequence: u8,
+    /// Number of the next TCP connection (replies find their connection by it).
+    next_conn: u64,
+    /// Signs what is sent and checks what is received (shared by the vehicle's links).
+    signer: Option<Arc<Signer>>,
+}
+
+/// Most peers a udpin link remembers (the oldest is forgotten first).
+const MAX_PEERS: usize = 8;
+
+impl Link {
+    /// Opens a link, signing with `signer` if given. A `tcpout` link starts connecting on the
+    /// first poll.
+    pub fn open(endpoint: &Endpoint, signer: Option<Arc<Signer>>) -> Result<Self, LinkError> {
+        let io = |what, source| LinkError::Io {
+            what,
+            address: endpoint.to_string(),
+            source,
+        };
+        let transport = match *endpoint {
+            Endpoint::UdpIn(a) | Endpoint::UdpOut(a) => {
+                let (bind, peers): (SocketAddr, Vec<SocketAddr>) = match endpoint {
+                    Endpoint::UdpOut(_) => {
+                        let any: SocketAddr = if a.is_ipv4() {
+                            ([0, 0, 0, 0], 0).into()
+                        } else {
+                            (std::net::Ipv6Addr::UNSPECIFIED, 0).into()
+                        };
+                        (any, vec![a])
+                    }
+                    _ => (a, Vec::new()),
+                };
+                let socket = UdpSocket::bind(bind).map_err(|e| io("bind", e))?;
+                socket
+                    .set_nonblocking(true)
+                    .map_err(|e| io("set_nonblocking", e))?;
+                Transport::Udp { socket, peers }
+            }
+            Endpoint::TcpIn(a) => {
+                let listener = TcpListener::bind(a).map_err(|e| io("listen", e))?;
+                listener
+                    .set_nonblocking(true)
+                    .map_err(|e| io("set_nonblocking", e))?;
+                Transport::TcpIn {
+                    listener,
+                    clients: Vec::new(),
+                }
+            }
+            Endpoint::TcpOut(server) => Transport::TcpOut {
+                server,
+                conn: None,
+                connecting: None,
+                retry_at: Instant::now(),
+            },
+        };
+        Ok(Self {
+            transport,
+            sequence: 0,
+            next_conn: 0,
+            signer,
+        })
+    }
+
+    /// The bound local address (`None` for `tcpout`, whose connections come and go).
+    pub fn local_addr(&self) -> Option<SocketAddr> {
+        match &self.transport {
+            Transport::Udp { socket, .. } => socket.local_addr().ok(),
+            Transport::TcpIn { listener, .. } => listener.local_addr().ok(),
+            Transport::TcpOut { .. } => None,
+        }
+    }
+
+    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link (signed when the
+    /// link signs).
+    fn frame(&mut self, sysid: u8, msg: &MavMessage) -> Option<Vec<u8>> {
+        let header = MavHeader {
+            system_id: sysid.into(),
+            component_id: COMPONENT_ID,
+            sequence: self.sequence,
+        };
+        self.sequence = self.sequence.wrapping_add(1);
+        match &self.signer {
+            Some(s) => s.encode(header, msg),
+            None => harrier_link::frame::encode(header, msg),
+        }
+    }
+
+    pub(super) fn send(&mut self, sysid: u8, msg: &MavMessage, to: Peer) {
+        let Some(frame) = self.frame(sysid, msg) else {
+            return;
+        };
+        match (&mut self.transport, to) {
+            (Transport::Udp { socket, .. }, Peer::Udp(addr)) => {
+                // UDP is lossy by nature: a failed send (no listener yet) is not an error.
+                let _ = socket.send_to(&frame, addr);
+            }
+            (Transport::TcpIn { clients, .. }, Peer::Tcp(id)) => {
+                clients.retain_mut(|c| c.id != id || c.send(&frame));
+            }
+            (Transport::TcpOut { conn, retry_at, .. }, Peer::Tcp(id)) => {
+                let broken = conn.as_mut().is_some_and(|c| c.id == id && !c.send(&frame));
+                if broken {
+                    *conn = None;
+                    *retry_at = Instant::now() + TCP_RETRY;
+                }
+            }
+            _ => {}
+        }
+    }
+
+    pub(super) fn broadcast(&mut self, sysid: u8, msg: &MavMessage) {
+        let Some(frame) = self.frame(sysid, msg) else {
+            return;
+        };
+        match &mut self.transport {
+            Transport::Udp { socket, peers } => {
+                for to in peers.iter() {
+                    let _ = socket.send_to(&frame, to);
+                }
+            }
+            Transport::TcpIn { clients, .. } => clients.retain_mut(|c| c.send(&frame)),
+            Transport::TcpOut { conn, retry_at, .. } => {
+                if conn.as_mut().is_some_and(|c| !c.send(&frame)) {
+                    *conn = None;
+                    *retry_at = Instant::now() + TCP_RETRY;
+                }
+            }
+        }
+    }
+
+    /// Receives everything pending: one entry per UDP datagram (no messages when it held no valid
+    /// frame) and per TCP connection. Accepts new TCP clients, drops closed connections and
+    /// (re)connects `tcpout` links.
+    pub(super) fn poll(&mut self, buf: &mut [u8]) -> Vec<Received> {
+        let mut out = Vec::new();
+        let signer = self.signer.as_deref();
+        match &mut self.transport {
+            Transport::Udp { socket, peers } => {
+                while let Ok((n, from)) = socket.recv_from(buf) {
+                    let parsed = parse_datagram(&buf[..n]);
+                    let mut got = Received::new(Peer::Udp(from));
+                    got.malformed = parsed.malformed;
+                    got.take(parsed.frames, signer);
+                    // Only a sender of accepted frames gets the telemetry.
+                    if !peers.contains(&from) && !got.messages.is_empty() {
+                        if peers.len() >= MAX_PEERS {
+                            peers.remove(0);
+                        }
+                        peers.push(from);
+                    }
+                    out.push(got);
+                }
+            }
+            Transport::TcpIn { listener, clients } => {
+                while let Ok((stream, _)) = listener.accept() {
+                    if let Ok(c) = TcpConn::new(self.next_conn, stream) {
+                        clients.push(c);
+                    }
+                    self.next_conn += 1;
+                }
+                clients.retain_mut(|c| match c.receive(buf, signer) {
+                    Some(r) => {
+                        out.push(r);
+                        c.flush()
+                    }
+                    None => false,
+                });
+            }
+            Transport::TcpOut {
+                server,
+                conn,
+                connecting,
+                retry_at,
+            } => {
+                if conn.is_none() {
+                    *conn = Self::connect(*server, connecting, retry_at, &mut self.next_conn);
+                }
+                if let Some(c) = conn {
+                    match c.receive(buf, signer) {
+                        Some(r) if c.flush() => out.push(r),
+                        _ => {
+                            *conn = None;
+                            *retry_at = Instant::now() + TCP_RETRY;
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Advances a `tcpout` connection attempt without blocking: collects the result of the one
+    /// under way, or starts one on a helper thread when it is time to.
+    fn connect(
+        server: SocketAddr,
+        connecting: &mut Option<Receiver<io::Result<TcpStream>>>,
+        retry_at: &mut Instant,
+        next_conn: &mut u64,
+    ) -> Option<TcpConn> {
+        if let Some(rx) = connecting {
+            let result = match rx.try_recv() {
+                Err(TryRecvError::Empty) => return None,
+                Ok(Ok(stream)) => {
+                    *next_conn += 1;
+                    TcpConn::new(*next_conn, stream).ok()
+                }
+                Ok(Err(_)) | Err(TryRecvError::Disconnected) => None,
+            };
+            *connecting = None;
+            if result.is_none() {
+                *retry_at = Instant::now() + TCP_RETRY;
+            }
+            return result;
+        }
+        if Instant::now() >= *retry_at {
+            let (tx, rx) = mpsc::channel();
+            let spawned = std::thread::Builder::new()
+                .name("harrier-sim-connect".to_owned())
+                .spawn(move || {
+                    // The link may be gone by now: then nobody wants the result.
+                    let _ = tx.send(TcpStream::connect_timeout(&server, TCP_CONNECT_TIMEOUT));
+                });
+            match spawned {
+                Ok(_) => *connecting = Some(rx),
+                Err(_) => *retry_at = Instant::now() + TCP_RETRY,
+            }
+        }
+        None
+    }
+}

@@ -1,0 +1,79 @@
+//! MAVLink links over UDP and TCP, and the threads that run vehicles on them.
+//!
+//! A link is described by a connection string:
+//!
+//! - `udpin:HOST:PORT` binds a UDP socket and answers whoever sends to it (telemetry goes to every
+//!   peer seen); `udpout:HOST:PORT` binds an ephemeral port and sends to HOST:PORT.
+//! - `tcpin:HOST:PORT` listens and accepts any number of clients, each a peer that gets the
+//!   telemetry from the moment it connects; `tcpout:HOST:PORT` connects to a server and reconnects
+//!   (every [`TCP_RETRY`]) when the connection fails or drops, without ever blocking the
+//!   simulation loop (the connect runs on a short-lived helper thread).
+//!
+//! Replies go back on the link, and to the peer (address or TCP connection), the request came
+//! from, so a GCS and an API client never see each other's replies. Sockets are non-blocking. TCP
+//! is a byte stream: each connection keeps a receive buffer and frames are parsed across reads
+//! ([`StreamParser`]), so a frame split over several segments waits for its end.
+//!
+//! With [`LinkConfig::signing`] (MAVLink 2 signing, harrier-link's [`Signer`], one per vehicle
+//! for all its links) every frame sent is signed, and every frame received is checked before the
+//! vehicle sees it: a refused frame (unsigned in `signed_only` mode, wrong signature, replay) is
+//! counted in [`Counters::rejected`](crate::vehicle::Counters::rejected) by reason, never handled,
+//! and never makes its UDP sender a peer that gets telemetry. Refusals are logged on stderr at most
+//! once per [`REJECT_LOG_EVERY`].
+//!
+//! Split by concern: [`Link`] (its transports, sending and polling) is in `link.rs`, a TCP
+//! connection's buffers in `tcp.rs`, the vehicle's thread ([`spawn`], [`SimHandle`]) in `run.rs`
+//! and one tick of it (messages to the vehicle, TIMESYNC answered, telemetry out) in `tick.rs`.
+
+mod link;
+mod run;
+mod tcp;
+#[cfg(test)]
+mod tests;
+mod tick;
+
+pub use harrier_link::frame::{Endpoint, EndpointError, StreamParser};
+pub use harrier_link::signing::{Rejection, Rejections, Signer, Signing};
+pub use link::{Link, TCP_RETRY};
+pub use run::{REJECT_LOG_EVERY, SimHandle, spawn};
+
+/// Errors from setting up links.
+#[derive(Debug, thiserror::Error)]
+pub enum LinkError {
+    /// The connection string is not one of the supported forms.
+    #[error(transparent)]
+    BadAddress(#[from] EndpointError),
+    /// A socket operation failed.
+    #[error("{what} {address}: {source}")]
+    Io {
+        /// What was attempted.
+        what: &'static str,
+        /// The connection string.
+        address: String,
+        /// The error.
+        source: std::io::Error,
+    },
+}
+
+/// Links of one vehicle.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LinkConfig {
+    /// Connection strings, e.g. `udpout:127.0.0.1:14550` (GCS) and `udpin:0.0.0.0:14540` (API).
+    pub endpoints: Vec<String>,
+    /// MAVLink 2 signing on every link (`None`: off).
+    pub signing: Option<Signing>,
+}
+
+impl LinkConfig {
+    /// PX4 SITL-like defaults for vehicle `id`: GCS on `udpout:127.0.0.1:14550`, API on
+    /// `udpin:0.0.0.0:{14540 + id - 1}`.
+    pub fn px4_defaults(id: u8) -> Self {
+        Self {
+            endpoints: vec![
+                "udpout:127.0.0.1:14550".to_owned(),
+                format!("udpin:0.0.0.0:{}", 14540 + u16::from(id) - 1),
+            ],
+            signing: None,
+        }
+    }
+}

@@ -1,0 +1,53 @@
+//! One tick of a vehicle on its links: what each link received goes to the vehicle (TIMESYNC
+//! requests are answered here, with the vehicle's clock), the replies to the peer each request
+//! came from, and the telemetry to every peer.
+
+use mavlink::dialects::common::{MavMessage, TIMESYNC_DATA};
+
+use super::link::Link;
+use crate::vehicle::{ClockSkew, Vehicle};
+
+/// The answer to a time-sync request (TIMESYNC with tc1 = 0): this vehicle's clock in ns, `now`
+/// s after its start, as PX4 and ArduPilot answer it (theirs reads time since boot; this one
+/// reads UNIX time, wrong by `clock`). `None` for every other message.
+fn timesync_reply(clock: &ClockSkew, m: &MavMessage, now: f64) -> Option<MavMessage> {
+    let MavMessage::TIMESYNC(t) = m else {
+        return None;
+    };
+    if t.tc1 != 0 {
+        return None;
+    }
+    let reading = harrier_link::clock::unix_now() + clock.offset_s + clock.drift_ppm * 1e-6 * now;
+    Some(MavMessage::TIMESYNC(TIMESYNC_DATA {
+        tc1: (reading * 1e9) as i64,
+        ts1: t.ts1,
+    }))
+}
+
+pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
+    let sysid = v.id();
+    for link in links.iter_mut() {
+        for r in link.poll(buf) {
+            for _ in 0..r.malformed {
+                v.count_malformed();
+            }
+            for &reason in &r.rejected {
+                v.count_rejected(reason);
+            }
+            for m in &r.messages {
+                if let Some(reply) = timesync_reply(&v.config().clock, m, now) {
+                    link.send(sysid, &reply, r.from);
+                    continue;
+                }
+                for reply in v.handle(now, m) {
+                    link.send(sysid, &reply, r.from);
+                }
+            }
+        }
+    }
+    for m in v.telemetry(now) {
+        for link in links.iter_mut() {
+            link.broadcast(sysid, &m);
+        }
+    }
+}
