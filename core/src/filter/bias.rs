@@ -2,11 +2,12 @@
 //! measurement-bias states, plus a bias-jump hypothesis test.
 //!
 //! **Why.** \[ICDKF\] cancels a slowly varying bias by differencing, but increments carry no
-//! absolute position, so its position random-walks (see [`super::IncrementalCdkf`]). Estimating
-//! the bias as a state (Friedland's augmentation, which \[ICDKF\] §1 discusses) keeps the absolute
-//! information; the difficulty is that a bias which is present from the start is indistinguishable
-//! from a shifted target, while a bias that *switches* (abrupt on/off, \[ICDKF\] type 2) is
-//! detectable as a step in the innovations that no admissible target motion explains.
+//! absolute position, so its position random-walks (see
+//! [`IncrementalCdkf`](super::icdkf::IncrementalCdkf)). Estimating the bias as a state (Friedland's
+//! augmentation, which \[ICDKF\] §1 discusses) keeps the absolute information; the difficulty is
+//! that a bias which is present from the start is indistinguishable from a shifted target, while a
+//! bias that *switches* (abrupt on/off, \[ICDKF\] type 2) is detectable as a step in the
+//! innovations that no admissible target motion explains.
 //!
 //! **Model.** State `[x; b]`, x the kinematic state (CV), `b ∈ R^M` an additive offset per
 //! measurement component (the scale error `s·h` of \[ICDKF\] eq. (9) varies slowly with range and is
@@ -33,7 +34,8 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{CentralDifference, Predictor, Updater};
+use super::cdkf::CentralDifference;
+use super::traits::{Predictor, Updater};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
 use crate::state::{Gaussian, Posterior};

@@ -29,7 +29,10 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
+use super::traits::{
+    MeasurementPrediction, MeasurementPredictor, NonlinearFilter, Predictor, Updater,
+    nonlinear_filter,
+};
 use crate::linalg::{cholesky, ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::TransitionModel;
@@ -238,6 +241,8 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
         Ok(MeasurementPrediction { zhat, cov })
     }
 }
+
+nonlinear_filter!(CentralDifference);
 
 /// The measurement update shared by the sigma-point filters (CDKF, ICDKF), given the innovation
 /// covariance `S`, the cross-covariance `Pxz` and the innovation `ν`:

@@ -55,7 +55,8 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{Kalman, Predictor, Updater};
+use super::kalman::Kalman;
+use super::traits::{Predictor, Updater};
 use crate::linalg::ensure_finite;
 use crate::measurement::LinearMeasurement;
 use crate::motion::LinearTransition;

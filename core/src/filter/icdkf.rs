@@ -25,7 +25,7 @@
 //! **What the method can and cannot do.** Increments carry no absolute position: the only absolute
 //! information is the prior, so the position error random-walks with the process noise. On the
 //! reference radar scenarios the faithful ICDKF does *not* beat the plain CDKF; see
-//! `BENCHMARKS.md` and the bias-robust estimator in [`super::BiasAwareCdkf`] for what does.
+//! `BENCHMARKS.md` and the bias-robust estimator in `BiasAwareCdkf` for what does.
 //!
 //! # References
 //! * \[ICDKF\] Q. Wang, "Research on target tracking technology of multi-rotor aircraft based on
@@ -35,8 +35,7 @@
 
 use nalgebra::SVector;
 
-use super::CentralDifference;
-use super::cdkf::sigma_point_update;
+use super::cdkf::{CentralDifference, sigma_point_update};
 use crate::Result;
 use crate::linalg::{ensure_covariance, symmetrize};
 use crate::measurement::MeasurementModel;

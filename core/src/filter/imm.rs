@@ -40,7 +40,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{MeasurementPrediction, NonlinearFilter, Predictor, Updater};
+use super::traits::{MeasurementPrediction, NonlinearFilter, Predictor, Updater};
 use crate::linalg::{ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::{ConstantTurn, ConstantVelocity, LinearTransition, TransitionModel};
@@ -344,7 +344,7 @@ fn log_normalize<const R: usize>(log_w: [f64; R]) -> Result<[f64; R]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::{Extended, Kalman};
+    use crate::filter::kalman::{Extended, Kalman};
     use crate::measurement::{Geometry, Position};
     use approx::assert_relative_eq;
     use nalgebra::{Matrix4, Vector2, Vector4};

@@ -17,7 +17,10 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::{MeasurementPrediction, MeasurementPredictor, Predictor, Updater};
+use super::traits::{
+    MeasurementPrediction, MeasurementPredictor, NonlinearFilter, Predictor, Updater,
+    nonlinear_filter,
+};
 use crate::Result;
 use crate::linalg::{cholesky, ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::{LinearMeasurement, MeasurementModel};
@@ -180,3 +183,5 @@ impl<H: MeasurementModel<N, M>, const N: usize, const M: usize> MeasurementPredi
         )
     }
 }
+
+nonlinear_filter!(Extended);

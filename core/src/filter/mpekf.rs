@@ -51,7 +51,8 @@
 //!
 //! In these coordinates the angle measurements are linear and the subtended angle
 //! `2·atan(S/2ρ) = 2·atan(S w / 2)` (\[BOT\] §II.C) depends on `w` and S only. The update is the EKF
-//! update of [`super::Extended`] (Joseph form, Cholesky solve, wrapped azimuth residual).
+//! update of [`Extended`](super::kalman::Extended) (Joseph form, Cholesky solve, wrapped azimuth
+//! residual).
 //!
 //! # References
 //! * \[BOT\] "Vision-based estimation and formation control of multiple aircraft"
@@ -521,8 +522,8 @@ impl<const N: usize> MeasurementModel<N, 2> for MpAzEl {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::Extended;
-    use crate::filter::Updater;
+    use crate::filter::kalman::Extended;
+    use crate::filter::traits::Updater;
     use crate::measurement::{BearingSize, Geometry};
     use approx::assert_relative_eq;
 

@@ -26,9 +26,9 @@
 //! is σ = 2·10⁻⁶ rad, R = 4·10⁻¹²) and λ jumps by orders of magnitude.
 //!
 //! Because λ depends on the innovation, prediction and update cannot be split into the
-//! [`Predictor`](super::Predictor) / [`Updater`](super::Updater) roles; [`StrongTracking::step`]
-//! does both. With λ = 1 at every step (innovations no larger than predicted) the STF is exactly the
-//! Kalman filter [`Kalman`](super::Kalman).
+//! [`Predictor`](super::traits::Predictor) / [`Updater`](super::traits::Updater) roles;
+//! [`StrongTracking::step`] does both. With λ = 1 at every step (innovations no larger than
+//! predicted) the STF is exactly the Kalman filter [`Kalman`](super::kalman::Kalman).
 //!
 //! # References
 //! * \[ZF96\] D. H. Zhou, P. M. Frank, "Strong tracking filtering of nonlinear time-varying stochastic
@@ -44,7 +44,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use super::joseph_update;
+use super::kalman::joseph_update;
 use crate::linalg::{ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::LinearMeasurement;
 use crate::motion::LinearTransition;
@@ -205,7 +205,8 @@ impl StrongTracking {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::filter::{Kalman, Predictor, Updater};
+    use crate::filter::kalman::Kalman;
+    use crate::filter::traits::{Predictor, Updater};
     use crate::measurement::DirectPosition;
     use crate::motion::WienerAcceleration;
     use approx::assert_relative_eq;

@@ -2,7 +2,7 @@
 
 use nalgebra::{Matrix2, SMatrix, SVector, Vector2};
 
-use super::Road;
+use super::network::Road;
 use crate::measurement::MeasurementModel;
 
 /// The road pseudo-measurement of \[CIMM\] §3.1 for a CV-layout state (`[p; v]`, planar or 3-D):

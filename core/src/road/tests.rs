@@ -4,7 +4,7 @@
 use super::*;
 use crate::measurement::MeasurementModel;
 use approx::assert_relative_eq;
-use nalgebra::Vector4;
+use nalgebra::{Vector2, Vector4};
 
 /// The road of the `cimm_road_*` scenarios: a line, a right arc, a left arc.
 fn road() -> Road {

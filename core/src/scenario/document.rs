@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::Scenario;
+use super::types::Scenario;
 
 /// `frame` block: ENU metres about an optional geodetic origin (FORMAT.md §2).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]

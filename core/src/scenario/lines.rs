@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::{EllipsoidSpec, Scenario};
+use super::types::{EllipsoidSpec, Scenario};
 use crate::measurement::MeasKind;
 
 /// Platform pose in a measurement line.

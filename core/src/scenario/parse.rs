@@ -4,7 +4,8 @@
 use std::collections::HashMap;
 use std::fmt;
 
-use super::{FORMAT_ID, Measurement, Scenario, ScenarioData, TruthRow};
+use super::lines::{Measurement, ScenarioData, TruthRow};
+use super::types::{FORMAT_ID, Scenario};
 use crate::measurement::MeasKind;
 
 /// The three files of a scenario directory.

@@ -99,8 +99,8 @@
 //! matrices: no step allocates.
 //!
 //! Split by concern: the filter and its models are here, the set operations (strip cut,
-//! Minkowski sum, predicted measurement set) in `sets.rs`, the one-dimensional weight searches
-//! in `solve.rs`.
+//! Minkowski sum, predicted measurement set) and the criterion they minimise in `sets.rs`, the
+//! one-dimensional weight searches in `solve.rs`.
 //!
 //! # References
 //! * \[ELL\] Dong Liushuan, "Ellipsoidal Method for UAVs Target Tracking and Recognition", *IEEE
@@ -120,25 +120,13 @@ mod tests;
 
 use nalgebra::{SMatrix, SVector};
 
-pub use sets::{intersect_strip, minkowski_outer};
+pub use sets::{ObeCriterion, intersect_strip, minkowski_outer};
 
-use super::{Predictor, Updater};
+use crate::filter::traits::{Predictor, Updater};
 use crate::linalg::{cholesky, ensure_finite};
 use crate::state::{Ellipsoid, Posterior};
 use crate::{EstimationError, Result};
 use sets::{measurement_set_shape, strip_step};
-
-/// Which size measure of the outer ellipsoid each step minimises.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
-pub enum ObeCriterion {
-    /// Minimum volume (`det P`): Fogel & Huang's closed form for the update, a convex
-    /// one-dimensional root search for the prediction (\[FH82\], \[ELL\] Theorem 4).
-    #[default]
-    MinVolume,
-    /// Minimum trace (sum of squared semi-axes): closed form for the prediction, a bounded
-    /// one-dimensional root search for the update (\[MN96\]).
-    MinTrace,
-}
 
 /// The optimal bounding ellipsoid filter (see the module docs): a [`Predictor`] for
 /// [`BoundedLinearTransition`] and an [`Updater`] for [`BoundedLinearMeasurement`] on

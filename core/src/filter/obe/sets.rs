@@ -1,10 +1,9 @@
 //! The set operations of the OBE filter (see the `obe` module docs): the outer ellipsoid of an
 //! ellipsoid cut by a strip ([`intersect_strip`]), of a Minkowski sum ([`minkowski_outer`]), and
-//! of the predicted measurement set.
+//! of the predicted measurement set, each the smallest by an [`ObeCriterion`].
 
 use nalgebra::{SMatrix, SVector};
 
-use super::ObeCriterion;
 use super::solve::{kappa_min_volume, rho_min_trace, rho_min_volume, sym_eigenvalues};
 use crate::linalg::{cholesky, ensure_finite, symmetrize};
 use crate::state::Ellipsoid;
@@ -14,6 +13,18 @@ use crate::{EstimationError, Result};
 /// to it, so that a strip just touching the ellipsoid still yields a (thin) positive definite
 /// outer ellipsoid. Widening a strip keeps the bound an outer bound.
 const MIN_STRIP_FRACTION: f64 = 1e-9;
+
+/// Which size measure of the outer ellipsoid each step minimises.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub enum ObeCriterion {
+    /// Minimum volume (`det P`): Fogel & Huang's closed form for the update, a convex
+    /// one-dimensional root search for the prediction (\[FH82\], \[ELL\] Theorem 4).
+    #[default]
+    MinVolume,
+    /// Minimum trace (sum of squared semi-axes): closed form for the prediction, a bounded
+    /// one-dimensional root search for the update (\[MN96\]).
+    MinTrace,
+}
 
 /// Outer ellipsoid of `E(c, P) ∩ {x : |y − aᵀx| ≤ σ}` minimising `criterion` (the `obe` module
 /// docs, \[Sch68\], \[FH82\], \[MN96\]). Returns `e` unchanged when the strip covers it, and
