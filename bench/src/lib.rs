@@ -37,11 +37,13 @@
 
 mod args;
 mod load;
+mod outcome;
 mod phases;
 mod publish;
 mod report;
 mod rest;
 mod stats;
+mod target;
 #[cfg(test)]
 mod tests;
 mod ws;
@@ -58,6 +60,7 @@ pub use self::report::{
 use self::rest::Api;
 pub use self::rest::RestReport;
 pub use self::stats::{Counters, CpuUse, Machine, Percentiles, ServerLatency};
+use self::target::{Target, free_loopback_endpoint};
 pub use self::ws::WsReport;
 
 /// Runs the load test and prints its figures.
@@ -71,25 +74,6 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     use std::io::Write as _;
     let _ = writeln!(std::io::stdout().lock(), "{text}");
     Ok(())
-}
-
-/// A Zenoh TCP endpoint on a loopback port that is free now.
-fn free_loopback_endpoint() -> anyhow::Result<String> {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .context("no free loopback port for a Zenoh endpoint")?
-        .port();
-    Ok(format!("tcp/127.0.0.1:{port}"))
-}
-
-/// The server a run loads.
-#[derive(Debug)]
-struct Target {
-    api: Api,
-    zenoh: Vec<String>,
-    url: String,
-    rss_pid: Option<u32>,
-    in_process: bool,
 }
 
 /// Runs the load test: starts the in-process server (or attaches to `--url`), loads it, and

@@ -6,11 +6,12 @@ use std::time::Duration;
 use anyhow::Context as _;
 use tokio::time::Instant;
 
+use super::args::BenchArgs;
 use super::publish::{Plan, Publishers};
 use super::rest::{Api, RestReport};
 use super::stats::{Counters, now_unix};
+use super::target::{Target, free_loopback_endpoint};
 use super::ws::Clients;
-use super::{BenchArgs, Target, free_loopback_endpoint};
 
 /// The server's counters of this run's vehicles, from its `/api/v1/metrics`.
 pub(super) struct Probe<'a> {

@@ -7,12 +7,13 @@ use std::time::Duration;
 use anyhow::Context as _;
 use tokio::time::Instant;
 
+use super::args::BenchArgs;
 use super::load::{Load, Probe, lag_s};
+use super::outcome::{Drained, Progress, Steady};
 use super::report::{OverloadReport, Report, Sample, overload_report, report};
-use super::rest::{RestLoad, RestReport};
-use super::stats::{Counters, CpuSample, CpuUse, Machine, load_1m, rss_kib};
-use super::ws::WsReport;
-use super::{BenchArgs, Target};
+use super::rest::RestLoad;
+use super::stats::{Counters, CpuSample, Machine, load_1m, rss_kib};
+use super::target::Target;
 
 /// Longest wait for the server to process what it received, and for the WebSocket clients to
 /// receive it, after the publishers stopped.
@@ -40,34 +41,6 @@ pub(super) async fn drive(
     let drained = drain(&probe, load, &base).await?;
     machine.load_end = load_1m();
     Ok(report(args, target, machine, &steady, drained, overload))
-}
-
-/// What the steady state measured.
-pub(super) struct Steady {
-    /// The counters at its start.
-    pub(super) c0: Counters,
-    /// Scans published at its start.
-    pub(super) published0: u64,
-    /// Its last progress sample: its end.
-    pub(super) last: Progress,
-    /// Its length (s).
-    pub(super) seconds: f64,
-    /// Largest tracker lag at a progress sample (s).
-    pub(super) max_lag_s: f64,
-    pub(super) rss_start: Option<u64>,
-    pub(super) rss_end: Option<u64>,
-    pub(super) cpu: Option<CpuUse>,
-}
-
-/// One progress sample of the steady state.
-#[derive(Clone)]
-pub(super) struct Progress {
-    at: Instant,
-    pub(super) counters: Counters,
-    pub(super) published: u64,
-    ws_scans: u64,
-    rest_ok: u64,
-    cpu: Option<CpuSample>,
 }
 
 /// The measured steady state: the REST load starts, the WebSocket clients record latencies,
@@ -258,21 +231,6 @@ async fn overload(
         phases.push((args.rate_hz * factor, samples));
     }
     Ok(overload_report(args, rss_before, &phases))
-}
-
-/// What the run published, and what the server and the clients made of it once drained.
-pub(super) struct Drained {
-    /// Scans published (`put` accepted), and failed `put`s.
-    pub(super) published: u64,
-    pub(super) failed: u64,
-    /// How long the publishers ran (s).
-    pub(super) publish_s: f64,
-    /// The counters since the run started.
-    pub(super) totals: Counters,
-    /// Whether the server processed or dropped everything it received in time.
-    pub(super) drained: bool,
-    pub(super) websocket: Option<WsReport>,
-    pub(super) rest: Option<RestReport>,
 }
 
 /// Stops the publishers, waits (at most [`DRAIN_TIMEOUT`]) until the server has processed or

@@ -5,12 +5,13 @@
 use serde::Serialize;
 use tokio::time::Instant;
 
-use super::phases::{Drained, Steady};
+use super::args::BenchArgs;
+use super::outcome::{Drained, Steady};
 use super::publish::Phase;
 use super::rest::RestReport;
 use super::stats::{Counters, CpuUse, Machine, Percentiles, ServerLatency};
+use super::target::Target;
 use super::ws::WsReport;
-use super::{BenchArgs, Target};
 use harrier_server::config::Config;
 
 /// How the run was set up.

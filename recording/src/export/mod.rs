@@ -30,9 +30,6 @@ use session::{Framed, Recorded, framed};
 use times::{ScanTimes, TimeLine};
 use truth::{truth_by_target, truth_csv};
 
-/// Tolerance of "the same time" and of the multi-target scan grid (s), as the formats say.
-const TIME_TOL_S: f64 = 1e-6;
-
 /// A session exported as a `gcs-scenario/1` directory, in memory.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
 pub struct Exported {

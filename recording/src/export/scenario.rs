@@ -12,7 +12,8 @@ use harrier_link::scenario_out;
 use nalgebra::{SVector, Vector3};
 use serde_json::json;
 
-use super::session::{Line, Recorded, SensorEntry};
+use super::session::Recorded;
+use super::times::{Line, SensorEntry};
 use super::times::{ScanTimes, TimeLine};
 use super::truth::TargetTruth;
 

@@ -5,13 +5,13 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
-use harrier_core::measurement::{Geometry, MeasKind};
+use harrier_core::measurement::Geometry;
 use harrier_core::scenario as fmt;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
 use harrier_link::scenario_out;
 
-use super::times::TimeLine;
+use super::times::{Line, SensorEntry, TimeLine};
 use crate::reader::{Db, SessionError, SessionInfo};
 
 /// The scans of session `id` in `frame`, one measurement line per detection (time on `line`,
@@ -73,15 +73,6 @@ pub(super) fn framed(
     })
 }
 
-/// One (vehicle, sensor) of a session as a scenario sensor.
-#[derive(Debug)]
-pub(super) struct SensorEntry {
-    pub(super) kind: MeasKind,
-    pub(super) noise_std: Vec<f64>,
-    /// Scan times (relative).
-    pub(super) times: Vec<f64>,
-}
-
 /// A session's scans in its frame ([`framed`]).
 #[derive(Debug)]
 pub(super) struct Framed {
@@ -93,14 +84,6 @@ pub(super) struct Framed {
     pub(super) times: Vec<f64>,
     /// Whether a scan holds several detections.
     pub(super) several: bool,
-}
-
-/// One measurement line before sorting.
-#[derive(Debug)]
-pub(super) struct Line {
-    pub(super) t: f64,
-    pub(super) sensor: (u8, String),
-    pub(super) m: fmt::Measurement,
 }
 
 /// Rounds a relative time to the microsecond (the formats' tolerance).

@@ -5,8 +5,28 @@ use std::collections::BTreeMap;
 
 use harrier_core::detection::DetectionScan;
 
-use super::TIME_TOL_S;
-use super::session::{Line, SensorEntry};
+use harrier_core::measurement::MeasKind;
+use harrier_core::scenario as fmt;
+
+/// Tolerance of "the same time" and of the multi-target scan grid (s), as the formats say.
+pub(super) const TIME_TOL_S: f64 = 1e-6;
+
+/// One (vehicle, sensor) of a session as a scenario sensor.
+#[derive(Debug)]
+pub(super) struct SensorEntry {
+    pub(super) kind: MeasKind,
+    pub(super) noise_std: Vec<f64>,
+    /// Scan times (relative).
+    pub(super) times: Vec<f64>,
+}
+
+/// One measurement line before sorting.
+#[derive(Debug)]
+pub(super) struct Line {
+    pub(super) t: f64,
+    pub(super) sensor: (u8, String),
+    pub(super) m: fmt::Measurement,
+}
 
 /// The scan grid `origin + k·dt` of a multi-target export (FORMAT-MULTI.md puts every scan on
 /// one), fitted to scan times that a live source stamps with some jitter.

@@ -8,8 +8,7 @@ use harrier_link::geo::LocalFrame;
 use harrier_link::scenario_out;
 use nalgebra::Vector3;
 
-use super::TIME_TOL_S;
-use super::times::TimeLine;
+use super::times::{TIME_TOL_S, TimeLine};
 
 /// Truth samples further apart than this (s) are not interpolated between (the target was not
 /// seen, or truth was lost).

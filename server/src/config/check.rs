@@ -3,7 +3,8 @@
 
 use harrier_core::scenario::{Motion, Road, Segment};
 
-use super::{Config, ConfigError};
+use super::error::ConfigError;
+use super::file::Config;
 
 impl Config {
     /// Checks the values a TOML parser cannot.

@@ -7,7 +7,9 @@ use std::path::Path;
 use harrier_engine::{Deployment, Params};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 
-use super::{Config, ConfigError, GuidanceConfig};
+use super::error::ConfigError;
+use super::file::Config;
+use super::sections::GuidanceConfig;
 
 impl Config {
     /// The MAVLink link's settings, or `None` when `mavlink.gcs` is empty. `session` names the

@@ -10,7 +10,7 @@ use harrier_core::scenario::{Motion, Road};
 use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use serde::{Deserialize, Serialize};
 
-use super::ConfigError;
+use super::error::ConfigError;
 
 /// The MAVLink GCS link and router ([`crate::gcs`]).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -185,7 +185,7 @@ pub struct FrameConfig {
 }
 
 /// The live tracker (`[tracker]`): its track filter, the deployment it tracks in
-/// ([`Config::deployment`](super::Config::deployment)) and the ordering of its input.
+/// (`Config::deployment`) and the ordering of its input.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackerConfig {

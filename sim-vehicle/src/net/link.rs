@@ -7,55 +7,15 @@ use std::sync::Arc;
 use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
-use harrier_link::frame::{Endpoint, Frame, parse_datagram};
+use harrier_link::frame::{Endpoint, parse_datagram};
 use harrier_link::px4::COMPONENT_ID;
-use harrier_link::signing::{Rejection, Signer};
+use harrier_link::signing::Signer;
 use mavlink::MavHeader;
 use mavlink::dialects::common::MavMessage;
 
-use super::LinkError;
+use super::config::LinkError;
+use super::received::{Peer, Received};
 use super::tcp::TcpConn;
-
-/// Where a message came from, so that its replies go back there.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub(super) enum Peer {
-    /// A UDP sender.
-    Udp(SocketAddr),
-    /// A TCP connection of the link, by its number.
-    Tcp(u64),
-}
-
-/// Messages received from one peer in one poll.
-#[derive(Debug)]
-pub(super) struct Received {
-    pub(super) from: Peer,
-    pub(super) messages: Vec<MavMessage>,
-    /// Datagrams without a valid frame, skipped stretches of a stream, undecodable frames.
-    pub(super) malformed: u64,
-    /// Frames refused by the signature check.
-    pub(super) rejected: Vec<Rejection>,
-}
-
-impl Received {
-    pub(super) fn new(from: Peer) -> Self {
-        Self {
-            from,
-            messages: Vec::new(),
-            malformed: 0,
-            rejected: Vec::new(),
-        }
-    }
-
-    /// Keeps the frames `signer` accepts (all of them without signing) and counts the others.
-    pub(super) fn take(&mut self, frames: Vec<Frame>, signer: Option<&Signer>) {
-        for f in frames {
-            match signer.map_or(Ok(()), |s| s.check(&f)) {
-                Ok(()) => self.messages.push(f.message),
-                Err(r) => self.rejected.push(r),
-            }
-        }
-    }
-}
 
 /// Wait between two connection attempts of a `tcpout` link.
 pub const TCP_RETRY: Duration = Duration::from_secs(1);

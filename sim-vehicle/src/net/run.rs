@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 use harrier_link::frame::Endpoint;
 use harrier_link::signing::{Rejection, Rejections, Signing};
 
+use super::config::{LinkConfig, LinkError};
 use super::link::Link;
 use super::tick::run_once;
-use super::{LinkConfig, LinkError};
 use crate::vehicle::{Vehicle, VehicleConfig};
 use crate::worker::Worker;
 

@@ -7,7 +7,7 @@ use std::net::TcpStream;
 use harrier_link::frame::StreamParser;
 use harrier_link::signing::Signer;
 
-use super::link::{Peer, Received};
+use super::received::{Peer, Received};
 
 /// Most bytes queued for a slow TCP peer; further frames to it are dropped (telemetry is lossy,
 /// and a frame is never cut).
