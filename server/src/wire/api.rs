@@ -1,12 +1,4 @@
-//! What leaves the server on a stream, as types: the WebSocket messages ([`WsMessage`], one per
-//! `type`), the Zenoh `harrier-tracks/1` message ([`TracksMessage`]) and what they carry — a
-//! track as the API sends it ([`TrackDto`], with its 95 % ellipse and ellipsoid computed here),
-//! a track event ([`TrackEventDto`]), a vehicle ([`VehicleEntry`]). The REST track routes send
-//! the same [`TrackDto`]. Every type is in the OpenAPI components (`/api/openapi.json`), so a
-//! client can generate its types from them.
-//!
-//! The transports (`http::ws`, `publish`) only serialise these; the domain types they are made
-//! of ([`TrackView`], [`TrackEvent`], [`Snapshot`], [`ScanEvents`]) stay off the wire.
+//! The service's own messages: what the REST API, the WebSocket and the Zenoh tracks carry.
 
 use harrier_core::detection::{GeoPoint, TRACKS_SCHEMA};
 use harrier_core::linalg::{ellipse_axes, ellipsoid_axes};
@@ -16,11 +8,11 @@ use nalgebra::{Matrix2, Matrix3};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
-use super::clock::ClockEstimate;
-use super::gcs::LinkEvent;
-use super::gcs::vehicle::VehicleLinkView;
-use super::guidance::AssignmentView;
-use super::tracker::{ScanEvents, Snapshot, TrackFilterState, VehicleView};
+use crate::clock::ClockEstimate;
+use crate::gcs::LinkEvent;
+use crate::gcs::vehicle::VehicleLinkView;
+use crate::guidance::AssignmentView;
+use crate::tracker::{ScanEvents, Snapshot, TrackFilterState, VehicleView};
 use harrier_engine::{TrackStatus, TrackView};
 
 /// χ² quantile of 0.95 for 2 degrees of freedom (the 95 % ellipse).

@@ -1,0 +1,17 @@
+//! What leaves the server on a stream, as types: the WebSocket messages ([`WsMessage`], one per
+//! `type`), the Zenoh `harrier-tracks/1` message ([`TracksMessage`]) and what they carry — a
+//! track as the API sends it ([`TrackDto`], with its 95 % ellipse and ellipsoid computed here),
+//! a track event ([`TrackEventDto`]), a vehicle ([`VehicleEntry`]). The REST track routes send
+//! the same [`TrackDto`]. Every type is in the OpenAPI components (`/api/openapi.json`), so a
+//! client can generate its types from them.
+//!
+//! The transports (`http::ws`, `publish`) only serialise these; the domain types they are made
+//! of ([`TrackView`], [`TrackEvent`], [`Snapshot`], [`ScanEvents`]) stay off the wire.
+
+//!
+//! Split by audience: `api` holds the service's own messages above. The encodings of the formats
+//! other tools speak sit beside it, one pure file each (a track and the frame in, bytes out).
+
+mod api;
+
+pub use api::*;
