@@ -500,6 +500,8 @@ async function poll() {
   if (feats.truth) jobs.push(get("truth").then((b) => store.applyTruth(b)).catch(() => {}));
   // The world is static; asked again now and then in case the server was restarted with another.
   if (feats.world && pollTick % 30 === 1) jobs.push(get("world").then((b) => store.applyWorld(b)).catch(() => {}));
+  // Manned aircraft (ADS-B): once a second while the layer is on.
+  if (feats.aircraft && layers.aircraft) jobs.push(get("aircraft").then((b) => store.applyAircraft(b)).catch(() => {}));
   if (feats.metrics && pollTick % 2 === 1 && servicePanel) {
     jobs.push(
       getText("metrics")
@@ -564,6 +566,7 @@ function publish() {
   mc.tracks = m.tracks;
   mc.ellipses = m.ellipses;
   mc.uavs = m.uavs;
+  mc.aircraft = m.aircraft;
   const sd = $("scene").dataset;
   sd.tracks = sc.tracks;
   sd.ellipsoids = sc.ellipsoids;

@@ -49,6 +49,7 @@ pub mod clock;
 pub mod config;
 mod control;
 mod error;
+pub mod feeds;
 pub mod gcs;
 pub mod guidance;
 pub mod http;
@@ -72,6 +73,7 @@ use tokio::task::JoinHandle;
 use self::bus::Bus;
 use self::config::Config;
 use self::control::Control;
+use self::feeds::{FeedContext, FeedCounters, Feeds};
 use self::http::{ApiState, Auth, Service, Tracking};
 use self::metrics::Metrics;
 use self::pipeline::Pipeline;
@@ -127,6 +129,8 @@ pub struct LiveServer {
     pipeline: Pipeline,
     recording: http::Recording,
     control: Control,
+    feeds: Feeds,
+    feed_counters: Arc<FeedCounters>,
     api: JoinHandle<()>,
     stop: watch::Sender<bool>,
 }
@@ -151,6 +155,10 @@ impl LiveServer {
     /// The counters.
     pub fn metrics(&self) -> &Metrics {
         &self.metrics
+    }
+    /// The field-format feeds' counters.
+    pub fn feed_counters(&self) -> &FeedCounters {
+        &self.feed_counters
     }
     /// The latest snapshot (updated after every processed scan).
     pub fn snapshot(&self) -> watch::Receiver<Arc<Snapshot>> {
@@ -191,6 +199,7 @@ impl LiveServer {
             tracing::warn!("the API ended abnormally: {e}");
         }
         self.control.join().await;
+        self.feeds.join().await;
         self.bus.close().await;
     }
 }
@@ -233,6 +242,16 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         recorder,
     );
     let control = Control::spawn(config, &pipeline.snapshot, recorder, &stop_rx).await?;
+    let feed_counters = Arc::new(FeedCounters::default());
+    let feeds = Feeds::spawn(
+        config,
+        &FeedContext {
+            frame: harrier_link::geo::LocalFrame::new(config.frame.origin),
+            counters: Arc::clone(&feed_counters),
+            stop: stop_rx.clone(),
+        },
+    )
+    .await?;
 
     let token = token(config);
     let connections = Arc::new(http::ConnectionStats::default());
@@ -242,11 +261,13 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         started,
         stop: stop_rx.clone(),
         connections: Arc::clone(&connections),
+        feeds: Arc::clone(&feed_counters),
     };
     let state = api_state(
         config,
         &pipeline,
         inputs.truth,
+        &feeds,
         &control,
         &recording,
         service,
@@ -263,6 +284,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         pipeline,
         recording,
         control,
+        feeds,
+        feed_counters,
         api,
         stop,
     })
@@ -273,6 +296,7 @@ fn api_state(
     config: &Config,
     pipeline: &Pipeline,
     truth: watch::Receiver<Arc<TruthBody>>,
+    feeds: &Feeds,
     control: &Control,
     recording: &http::Recording,
     service: Service,
@@ -285,6 +309,7 @@ fn api_state(
             commands: pipeline.commands.clone(),
             truth,
             world: Arc::new(WorldBody::of(config)),
+            aircraft: feeds.aircraft.clone(),
         },
         control: http::Control {
             link: control.link.clone(),

@@ -16,7 +16,7 @@ export class MapView {
     this.scale = 0.25; // px per m
     this.userMoved = false; // the operator panned or zoomed: no more automatic fitting
     this.follow = null; // track id
-    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true, standoff: true, world: true };
+    this.layers = { truth: true, detections: true, history: true, ellipses: true, bound: true, trails: true, standoff: true, world: true, aircraft: true };
     this.stats = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, frames: 0 };
     this.cursor = null;
     this.dpr = 1;
@@ -148,7 +148,7 @@ export class MapView {
     ctx.setTransform(this.dpr, 0, 0, this.dpr, 0, 0);
     ctx.fillStyle = BG;
     ctx.fillRect(0, 0, this.width, this.height);
-    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, standoff: 0, vectors: 0, roads: 0, obstacles: 0, links: 0, frames: this.stats.frames + 1 };
+    const st = { tracks: 0, ellipses: 0, bounds: 0, uavs: 0, detections: 0, rays: 0, standoff: 0, vectors: 0, roads: 0, obstacles: 0, links: 0, aircraft: 0, frames: this.stats.frames + 1 };
 
     this.drawGrid(ctx);
     if (this.layers.world) this.drawWorld(ctx, st);
@@ -156,6 +156,7 @@ export class MapView {
     if (this.layers.truth) this.drawTruth(ctx);
     if (this.layers.detections) this.drawDetections(ctx, now, st);
     this.drawTracks(ctx, st);
+    if (this.layers.aircraft) this.drawAircraft(ctx, st);
     this.drawVehicles(ctx, st);
     this.drawScaleBar(ctx);
     this.drawNorthArrow(ctx);
@@ -519,6 +520,43 @@ export class MapView {
         ctx.fill();
         st.vectors += 1;
       }
+    }
+  }
+
+  /**
+   * Manned aircraft of the ADS-B feed: a cyan aircraft glyph along its course, labelled with its
+   * callsign (else its address) and flight level; at the list's time, carried on by its age.
+   */
+  drawAircraft(ctx, st) {
+    ctx.font = "10px ui-monospace, SFMono-Regular, Menlo, monospace";
+    for (const a of this.store.aircraft) {
+      const s = a.state;
+      const age = a.age_s || 0;
+      const [px, py] = this.toScreen(s[0] + s[3] * age, s[1] + s[4] * age);
+      if (!this.visible(px, py, 20)) continue;
+      ctx.save();
+      ctx.translate(px, py);
+      ctx.rotate(Math.atan2(s[3], s[4]));
+      ctx.beginPath();
+      ctx.moveTo(0, -9);
+      ctx.lineTo(1.6, -3);
+      ctx.lineTo(8, 1);
+      ctx.lineTo(1.6, 0.5);
+      ctx.lineTo(1.2, 6);
+      ctx.lineTo(3.5, 8);
+      ctx.lineTo(-3.5, 8);
+      ctx.lineTo(-1.2, 6);
+      ctx.lineTo(-1.6, 0.5);
+      ctx.lineTo(-8, 1);
+      ctx.lineTo(-1.6, -3);
+      ctx.closePath();
+      ctx.fillStyle = a.age_s > 10 ? "rgba(110,200,230,0.45)" : "#6ec8e6";
+      ctx.fill();
+      ctx.restore();
+      ctx.fillStyle = "rgba(140,210,235,0.85)";
+      const fl = Math.round(a.altitude_m / 0.3048 / 100);
+      ctx.fillText(`${a.callsign || a.icao} FL${String(Math.max(fl, 0)).padStart(3, "0")}`, px + 10, py - 4);
+      st.aircraft += 1;
     }
   }
 

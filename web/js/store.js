@@ -17,6 +17,8 @@ export class Store {
     this.truth = new Map(); // target id → {samples: [[t,x,y,z]], last: {t, position, velocity}}
     this.assignments = new Map(); // id → assignment body (AssignmentView)
     this.world = { roads: [], obstacles: [] }; // GET /world: the deployment's roads and obstacles
+    this.aircraft = []; // GET /aircraft: manned aircraft of the ADS-B feed (never tracks)
+    this.aircraftFeed = "off";
     this.standoff = new Map(); // assignment id → Map(vehicle label → {range: [[t, m]], spacing: [[t, deg]]})
     this.vehicleEvents = []; // the last vehicle events (vehicle_event messages), newest last
     this.estimator = null;
@@ -255,6 +257,13 @@ export class Store {
   /** GET /world: roads (polylines) and obstacles (discs) of the server's configuration. */
   applyWorld(body) {
     this.world = { roads: body.roads || [], obstacles: body.obstacles || [] };
+    this.version += 1;
+  }
+
+  /** GET /aircraft: the ADS-B aircraft, kept apart from the tracks. */
+  applyAircraft(body) {
+    this.aircraftFeed = body.feed || "off";
+    this.aircraft = Array.isArray(body.aircraft) ? body.aircraft : [];
     this.version += 1;
   }
 

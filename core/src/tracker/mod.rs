@@ -10,6 +10,7 @@
 //! | initiator | [`SinglePointInitiator`] from any detection's position fix ([`Locate`](crate::measurement::Locate); angle-only with the ground-plane constraint) + [`MOfN`] confirmation |
 //! | deleter | [`Deleter`]: consecutive misses or position-covariance growth |
 //! | tracker | [`Tracker::step`]: predict, associate, update or coast, confirm / delete, initiate; returns [`TrackEvent`]s |
+//! | tracker of cooperative targets | [`identified::IdentifiedTracks`]: reports that carry their identity (ADS-B, AIS), one Kalman filter per identity, no association |
 //!
 //! [`metrics`] has GOSPA and track-continuity counts, [`format`](mod@format) reads the multi-target extension
 //! of `gcs-scenario/1` (`FORMAT-MULTI.md`), and [`generate`] writes seeded crossing-target
@@ -58,6 +59,7 @@ mod delete;
 mod filter;
 pub mod format;
 pub mod generate;
+pub mod identified;
 mod initiate;
 pub mod metrics;
 mod multi;

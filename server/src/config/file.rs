@@ -4,6 +4,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::adsb::AdsbConfig;
 use super::error::ConfigError;
 use super::sections::{
     ApiConfig, FrameConfig, GuidanceConfig, MavlinkConfig, RecorderConfig, TrackerConfig,
@@ -30,6 +31,8 @@ pub struct Config {
     pub guidance: GuidanceConfig,
     /// How far the sources' clocks are trusted.
     pub clock: crate::clock::ClockConfig,
+    /// Manned traffic from an ADS-B receiver (SBS-1).
+    pub adsb: AdsbConfig,
 }
 
 impl Config {

@@ -11,6 +11,7 @@
 //! `check.rs`, and the conversions into the actors' settings ([`Config::gcs`],
 //! [`Config::bus`], [`Config::deployment`], the guidance's) in `convert.rs`.
 
+mod adsb;
 mod check;
 mod convert;
 mod error;
@@ -19,6 +20,7 @@ mod sections;
 #[cfg(test)]
 mod tests;
 
+pub use adsb::AdsbConfig;
 pub use error::ConfigError;
 pub use file::Config;
 pub use sections::{

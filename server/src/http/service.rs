@@ -94,6 +94,7 @@ async fn metrics(
 ) -> impl IntoResponse {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
     s.connections.render(&mut text);
+    s.feeds.render(&mut text);
     if let Some(recorder) = &r.recorder {
         crate::metrics::render_recorder(&recorder.stats(), &mut text);
     }

@@ -10,10 +10,12 @@ use tokio::sync::{broadcast, mpsc, watch};
 
 use super::serve::ConnectionStats;
 use crate::config::ApiConfig;
+use crate::feeds::FeedCounters;
 use crate::gcs::GcsLink;
 use crate::guidance::Guidance;
 use crate::metrics::Metrics;
 use crate::tracker::{Command, Recent, ScanEvents, Snapshot};
+use crate::wire::aircraft::AircraftList;
 use crate::world::{TruthBody, WorldBody};
 use harrier_recording::writer::Recorder;
 
@@ -45,6 +47,8 @@ pub struct Tracking {
     pub truth: watch::Receiver<Arc<TruthBody>>,
     /// Roads and obstacles of the configuration.
     pub world: Arc<WorldBody>,
+    /// The manned aircraft of the ADS-B feed.
+    pub aircraft: watch::Receiver<Arc<AircraftList>>,
 }
 
 /// The vehicles' side.
@@ -78,6 +82,8 @@ pub struct Service {
     pub stop: watch::Receiver<bool>,
     /// The API's connections, as [`super::serve`] counts them.
     pub connections: Arc<ConnectionStats>,
+    /// The field-format feeds' counters.
+    pub feeds: Arc<FeedCounters>,
 }
 
 impl FromRef<ApiState> for Tracking {

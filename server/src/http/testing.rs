@@ -114,6 +114,7 @@ impl TestApp {
                 commands,
                 truth: truth_rx,
                 world: Arc::new(WorldBody::default()),
+                aircraft: watch::channel(Arc::default()).1,
             },
             control: Control::default(),
             recording: Recording::default(),
@@ -130,6 +131,7 @@ impl TestApp {
                 started: Instant::now(),
                 stop: stop_rx,
                 connections: Arc::default(),
+                feeds: Arc::default(),
             },
         };
         Self {

@@ -1,5 +1,6 @@
-//! `GET /truth`, `GET /world`: the simulator's latest truth and the configuration's roads and
-//! obstacles ([`crate::world`]), for the map.
+//! `GET /truth`, `GET /world`, `GET /aircraft`: the simulator's latest truth, the
+//! configuration's roads and obstacles ([`crate::world`]) and the manned aircraft of the ADS-B
+//! feed ([`crate::feeds`]), for the map.
 
 use axum::extract::State;
 use axum::routing::get;
@@ -8,6 +9,7 @@ use utoipa::OpenApi;
 
 use super::error::ErrorBody;
 use super::state::{ApiState, Tracking};
+use crate::wire::aircraft::AircraftList;
 use crate::world::{TruthBody, WorldBody};
 
 /// The routes of this file.
@@ -15,11 +17,12 @@ pub(super) fn routes() -> Router<ApiState> {
     Router::new()
         .route("/truth", get(truth))
         .route("/world", get(world))
+        .route("/aircraft", get(aircraft))
 }
 
 /// The OpenAPI paths of this file.
 #[derive(Debug, OpenApi)]
-#[openapi(paths(truth, world))]
+#[openapi(paths(truth, world, aircraft))]
 pub(super) struct Doc;
 
 /// The latest simulation truth (`harrier/v1/sim/truth`), for drawing, with each live track's
@@ -45,6 +48,19 @@ async fn truth(State(s): State<Tracking>) -> Json<TruthBody> {
     security((), ("bearer" = [])))]
 async fn world(State(s): State<Tracking>) -> Json<WorldBody> {
     Json(s.world.as_ref().clone())
+}
+
+/// The manned aircraft of the ADS-B feed (`[adsb]`, docs/adsb.md): tracks of their own kind,
+/// by 24-bit address, never among the ground tracks. Empty, with `feed` `off`, when the feed
+/// is off.
+#[utoipa::path(get, path = "/api/v1/aircraft", tag = "tracks",
+    responses(
+        (status = 200, body = AircraftList),
+        (status = 401, description = "Reads need the token", body = ErrorBody),
+    ),
+    security((), ("bearer" = [])))]
+async fn aircraft(State(s): State<Tracking>) -> Json<AircraftList> {
+    Json(s.aircraft.borrow().as_ref().clone())
 }
 
 #[cfg(test)]

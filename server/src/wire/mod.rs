@@ -7,11 +7,12 @@
 //!
 //! The transports (`http::ws`, `publish`) only serialise these; the domain types they are made
 //! of ([`TrackView`], [`TrackEvent`], [`Snapshot`], [`ScanEvents`]) stay off the wire.
-
 //!
 //! Split by audience: `api` holds the service's own messages above. The encodings of the formats
 //! other tools speak sit beside it, one pure file each (a track and the frame in, bytes out).
 
+pub mod aircraft;
 mod api;
+pub mod sbs;
 
 pub use api::*;

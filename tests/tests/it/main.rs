@@ -24,6 +24,7 @@ mod bearings;
 mod cimm;
 mod clock;
 mod dashboard;
+mod field_adsb;
 mod fuzz_regressions;
 mod guidance;
 mod http_limits;

@@ -30,8 +30,7 @@
 //! `zenohd` is `$HARRIER_ZENOHD`, else `~/.cache/harrier/zenohd/bin/zenohd`; the binaries are
 //! `target/<profile>/{harrier,harrier-sim}` (`cargo build -p harrier-cli -p harrier-sim`).
 
-use std::io::{Read as _, Write as _};
-use std::net::{SocketAddr, TcpStream};
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex};
@@ -40,7 +39,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
-use harrier_tests::{free_tcp_port, target_bin, targets_at};
+use harrier_tests::{free_tcp_port, http_get, target_bin, targets_at};
 use serde_json::Value;
 use zenoh::Wait as _;
 
@@ -351,51 +350,6 @@ fn harrier_serve(
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no API address in {line:?}"));
     Server { proc, api }
-}
-
-/// `GET path` (HTTP/1.1, `Connection: close`): status and body.
-fn http_get(addr: SocketAddr, path: &str) -> (u16, String) {
-    let mut s = TcpStream::connect_timeout(&addr, Duration::from_secs(5))
-        .unwrap_or_else(|e| panic!("connect {addr}: {e}"));
-    s.set_read_timeout(Some(Duration::from_secs(10)))
-        .expect("timeout");
-    write!(
-        s,
-        "GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"
-    )
-    .expect("send the request");
-    let mut raw = Vec::new();
-    s.read_to_end(&mut raw).expect("read the response");
-    let text = String::from_utf8(raw).expect("utf-8 response");
-    let (head, body) = text.split_once("\r\n\r\n").expect("HTTP head");
-    let status = head
-        .split(' ')
-        .nth(1)
-        .and_then(|c| c.parse().ok())
-        .expect("status");
-    let body = if head
-        .to_ascii_lowercase()
-        .contains("transfer-encoding: chunked")
-    {
-        dechunk(body)
-    } else {
-        body.to_owned()
-    };
-    (status, body)
-}
-
-/// The payload of a chunked body.
-fn dechunk(mut body: &str) -> String {
-    let mut out = String::new();
-    while let Some((size, rest)) = body.split_once("\r\n") {
-        let n = usize::from_str_radix(size.trim(), 16).expect("chunk size");
-        if n == 0 {
-            break;
-        }
-        out.push_str(&rest[..n]);
-        body = &rest[n + 2..];
-    }
-    out
 }
 
 fn tracks(server: &Server) -> Value {

@@ -1,0 +1,69 @@
+//! The formats the field already runs, each an actor of its own beside the tracker, with its
+//! own bounded queue, its counters ([`FeedCounters`], on `/metrics` as
+//! `harrier_feed_events_total`) and its section of the configuration, off by default. An output
+//! reads the tracker's latest snapshot (a `watch`, so it never holds the tracker up) and speaks
+//! one format to the outside; an input keeps what it hears apart from the ground tracks and
+//! shows it on a `watch` of its own. The encodings and decodings are pure and live in
+//! [`crate::wire`]; this module only names the actors and starts the ones the configuration
+//! turns on.
+//!
+//! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
+//!   address, on [`Feeds::aircraft`].
+
+mod adsb;
+mod counters;
+
+use std::sync::Arc;
+
+use tokio::sync::watch;
+use tokio::task::JoinHandle;
+
+use crate::config::Config;
+use crate::error::LiveError;
+use crate::wire::aircraft::AircraftList;
+
+pub use counters::FeedCounters;
+
+/// What every feed gets: the server's frame, the counters and the service's stop signal.
+#[derive(Debug, Clone)]
+pub(crate) struct FeedContext {
+    /// The server's ENU frame (its origin is the configuration's `frame.origin`).
+    pub(crate) frame: harrier_link::geo::LocalFrame,
+    /// The feeds' counters.
+    pub(crate) counters: Arc<FeedCounters>,
+    /// Set once when the service stops.
+    pub(crate) stop: watch::Receiver<bool>,
+}
+
+/// The running feeds.
+#[derive(Debug)]
+pub(crate) struct Feeds {
+    /// The ADS-B aircraft (an empty list, feed `off`, unless `[adsb]` is on).
+    pub(crate) aircraft: watch::Receiver<Arc<AircraftList>>,
+    /// One task per feed the configuration turns on; they end at `stop`.
+    tasks: Vec<(&'static str, JoinHandle<()>)>,
+}
+
+impl Feeds {
+    /// Starts every feed the configuration turns on. Fails when one cannot start (an address
+    /// that cannot be bound): a feed the operator asked for is not silently missing.
+    #[allow(clippy::unused_async)] // the feeds bind their sockets here
+    pub(crate) async fn spawn(config: &Config, ctx: &FeedContext) -> Result<Self, LiveError> {
+        let mut tasks = Vec::new();
+        let (aircraft_tx, aircraft) = watch::channel(Arc::new(AircraftList::default()));
+        if config.adsb.enabled {
+            let task = adsb::run(config.adsb.clone(), ctx.clone(), aircraft_tx);
+            tasks.push(("adsb", tokio::spawn(task)));
+        }
+        Ok(Self { aircraft, tasks })
+    }
+
+    /// Waits for the feeds, which end once `stop` is set.
+    pub(crate) async fn join(self) {
+        for (name, t) in self.tasks {
+            if let Err(e) = t.await {
+                tracing::warn!(feed = name, "the feed ended abnormally: {e}");
+            }
+        }
+    }
+}
