@@ -30,4 +30,12 @@ pub enum LiveError {
     /// The MAVLink link cannot start.
     #[error(transparent)]
     Gcs(#[from] gcs::GcsError),
+    /// A feed the configuration turns on cannot start (its socket cannot be bound).
+    #[error("feed {feed}: {message}")]
+    Feed {
+        /// The feed (its configuration section).
+        feed: &'static str,
+        /// Why.
+        message: String,
+    },
 }
