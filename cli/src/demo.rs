@@ -66,6 +66,10 @@ pub struct DemoArgs {
     /// this key file (64 hex characters or 32 raw bytes; docs/mavlink-signing.md).
     #[arg(long, value_name = "PATH")]
     pub signing_key_file: Option<PathBuf>,
+    /// Also show the manned aircraft of an ADS-B receiver: its SBS-1 output `HOST:PORT`
+    /// (dump1090, readsb: port 30003; docs/adsb.md).
+    #[arg(long, value_name = "HOST:PORT")]
+    pub adsb: Option<String>,
 }
 
 /// `X,Y,R` of `--obstacle`.
@@ -122,6 +126,7 @@ impl Default for DemoConfig {
             height: 300.0,
             obstacles: Vec::new(),
             signing_key_file: None,
+            adsb: None,
         }
     }
 }
@@ -282,6 +287,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     }
     if let Some(path) = &config.record {
         server_config.recorder.path = path.display().to_string();
+    }
+    if let Some(address) = &config.adsb {
+        server_config.adsb.enabled = true;
+        server_config.adsb.address.clone_from(address);
     }
     server_config.mavlink.gcs = vec![config.gcs.clone()];
     server_config.mavlink.router = config

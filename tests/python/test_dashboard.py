@@ -426,6 +426,29 @@ def test_dropped_scans_show_a_badge(session):
     page.screenshot(path=str(SHOTS / "drops.png"))
 
 
+@pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/it/dashboard.rs's ADS-B source")
+def test_adsb_aircraft_are_drawn_apart_from_the_tracks(session):
+    """The demo runs with an ADS-B feed (tests/tests/it/dashboard.rs serves three aircraft on
+    SBS-1): the page draws them as aircraft, as GET /api/v1/aircraft lists them with their
+    callsigns, and the tracks the page draws are still the ground tracker's alone."""
+    page, _ = session
+    state = wait_for(page, lambda s: s["map"].get("aircraft", 0) >= 3, 20.0, "three aircraft drawn")
+    body = httpx.get(f"{URL}/api/v1/aircraft", timeout=5).json()
+    tracks = httpx.get(f"{URL}/api/v1/tracks", timeout=5).json()["tracks"]
+    confirmed = [t for t in tracks if t["status"] == "confirmed"]
+    print(
+        f"aircraft: feed {body['feed']}, {len(body['aircraft'])} listed, {state['map']['aircraft']} drawn;"
+        f" {len(confirmed)} confirmed ground tracks, {state['map']['tracks']} drawn",
+        flush=True,
+    )
+    assert body["feed"] == "connected"
+    assert sorted(a["callsign"] for a in body["aircraft"]) == ["HRR001", "HRR002", "HRR003"]
+    assert state["map"]["aircraft"] == 3
+    assert page.get_attribute("#map", "data-aircraft") == "3"
+    assert state["map"]["tracks"] <= len(confirmed) + 1, "aircraft drawn as tracks"
+    page.screenshot(path=str(SHOTS / "aircraft.png"))
+
+
 @pytest.mark.skipif(not CONTROLLED, reason="needs tests/tests/it/dashboard.rs to restart the server")
 def test_the_page_reconnects_after_a_server_restart_without_a_reload(session):
     page, console = session

@@ -25,6 +25,9 @@
 //! - malformed payloads published on vehicle 9's key (when the script asks with a line
 //!   `HARRIER-DROPS`, answered `dropped N`) are dropped and counted; the top bar's badge shows
 //!   the count `/metrics` has, with the reason (screenshot `drops.png`);
+//! - the manned aircraft of an ADS-B receiver (an SBS-1 source this test runs: three aircraft
+//!   circling near the road, `harrier demo --adsb`) are drawn as aircraft, apart from the
+//!   tracks, as `GET /api/v1/aircraft` lists them (screenshot `aircraft.png`);
 //! - the server is stopped and a new one started on the same port: the page reconnects by itself
 //!   and draws again, without a reload. The script asks for the restart with a line
 //!   `HARRIER-RESTART` on its stdout and waits for `restarted` on its stdin;
@@ -63,7 +66,54 @@ fn screenshots_dir() -> PathBuf {
         .join("screenshots")
 }
 
-fn config(listen: SocketAddr) -> DemoConfig {
+/// An ADS-B receiver's SBS-1 output for the demo: three aircraft (`HRR001`–`HRR003`) circling
+/// 400 m around the start of the demo's road at 1 000–3 000 ft, each reported twice a second to
+/// every client that connects (the demo, and the demo started again after the restart).
+fn start_sbs_source() -> SocketAddr {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").expect("bind the SBS-1 source");
+    let addr = listener.local_addr().expect("address");
+    let scenario = demo::scenario().expect("the demo's scenario");
+    let frame = harrier_link::geo::LocalFrame::new(scenario.origin);
+    let [cx, cy] = match &scenario.roads[0].segments[0] {
+        Segment::Line { start, .. } | Segment::Arc { start, .. } => *start,
+    };
+    std::thread::spawn(move || {
+        for mut conn in listener.incoming().map_while(Result::ok) {
+            std::thread::spawn(move || {
+                let t0 = Instant::now();
+                loop {
+                    let t = t0.elapsed().as_secs_f64();
+                    let mut out = String::new();
+                    for k in 1..=3_u32 {
+                        // 60 m/s on a 400 m circle, a third of a turn apart.
+                        let a = 0.15 * t + f64::from(k) * 2.1;
+                        let p =
+                            nalgebra::Vector3::new(cx + 400.0 * a.cos(), cy + 400.0 * a.sin(), 0.0);
+                        let g = frame.from_enu(&p);
+                        let course = (-a.sin()).atan2(a.cos()).to_degrees().rem_euclid(360.0);
+                        let hex = format!("A0000{k}");
+                        let alt = 1000 * k;
+                        out.push_str(&format!("MSG,1,1,1,{hex},1,,,,,HRR00{k},,,,,,,,,,,0\r\n"));
+                        out.push_str(&format!(
+                            "MSG,3,1,1,{hex},1,,,,,,{alt},,,{:.5},{:.5},,,0,0,0,0\r\n",
+                            g.lat_deg, g.lon_deg
+                        ));
+                        out.push_str(&format!(
+                            "MSG,4,1,1,{hex},1,,,,,,,117,{course:.0},,,0,,,,,0\r\n"
+                        ));
+                    }
+                    if conn.write_all(out.as_bytes()).is_err() {
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(500));
+                }
+            });
+        }
+    });
+    addr
+}
+
+fn config(listen: SocketAddr, adsb: SocketAddr) -> DemoConfig {
     // A no-fly disc of 40 m beside the start of the demo's road, where the map is looking.
     let road = &demo::scenario().expect("the demo's scenario").roads[0];
     let [x, y] = match &road.segments[0] {
@@ -80,15 +130,18 @@ fn config(listen: SocketAddr) -> DemoConfig {
         speedup: 2.0,
         // The UAVs wait on the ground: the page assigns them.
         no_assign: true,
+        adsb: Some(adsb.to_string()),
         ..DemoConfig::ephemeral(listen)
     }
 }
 
 /// Starts the demo on `listen`; a port just released may take a moment to bind again.
-async fn start_demo(listen: SocketAddr) -> Demo {
+async fn start_demo(listen: SocketAddr, adsb: SocketAddr) -> Demo {
     let deadline = Instant::now() + Duration::from_secs(20);
     loop {
-        match tokio::time::timeout(Duration::from_secs(30), demo::start(&config(listen))).await {
+        match tokio::time::timeout(Duration::from_secs(30), demo::start(&config(listen, adsb)))
+            .await
+        {
             Ok(Ok(d)) => return d,
             Ok(Err(e)) if Instant::now() < deadline => {
                 eprintln!("demo on {listen} did not start yet: {e}");
@@ -115,7 +168,8 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
         .enable_all()
         .build()
         .expect("runtime");
-    let mut demo = Some(runtime.block_on(start_demo(SocketAddr::from(([127, 0, 0, 1], 0)))));
+    let sbs = start_sbs_source();
+    let mut demo = Some(runtime.block_on(start_demo(SocketAddr::from(([127, 0, 0, 1], 0)), sbs)));
     let addr = demo.as_ref().expect("demo").server().local_addr();
     let token = demo.as_ref().expect("demo").server().token().0.to_owned();
     let shots = screenshots_dir();
@@ -222,7 +276,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
                     let t = Instant::now();
                     runtime.block_on(async {
                         demo.take().expect("demo").stop().await;
-                        demo = Some(start_demo(addr).await);
+                        demo = Some(start_demo(addr, sbs).await);
                     });
                     restarts += 1;
                     eprintln!(
@@ -261,7 +315,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     );
     assert_eq!(restarts, 1, "the script asked for one restart");
     assert!(
-        output.contains("8 passed"),
+        output.contains("9 passed"),
         "every test ran (none skipped):\n{output}"
     );
     for name in ["dashboard.png", "map.png", "3d.png"] {
