@@ -195,6 +195,10 @@ struct ServeArgs {
     /// (repeatable; replaces `mavlink.router`; `none`: no router).
     #[arg(long, value_name = "ENDPOINT")]
     router: Vec<String>,
+    /// Track the manned aircraft of an ADS-B receiver's SBS-1 output, e.g. 127.0.0.1:30003
+    /// (turns `[adsb]` on with this `adsb.address`; docs/adsb.md).
+    #[arg(long, value_name = "HOST:PORT")]
+    adsb: Option<String>,
 }
 
 /// A repeatable endpoint option: empty keeps the configuration, `none` clears it.
@@ -237,6 +241,10 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
     }
     endpoints(&a.gcs, &mut config.mavlink.gcs);
     endpoints(&a.router, &mut config.mavlink.router);
+    if let Some(address) = &a.adsb {
+        config.adsb.enabled = true;
+        config.adsb.address.clone_from(address);
+    }
     config.check()?;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
