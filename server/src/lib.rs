@@ -160,6 +160,10 @@ impl LiveServer {
     pub fn feed_counters(&self) -> &FeedCounters {
         &self.feed_counters
     }
+    /// The address of the Foxglove WebSocket server, when `[foxglove]` is on.
+    pub fn foxglove_addr(&self) -> Option<SocketAddr> {
+        self.feeds.foxglove
+    }
     /// The latest snapshot (updated after every processed scan).
     pub fn snapshot(&self) -> watch::Receiver<Arc<Snapshot>> {
         self.pipeline.snapshot.clone()
@@ -246,6 +250,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let feeds = Feeds::spawn(
         config,
         &FeedContext {
+            snapshot: pipeline.snapshot.clone(),
             frame: harrier_link::geo::LocalFrame::new(config.frame.origin),
             counters: Arc::clone(&feed_counters),
             stop: stop_rx.clone(),

@@ -379,3 +379,18 @@ pub fn http_get_json(addr: std::net::SocketAddr, path: &str) -> (u16, serde_json
     let v = serde_json::from_str(&body).unwrap_or_else(|e| panic!("{path}: {e}: {body}"));
     (status, v)
 }
+
+/// A Zenoh session of the test's own, connected to `endpoints`, listening on a free loopback
+/// port.
+pub async fn open_session(endpoints: Vec<String>) -> zenoh::Session {
+    let config = harrier_sim::bus::BusConfig {
+        connect: endpoints,
+        listen: vec![format!("tcp/127.0.0.1:{}", free_tcp_port())],
+        ..harrier_sim::bus::BusConfig::default()
+    }
+    .to_zenoh()
+    .expect("config");
+    within(10, "open a session", zenoh::open(config))
+        .await
+        .expect("open the test's session")
+}

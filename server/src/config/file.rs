@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adsb::AdsbConfig;
 use super::error::ConfigError;
+use super::foxglove::FoxgloveConfig;
 use super::sections::{
     ApiConfig, FrameConfig, GuidanceConfig, MavlinkConfig, RecorderConfig, TrackerConfig,
     ZenohConfig,
@@ -33,6 +34,8 @@ pub struct Config {
     pub clock: crate::clock::ClockConfig,
     /// Manned traffic from an ADS-B receiver (SBS-1).
     pub adsb: AdsbConfig,
+    /// The Foxglove WebSocket server.
+    pub foxglove: FoxgloveConfig,
 }
 
 impl Config {

@@ -16,6 +16,7 @@ mod check;
 mod convert;
 mod error;
 mod file;
+mod foxglove;
 mod sections;
 #[cfg(test)]
 mod tests;
@@ -23,6 +24,7 @@ mod tests;
 pub use adsb::AdsbConfig;
 pub use error::ConfigError;
 pub use file::Config;
+pub use foxglove::FoxgloveConfig;
 pub use sections::{
     ApiConfig, DEFAULT_ORIGIN, FrameConfig, GuidanceConfig, MavlinkConfig, ObstacleConfig,
     RecorderConfig, SigningConfig, TokenConfig, TrackerConfig, ZenohConfig,

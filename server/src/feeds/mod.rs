@@ -9,10 +9,14 @@
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on [`Feeds::aircraft`].
+//! - `foxglove`: the tracks and vehicles on a Foxglove WebSocket server (`[foxglove]`), at
+//!   [`Feeds::foxglove`].
 
 mod adsb;
 mod counters;
+mod foxglove;
 
+use std::net::SocketAddr;
 use std::sync::Arc;
 
 use tokio::sync::watch;
@@ -20,13 +24,17 @@ use tokio::task::JoinHandle;
 
 use crate::config::Config;
 use crate::error::LiveError;
+use crate::tracker::Snapshot;
 use crate::wire::aircraft::AircraftList;
 
 pub use counters::FeedCounters;
 
-/// What every feed gets: the server's frame, the counters and the service's stop signal.
+/// What every feed gets: the tracker's snapshots, the server's frame, the counters and the
+/// service's stop signal.
 #[derive(Debug, Clone)]
 pub(crate) struct FeedContext {
+    /// The tracker's latest snapshot.
+    pub(crate) snapshot: watch::Receiver<Arc<Snapshot>>,
     /// The server's ENU frame (its origin is the configuration's `frame.origin`).
     pub(crate) frame: harrier_link::geo::LocalFrame,
     /// The feeds' counters.
@@ -40,6 +48,8 @@ pub(crate) struct FeedContext {
 pub(crate) struct Feeds {
     /// The ADS-B aircraft (an empty list, feed `off`, unless `[adsb]` is on).
     pub(crate) aircraft: watch::Receiver<Arc<AircraftList>>,
+    /// The address of the Foxglove WebSocket server, when `[foxglove]` is on.
+    pub(crate) foxglove: Option<SocketAddr>,
     /// One task per feed the configuration turns on; they end at `stop`.
     tasks: Vec<(&'static str, JoinHandle<()>)>,
 }
@@ -47,7 +57,6 @@ pub(crate) struct Feeds {
 impl Feeds {
     /// Starts every feed the configuration turns on. Fails when one cannot start (an address
     /// that cannot be bound): a feed the operator asked for is not silently missing.
-    #[allow(clippy::unused_async)] // the feeds bind their sockets here
     pub(crate) async fn spawn(config: &Config, ctx: &FeedContext) -> Result<Self, LiveError> {
         let mut tasks = Vec::new();
         let (aircraft_tx, aircraft) = watch::channel(Arc::new(AircraftList::default()));
@@ -55,7 +64,17 @@ impl Feeds {
             let task = adsb::run(config.adsb.clone(), ctx.clone(), aircraft_tx);
             tasks.push(("adsb", tokio::spawn(task)));
         }
-        Ok(Self { aircraft, tasks })
+        let mut foxglove = None;
+        if config.foxglove.enabled {
+            let (task, addr) = foxglove::start(&config.foxglove, ctx.clone()).await?;
+            tasks.push(("foxglove", task));
+            foxglove = Some(addr);
+        }
+        Ok(Self {
+            aircraft,
+            foxglove,
+            tasks,
+        })
     }
 
     /// Waits for the feeds, which end once `stop` is set.

@@ -27,12 +27,11 @@ use harrier_core::detection::{TRUTH_KEY, TruthSample};
 use harrier_core::tracker::TrackEvent;
 use harrier_engine::TrackView;
 use harrier_server::{LiveServer, config::Config};
-use harrier_sim::bus::BusConfig;
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorType, SimScenario};
 use harrier_tests::{
-    SimProcess, free_tcp_port, publish_standing_target, runtime, targets_at, within,
+    SimProcess, free_tcp_port, open_session, publish_standing_target, runtime, targets_at, within,
 };
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
@@ -102,20 +101,6 @@ fn metric(text: &str, series: &str) -> f64 {
     text.lines()
         .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
         .unwrap_or(0.0)
-}
-
-/// A Zenoh session of the test's own, connected to `endpoints`.
-async fn open_session(endpoints: Vec<String>) -> zenoh::Session {
-    let config = BusConfig {
-        connect: endpoints,
-        listen: vec![format!("tcp/127.0.0.1:{}", free_tcp_port())],
-        ..BusConfig::default()
-    }
-    .to_zenoh()
-    .expect("config");
-    within(10, "open a session", zenoh::open(config))
-        .await
-        .expect("open the test's session")
 }
 
 /// The sim's truth as it arrives.

@@ -1,0 +1,101 @@
+//! The live scene for Foxglove (and Lichtblick): a Foxglove WebSocket server, the official
+//! `foxglove` SDK's, on `foxglove.listen`, with its own SDK context (nothing global). At
+//! `foxglove.hz` the tracker's latest snapshot is logged on the channels of
+//! [`crate::wire::foxglove`] (tracks as a scene and as location fixes, vehicles as location
+//! fixes and frame transforms) — also when nothing changed, so a client that connects sees the
+//! scene at once; nothing is encoded while no client is subscribed.
+//!
+//! Never blocks the tracker: it reads the snapshot `watch`, and the SDK keeps a bounded backlog
+//! per client (a slow client loses the oldest messages, not the service). Counters
+//! (`harrier_feed_events_total{feed="foxglove"}`): `scenes` (snapshots published) and
+//! `messages` (messages logged).
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use foxglove::Context;
+use foxglove::messages::{FrameTransforms, LocationFix, SceneUpdate};
+use tokio::task::JoinHandle;
+
+use super::FeedContext;
+use crate::config::FoxgloveConfig;
+use crate::error::LiveError;
+use crate::wire::foxglove::{scene_update, timestamp, track_fix, vehicle_fix, vehicle_transforms};
+
+/// The counters' feed label.
+const FEED: &str = "foxglove";
+
+/// Starts the WebSocket server (failing when `listen` cannot be bound) and the task that
+/// publishes on it until `stop`; returns the task and the bound address.
+pub(super) async fn start(
+    config: &FoxgloveConfig,
+    ctx: FeedContext,
+) -> Result<(JoinHandle<()>, SocketAddr), LiveError> {
+    let fctx = Context::new();
+    let server = fctx
+        .websocket_server()
+        .name("harrier")
+        .bind(config.listen.ip().to_string(), config.listen.port())
+        .start()
+        .await
+        .map_err(|e| LiveError::Feed {
+            feed: FEED,
+            message: format!(
+                "cannot serve the Foxglove WebSocket on {}: {e}",
+                config.listen
+            ),
+        })?;
+    let addr = SocketAddr::new(config.listen.ip(), server.port());
+    tracing::info!(feed = FEED, %addr, "Foxglove WebSocket server (ws://{addr})");
+    let tracks = fctx
+        .channel_builder("/harrier/tracks")
+        .build::<SceneUpdate>();
+    let track_fixes = fctx
+        .channel_builder("/harrier/tracks/location")
+        .build::<LocationFix>();
+    let vehicle_fixes = fctx
+        .channel_builder("/harrier/vehicles/location")
+        .build::<LocationFix>();
+    let tf = fctx.channel_builder("/tf").build::<FrameTransforms>();
+    let period = Duration::from_secs_f64(1.0 / config.hz);
+    let FeedContext {
+        mut snapshot,
+        frame,
+        counters,
+        mut stop,
+    } = ctx;
+    let task = tokio::spawn(async move {
+        // The channels live as long as their context: it is held here until the end.
+        let _context = fctx;
+        let mut tick = tokio::time::interval(period);
+        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        loop {
+            tokio::select! {
+                _ = tick.tick() => {}
+                () = crate::gcs::transport::stopped(&mut stop) => break,
+            }
+            let snap = Arc::clone(&snapshot.borrow_and_update());
+            let stamp = timestamp(snap.t.unwrap_or_else(crate::clock::unix_now));
+            tracks.log(&scene_update(&snap.tracks, stamp));
+            let mut n = 1;
+            for fix in snap
+                .tracks
+                .iter()
+                .filter_map(|t| track_fix(t, &frame, stamp))
+            {
+                track_fixes.log(&fix);
+                n += 1;
+            }
+            for fix in snap.vehicles.iter().filter_map(|v| vehicle_fix(v, stamp)) {
+                vehicle_fixes.log(&fix);
+                n += 1;
+            }
+            tf.log(&vehicle_transforms(&snap.vehicles, stamp));
+            counters.add(FEED, "scenes", 1);
+            counters.add(FEED, "messages", n + 1);
+        }
+        server.stop().wait().await;
+    });
+    Ok((task, addr))
+}

@@ -1,0 +1,150 @@
+//! The Foxglove feed (`[foxglove]`, docs/foxglove.md): the live server, fed a standing target's
+//! scans over Zenoh, serves the Foxglove WebSocket protocol (the official `foxglove` SDK's
+//! server). `tests/python/foxglove_client.py` — the `websockets` package speaking
+//! `foxglove.sdk.v1`, decoding with the schema each channel advertises and again with
+//! Foxglove's published `foxglove-schemas-protobuf` classes — subscribes to every channel: the
+//! four channels are advertised with their protobuf schemas, every message of each decodes, the
+//! two decodings agree, and each confirmed track's `LocationFix` is where `GET /api/v1/tracks`
+//! says the track is (the scans stopped first, so both read the same estimate).
+
+use std::process::Stdio;
+use std::time::Duration;
+
+use harrier_link::geo::{Geodetic, LocalFrame};
+use harrier_server::config::Config;
+use harrier_tests::{
+    free_tcp_port, http_get_json, open_session, publish_standing_target, python_script,
+    require_python_module, runtime, wait_with_deadline, within,
+};
+use nalgebra::Vector3;
+use serde_json::Value;
+
+#[test]
+fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_has_them() {
+    require_python_module("websockets", "websockets==17.4");
+    require_python_module(
+        "foxglove_schemas_protobuf",
+        "foxglove-schemas-protobuf==0.4.0",
+    );
+    let zenoh = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let mut config = Config::default();
+    config.api.listen = "127.0.0.1:0".parse().expect("addr");
+    config.zenoh.listen = vec![zenoh.clone()];
+    config.foxglove.enabled = true;
+    config.foxglove.listen = "127.0.0.1:0".parse().expect("addr");
+    let frame = LocalFrame::new(config.frame.origin);
+    let rt = runtime();
+    let (server, publisher) = rt.block_on(async {
+        let server = within(10, "start the server", harrier_server::start(&config))
+            .await
+            .expect("start the live server");
+        let session = open_session(vec![zenoh]).await;
+        let publisher =
+            publish_standing_target(&session, 1, [60.0, 80.0], [0.0, 0.0, 100.0], 10.0).await;
+        (server, (publisher, session))
+    });
+    let addr = server.local_addr();
+    let fox = server
+        .foxglove_addr()
+        .expect("the Foxglove server's address");
+
+    // A confirmed track, then no more scans: the estimate stays as it is.
+    rt.block_on(within(30, "a confirmed track", async {
+        loop {
+            let (_, body) = http_get_json(addr, "/api/v1/tracks");
+            let confirmed = body["tracks"]
+                .as_array()
+                .is_some_and(|t| t.iter().any(|t| t["status"] == "confirmed"));
+            if confirmed {
+                break;
+            }
+            tokio::time::sleep(Duration::from_millis(200)).await;
+        }
+    }));
+    publisher.0.abort();
+    rt.block_on(within(10, "the tracker idle", async {
+        let mut seq = http_get_json(addr, "/api/v1/tracks").1["seq"].clone();
+        loop {
+            tokio::time::sleep(Duration::from_millis(500)).await;
+            let now = http_get_json(addr, "/api/v1/tracks").1["seq"].clone();
+            if now == seq {
+                break;
+            }
+            seq = now;
+        }
+    }));
+
+    let mut client = python_script("foxglove_client.py")
+        .arg(format!("ws://{fox}"))
+        .args(["--seconds", "20", "--min", "3"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start foxglove_client.py");
+    let status = wait_with_deadline(&mut client, Duration::from_secs(40), "foxglove_client.py");
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut client.stdout.take().expect("stdout"), &mut out)
+        .expect("read the client's output");
+    assert!(status.success(), "foxglove_client.py failed: {out}");
+    let report: Value = serde_json::from_str(out.trim()).expect("the client's JSON");
+    eprintln!("foxglove client: {report}");
+    assert_eq!(
+        report["errors"],
+        Value::Array(Vec::new()),
+        "decoding errors"
+    );
+    let mut channels: Vec<(String, String)> = report["channels"]
+        .as_array()
+        .expect("channels")
+        .iter()
+        .map(|c| {
+            assert_eq!(c["encoding"], "protobuf");
+            (
+                c["topic"].as_str().expect("topic").to_owned(),
+                c["schema"].as_str().expect("schema").to_owned(),
+            )
+        })
+        .collect();
+    channels.sort();
+    let expected = [
+        ("/harrier/tracks", "foxglove.SceneUpdate"),
+        ("/harrier/tracks/location", "foxglove.LocationFix"),
+        ("/harrier/vehicles/location", "foxglove.LocationFix"),
+        ("/tf", "foxglove.FrameTransforms"),
+    ];
+    assert_eq!(
+        channels,
+        expected.map(|(t, s)| (t.to_owned(), s.to_owned())).to_vec()
+    );
+    for (topic, _) in expected {
+        assert!(
+            report["counts"][topic].as_u64().unwrap_or(0) >= 3,
+            "{topic}: fewer than 3 messages decoded: {report}"
+        );
+    }
+
+    let (_, body) = http_get_json(addr, "/api/v1/tracks");
+    let mut compared = 0;
+    for t in body["tracks"].as_array().expect("tracks") {
+        if t["status"] != "confirmed" {
+            continue;
+        }
+        let id = t["id"].as_u64().expect("id");
+        let fix = &report["fixes"][format!("track/{id}")];
+        let at = frame.to_enu(&Geodetic {
+            lat_deg: fix["lat"].as_f64().expect("fix lat"),
+            lon_deg: fix["lon"].as_f64().expect("fix lon"),
+            alt_m: fix["alt"].as_f64().expect("fix alt"),
+        });
+        let s = t["state"].as_array().expect("state");
+        let rest = Vector3::from_fn(|i, _| s[i].as_f64().expect("state value"));
+        let d = (at - rest).norm();
+        assert!(
+            d < 0.01,
+            "track {id}: its fix is {d} m from the API's estimate"
+        );
+        compared += 1;
+    }
+    assert!(compared >= 1, "no confirmed track compared");
+    assert!(server.feed_counters().get("foxglove", "scenes") >= 3);
+    rt.block_on(server.shutdown());
+}
