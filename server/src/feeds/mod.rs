@@ -9,8 +9,11 @@
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on [`Feeds::aircraft`].
+//! - `asterix`: the tracks as EUROCONTROL ASTERIX CAT062 system track messages over UDP
+//!   (`[asterix]`), unicast or multicast.
 
 mod adsb;
+mod asterix;
 mod counters;
 
 use std::sync::Arc;
@@ -50,13 +53,23 @@ pub(crate) struct Feeds {
 impl Feeds {
     /// Starts every feed the configuration turns on. Fails when one cannot start (an address
     /// that cannot be bound): a feed the operator asked for is not silently missing.
-    #[allow(clippy::unused_async)] // the feeds bind their sockets here
     pub(crate) async fn spawn(config: &Config, ctx: &FeedContext) -> Result<Self, LiveError> {
         let mut tasks = Vec::new();
         let (aircraft_tx, aircraft) = watch::channel(Arc::new(AircraftList::default()));
         if config.adsb.enabled {
             let task = adsb::run(config.adsb.clone(), ctx.clone(), aircraft_tx);
             tasks.push(("adsb", tokio::spawn(task)));
+        }
+        if config.asterix.enabled {
+            let (socket, dest) =
+                asterix::bind(&config.asterix)
+                    .await
+                    .map_err(|message| LiveError::Feed {
+                        feed: "asterix",
+                        message,
+                    })?;
+            let task = asterix::run(config.asterix.clone(), ctx.clone(), socket, dest);
+            tasks.push(("asterix", tokio::spawn(task)));
         }
         Ok(Self { aircraft, tasks })
     }

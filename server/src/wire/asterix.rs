@@ -239,34 +239,54 @@ fn accuracies(track: &TrackView, frame: &LocalFrame, geo: &Geodetic, aga: bool) 
     })
 }
 
+/// One CAT062 data block.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DataBlock {
+    /// CAT, LEN and the records.
+    pub bytes: Vec<u8>,
+    /// How many records it holds.
+    pub records: usize,
+}
+
 /// The records packed into CAT062 data blocks of at most `max_len` octets each (one per UDP
 /// datagram), in order. A record that cannot fit a block of `max_len` is left out.
-pub fn data_blocks(records: &[Vec<u8>], max_len: usize) -> Vec<Vec<u8>> {
+pub fn data_blocks(records: &[Vec<u8>], max_len: usize) -> Vec<DataBlock> {
     let max_len = max_len.min(usize::from(u16::MAX));
     let mut blocks = Vec::new();
-    let mut block: Vec<u8> = Vec::new();
+    let mut block = DataBlock {
+        bytes: Vec::new(),
+        records: 0,
+    };
     for r in records {
         if 3 + r.len() > max_len {
             continue;
         }
-        if !block.is_empty() && block.len() + r.len() > max_len {
-            blocks.push(finish(std::mem::take(&mut block)));
+        if block.records > 0 && block.bytes.len() + r.len() > max_len {
+            let full = std::mem::replace(
+                &mut block,
+                DataBlock {
+                    bytes: Vec::new(),
+                    records: 0,
+                },
+            );
+            blocks.push(finish(full));
         }
-        if block.is_empty() {
-            block.extend_from_slice(&[CATEGORY, 0, 0]);
+        if block.records == 0 {
+            block.bytes.extend_from_slice(&[CATEGORY, 0, 0]);
         }
-        block.extend_from_slice(r);
+        block.bytes.extend_from_slice(r);
+        block.records += 1;
     }
-    if !block.is_empty() {
+    if block.records > 0 {
         blocks.push(finish(block));
     }
     blocks
 }
 
 /// Writes a block's LEN.
-fn finish(mut block: Vec<u8>) -> Vec<u8> {
-    let len = u16::try_from(block.len()).unwrap_or(u16::MAX);
-    block[1..3].copy_from_slice(&len.to_be_bytes());
+fn finish(mut block: DataBlock) -> DataBlock {
+    let len = u16::try_from(block.bytes.len()).unwrap_or(u16::MAX);
+    block.bytes[1..3].copy_from_slice(&len.to_be_bytes());
     block
 }
 
@@ -357,7 +377,13 @@ mod tests {
                 4 => 3,
                 5 => 8,
                 6 => 6,
-                7 | 12 => if frn == 7 { 4 } else { 2 },
+                7 | 12 => {
+                    if frn == 7 {
+                        4
+                    } else {
+                        2
+                    }
+                }
                 13 => rec[at..].iter().position(|o| o & 1 == 0).unwrap() + 1,
                 18 => 2,
                 27 => {
@@ -372,7 +398,10 @@ mod tests {
             };
             let b = &rec[at..at + len];
             match frn {
-                4 => d.tod = (u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2])) as f64 / 128.0,
+                4 => {
+                    d.tod = (u32::from(b[0]) << 16 | u32::from(b[1]) << 8 | u32::from(b[2])) as f64
+                        / 128.0
+                }
                 5 => {
                     d.lat = be(&b[..4]) as f64 * lsb;
                     d.lon = be(&b[4..]) as f64 * lsb;
@@ -485,7 +514,10 @@ mod tests {
         let frame = LocalFrame::new(DEFAULT_ORIGIN);
         let records: Vec<Vec<u8>> = (0_u32..100)
             .map(|i| {
-                let mut t = track(TrackStatus::Confirmed, [f64::from(i), 0.0, 0.0, 0.0, 0.0, 0.0]);
+                let mut t = track(
+                    TrackStatus::Confirmed,
+                    [f64::from(i), 0.0, 0.0, 0.0, 0.0, 0.0],
+                );
                 t.id = u64::from(i);
                 track_record(&t, &frame, SOURCE, 0.0, false).unwrap()
             })
@@ -493,8 +525,10 @@ mod tests {
         let blocks = data_blocks(&records, MAX_BLOCK);
         assert!(blocks.len() > 1);
         let mut n = 0;
-        for b in &blocks {
+        for block in &blocks {
+            let b = &block.bytes;
             assert!(b.len() <= MAX_BLOCK);
+            let before = n;
             assert_eq!(b[0], CATEGORY);
             assert_eq!(usize::from(u16::from_be_bytes([b[1], b[2]])), b.len());
             let mut at = 3;
@@ -504,6 +538,7 @@ mod tests {
                 at += r.len();
                 n += 1;
             }
+            assert_eq!(block.records, n - before);
         }
         assert_eq!(n, records.len());
         assert!(data_blocks(&records, 10).is_empty());
