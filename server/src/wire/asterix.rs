@@ -125,9 +125,8 @@ pub fn track_record(
     time_of_day_s: f64,
     first: bool,
 ) -> Option<Vec<u8>> {
-    if !track.state.iter().all(|v| v.is_finite())
-        || !(time_of_day_s.is_finite() && (0.0..DAY_S).contains(&time_of_day_s))
-    {
+    // The range refuses NaN too.
+    if !(track.state.iter().all(|v| v.is_finite()) && (0.0..DAY_S).contains(&time_of_day_s)) {
         return None;
     }
     let [x, y, z, vx, vy, _] = track.state;

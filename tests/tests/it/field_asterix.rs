@@ -25,6 +25,8 @@ const DATAGRAMS: usize = 20;
 
 /// A track as the snapshot held it: x, y, vx, vy.
 type Held = [f64; 4];
+/// Every estimate of every snapshot, by (track id, time of day in 1/128 s).
+type History = Arc<Mutex<HashMap<(u64, i64), Vec<Held>>>>;
 
 #[test]
 fn cat062_tracks_decode_where_the_tracker_has_them() {
@@ -70,7 +72,7 @@ fn cat062_tracks_decode_where_the_tracker_has_them() {
             .expect("start the live server");
         // Every snapshot the tracker publishes, by (track id, time of day in 1/128 s).
         // Scans of both vehicles can fall into the same 1/128 s: every estimate is kept.
-        let history: Arc<Mutex<HashMap<(u64, i64), Vec<Held>>>> = Arc::default();
+        let history: History = Arc::default();
         let mut snapshot = server.snapshot();
         let h = Arc::clone(&history);
         tokio::spawn(async move {
