@@ -74,3 +74,31 @@ impl AsterixConfig {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::Config;
+
+    #[test]
+    fn bad_values_are_named() {
+        for (toml, key) in [
+            ("enabled = true\nhz = 0.0", "asterix.hz"),
+            (
+                "enabled = true\ndestination = \"nowhere\"",
+                "asterix.destination",
+            ),
+            (
+                "enabled = true\ndestination = \"host:0\"",
+                "asterix.destination",
+            ),
+            ("enabled = true\nmulticast_ttl = 0", "asterix.multicast_ttl"),
+        ] {
+            let e = Config::parse(&format!("[asterix]\n{toml}\n"), "f").unwrap_err();
+            assert!(e.to_string().contains(key), "{toml}: {e}");
+        }
+        let c = Config::parse("[asterix]\nenabled = true\nsac = 25\nsic = 201\n", "f").unwrap();
+        assert_eq!((c.asterix.sac, c.asterix.sic, c.asterix.hz), (25, 201, 1.0));
+        // Off, nothing is checked.
+        assert!(Config::parse("[asterix]\nhz = -1.0\n", "f").is_ok());
+    }
+}

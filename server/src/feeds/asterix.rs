@@ -131,3 +131,96 @@ pub(super) async fn run(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::DEFAULT_ORIGIN;
+    use crate::tracker::Snapshot;
+    use harrier_engine::TrackView;
+    use harrier_link::geo::LocalFrame;
+    use tokio::sync::watch;
+
+    fn track(id: u64, status: TrackStatus) -> TrackView {
+        TrackView {
+            id,
+            status,
+            t: 1_795_430_412.5,
+            state: [10.0, 20.0, 0.0, 1.0, 0.0, 0.0],
+            cov: Vec::new(),
+            cov_dims: Vec::new(),
+            updated: true,
+            age: 5,
+            last_update: 1_795_430_412.5,
+            mode_probabilities: Vec::new(),
+        }
+    }
+
+    /// The records of one datagram: (track number, I062/080).
+    fn records(d: &[u8]) -> Vec<(u16, Vec<u8>)> {
+        assert_eq!(d[0], 62);
+        assert_eq!(usize::from(u16::from_be_bytes([d[1], d[2]])), d.len());
+        // Without a covariance: FSPEC BF 0D 10 (FRN 1, 3-7, 12, 13, 18; no I062/500), then 2+1+3+8+6+4 octets.
+        let mut at = 3;
+        let mut out = Vec::new();
+        while at < d.len() {
+            assert_eq!(&d[at..at + 3], &[0xBF, 0x0D, 0x10]);
+            at += 3 + 24;
+            let number = u16::from_be_bytes([d[at], d[at + 1]]);
+            at += 2;
+            let n = d[at..]
+                .iter()
+                .position(|o| o & 1 == 0)
+                .expect("I062/080 end")
+                + 1;
+            out.push((number, d[at..at + n].to_vec()));
+            at += n + 2;
+        }
+        out
+    }
+
+    #[tokio::test]
+    async fn confirmed_tracks_are_sent_and_their_first_record_says_so() {
+        let rx = UdpSocket::bind("127.0.0.1:0").await.unwrap();
+        let config = AsterixConfig {
+            enabled: true,
+            hz: 50.0,
+            destination: rx.local_addr().unwrap().to_string(),
+            ..AsterixConfig::default()
+        };
+        let (socket, dest) = bind(&config).await.unwrap();
+        let snapshot = Snapshot {
+            tracks: Arc::new(vec![
+                track(3, TrackStatus::Confirmed),
+                track(4, TrackStatus::Tentative),
+            ]),
+            ..Snapshot::default()
+        };
+        let (_snap_tx, snap_rx) = watch::channel(Arc::new(snapshot));
+        let (stop_tx, stop) = watch::channel(false);
+        let counters = Arc::new(crate::feeds::FeedCounters::default());
+        let ctx = FeedContext {
+            snapshot: snap_rx,
+            frame: LocalFrame::new(DEFAULT_ORIGIN),
+            counters: Arc::clone(&counters),
+            stop,
+        };
+        let task = tokio::spawn(run(config, ctx, socket, dest));
+        let mut buf = [0_u8; 2048];
+        let mut got = Vec::new();
+        for _ in 0..2 {
+            let n = tokio::time::timeout(Duration::from_secs(5), rx.recv(&mut buf))
+                .await
+                .expect("a datagram within 5 s")
+                .unwrap();
+            got.push(records(&buf[..n]));
+        }
+        // Only the confirmed track; TSB (first extent) on its first record only.
+        assert_eq!(got[0], vec![(3, vec![0x39, 0x20])]);
+        assert_eq!(got[1], vec![(3, vec![0x38])]);
+        stop_tx.send_replace(true);
+        task.await.unwrap();
+        assert!(counters.get(FEED, "sent") >= 2);
+        assert_eq!(counters.get(FEED, "errors"), 0);
+    }
+}

@@ -480,6 +480,18 @@ mod tests {
         assert!((d.vx - 3.0).abs() <= 0.125 && (d.vy - 4.0).abs() <= 0.125);
         let d = decode(&track_record(&t, &frame, SOURCE, 12.3, false).unwrap());
         assert!((d.tod - 12.3).abs() <= 1.0 / 256.0);
+        // A 3-D estimate: SRC 3 (triangulation), and AGA (σz 2 m = 6.6 ft: 1) in I062/500.
+        let mut t = track(TrackStatus::Confirmed, [0.0, 0.0, 50.0, 0.0, 0.0, 0.0]);
+        t.cov_dims = (0..6).collect();
+        t.cov = (0..6)
+            .map(|i| (0..6).map(|j| if i == j { 4.0 } else { 0.0 }).collect())
+            .collect();
+        let rec = track_record(&t, &frame, SOURCE, 0.0, false).unwrap();
+        assert_eq!(decode(&rec).status, vec![0x2C]);
+        // I062/500 last: primary APC|COV|APW|AGA|ATV, …, AGA, ATV x, ATV y.
+        let n = rec.len();
+        assert_eq!(rec[n - 14], 0xF4);
+        assert_eq!(&rec[n - 3..], &[1, 8, 8]);
     }
 
     #[test]

@@ -16,7 +16,7 @@ use std::time::Duration;
 use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_server::config::Config;
 use harrier_tests::{
-    free_tcp_port, kill_group, publish_standing_target, python_script, runtime, within,
+    free_tcp_port, http_get, kill_group, publish_standing_target, python_script, runtime, within,
 };
 use serde_json::Value;
 
@@ -125,6 +125,11 @@ fn cat062_tracks_decode_where_the_tracker_has_them() {
     };
     let _ = listener.wait();
     let datagrams_sent = server.feed_counters().get("asterix", "datagrams");
+    let (_, metrics) = http_get(server.local_addr(), "/api/v1/metrics");
+    assert!(
+        metrics.contains("harrier_feed_events_total{feed=\"asterix\",event=\"datagrams\"}"),
+        "{metrics}"
+    );
     for p in publishers {
         p.abort();
     }
