@@ -157,6 +157,10 @@ fn cat062_tracks_decode_where_the_tracker_has_them() {
         );
         assert_eq!(r["service_id"].as_u64(), Some(3));
         assert_eq!(r["tentative"], false, "only confirmed tracks: {r}");
+        // I062/500 from the covariance: position and velocity standard deviations.
+        for k in ["APC_X", "APC_Y", "ATV_X", "ATV_Y"] {
+            assert!(r["accuracy"][k].as_f64().is_some(), "{k} in {r}");
+        }
         let number = r["track_number"].as_u64().expect("track number");
         tracks.insert(number);
         let key = (number, (f("time_of_track_s") * 128.0).round() as i64);
