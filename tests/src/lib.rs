@@ -394,3 +394,16 @@ pub async fn open_session(endpoints: Vec<String>) -> zenoh::Session {
         .await
         .expect("open the test's session")
 }
+
+/// A live server's configuration for a test: the defaults with the API on a free loopback port,
+/// Zenoh listening on `zenoh` and no MAVLink endpoint (the default ones are fixed ports that
+/// tests running at once would share). Returns it with its Zenoh endpoint.
+pub fn server_config() -> (harrier_server::config::Config, String) {
+    let zenoh = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    let mut config = harrier_server::config::Config::default();
+    config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
+    config.zenoh.listen = vec![zenoh.clone()];
+    config.mavlink.gcs = Vec::new();
+    config.mavlink.router = Vec::new();
+    (config, zenoh)
+}

@@ -5,6 +5,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::adsb::AdsbConfig;
+use super::asterix::AsterixConfig;
 use super::error::ConfigError;
 use super::foxglove::FoxgloveConfig;
 use super::sections::{
@@ -36,6 +37,8 @@ pub struct Config {
     pub adsb: AdsbConfig,
     /// The Foxglove WebSocket server.
     pub foxglove: FoxgloveConfig,
+    /// The tracks as ASTERIX CAT062 over UDP.
+    pub asterix: AsterixConfig,
 }
 
 impl Config {

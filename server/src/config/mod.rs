@@ -12,6 +12,7 @@
 //! [`Config::bus`], [`Config::deployment`], the guidance's) in `convert.rs`.
 
 mod adsb;
+mod asterix;
 mod check;
 mod convert;
 mod error;
@@ -22,6 +23,7 @@ mod sections;
 mod tests;
 
 pub use adsb::AdsbConfig;
+pub use asterix::AsterixConfig;
 pub use error::ConfigError;
 pub use file::Config;
 pub use foxglove::FoxgloveConfig;

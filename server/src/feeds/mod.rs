@@ -9,10 +9,13 @@
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on [`Feeds::aircraft`].
+//! - `asterix`: the tracks as EUROCONTROL ASTERIX CAT062 system track messages over UDP
+//!   (`[asterix]`), unicast or multicast.
 //! - `foxglove`: the tracks and vehicles on a Foxglove WebSocket server (`[foxglove]`), at
 //!   [`Feeds::foxglove`].
 
 mod adsb;
+mod asterix;
 mod counters;
 mod foxglove;
 
@@ -63,6 +66,17 @@ impl Feeds {
         if config.adsb.enabled {
             let task = adsb::run(config.adsb.clone(), ctx.clone(), aircraft_tx);
             tasks.push(("adsb", tokio::spawn(task)));
+        }
+        if config.asterix.enabled {
+            let (socket, dest) =
+                asterix::bind(&config.asterix)
+                    .await
+                    .map_err(|message| LiveError::Feed {
+                        feed: "asterix",
+                        message,
+                    })?;
+            let task = asterix::run(config.asterix.clone(), ctx.clone(), socket, dest);
+            tasks.push(("asterix", tokio::spawn(task)));
         }
         let mut foxglove = None;
         if config.foxglove.enabled {

@@ -13,6 +13,7 @@
 
 pub mod aircraft;
 mod api;
+pub mod asterix;
 pub mod foxglove;
 pub mod sbs;
 

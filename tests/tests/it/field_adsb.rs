@@ -12,8 +12,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use harrier_link::geo::{Geodetic, LocalFrame};
-use harrier_server::config::Config;
-use harrier_tests::{free_tcp_port, http_get, http_get_json, kill_group, python_script, runtime};
+use harrier_tests::{http_get, http_get_json, kill_group, python_script, runtime, server_config};
 use nalgebra::Vector3;
 use serde_json::Value;
 
@@ -53,9 +52,7 @@ fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
         .expect("sbs_replay.py did not say it listens");
     let port = ready["ready"].as_u64().expect("ready port");
 
-    let mut config = Config::default();
-    config.api.listen = "127.0.0.1:0".parse().expect("addr");
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+    let (mut config, _) = server_config();
     config.adsb.enabled = true;
     config.adsb.address = format!("127.0.0.1:{port}");
     let frame = LocalFrame::new(config.frame.origin);

@@ -11,10 +11,9 @@ use std::process::Stdio;
 use std::time::Duration;
 
 use harrier_link::geo::{Geodetic, LocalFrame};
-use harrier_server::config::Config;
 use harrier_tests::{
-    free_tcp_port, http_get_json, open_session, publish_standing_target, python_script,
-    require_python_module, runtime, wait_with_deadline, within,
+    http_get_json, open_session, publish_standing_target, python_script, require_python_module,
+    runtime, server_config, wait_with_deadline, within,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -26,10 +25,7 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         "foxglove_schemas_protobuf",
         "foxglove-schemas-protobuf==0.4.0",
     );
-    let zenoh = format!("tcp/127.0.0.1:{}", free_tcp_port());
-    let mut config = Config::default();
-    config.api.listen = "127.0.0.1:0".parse().expect("addr");
-    config.zenoh.listen = vec![zenoh.clone()];
+    let (mut config, zenoh) = server_config();
     config.foxglove.enabled = true;
     config.foxglove.listen = "127.0.0.1:0".parse().expect("addr");
     let frame = LocalFrame::new(config.frame.origin);

@@ -25,6 +25,7 @@ mod cimm;
 mod clock;
 mod dashboard;
 mod field_adsb;
+mod field_asterix;
 mod field_foxglove;
 mod fuzz_regressions;
 mod guidance;
