@@ -355,6 +355,7 @@ mod tests {
             .collect();
         paths.sort_unstable();
         let v1 = [
+            "aircraft",
             "assignments",
             "assignments/{id}",
             "detections",
@@ -389,6 +390,7 @@ mod tests {
             "VehicleEntry",
             "AssignmentView",
             "WorldBody",
+            "AircraftList",
         ] {
             assert!(doc["components"]["schemas"][schema].is_object(), "{schema}");
         }

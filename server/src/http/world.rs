@@ -109,6 +109,48 @@ mod tests {
     }
 
     #[tokio::test]
+    async fn the_aircraft_are_served_as_the_feed_lists_them() {
+        use crate::wire::aircraft::{AdsbFeedState, AircraftDto, AircraftList};
+        let mut app = TestApp::new();
+        let r = app.get("/api/v1/aircraft").await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(
+            r.json(),
+            serde_json::json!({"time_unix": 0.0, "feed": "off", "aircraft": []})
+        );
+        let a = AircraftDto {
+            icao: "4CA2D6".into(),
+            callsign: Some("RYR4TX".into()),
+            squawk: None,
+            on_ground: Some(false),
+            time_unix: 99.5,
+            age_s: 0.5,
+            lat_deg: 47.5,
+            lon_deg: 8.6,
+            altitude_m: 3000.0,
+            state: [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+            course_deg: 38.7,
+            speed_mps: 6.4,
+            climb_mps: 6.0,
+            sigma_h_m: 7.0,
+            updates: 12,
+            messages: 20,
+        };
+        let list = AircraftList {
+            time_unix: 100.0,
+            feed: AdsbFeedState::Connected,
+            aircraft: vec![a],
+        };
+        app.state.tracking.aircraft = tokio::sync::watch::channel(Arc::new(list)).1;
+        let body = app.get("/api/v1/aircraft").await.json();
+        assert_eq!(body["feed"], "connected");
+        assert_eq!(body["aircraft"][0]["icao"], "4CA2D6");
+        assert_eq!(body["aircraft"][0]["callsign"], "RYR4TX");
+        assert_eq!(body["aircraft"][0]["squawk"], serde_json::Value::Null);
+        assert_eq!(body["aircraft"][0]["state"][5], 6.0);
+    }
+
+    #[tokio::test]
     async fn a_track_near_a_target_is_scored_against_it() {
         let app = TestApp::new();
         let id = app.confirmed_track().await;
