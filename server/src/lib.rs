@@ -246,6 +246,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let feeds = Feeds::spawn(
         config,
         &FeedContext {
+            snapshot: pipeline.snapshot.clone(),
             frame: harrier_link::geo::LocalFrame::new(config.frame.origin),
             counters: Arc::clone(&feed_counters),
             stop: stop_rx.clone(),

@@ -20,6 +20,7 @@ use tokio::task::JoinHandle;
 
 use crate::config::Config;
 use crate::error::LiveError;
+use crate::tracker::Snapshot;
 use crate::wire::aircraft::AircraftList;
 
 pub use counters::FeedCounters;
@@ -27,6 +28,8 @@ pub use counters::FeedCounters;
 /// What every feed gets: the server's frame, the counters and the service's stop signal.
 #[derive(Debug, Clone)]
 pub(crate) struct FeedContext {
+    /// The tracker's latest snapshot.
+    pub(crate) snapshot: watch::Receiver<Arc<Snapshot>>,
     /// The server's ENU frame (its origin is the configuration's `frame.origin`).
     pub(crate) frame: harrier_link::geo::LocalFrame,
     /// The feeds' counters.

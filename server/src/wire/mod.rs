@@ -13,6 +13,7 @@
 
 pub mod aircraft;
 mod api;
+pub mod cot;
 pub mod sbs;
 
 pub use api::*;
