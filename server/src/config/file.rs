@@ -5,6 +5,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use super::adsb::AdsbConfig;
+use super::cot::CotConfig;
 use super::error::ConfigError;
 use super::sections::{
     ApiConfig, FrameConfig, GuidanceConfig, MavlinkConfig, RecorderConfig, TrackerConfig,
@@ -33,6 +34,8 @@ pub struct Config {
     pub clock: crate::clock::ClockConfig,
     /// Manned traffic from an ADS-B receiver (SBS-1).
     pub adsb: AdsbConfig,
+    /// The confirmed tracks as Cursor-on-Target events for TAK.
+    pub cot: CotConfig,
 }
 
 impl Config {

@@ -13,6 +13,7 @@
 
 mod adsb;
 mod check;
+mod cot;
 mod convert;
 mod error;
 mod file;
@@ -21,6 +22,7 @@ mod sections;
 mod tests;
 
 pub use adsb::AdsbConfig;
+pub use cot::{CotConfig, CotDestination, CotEncoding, CotTransport};
 pub use error::ConfigError;
 pub use file::Config;
 pub use sections::{

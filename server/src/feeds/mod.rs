@@ -9,8 +9,11 @@
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on [`Feeds::aircraft`].
+//! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
+//!   protobuf, over UDP (multicast or unicast) and TCP.
 
 mod adsb;
+mod cot;
 mod counters;
 
 use std::sync::Arc;
@@ -50,13 +53,21 @@ pub(crate) struct Feeds {
 impl Feeds {
     /// Starts every feed the configuration turns on. Fails when one cannot start (an address
     /// that cannot be bound): a feed the operator asked for is not silently missing.
-    #[allow(clippy::unused_async)] // the feeds bind their sockets here
     pub(crate) async fn spawn(config: &Config, ctx: &FeedContext) -> Result<Self, LiveError> {
         let mut tasks = Vec::new();
         let (aircraft_tx, aircraft) = watch::channel(Arc::new(AircraftList::default()));
         if config.adsb.enabled {
             let task = adsb::run(config.adsb.clone(), ctx.clone(), aircraft_tx);
             tasks.push(("adsb", tokio::spawn(task)));
+        }
+        if config.cot.enabled {
+            let task = cot::start(config.cot.clone(), ctx.clone())
+                .await
+                .map_err(|message| LiveError::Feed {
+                    feed: "cot",
+                    message,
+                })?;
+            tasks.push(("cot", tokio::spawn(task)));
         }
         Ok(Self { aircraft, tasks })
     }
