@@ -25,6 +25,7 @@ mod cimm;
 mod clock;
 mod dashboard;
 mod field_adsb;
+mod field_cot;
 mod fuzz_regressions;
 mod guidance;
 mod http_limits;

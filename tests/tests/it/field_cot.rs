@@ -1,0 +1,240 @@
+//! CoT out (`[cot]`, docs/cot.md): the live server sends its confirmed tracks to a TAK end point
+//! played by `tests/python/cot_listen.py`, which listens on UDP and TCP (loopback, port 0) and
+//! decodes every event with takproto, the independent TAK protocol library. The server gets
+//! simulated detections of one standing target over Zenoh (10 Hz, jittered by up to 2 m) and
+//! sends at 5 Hz to both of the listener's ports; once both have heard enough events, every
+//! event is checked against the tracker's snapshot of the same track at the same time (the
+//! event's `start`, the estimate's time; the snapshot's tracks are what `GET /api/v1/tracks`
+//! serves, checked too): position within 0.5 m, uid `harrier.it.track.<id>` of that track and
+//! one uid for the one target throughout, callsign, type and stale time. Run once per encoding:
+//! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead as _, BufReader};
+use std::process::Stdio;
+use std::sync::{Arc, Mutex, mpsc};
+use std::time::Duration;
+
+use harrier_engine::TrackStatus;
+use harrier_link::geo::{Geodetic, LocalFrame};
+use harrier_server::config::{Config, CotEncoding};
+use harrier_tests::{
+    free_tcp_port, http_get, http_get_json, kill_group, publish_standing_target, python_script,
+    require_python_module, runtime, within,
+};
+use nalgebra::Vector3;
+use serde_json::Value;
+
+/// Events each transport must deliver.
+const EVENTS: usize = 25;
+/// The acceptance tolerance, m.
+const TOLERANCE_M: f64 = 0.5;
+
+/// The listener's JSON lines as they come.
+fn lines(child: &mut std::process::Child) -> mpsc::Receiver<Value> {
+    let out = child.stdout.take().expect("stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if let Ok(v) = serde_json::from_str::<Value>(&line)
+                && tx.send(v).is_err()
+            {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+/// Every confirmed track state the snapshot showed, by (track id, estimate time in ms).
+type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
+
+fn run(encoding: CotEncoding) {
+    require_python_module("takproto", "takproto==3.0.1");
+    let mut listener = python_script("cot_listen.py")
+        .args(["--timeout", "90"])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start cot_listen.py");
+    let rx = lines(&mut listener);
+    let ready = rx
+        .recv_timeout(Duration::from_secs(20))
+        .expect("cot_listen.py did not say it listens");
+    let (udp, tcp) = (&ready["ready"]["udp"], &ready["ready"]["tcp"]);
+
+    let zenoh_port = free_tcp_port();
+    let mut config = Config::default();
+    config.api.listen = "127.0.0.1:0".parse().expect("addr");
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
+    config.cot.enabled = true;
+    config.cot.hz = 5.0;
+    config.cot.encoding = encoding;
+    config.cot.uid_prefix = "it".into();
+    config.cot.destinations = vec![
+        format!("udp://127.0.0.1:{udp}"),
+        format!("tcp://127.0.0.1:{tcp}"),
+    ];
+    let frame = LocalFrame::new(config.frame.origin);
+    let rt = runtime();
+    let server = rt
+        .block_on(within(10, "start the server", harrier_server::start(&config)))
+        .expect("start the live server");
+    let addr = server.local_addr();
+
+    // Record every confirmed estimate the snapshot shows.
+    let seen: Seen = Arc::default();
+    let mut snapshot = server.snapshot();
+    let recorder = {
+        let seen = Arc::clone(&seen);
+        rt.spawn(async move {
+            loop {
+                {
+                    let s = snapshot.borrow_and_update();
+                    let mut seen = seen.lock().expect("seen");
+                    for t in s.tracks.iter() {
+                        if t.status == TrackStatus::Confirmed {
+                            let key = (t.id, (t.t * 1e3).round() as i64);
+                            seen.insert(key, [t.state[0], t.state[1], t.state[2]]);
+                        }
+                    }
+                }
+                if snapshot.changed().await.is_err() {
+                    return;
+                }
+            }
+        })
+    };
+    let (session, publisher) = rt.block_on(async {
+        let bus = harrier_link::bus::BusConfig {
+            connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
+            listen: Vec::new(),
+            ..harrier_link::bus::BusConfig::default()
+        }
+        .to_zenoh()
+        .expect("zenoh config");
+        let session = within(10, "open a session", zenoh::open(bus))
+            .await
+            .expect("zenoh session");
+        let publisher =
+            publish_standing_target(&session, 8, [80.0, 40.0], [0.0, 0.0, 50.0], 10.0).await;
+        (session, publisher)
+    });
+
+    // Both transports deliver EVENTS events (takproto decodes each, or says why not).
+    let mut events: Vec<Value> = Vec::new();
+    let count = |events: &[Value], via: &str| events.iter().filter(|e| e["via"] == via).count();
+    while count(&events, "udp") < EVENTS || count(&events, "tcp") < EVENTS {
+        let Ok(v) = rx.recv_timeout(Duration::from_secs(30)) else {
+            kill_group(&mut listener);
+            panic!(
+                "cot_listen.py: after 30 s without an event, udp {} tcp {}",
+                count(&events, "udp"),
+                count(&events, "tcp")
+            );
+        };
+        assert!(v.get("error").is_none(), "takproto could not decode: {v}");
+        if v.get("uid").is_some() {
+            events.push(v);
+        }
+    }
+    kill_group(&mut listener);
+
+    // The REST API serves the snapshot's tracks.
+    let (status, tracks) = http_get_json(addr, "/api/v1/tracks");
+    assert_eq!(status, 200);
+    let rest = tracks["tracks"].as_array().expect("tracks");
+    assert!(!rest.is_empty(), "{tracks}");
+    {
+        let seen = seen.lock().expect("seen");
+        for k in rest.iter().filter(|k| k["status"] == "confirmed") {
+            let id = k["id"].as_u64().expect("id");
+            let t = (k["t"].as_f64().expect("t") * 1e3).round() as i64;
+            let s = k["state"].as_array().expect("state");
+            let got = [0, 1, 2].map(|i| s[i].as_f64().expect("state value"));
+            if let Some(p) = seen.get(&(id, t)) {
+                assert!((Vector3::from(*p) - Vector3::from(got)).norm() < 1e-6);
+            }
+        }
+    }
+
+    let counters = server.feed_counters();
+    let (_, metrics) = http_get(addr, "/api/v1/metrics");
+    assert!(
+        metrics.contains("harrier_feed_events_total{feed=\"cot\",event=\"sent\"}"),
+        "{metrics}"
+    );
+    let want_encoding = match encoding {
+        CotEncoding::Xml => "xml",
+        CotEncoding::Protobuf => "protobuf",
+    };
+    let seen = seen.lock().expect("seen").clone();
+    let mut uids = BTreeSet::new();
+    let (mut matched, mut worst) = (0, 0.0_f64);
+    for e in &events {
+        assert_eq!(e["encoding"], want_encoding, "{e}");
+        assert_eq!(e["type"], "a-u-G", "{e}");
+        assert_eq!(e["how"], "m-f", "{e}");
+        let uid = e["uid"].as_str().expect("uid");
+        let id: u64 = uid
+            .strip_prefix("harrier.it.track.")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("uid {uid}"));
+        uids.insert(uid.to_owned());
+        assert_eq!(e["callsign"], format!("T{id}"), "{e}");
+        let time = e["time_ms"].as_i64().expect("time");
+        let start = e["start_ms"].as_i64().expect("start");
+        let stale = e["stale_ms"].as_i64().expect("stale");
+        // takproto's XML times go through a float: ±1 ms.
+        assert!((stale - time - 10_000).abs() <= 1, "{e}");
+        assert!(start <= time + 1 && time - start < 1_000, "{e}");
+        let geo = Geodetic {
+            lat_deg: e["lat"].as_f64().expect("lat"),
+            lon_deg: e["lon"].as_f64().expect("lon"),
+            alt_m: e["hae"].as_f64().expect("hae"),
+        };
+        let got = frame.to_enu(&geo);
+        let truth = (start - 2..=start + 2).find_map(|t| seen.get(&(id, t)));
+        if let Some(p) = truth {
+            let err = (got - Vector3::from(*p)).norm();
+            assert!(err < TOLERANCE_M, "{uid}: {err:.3} m from the snapshot: {e}");
+            worst = worst.max(err);
+            matched += 1;
+        }
+    }
+    eprintln!(
+        "{want_encoding}: {} events (udp {}, tcp {}), {matched} matched to the snapshot, worst \
+         {worst:.4} m; uids {uids:?}; cot counters sent {} dropped {} errors {}",
+        events.len(),
+        count(&events, "udp"),
+        count(&events, "tcp"),
+        counters.get("cot", "sent"),
+        counters.get("cot", "dropped"),
+        counters.get("cot", "errors"),
+    );
+    // One standing target: one track, one uid throughout.
+    assert_eq!(uids.len(), 1, "{uids:?}");
+    // The snapshot watch may skip a state between two looks; nearly every event is matched.
+    assert!(
+        matched * 10 >= events.len() * 9,
+        "only {matched} of {} events matched a snapshot state",
+        events.len()
+    );
+    assert_eq!(counters.get("cot", "errors"), 0);
+
+    publisher.abort();
+    recorder.abort();
+    rt.block_on(async {
+        let _ = session.close().await;
+        server.shutdown().await;
+    });
+}
+
+#[test]
+fn takproto_decodes_the_protobuf_events_over_udp_and_tcp() {
+    run(CotEncoding::Protobuf);
+}
+
+#[test]
+fn takproto_decodes_the_xml_events_over_udp_and_tcp() {
+    run(CotEncoding::Xml);
+}
