@@ -183,8 +183,18 @@ mod tests {
         assert_eq!(d.transport, CotTransport::Udp);
         assert_eq!(d.address, "239.2.3.1:6969");
         let d = CotDestination::parse("tcp://[::1]:8087").expect("tcp");
-        assert_eq!((d.transport, d.address.as_str()), (CotTransport::Tcp, "[::1]:8087"));
-        for bad in ["239.2.3.1:6969", "http://a:1", "udp://a", "udp://:1", "tcp://a:0", "tls://a:8089"] {
+        assert_eq!(
+            (d.transport, d.address.as_str()),
+            (CotTransport::Tcp, "[::1]:8087")
+        );
+        for bad in [
+            "239.2.3.1:6969",
+            "http://a:1",
+            "udp://a",
+            "udp://:1",
+            "tcp://a:0",
+            "tls://a:8089",
+        ] {
             assert!(CotDestination::parse(bad).is_err(), "{bad}");
         }
         let on = CotConfig {
@@ -193,11 +203,41 @@ mod tests {
         };
         assert!(on.check().is_ok());
         let cases: [(&str, CotConfig); 5] = [
-            ("cot.hz", CotConfig { hz: 0.0, ..on.clone() }),
-            ("cot.stale_s", CotConfig { stale_s: f64::NAN, ..on.clone() }),
-            ("cot.destinations", CotConfig { destinations: vec!["udp://x".into()], ..on.clone() }),
-            ("cot.type", CotConfig { cot_type: "a u G".into(), ..on.clone() }),
-            ("cot.queue", CotConfig { queue: 0, ..on.clone() }),
+            (
+                "cot.hz",
+                CotConfig {
+                    hz: 0.0,
+                    ..on.clone()
+                },
+            ),
+            (
+                "cot.stale_s",
+                CotConfig {
+                    stale_s: f64::NAN,
+                    ..on.clone()
+                },
+            ),
+            (
+                "cot.destinations",
+                CotConfig {
+                    destinations: vec!["udp://x".into()],
+                    ..on.clone()
+                },
+            ),
+            (
+                "cot.type",
+                CotConfig {
+                    cot_type: "a u G".into(),
+                    ..on.clone()
+                },
+            ),
+            (
+                "cot.queue",
+                CotConfig {
+                    queue: 0,
+                    ..on.clone()
+                },
+            ),
         ];
         for (key, c) in cases {
             let e = c.check().expect_err(key).to_string();

@@ -13,8 +13,8 @@
 
 mod adsb;
 mod check;
-mod cot;
 mod convert;
+mod cot;
 mod error;
 mod file;
 mod sections;

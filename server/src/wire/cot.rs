@@ -407,7 +407,10 @@ mod tests {
             lon_deg: e.lon,
             alt_m: e.hae,
         });
-        assert!((back - Vector3::new(300.0, 400.0, 20.0)).norm() < 1e-6, "{back}");
+        assert!(
+            (back - Vector3::new(300.0, 400.0, 20.0)).norm() < 1e-6,
+            "{back}"
+        );
         assert_eq!(e.uid, "harrier.gcs1.track.12");
         assert_eq!(e.callsign, "T12");
         assert_eq!(e.time_ms, 1_790_000_000_500);
@@ -508,7 +511,10 @@ mod tests {
             (c.send_time, c.start_time, c.stale_time),
             (e.time_ms, e.start_ms, e.stale_ms)
         );
-        assert_eq!((c.lat, c.lon, c.hae, c.ce, c.le), (e.lat, e.lon, e.hae, e.ce, e.le));
+        assert_eq!(
+            (c.lat, c.lon, c.hae, c.ce, c.le),
+            (e.lat, e.lon, e.hae, e.ce, e.le)
+        );
         let d = c.detail.expect("detail");
         assert_eq!(d.contact.expect("contact").callsign, "T12");
         assert_eq!(d.track.expect("track").speed, e.speed);

@@ -66,6 +66,8 @@ fn run(encoding: CotEncoding) {
     let mut config = Config::default();
     config.api.listen = "127.0.0.1:0".parse().expect("addr");
     config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
+    // Both encodings' tests run at once: no fixed MAVLink port.
+    config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
     config.cot.enabled = true;
     config.cot.hz = 5.0;
     config.cot.encoding = encoding;
@@ -77,7 +79,11 @@ fn run(encoding: CotEncoding) {
     let frame = LocalFrame::new(config.frame.origin);
     let rt = runtime();
     let server = rt
-        .block_on(within(10, "start the server", harrier_server::start(&config)))
+        .block_on(within(
+            10,
+            "start the server",
+            harrier_server::start(&config),
+        ))
         .expect("start the live server");
     let addr = server.local_addr();
 
@@ -196,7 +202,10 @@ fn run(encoding: CotEncoding) {
         let truth = (start - 2..=start + 2).find_map(|t| seen.get(&(id, t)));
         if let Some(p) = truth {
             let err = (got - Vector3::from(*p)).norm();
-            assert!(err < TOLERANCE_M, "{uid}: {err:.3} m from the snapshot: {e}");
+            assert!(
+                err < TOLERANCE_M,
+                "{uid}: {err:.3} m from the snapshot: {e}"
+            );
             worst = worst.max(err);
             matched += 1;
         }
