@@ -9,9 +9,11 @@ its varint length.
 Prints one JSON line `{"ready": {"udp": PORT, "tcp": PORT}}` once it listens, then one JSON line
 per decoded event (`via`, `encoding`, `uid`, `type`, `how`, `lat`, `lon`, `hae`, `ce`, `le`,
 `time_ms`, `start_ms`, `stale_ms`, `callsign`, `course`, `speed`, `remarks`) and one
-`{"error": ...}` line per frame it cannot decode. Exits after --timeout seconds.
+`{"error": ...}` line per frame it cannot decode. With --multicast GROUP it also joins GROUP
+(events `via` "multicast"); with --drop-tcp-after N it closes the first TCP connection after N
+events (`{"closed": N}`), as a TAK server that restarts. Exits after --timeout seconds.
 
-    python3 cot_listen.py --timeout 60
+    python3 cot_listen.py --timeout 60 --multicast 239.2.3.1
 """
 
 import argparse
@@ -106,6 +108,13 @@ def frames(buf):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--timeout", type=float, default=60.0)
+    ap.add_argument("--multicast", help="also join this group (on a port of its own)")
+    ap.add_argument(
+        "--drop-tcp-after",
+        type=int,
+        default=0,
+        help="close the first TCP connection after this many events (0: never)",
+    )
     args = ap.parse_args()
 
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -114,16 +123,40 @@ def main():
     tcp.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     tcp.bind(("127.0.0.1", 0))
     tcp.listen(4)
-    emit({"ready": {"udp": udp.getsockname()[1], "tcp": tcp.getsockname()[1]}})
+    mcast, mcast_port = None, None
+    if args.multicast:
+        try:
+            mcast = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            mcast.bind((args.multicast, 0))
+            group = socket.inet_aton(args.multicast) + socket.inet_aton("0.0.0.0")
+            mcast.setsockopt(socket.IPPROTO_IP, socket.IP_ADD_MEMBERSHIP, group)
+            mcast_port = mcast.getsockname()[1]
+        except OSError as e:
+            emit({"multicast_unavailable": repr(e)})
+            mcast = None
+    emit(
+        {
+            "ready": {
+                "udp": udp.getsockname()[1],
+                "tcp": tcp.getsockname()[1],
+                "multicast": mcast_port,
+            }
+        }
+    )
 
     peers = {}
+    tcp_events, dropped = 0, False
+    sockets = [udp, tcp] + ([mcast] if mcast else [])
     deadline = time.monotonic() + args.timeout
     while time.monotonic() < deadline:
-        ready, _, _ = select.select([udp, tcp, *peers], [], [], 0.2)
+        ready, _, _ = select.select([*sockets, *peers], [], [], 0.2)
         for s in ready:
             if s is udp:
                 data, _ = udp.recvfrom(65536)
                 report(data, "udp")
+            elif s is mcast:
+                data, _ = mcast.recvfrom(65536)
+                report(data, "multicast")
             elif s is tcp:
                 conn, _ = tcp.accept()
                 peers[conn] = bytearray()
@@ -144,6 +177,13 @@ def main():
                 peers[s] = bytearray(buf)
                 for f in done:
                     report(f, "tcp")
+                    tcp_events += 1
+                if not dropped and 0 < args.drop_tcp_after <= tcp_events:
+                    # The peer goes away: the server must connect again.
+                    dropped = True
+                    s.close()
+                    del peers[s]
+                    emit({"closed": tcp_events})
 
 
 if __name__ == "__main__":

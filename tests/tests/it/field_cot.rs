@@ -7,7 +7,9 @@
 //! event's `start`, the estimate's time; the snapshot's tracks are what `GET /api/v1/tracks`
 //! serves, checked too): position within 0.5 m, uid `harrier.it.track.<id>` of that track and
 //! one uid for the one target throughout, callsign, type and stale time. Run once per encoding:
-//! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both).
+//! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both), each also to
+//! TAK's multicast group 239.2.3.1 when the host can join it. In the XML run the listener
+//! closes its TCP connection after 10 events, and the feed must connect again.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead as _, BufReader};
@@ -49,10 +51,17 @@ fn lines(child: &mut std::process::Child) -> mpsc::Receiver<Value> {
 /// Every confirmed track state the snapshot showed, by (track id, estimate time in ms).
 type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
 
-fn run(encoding: CotEncoding) {
+/// TAK's mesh multicast group.
+const GROUP: &str = "239.2.3.1";
+
+/// One run: `encoding` to the listener's UDP, TCP and (when the host can join it) multicast
+/// ports; with `drop_tcp_after`, the listener closes the first TCP connection after that many
+/// events, and the feed must connect again.
+fn run(encoding: CotEncoding, drop_tcp_after: usize) {
     require_python_module("takproto", "takproto==3.0.1");
     let mut listener = python_script("cot_listen.py")
-        .args(["--timeout", "90"])
+        .args(["--timeout", "90", "--multicast", GROUP])
+        .args(["--drop-tcp-after", &drop_tcp_after.to_string()])
         .stdout(Stdio::piped())
         .spawn()
         .expect("start cot_listen.py");
@@ -61,6 +70,10 @@ fn run(encoding: CotEncoding) {
         .recv_timeout(Duration::from_secs(20))
         .expect("cot_listen.py did not say it listens");
     let (udp, tcp) = (&ready["ready"]["udp"], &ready["ready"]["tcp"]);
+    let multicast = ready["ready"]["multicast"].as_u64();
+    if multicast.is_none() {
+        eprintln!("this host cannot join {GROUP}: multicast not tested");
+    }
 
     let zenoh_port = free_tcp_port();
     let mut config = Config::default();
@@ -76,6 +89,14 @@ fn run(encoding: CotEncoding) {
         format!("udp://127.0.0.1:{udp}"),
         format!("tcp://127.0.0.1:{tcp}"),
     ];
+    let mut vias = vec!["udp", "tcp"];
+    if let Some(port) = multicast {
+        config
+            .cot
+            .destinations
+            .push(format!("udp://{GROUP}:{port}"));
+        vias.push("multicast");
+    }
     let frame = LocalFrame::new(config.frame.origin);
     let rt = runtime();
     let server = rt
@@ -126,21 +147,23 @@ fn run(encoding: CotEncoding) {
         (session, publisher)
     });
 
-    // Both transports deliver EVENTS events (takproto decodes each, or says why not).
+    // Every transport delivers EVENTS events (takproto decodes each, or says why not).
     let mut events: Vec<Value> = Vec::new();
+    let (mut connections, mut closed) = (0, false);
     let count = |events: &[Value], via: &str| events.iter().filter(|e| e["via"] == via).count();
-    while count(&events, "udp") < EVENTS || count(&events, "tcp") < EVENTS {
+    while vias.iter().any(|via| count(&events, via) < EVENTS) {
         let Ok(v) = rx.recv_timeout(Duration::from_secs(30)) else {
             kill_group(&mut listener);
-            panic!(
-                "cot_listen.py: after 30 s without an event, udp {} tcp {}",
-                count(&events, "udp"),
-                count(&events, "tcp")
-            );
+            let counts: Vec<_> = vias.iter().map(|v| (v, count(&events, v))).collect();
+            panic!("cot_listen.py: 30 s without an event; so far {counts:?}");
         };
         assert!(v.get("error").is_none(), "takproto could not decode: {v}");
         if v.get("uid").is_some() {
             events.push(v);
+        } else if v.get("connected").is_some() {
+            connections += 1;
+        } else if v.get("closed").is_some() {
+            closed = true;
         }
     }
     kill_group(&mut listener);
@@ -173,6 +196,13 @@ fn run(encoding: CotEncoding) {
         CotEncoding::Xml => "xml",
         CotEncoding::Protobuf => "protobuf",
     };
+    if drop_tcp_after > 0 {
+        assert!(closed, "the listener never closed its TCP connection");
+        assert!(connections >= 2, "no reconnection after the close");
+        assert!(counters.get("cot", "connects") >= 2);
+    } else {
+        assert_eq!(connections, 1);
+    }
     let seen = seen.lock().expect("seen").clone();
     let mut uids = BTreeSet::new();
     let (mut matched, mut worst) = (0, 0.0_f64);
@@ -211,14 +241,17 @@ fn run(encoding: CotEncoding) {
         }
     }
     eprintln!(
-        "{want_encoding}: {} events (udp {}, tcp {}), {matched} matched to the snapshot, worst \
-         {worst:.4} m; uids {uids:?}; cot counters sent {} dropped {} errors {}",
+        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}), {matched} matched to the \
+         snapshot, worst {worst:.4} m; uids {uids:?}; {connections} TCP connections; cot \
+         counters sent {} dropped {} errors {} disconnects {}",
         events.len(),
         count(&events, "udp"),
         count(&events, "tcp"),
+        count(&events, "multicast"),
         counters.get("cot", "sent"),
         counters.get("cot", "dropped"),
         counters.get("cot", "errors"),
+        counters.get("cot", "disconnects"),
     );
     // One standing target: one track, one uid throughout.
     assert_eq!(uids.len(), 1, "{uids:?}");
@@ -228,7 +261,9 @@ fn run(encoding: CotEncoding) {
         "only {matched} of {} events matched a snapshot state",
         events.len()
     );
-    assert_eq!(counters.get("cot", "errors"), 0);
+    if drop_tcp_after == 0 {
+        assert_eq!(counters.get("cot", "errors"), 0);
+    }
 
     publisher.abort();
     recorder.abort();
@@ -240,10 +275,10 @@ fn run(encoding: CotEncoding) {
 
 #[test]
 fn takproto_decodes_the_protobuf_events_over_udp_and_tcp() {
-    run(CotEncoding::Protobuf);
+    run(CotEncoding::Protobuf, 0);
 }
 
 #[test]
-fn takproto_decodes_the_xml_events_over_udp_and_tcp() {
-    run(CotEncoding::Xml);
+fn takproto_decodes_the_xml_events_over_udp_and_tcp_across_a_reconnection() {
+    run(CotEncoding::Xml, 10);
 }
