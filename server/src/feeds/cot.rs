@@ -316,3 +316,116 @@ async fn tcp_peer(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::DEFAULT_ORIGIN;
+    use harrier_engine::{TrackStatus, TrackView};
+    use harrier_link::geo::LocalFrame;
+
+    fn event() -> CotEvent {
+        let track = TrackView {
+            id: 3,
+            status: TrackStatus::Confirmed,
+            t: 1_790_000_000.0,
+            state: [10.0, 20.0, 0.0, 1.0, 0.0, 0.0],
+            cov: Vec::new(),
+            cov_dims: Vec::new(),
+            updated: true,
+            age: 5,
+            last_update: 1_790_000_000.0,
+            mode_probabilities: Vec::new(),
+        };
+        let settings = CotSettings {
+            cot_type: "a-u-G".into(),
+            how: "m-f".into(),
+            uid_prefix: "t".into(),
+            stale_s: 10.0,
+        };
+        let frame = LocalFrame::new(DEFAULT_ORIGIN);
+        track_event(&track, &frame, &settings, 1_790_000_000.0).expect("an event")
+    }
+
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_stalled_tcp_peer_makes_events_drop_and_never_holds_the_sender() {
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let address = listener.local_addr().unwrap().to_string();
+        let counters = Arc::new(FeedCounters::default());
+        let (stop_tx, stop) = watch::channel(false);
+        let (queue, rx) = mpsc::channel(4);
+        let peer = tokio::spawn(tcp_peer(
+            address,
+            rx,
+            Arc::clone(&counters),
+            Duration::from_secs(1),
+            stop,
+        ));
+        // Accepted, never read: the kernel's buffers fill, then the queue.
+        let (_stalled, _) = listener.accept().await.unwrap();
+        let e = event();
+        let mut out = Out::Tcp { queue };
+        let mut slowest = Duration::ZERO;
+        let started = Instant::now();
+        while counters.get(FEED, "dropped") == 0 {
+            assert!(
+                started.elapsed() < Duration::from_secs(20),
+                "nothing dropped"
+            );
+            for _ in 0..100 {
+                let mut bytes = Encoded {
+                    event: &e,
+                    encoding: CotEncoding::Xml,
+                    udp: None,
+                    tcp: None,
+                };
+                let t = Instant::now();
+                send(&mut out, &mut bytes, &counters);
+                slowest = slowest.max(t.elapsed());
+            }
+            tokio::task::yield_now().await;
+        }
+        assert!(slowest < Duration::from_millis(50), "{slowest:?}");
+        assert!(counters.get(FEED, "sent") > 0);
+        // The task stops though its write is stuck.
+        stop_tx.send_replace(true);
+        tokio::time::timeout(Duration::from_secs(2), peer)
+            .await
+            .expect("the TCP task ends at stop")
+            .unwrap();
+    }
+
+    #[tokio::test]
+    async fn a_refused_connection_is_retried_and_what_waits_meanwhile_dropped() {
+        let closed = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let address = closed.local_addr().unwrap().to_string();
+        drop(closed);
+        let counters = Arc::new(FeedCounters::default());
+        let (stop_tx, stop) = watch::channel(false);
+        let (queue, rx) = mpsc::channel(8);
+        for _ in 0..3 {
+            queue.try_send(Arc::from(&b"x"[..])).unwrap();
+        }
+        let peer = tokio::spawn(tcp_peer(
+            address,
+            rx,
+            Arc::clone(&counters),
+            Duration::from_secs(1),
+            stop,
+        ));
+        tokio::time::timeout(Duration::from_secs(5), async {
+            while counters.get(FEED, "connect_errors") < 2 {
+                tokio::time::sleep(Duration::from_millis(20)).await;
+            }
+        })
+        .await
+        .expect("retried");
+        assert_eq!(counters.get(FEED, "dropped"), 3);
+        assert_eq!(counters.get(FEED, "sent"), 0);
+        stop_tx.send_replace(true);
+        tokio::time::timeout(Duration::from_secs(2), peer)
+            .await
+            .expect("the TCP task ends at stop")
+            .unwrap();
+    }
+}
