@@ -81,6 +81,10 @@ pub struct CotConfig {
     pub cot_type: String,
     /// The CoT `how` (`m-f`: machine, fused).
     pub how: String,
+    /// Send each vehicle too (where its platform was at its last scan).
+    pub vehicles: bool,
+    /// The CoT type of a vehicle (`a-f-A`: friendly air).
+    pub vehicle_type: String,
     /// An event is stale this long after it is sent, s.
     pub stale_s: f64,
     /// The uids are `harrier.<uid_prefix>.track.<id>`; a distinct prefix per server keeps two
@@ -103,6 +107,8 @@ impl Default for CotConfig {
             destinations: vec!["udp://239.2.3.1:6969".into()],
             cot_type: "a-u-G".into(),
             how: "m-f".into(),
+            vehicles: false,
+            vehicle_type: "a-f-A".into(),
             stale_s: 10.0,
             uid_prefix: "harrier".into(),
             multicast_ttl: 1,
@@ -146,6 +152,7 @@ impl CotConfig {
         for (key, v) in [
             ("type", &self.cot_type),
             ("how", &self.how),
+            ("vehicle_type", &self.vehicle_type),
             ("uid_prefix", &self.uid_prefix),
         ] {
             if v.is_empty() || !v.chars().all(|c| c.is_ascii_graphic()) {

@@ -1,5 +1,5 @@
-//! CoT out: every confirmed track of the tracker's latest snapshot, `cot.hz` times a second, as
-//! a Cursor-on-Target event ([`crate::wire::cot`]) to every `cot.destinations` entry: a UDP
+//! CoT out: every confirmed track of the tracker's latest snapshot (and, with `cot.vehicles`,
+//! every vehicle), `cot.hz` times a second, as a Cursor-on-Target event ([`crate::wire::cot`]) to every `cot.destinations` entry: a UDP
 //! datagram to a multicast group (TAK's mesh default `239.2.3.1:6969`, with `cot.multicast_ttl`
 //! and loopback on, so a TAK client on this host hears it too) or to one host, or a TCP
 //! stream to a TAK server's input. XML is sent as is on both; protobuf (TAK protocol version 1)
@@ -30,7 +30,7 @@ use super::{FeedContext, FeedCounters};
 use crate::clock::unix_now;
 use crate::config::{CotConfig, CotEncoding, CotTransport};
 use crate::gcs::transport::stopped;
-use crate::wire::cot::{CotEvent, CotSettings, track_event};
+use crate::wire::cot::{CotEvent, CotSettings, track_event, vehicle_event};
 
 /// The counters' feed label.
 const FEED: &str = "cot";
@@ -169,6 +169,7 @@ async fn run(
 ) {
     let settings = CotSettings {
         cot_type: config.cot_type.clone(),
+        vehicle_type: config.vehicle_type.clone(),
         how: config.how.clone(),
         uid_prefix: config.uid_prefix.clone(),
         stale_s: config.stale_s,
@@ -181,11 +182,19 @@ async fn run(
             _ = tick.tick() => {}
             () = stopped(&mut stop) => break,
         }
-        let tracks = Arc::clone(&ctx.snapshot.borrow().tracks);
+        let (tracks, vehicles) = {
+            let s = ctx.snapshot.borrow();
+            (Arc::clone(&s.tracks), Arc::clone(&s.vehicles))
+        };
         let now = unix_now();
+        let vehicles = vehicles
+            .iter()
+            .filter(|_| config.vehicles)
+            .filter_map(|v| vehicle_event(v, &ctx.frame, &settings, now));
         for event in tracks
             .iter()
             .filter_map(|t| track_event(t, &ctx.frame, &settings, now))
+            .chain(vehicles)
         {
             ctx.counters.add(FEED, "events", 1);
             let mut bytes = Encoded {
@@ -339,6 +348,7 @@ mod tests {
         };
         let settings = CotSettings {
             cot_type: "a-u-G".into(),
+            vehicle_type: "a-f-A".into(),
             how: "m-f".into(),
             uid_prefix: "t".into(),
             stale_s: 10.0,
@@ -367,11 +377,10 @@ mod tests {
         let mut out = Out::Tcp { queue };
         let mut slowest = Duration::ZERO;
         let started = Instant::now();
-        while counters.get(FEED, "dropped") == 0 {
-            assert!(
-                started.elapsed() < Duration::from_secs(20),
-                "nothing dropped"
-            );
+        // Until the writer is stuck: nothing more written over 50 rounds.
+        let (mut last_sent, mut still) = (0, 0);
+        while still < 50 {
+            assert!(started.elapsed() < Duration::from_secs(20), "never stuck");
             for _ in 0..100 {
                 let mut bytes = Encoded {
                     event: &e,
@@ -383,10 +392,14 @@ mod tests {
                 send(&mut out, &mut bytes, &counters);
                 slowest = slowest.max(t.elapsed());
             }
-            tokio::task::yield_now().await;
+            tokio::time::sleep(Duration::from_millis(1)).await;
+            let sent = counters.get(FEED, "sent");
+            still = if sent == last_sent { still + 1 } else { 0 };
+            last_sent = sent;
         }
         assert!(slowest < Duration::from_millis(50), "{slowest:?}");
-        assert!(counters.get(FEED, "sent") > 0);
+        assert!(last_sent > 0);
+        assert!(counters.get(FEED, "dropped") > 0);
         // The task stops though its write is stuck.
         stop_tx.send_replace(true);
         tokio::time::timeout(Duration::from_secs(2), peer)

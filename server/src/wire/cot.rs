@@ -22,6 +22,10 @@
 //! | `detail/contact callsign` / `detail.contact.callsign` | `T` and the track id (`T12`), as the dashboard names it |
 //! | `detail/remarks` / `detail.xmlDetail` | `harrier track <id>, <age> scans, last detection <s> s before` |
 //!
+//! With `cot.vehicles`, each vehicle is sent too ([`vehicle_event`]): `cot.vehicle_type`
+//! (`a-f-A`, friendly air), uid `harrier.<uid_prefix>.uav.<label>`, callsign `UAV <label>`, at
+//! its platform's position of its last scan.
+//!
 //! The estimate is the track's at its last scan (the tracker's time line), not predicted on.
 //! Times are ISO-8601 UTC with milliseconds in XML and milliseconds since the UNIX epoch in
 //! protobuf.
@@ -34,14 +38,18 @@ use harrier_link::geo::LocalFrame;
 use nalgebra::Vector3;
 use prost::Message as _;
 
+use crate::tracker::VehicleView;
+
 /// CoT's value of an unknown `ce` / `le`.
 pub const UNKNOWN_ERROR: f64 = 9_999_999.0;
 
 /// What the configuration sets of every event.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CotSettings {
-    /// The CoT type (`a-u-G`).
+    /// The CoT type of a track (`a-u-G`).
     pub cot_type: String,
+    /// The CoT type of a vehicle (`a-f-A`).
+    pub vehicle_type: String,
     /// The CoT `how` (`m-f`).
     pub how: String,
     /// The middle part of the uid (`harrier.<uid_prefix>.track.<id>`).
@@ -75,14 +83,21 @@ pub struct CotEvent {
     pub ce: f64,
     /// 1σ vertical error, m.
     pub le: f64,
-    /// Course over ground, degrees from true north.
-    pub course: f64,
-    /// Ground speed, m/s.
-    pub speed: f64,
+    /// Course and speed (`None` for a vehicle: not known from its scans).
+    pub track: Option<CotTrack>,
     /// The contact's callsign.
     pub callsign: String,
     /// Free text.
     pub remarks: String,
+}
+
+/// The `<track>` detail.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CotTrack {
+    /// Course over ground, degrees from true north, [0, 360).
+    pub course: f64,
+    /// Ground speed, m/s.
+    pub speed: f64,
 }
 
 /// UNIX seconds to UNIX milliseconds; `None` unless finite and not before the epoch.
@@ -149,12 +164,53 @@ pub fn track_event(
         hae: geo.alt_m,
         ce,
         le,
-        course: vx.atan2(vy).to_degrees().rem_euclid(360.0),
-        speed: vx.hypot(vy),
+        track: Some(CotTrack {
+            course: vx.atan2(vy).to_degrees().rem_euclid(360.0),
+            speed: vx.hypot(vy),
+        }),
         callsign: format!("T{}", track.id),
         remarks: format!(
             "harrier track {}, {} scans, last detection {since:.1} s before",
             track.id, track.age
+        ),
+    })
+}
+
+/// The CoT event of a vehicle (where the platform was at its last scan) sent at `now_unix`,
+/// `None` when its position or time is not finite. Its uid is `harrier.<uid_prefix>.uav.<label>`,
+/// its callsign `UAV <label>`, its `how` `m-g` (its own navigation); course, speed and the
+/// errors are not known from its scans (no `<track>`, `ce`/`le` unknown).
+pub fn vehicle_event(
+    vehicle: &VehicleView,
+    frame: &LocalFrame,
+    settings: &CotSettings,
+    now_unix: f64,
+) -> Option<CotEvent> {
+    if !vehicle.position.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let geo = frame.from_enu(&Vector3::from(vehicle.position));
+    if !(geo.lat_deg.is_finite() && geo.lon_deg.is_finite() && geo.alt_m.is_finite()) {
+        return None;
+    }
+    let time_ms = millis(now_unix)?;
+    Some(CotEvent {
+        uid: format!("harrier.{}.uav.{}", settings.uid_prefix, vehicle.vehicle),
+        cot_type: settings.vehicle_type.clone(),
+        how: "m-g".into(),
+        time_ms,
+        start_ms: millis(vehicle.last_t)?.min(time_ms),
+        stale_ms: millis(now_unix + settings.stale_s)?,
+        lat: geo.lat_deg,
+        lon: geo.lon_deg,
+        hae: geo.alt_m,
+        ce: UNKNOWN_ERROR,
+        le: UNKNOWN_ERROR,
+        track: None,
+        callsign: format!("UAV {}", vehicle.vehicle),
+        remarks: format!(
+            "harrier vehicle {}, {} scans",
+            vehicle.vehicle, vehicle.scans
         ),
     })
 }
@@ -285,8 +341,7 @@ impl CotEvent {
             s,
             "<event version=\"2.0\" uid=\"{}\" type=\"{}\" how=\"{}\" time=\"{}\" start=\"{}\" \
              stale=\"{}\"><point lat=\"{:.9}\" lon=\"{:.9}\" hae=\"{:.3}\" ce=\"{:.2}\" \
-             le=\"{:.2}\"/><detail><track course=\"{:.2}\" speed=\"{:.3}\"/>\
-             <contact callsign=\"{}\"/>{}</detail></event>",
+             le=\"{:.2}\"/><detail>",
             escape(&self.uid),
             escape(&self.cot_type),
             escape(&self.how),
@@ -298,8 +353,17 @@ impl CotEvent {
             self.hae,
             self.ce,
             self.le,
-            self.course,
-            self.speed,
+        );
+        if let Some(t) = self.track {
+            let _ = write!(
+                s,
+                "<track course=\"{:.2}\" speed=\"{:.3}\"/>",
+                t.course, t.speed
+            );
+        }
+        let _ = write!(
+            s,
+            "<contact callsign=\"{}\"/>{}</detail></event>",
             escape(&self.callsign),
             self.remarks_xml(),
         );
@@ -327,9 +391,9 @@ impl CotEvent {
                         endpoint: String::new(),
                         callsign: self.callsign.clone(),
                     }),
-                    track: Some(TrackProto {
-                        speed: self.speed,
-                        course: self.course,
+                    track: self.track.map(|t| TrackProto {
+                        speed: t.speed,
+                        course: t.course,
                     }),
                 }),
             }),
@@ -364,6 +428,7 @@ mod tests {
     fn settings() -> CotSettings {
         CotSettings {
             cot_type: "a-u-G".into(),
+            vehicle_type: "a-f-A".into(),
             how: "m-f".into(),
             uid_prefix: "gcs1".into(),
             stale_s: 10.0,
@@ -418,8 +483,9 @@ mod tests {
         assert_eq!(e.stale_ms, 1_790_000_010_500);
         assert!((e.ce - 3.0).abs() < 1e-12);
         assert_eq!(e.le, UNKNOWN_ERROR);
-        assert!((e.course - 36.869_897_645).abs() < 1e-6);
-        assert!((e.speed - 5.0).abs() < 1e-12);
+        let m = e.track.expect("course and speed");
+        assert!((m.course - 36.869_897_645).abs() < 1e-6);
+        assert!((m.speed - 5.0).abs() < 1e-12);
         assert_eq!(
             e.remarks,
             "harrier track 12, 30 scans, last detection 0.2 s before"
@@ -469,10 +535,48 @@ mod tests {
         // West and due south: courses 270° and 180°, within [0, 360).
         let west = track(TrackStatus::Confirmed, [0.0, 0.0, 0.0, -2.0, 0.0, 0.0]);
         let e = track_event(&west, &frame, &s, now).expect("an event");
-        assert!((e.course - 270.0).abs() < 1e-9);
+        assert!((e.track.expect("track").course - 270.0).abs() < 1e-9);
         let south = track(TrackStatus::Confirmed, [0.0, 0.0, 0.0, 0.0, -2.0, 0.0]);
         let e = track_event(&south, &frame, &s, now).expect("an event");
-        assert!((e.course - 180.0).abs() < 1e-9);
+        assert!((e.track.expect("track").course - 180.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_vehicle_is_friendly_air_where_its_platform_was() {
+        let frame = LocalFrame::new(DEFAULT_ORIGIN);
+        let mut v = VehicleView {
+            vehicle: "8".into(),
+            last_t: 1_790_000_000.0,
+            scans: 40,
+            sensors: vec!["cam".into()],
+            position: [10.0, -20.0, 50.0],
+            geodetic: harrier_core::detection::GeoPoint {
+                lat_deg: 0.0,
+                lon_deg: 0.0,
+                alt_m: 0.0,
+            },
+        };
+        let e = vehicle_event(&v, &frame, &settings(), 1_790_000_000.5).expect("an event");
+        assert_eq!(
+            (e.uid.as_str(), e.cot_type.as_str(), e.callsign.as_str()),
+            ("harrier.gcs1.uav.8", "a-f-A", "UAV 8")
+        );
+        let back = frame.to_enu(&harrier_link::geo::Geodetic {
+            lat_deg: e.lat,
+            lon_deg: e.lon,
+            alt_m: e.hae,
+        });
+        assert!((back - Vector3::new(10.0, -20.0, 50.0)).norm() < 1e-6);
+        assert!(e.track.is_none());
+        assert!(!e.to_xml().contains("<track"));
+        let m = e
+            .to_proto()
+            .cot_event
+            .and_then(|c| c.detail)
+            .expect("detail");
+        assert!(m.track.is_none());
+        v.position[1] = f64::NAN;
+        assert!(vehicle_event(&v, &frame, &settings(), 1_790_000_000.5).is_none());
     }
 
     #[test]
@@ -517,7 +621,7 @@ mod tests {
         );
         let d = c.detail.expect("detail");
         assert_eq!(d.contact.expect("contact").callsign, "T12");
-        assert_eq!(d.track.expect("track").speed, e.speed);
+        assert_eq!(d.track.expect("track").speed, 5.0);
 
         let stream = e.to_stream();
         assert_eq!(stream[0], STREAM_MAGIC);

@@ -6,7 +6,8 @@
 //! event is checked against the tracker's snapshot of the same track at the same time (the
 //! event's `start`, the estimate's time; the snapshot's tracks are what `GET /api/v1/tracks`
 //! serves, checked too): position within 0.5 m, uid `harrier.it.track.<id>` of that track and
-//! one uid for the one target throughout, callsign, type and stale time. Run once per encoding:
+//! one uid for the one target throughout, callsign, type and stale time. The publishing vehicle
+//! (`cot.vehicles`) comes as friendly air `harrier.it.uav.8` where its platform stands. Run once per encoding:
 //! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both), each also to
 //! TAK's multicast group 239.2.3.1 when the host can join it. In the XML run the listener
 //! closes its TCP connection after 10 events, and the feed must connect again.
@@ -27,8 +28,8 @@ use harrier_tests::{
 use nalgebra::Vector3;
 use serde_json::Value;
 
-/// Events each transport must deliver.
-const EVENTS: usize = 25;
+/// Events (the track's and the vehicle's) each transport must deliver.
+const EVENTS: usize = 40;
 /// The acceptance tolerance, m.
 const TOLERANCE_M: f64 = 0.5;
 
@@ -85,6 +86,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
     config.cot.hz = 5.0;
     config.cot.encoding = encoding;
     config.cot.uid_prefix = "it".into();
+    config.cot.vehicles = true;
     config.cot.destinations = vec![
         format!("udp://127.0.0.1:{udp}"),
         format!("tcp://127.0.0.1:{tcp}"),
@@ -206,11 +208,29 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
     let seen = seen.lock().expect("seen").clone();
     let mut uids = BTreeSet::new();
     let (mut matched, mut worst) = (0, 0.0_f64);
+    let (mut uav_events, mut uav_worst) = (0, 0.0_f64);
     for e in &events {
         assert_eq!(e["encoding"], want_encoding, "{e}");
+        let uid = e["uid"].as_str().expect("uid");
+        let geo = Geodetic {
+            lat_deg: e["lat"].as_f64().expect("lat"),
+            lon_deg: e["lon"].as_f64().expect("lon"),
+            alt_m: e["hae"].as_f64().expect("hae"),
+        };
+        let got = frame.to_enu(&geo);
+        if uid.starts_with("harrier.it.uav.") {
+            // The publishing vehicle, friendly air, where its platform stands.
+            assert_eq!(uid, "harrier.it.uav.8", "{e}");
+            assert_eq!(e["type"], "a-f-A", "{e}");
+            assert_eq!(e["callsign"], "UAV 8", "{e}");
+            let err = (got - Vector3::new(0.0, 0.0, 50.0)).norm();
+            assert!(err < TOLERANCE_M, "the vehicle {err:.3} m off: {e}");
+            uav_worst = uav_worst.max(err);
+            uav_events += 1;
+            continue;
+        }
         assert_eq!(e["type"], "a-u-G", "{e}");
         assert_eq!(e["how"], "m-f", "{e}");
-        let uid = e["uid"].as_str().expect("uid");
         let id: u64 = uid
             .strip_prefix("harrier.it.track.")
             .and_then(|s| s.parse().ok())
@@ -223,12 +243,6 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         // takproto's XML times go through a float: ±1 ms.
         assert!((stale - time - 10_000).abs() <= 1, "{e}");
         assert!(start <= time + 1 && time - start < 1_000, "{e}");
-        let geo = Geodetic {
-            lat_deg: e["lat"].as_f64().expect("lat"),
-            lon_deg: e["lon"].as_f64().expect("lon"),
-            alt_m: e["hae"].as_f64().expect("hae"),
-        };
-        let got = frame.to_enu(&geo);
         let truth = (start - 2..=start + 2).find_map(|t| seen.get(&(id, t)));
         if let Some(p) = truth {
             let err = (got - Vector3::from(*p)).norm();
@@ -241,7 +255,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         }
     }
     eprintln!(
-        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}), {matched} matched to the \
+        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}), {matched} track events matched to the \
          snapshot, worst {worst:.4} m; uids {uids:?}; {connections} TCP connections; cot \
          counters sent {} dropped {} errors {} disconnects {}",
         events.len(),
@@ -253,13 +267,15 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         counters.get("cot", "errors"),
         counters.get("cot", "disconnects"),
     );
+    eprintln!("{uav_events} vehicle events, worst {uav_worst:.4} m from the platform");
+    assert!(uav_events > 0, "no vehicle event");
     // One standing target: one track, one uid throughout.
     assert_eq!(uids.len(), 1, "{uids:?}");
     // The snapshot watch may skip a state between two looks; nearly every event is matched.
+    let track_events = events.len() - uav_events;
     assert!(
-        matched * 10 >= events.len() * 9,
-        "only {matched} of {} events matched a snapshot state",
-        events.len()
+        matched * 10 >= track_events * 9,
+        "only {matched} of {track_events} track events matched a snapshot state"
     );
     if drop_tcp_after == 0 {
         assert_eq!(counters.get("cot", "errors"), 0);
