@@ -9,7 +9,9 @@ its varint length.
 Prints one JSON line `{"ready": {"udp": PORT, "tcp": PORT}}` once it listens, then one JSON line
 per decoded event (`via`, `encoding`, `uid`, `type`, `how`, `lat`, `lon`, `hae`, `ce`, `le`,
 `time_ms`, `start_ms`, `stale_ms`, `callsign`, `course`, `speed`, `remarks`) and one
-`{"error": ...}` line per frame it cannot decode. With --multicast GROUP it also joins GROUP
+`{"error": ...}` line per frame it cannot decode. With --tls-cert/--tls-key it also listens
+for TLS (a TAK server's 8089; events `via` "tls"), with --tls-ca requiring a client certificate
+signed by that CA, as TAK servers do. With --multicast GROUP it also joins GROUP
 (events `via` "multicast"); with --drop-tcp-after N it closes the first TCP connection after N
 events (`{"closed": N}`), as a TAK server that restarts. Exits after --timeout seconds.
 
@@ -20,6 +22,7 @@ import argparse
 import json
 import select
 import socket
+import ssl
 import sys
 import time
 
@@ -115,6 +118,9 @@ def main():
         default=0,
         help="close the first TCP connection after this many events (0: never)",
     )
+    ap.add_argument("--tls-cert", help="also listen for TLS with this certificate (PEM)")
+    ap.add_argument("--tls-key", help="its private key (PEM)")
+    ap.add_argument("--tls-ca", help="require a client certificate signed by this CA (PEM)")
     args = ap.parse_args()
 
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -134,19 +140,33 @@ def main():
         except OSError as e:
             emit({"multicast_unavailable": repr(e)})
             mcast = None
+    tls, tls_port, tls_ctx = None, None, None
+    if args.tls_cert:
+        tls_ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+        tls_ctx.load_cert_chain(args.tls_cert, args.tls_key)
+        if args.tls_ca:
+            tls_ctx.verify_mode = ssl.CERT_REQUIRED
+            tls_ctx.load_verify_locations(args.tls_ca)
+        tls = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        tls.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        tls.bind(("127.0.0.1", 0))
+        tls.listen(4)
+        tls_port = tls.getsockname()[1]
     emit(
         {
             "ready": {
                 "udp": udp.getsockname()[1],
                 "tcp": tcp.getsockname()[1],
                 "multicast": mcast_port,
+                "tls": tls_port,
             }
         }
     )
 
     peers = {}
     tcp_events, dropped = 0, False
-    sockets = [udp, tcp] + ([mcast] if mcast else [])
+    sockets = [udp, tcp] + ([mcast] if mcast else []) + ([tls] if tls else [])
+    via = {}
     deadline = time.monotonic() + args.timeout
     while time.monotonic() < deadline:
         ready, _, _ = select.select([*sockets, *peers], [], [], 0.2)
@@ -160,9 +180,24 @@ def main():
             elif s is tcp:
                 conn, _ = tcp.accept()
                 peers[conn] = bytearray()
+                via[conn] = "tcp"
                 emit({"connected": True})
+            elif s is tls:
+                conn, _ = tls.accept()
+                try:
+                    conn = tls_ctx.wrap_socket(conn, server_side=True)
+                except (ssl.SSLError, OSError) as e:
+                    emit({"error": f"TLS handshake: {e!r}"})
+                    continue
+                peers[conn] = bytearray()
+                via[conn] = "tls"
+                cert = conn.getpeercert()
+                emit({"tls_connected": True, "client_cert": bool(cert)})
             else:
                 data = s.recv(65536)
+                # TLS may hold decrypted bytes select() does not see.
+                while data and isinstance(s, ssl.SSLSocket) and s.pending():
+                    data += s.recv(65536)
                 if not data:
                     s.close()
                     del peers[s]
@@ -176,9 +211,9 @@ def main():
                     done = []
                 peers[s] = bytearray(buf)
                 for f in done:
-                    report(f, "tcp")
-                    tcp_events += 1
-                if not dropped and 0 < args.drop_tcp_after <= tcp_events:
+                    report(f, via[s])
+                    tcp_events += via[s] == "tcp"
+                if via[s] == "tcp" and not dropped and 0 < args.drop_tcp_after <= tcp_events:
                     # The peer goes away: the server must connect again.
                     dropped = True
                     s.close()

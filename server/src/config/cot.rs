@@ -22,19 +22,21 @@ pub enum CotTransport {
     Udp,
     /// A TCP client (a TAK server's input, e.g. port 8087), reconnected when lost.
     Tcp,
+    /// A TLS client over TCP (a TAK server's TLS input, 8089), with `cot.tls_*`.
+    Tls,
 }
 
 /// One parsed `cot.destinations` entry.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CotDestination {
-    /// `udp` or `tcp`.
+    /// `udp`, `tcp` or `tls`.
     pub transport: CotTransport,
     /// `host:port` (an IPv6 host in brackets), as written.
     pub address: String,
 }
 
 impl CotDestination {
-    /// Parses `udp://host:port` or `tcp://host:port`.
+    /// Parses `udp://host:port`, `tcp://host:port` or `tls://host:port`.
     pub fn parse(text: &str) -> Result<Self, String> {
         let (scheme, address) = text
             .split_once("://")
@@ -42,8 +44,12 @@ impl CotDestination {
         let transport = match scheme {
             "udp" => CotTransport::Udp,
             "tcp" => CotTransport::Tcp,
-            "tls" => return Err(format!("{text:?}: tls:// is not supported yet")),
-            other => return Err(format!("{text:?}: unknown scheme {other:?} (udp or tcp)")),
+            "tls" => CotTransport::Tls,
+            other => {
+                return Err(format!(
+                    "{text:?}: unknown scheme {other:?} (udp, tcp or tls)"
+                ));
+            }
         };
         let (host, port) = address
             .rsplit_once(':')
@@ -60,6 +66,13 @@ impl CotDestination {
             transport,
             address: address.to_owned(),
         })
+    }
+
+    /// The host of `address` (without IPv6 brackets): the name a TLS server's certificate
+    /// must carry.
+    pub fn host(&self) -> &str {
+        let host = self.address.rsplit_once(':').map_or("", |(h, _)| h);
+        host.trim_start_matches('[').trim_end_matches(']')
     }
 }
 
@@ -96,6 +109,14 @@ pub struct CotConfig {
     pub reconnect_max_s: f64,
     /// Events queued per TCP destination; when a slow peer lets it fill, events are dropped.
     pub queue: usize,
+    /// For `tls://` destinations: the PEM file of the certificate authorities the server's
+    /// certificate must chain to (a TAK server's `truststore` exported as PEM).
+    pub tls_ca: String,
+    /// For `tls://` destinations: this client's certificate chain, PEM (empty: no client
+    /// certificate; a TAK server asks for one).
+    pub tls_cert: String,
+    /// The private key of `tls_cert`, PEM (PKCS#8, PKCS#1 or SEC1).
+    pub tls_key: String,
 }
 
 impl Default for CotConfig {
@@ -114,6 +135,9 @@ impl Default for CotConfig {
             multicast_ttl: 1,
             reconnect_max_s: 10.0,
             queue: 1024,
+            tls_ca: String::new(),
+            tls_cert: String::new(),
+            tls_key: String::new(),
         }
     }
 }
@@ -148,7 +172,17 @@ impl CotConfig {
         if self.destinations.is_empty() {
             return bad("cot.destinations must name at least one destination".into());
         }
-        self.parsed_destinations()?;
+        let destinations = self.parsed_destinations()?;
+        if destinations
+            .iter()
+            .any(|d| d.transport == CotTransport::Tls)
+            && self.tls_ca.is_empty()
+        {
+            return bad("cot.tls_ca must name a PEM file for a tls:// destination".into());
+        }
+        if self.tls_cert.is_empty() != self.tls_key.is_empty() {
+            return bad("cot.tls_cert and cot.tls_key go together".into());
+        }
         for (key, v) in [
             ("type", &self.cot_type),
             ("how", &self.how),
@@ -200,7 +234,7 @@ mod tests {
             "udp://a",
             "udp://:1",
             "tcp://a:0",
-            "tls://a:8089",
+            "ftp://a:21",
         ] {
             assert!(CotDestination::parse(bad).is_err(), "{bad}");
         }

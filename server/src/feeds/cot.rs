@@ -21,10 +21,14 @@ use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use tokio::io::AsyncWriteExt as _;
+use tokio::io::{AsyncWrite, AsyncWriteExt as _};
 use tokio::net::{TcpStream, UdpSocket};
 use tokio::sync::{mpsc, watch};
 use tokio::task::JoinHandle;
+use tokio_rustls::TlsConnector;
+use tokio_rustls::rustls;
+use tokio_rustls::rustls::pki_types::pem::PemObject as _;
+use tokio_rustls::rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
 
 use super::{FeedContext, FeedCounters};
 use crate::clock::unix_now;
@@ -80,6 +84,7 @@ pub(super) async fn start(
 ) -> Result<impl Future<Output = ()> + Send + 'static, String> {
     let mut outs = Vec::new();
     let mut tcp_tasks = Vec::new();
+    let mut connector: Option<TlsConnector> = None;
     let destinations = config.parsed_destinations().map_err(|e| e.to_string())?;
     for d in destinations {
         match d.transport {
@@ -97,10 +102,22 @@ pub(super) async fn start(
                     log: Throttle::default(),
                 });
             }
-            CotTransport::Tcp => {
+            CotTransport::Tcp | CotTransport::Tls => {
+                let tls = if d.transport == CotTransport::Tls {
+                    let connector = match &connector {
+                        Some(c) => c.clone(),
+                        None => connector.insert(tls_connector(&config)?).clone(),
+                    };
+                    let name = ServerName::try_from(d.host().to_owned())
+                        .map_err(|e| format!("tls://{}: {e}", d.address))?;
+                    Some((connector, name))
+                } else {
+                    None
+                };
                 let (queue, rx) = mpsc::channel(config.queue);
                 let task = tcp_peer(
                     d.address,
+                    tls,
                     rx,
                     Arc::clone(&ctx.counters),
                     Duration::from_secs_f64(config.reconnect_max_s),
@@ -112,6 +129,60 @@ pub(super) async fn start(
         }
     }
     Ok(run(config, ctx, outs, tcp_tasks))
+}
+
+/// The TLS client of the `tls://` destinations: trusts the authorities of `cot.tls_ca`, shows
+/// `cot.tls_cert` when set; TLS 1.2 and 1.3 with rustls' ring provider.
+fn tls_connector(config: &CotConfig) -> Result<TlsConnector, String> {
+    let pem = |key: &str, path: &str, e: &dyn std::fmt::Display| format!("cot.{key} {path:?}: {e}");
+    let mut roots = rustls::RootCertStore::empty();
+    for c in CertificateDer::pem_file_iter(&config.tls_ca)
+        .map_err(|e| pem("tls_ca", &config.tls_ca, &e))?
+    {
+        let c = c.map_err(|e| pem("tls_ca", &config.tls_ca, &e))?;
+        roots
+            .add(c)
+            .map_err(|e| pem("tls_ca", &config.tls_ca, &e))?;
+    }
+    if roots.is_empty() {
+        return Err(pem("tls_ca", &config.tls_ca, &"no certificate"));
+    }
+    let provider = Arc::new(rustls::crypto::ring::default_provider());
+    let builder = rustls::ClientConfig::builder_with_provider(provider)
+        .with_safe_default_protocol_versions()
+        .map_err(|e| format!("TLS: {e}"))?
+        .with_root_certificates(roots);
+    let client = if config.tls_cert.is_empty() {
+        builder.with_no_client_auth()
+    } else {
+        let chain = CertificateDer::pem_file_iter(&config.tls_cert)
+            .map_err(|e| pem("tls_cert", &config.tls_cert, &e))?
+            .collect::<Result<Vec<_>, _>>()
+            .map_err(|e| pem("tls_cert", &config.tls_cert, &e))?;
+        let key = PrivateKeyDer::from_pem_file(&config.tls_key)
+            .map_err(|e| pem("tls_key", &config.tls_key, &e))?;
+        builder
+            .with_client_auth_cert(chain, key)
+            .map_err(|e| pem("tls_cert", &config.tls_cert, &e))?
+    };
+    Ok(TlsConnector::from(Arc::new(client)))
+}
+
+/// A connected TCP or TLS stream, written only.
+type Writer = Box<dyn AsyncWrite + Unpin + Send>;
+
+/// Connects to `address`, then makes the TLS handshake when `tls` is given.
+async fn connect(
+    address: &str,
+    tls: Option<&(TlsConnector, ServerName<'static>)>,
+) -> std::io::Result<Writer> {
+    let stream = TcpStream::connect(address).await?;
+    // Small events, sent as they come.
+    let _ = stream.set_nodelay(true);
+    match tls {
+        None => Ok(Box::new(stream)),
+        Some((connector, name)) => Ok(Box::new(connector.connect(name.clone(), stream).await?)),
+    }
 }
 
 /// A UDP socket for sending to `to`: of its address family, with the multicast TTL and
@@ -251,10 +322,12 @@ fn drain(rx: &mut mpsc::Receiver<Arc<[u8]>>, counters: &FeedCounters) {
     }
 }
 
-/// One TCP destination: connects, writes what comes on `rx`, reconnects with doubling waits up
-/// to `max_wait`; ends at `stop` (or when the sending loop is gone).
+/// One TCP (or, with `tls`, TLS) destination: connects, writes what comes on `rx`, reconnects
+/// with doubling waits up to `max_wait`; ends at `stop` (or when the sending loop is gone). A
+/// connection (and handshake) that takes over 10 s is given up and tried again.
 async fn tcp_peer(
     address: String,
+    tls: Option<(TlsConnector, ServerName<'static>)>,
     mut rx: mpsc::Receiver<Arc<[u8]>>,
     counters: Arc<FeedCounters>,
     max_wait: Duration,
@@ -264,7 +337,9 @@ async fn tcp_peer(
     let mut wait = Duration::from_millis(500);
     loop {
         let connected = tokio::select! {
-            r = TcpStream::connect(address.as_str()) => r,
+            r = tokio::time::timeout(Duration::from_secs(10), connect(&address, tls.as_ref())) => {
+                r.unwrap_or_else(|_| Err(std::io::ErrorKind::TimedOut.into()))
+            }
             () = stopped(&mut stop) => return,
         };
         let mut stream = match connected {
@@ -289,8 +364,6 @@ async fn tcp_peer(
                 continue;
             }
         };
-        // Small events, sent as they come.
-        let _ = stream.set_nodelay(true);
         counters.add(FEED, "connects", 1);
         tracing::info!(feed = FEED, address, "connected to the CoT destination");
         wait = Duration::from_millis(500);
@@ -302,8 +375,12 @@ async fn tcp_peer(
                 },
                 () = stopped(&mut stop) => return,
             };
+            // Flushed: TLS holds its records until then.
             let written = tokio::select! {
-                r = stream.write_all(&bytes) => r,
+                r = async {
+                    stream.write_all(&bytes).await?;
+                    stream.flush().await
+                } => r,
                 () = stopped(&mut stop) => return,
             };
             match written {
@@ -366,6 +443,7 @@ mod tests {
         let (queue, rx) = mpsc::channel(4);
         let peer = tokio::spawn(tcp_peer(
             address,
+            None,
             rx,
             Arc::clone(&counters),
             Duration::from_secs(1),
@@ -421,6 +499,7 @@ mod tests {
         }
         let peer = tokio::spawn(tcp_peer(
             address,
+            None,
             rx,
             Arc::clone(&counters),
             Duration::from_secs(1),

@@ -10,11 +10,14 @@
 //! (`cot.vehicles`) comes as friendly air `harrier.it.uav.8` where its platform stands. Run once per encoding:
 //! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both), each also to
 //! TAK's multicast group 239.2.3.1 when the host can join it. In the XML run the listener
-//! closes its TCP connection after 10 events, and the feed must connect again.
+//! closes its TCP connection after 10 events, and the feed must connect again. In the protobuf
+//! run the feed also connects over TLS (`tls://`, as to a TAK server's 8089) with a client
+//! certificate the listener requires (a test CA made with the openssl command).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::{BufRead as _, BufReader};
-use std::process::Stdio;
+use std::path::Path;
+use std::process::{Command, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
@@ -55,14 +58,100 @@ type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
 /// TAK's mesh multicast group.
 const GROUP: &str = "239.2.3.1";
 
+/// A test CA, a server certificate for 127.0.0.1 and a client certificate (P-256, made with
+/// the openssl command) in `dir`: `ca.pem`, `server.pem`/`server.key`, `client.pem`/`client.key`.
+fn certificates(dir: &Path) {
+    let openssl = |args: &[&str]| {
+        let out = Command::new("openssl")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .expect("run openssl");
+        assert!(
+            out.status.success(),
+            "openssl {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let key = [
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+    ];
+    openssl(
+        &[
+            &["req", "-x509", "-days", "2", "-subj", "/CN=harrier test CA"][..],
+            &key,
+            &["-keyout", "ca.key", "-out", "ca.pem"],
+            &["-addext", "basicConstraints=critical,CA:TRUE"],
+            &["-addext", "keyUsage=critical,keyCertSign,cRLSign"],
+        ]
+        .concat(),
+    );
+    for (name, ext) in [
+        (
+            "server",
+            "subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth\n",
+        ),
+        ("client", "extendedKeyUsage=clientAuth\n"),
+    ] {
+        std::fs::write(dir.join(format!("{name}.ext")), ext).expect("write ext");
+        let subject = format!("/CN=harrier test {name}");
+        let (k, csr) = (format!("{name}.key"), format!("{name}.csr"));
+        openssl(
+            &[
+                &["req", "-subj", &subject, "-keyout", &k, "-out", &csr][..],
+                &key,
+            ]
+            .concat(),
+        );
+        let (pem, extfile) = (format!("{name}.pem"), format!("{name}.ext"));
+        openssl(&[
+            "x509",
+            "-req",
+            "-days",
+            "2",
+            "-in",
+            &csr,
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            &pem,
+            "-extfile",
+            &extfile,
+        ]);
+    }
+}
+
 /// One run: `encoding` to the listener's UDP, TCP and (when the host can join it) multicast
-/// ports; with `drop_tcp_after`, the listener closes the first TCP connection after that many
-/// events, and the feed must connect again.
-fn run(encoding: CotEncoding, drop_tcp_after: usize) {
+/// ports, and with `tls` to its TLS port (client certificates required); with
+/// `drop_tcp_after`, the listener closes the first TCP connection after that many events, and
+/// the feed must connect again.
+fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
     require_python_module("takproto", "takproto==3.0.1");
-    let mut listener = python_script("cot_listen.py")
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut listener = python_script("cot_listen.py");
+    listener
         .args(["--timeout", "90", "--multicast", GROUP])
-        .args(["--drop-tcp-after", &drop_tcp_after.to_string()])
+        .args(["--drop-tcp-after", &drop_tcp_after.to_string()]);
+    if tls {
+        certificates(dir.path());
+        let file = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+        listener
+            .args([
+                "--tls-cert",
+                &file("server.pem"),
+                "--tls-key",
+                &file("server.key"),
+            ])
+            .args(["--tls-ca", &file("ca.pem")]);
+    }
+    let mut listener = listener
         .stdout(Stdio::piped())
         .spawn()
         .expect("start cot_listen.py");
@@ -92,6 +181,17 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         format!("tcp://127.0.0.1:{tcp}"),
     ];
     let mut vias = vec!["udp", "tcp"];
+    if let Some(port) = ready["ready"]["tls"].as_u64() {
+        config
+            .cot
+            .destinations
+            .push(format!("tls://127.0.0.1:{port}"));
+        let file = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+        config.cot.tls_ca = file("ca.pem");
+        config.cot.tls_cert = file("client.pem");
+        config.cot.tls_key = file("client.key");
+        vias.push("tls");
+    }
     if let Some(port) = multicast {
         config
             .cot
@@ -162,6 +262,8 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         assert!(v.get("error").is_none(), "takproto could not decode: {v}");
         if v.get("uid").is_some() {
             events.push(v);
+        } else if v.get("tls_connected").is_some() {
+            assert_eq!(v["client_cert"], true, "{v}");
         } else if v.get("connected").is_some() {
             connections += 1;
         } else if v.get("closed").is_some() {
@@ -255,13 +357,14 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
         }
     }
     eprintln!(
-        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}), {matched} track events matched to the \
+        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}, tls {}), {matched} track events matched to the \
          snapshot, worst {worst:.4} m; uids {uids:?}; {connections} TCP connections; cot \
          counters sent {} dropped {} errors {} disconnects {}",
         events.len(),
         count(&events, "udp"),
         count(&events, "tcp"),
         count(&events, "multicast"),
+        count(&events, "tls"),
         counters.get("cot", "sent"),
         counters.get("cot", "dropped"),
         counters.get("cot", "errors"),
@@ -290,11 +393,11 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize) {
 }
 
 #[test]
-fn takproto_decodes_the_protobuf_events_over_udp_and_tcp() {
-    run(CotEncoding::Protobuf, 0);
+fn takproto_decodes_the_protobuf_events_over_udp_tcp_and_tls() {
+    run(CotEncoding::Protobuf, 0, true);
 }
 
 #[test]
 fn takproto_decodes_the_xml_events_over_udp_and_tcp_across_a_reconnection() {
-    run(CotEncoding::Xml, 10);
+    run(CotEncoding::Xml, 10, false);
 }
