@@ -1,5 +1,5 @@
 //! `[cot]`: the confirmed tracks as Cursor-on-Target events for TAK (ATAK, WinTAK, TAK Server),
-//! over UDP (multicast or unicast) and TCP (`docs/cot.md`).
+//! over UDP (multicast or unicast), TCP and TLS (`docs/cot.md`).
 
 use serde::{Deserialize, Serialize};
 
@@ -87,7 +87,8 @@ pub struct CotConfig {
     /// `xml` or `protobuf` (TAK protocol version 1).
     pub encoding: CotEncoding,
     /// Where to: `udp://239.2.3.1:6969` (TAK's mesh multicast group), `udp://host:port`,
-    /// `tcp://host:port` (a TAK server's TCP input).
+    /// `tcp://host:port` (a TAK server's TCP input), `tls://host:port` (its TLS input, 8089,
+    /// with `tls_ca`, `tls_cert`, `tls_key`).
     pub destinations: Vec<String>,
     /// The CoT type of a track (`a-u-G`: an unknown ground track; `a-h-G` hostile, …).
     #[serde(rename = "type")]
@@ -243,6 +244,33 @@ mod tests {
             ..CotConfig::default()
         };
         assert!(on.check().is_ok());
+        let tls = CotConfig {
+            destinations: vec!["tls://tak.example:8089".into()],
+            ..on.clone()
+        };
+        assert_eq!(
+            CotDestination::parse("tls://[::1]:8089")
+                .expect("tls")
+                .host(),
+            "::1"
+        );
+        assert!(
+            tls.check()
+                .expect_err("no CA")
+                .to_string()
+                .contains("cot.tls_ca")
+        );
+        let half = CotConfig {
+            tls_ca: "ca.pem".into(),
+            tls_cert: "c.pem".into(),
+            ..tls
+        };
+        assert!(
+            half.check()
+                .expect_err("no key")
+                .to_string()
+                .contains("cot.tls_key")
+        );
         let cases: [(&str, CotConfig); 5] = [
             (
                 "cot.hz",

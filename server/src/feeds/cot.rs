@@ -1,12 +1,13 @@
 //! CoT out: every confirmed track of the tracker's latest snapshot (and, with `cot.vehicles`,
 //! every vehicle), `cot.hz` times a second, as a Cursor-on-Target event ([`crate::wire::cot`]) to every `cot.destinations` entry: a UDP
 //! datagram to a multicast group (TAK's mesh default `239.2.3.1:6969`, with `cot.multicast_ttl`
-//! and loopback on, so a TAK client on this host hears it too) or to one host, or a TCP
-//! stream to a TAK server's input. XML is sent as is on both; protobuf (TAK protocol version 1)
-//! in the mesh framing on UDP and the stream framing on TCP.
+//! and loopback on, so a TAK client on this host hears it too) or to one host, or a TCP (or
+//! TLS: rustls, the CA and client certificate of `cot.tls_*`) stream to a TAK server's input.
+//! XML is sent as is on all; protobuf (TAK protocol version 1) in the mesh framing on UDP and the
+//! stream framing on TCP and TLS.
 //!
 //! Never blocks the tracker: the snapshot is a `watch` read once per tick. A UDP datagram the
-//! socket cannot take at once is dropped (`dropped`). Each TCP destination has its own task
+//! socket cannot take at once is dropped (`dropped`). Each TCP or TLS destination has its own task
 //! and a queue of `cot.queue` events: when a slow or stalled peer lets it fill, events are
 //! dropped (`dropped`); a lost or refused connection is retried with doubling waits up to
 //! `cot.reconnect_max_s`, and what was queued meanwhile (stale by then) is dropped. Failures

@@ -10,7 +10,7 @@
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on [`Feeds::aircraft`].
 //! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
-//!   protobuf, over UDP (multicast or unicast) and TCP.
+//!   protobuf, over UDP (multicast or unicast), TCP and TLS.
 
 mod adsb;
 mod cot;
