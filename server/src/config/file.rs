@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::adsb::AdsbConfig;
 use super::asterix::AsterixConfig;
+use super::cot::CotConfig;
 use super::error::ConfigError;
 use super::foxglove::FoxgloveConfig;
 use super::sections::{
@@ -39,6 +40,8 @@ pub struct Config {
     pub foxglove: FoxgloveConfig,
     /// The tracks as ASTERIX CAT062 over UDP.
     pub asterix: AsterixConfig,
+    /// The confirmed tracks as Cursor-on-Target events for TAK.
+    pub cot: CotConfig,
 }
 
 impl Config {

@@ -15,6 +15,7 @@ mod adsb;
 mod asterix;
 mod check;
 mod convert;
+mod cot;
 mod error;
 mod file;
 mod foxglove;
@@ -24,6 +25,7 @@ mod tests;
 
 pub use adsb::AdsbConfig;
 pub use asterix::AsterixConfig;
+pub use cot::{CotConfig, CotDestination, CotEncoding, CotTransport};
 pub use error::ConfigError;
 pub use file::Config;
 pub use foxglove::FoxgloveConfig;

@@ -11,11 +11,14 @@
 //!   address, on [`Feeds::aircraft`].
 //! - `asterix`: the tracks as EUROCONTROL ASTERIX CAT062 system track messages over UDP
 //!   (`[asterix]`), unicast or multicast.
+//! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
+//!   protobuf, over UDP (multicast or unicast), TCP and TLS.
 //! - `foxglove`: the tracks and vehicles on a Foxglove WebSocket server (`[foxglove]`), at
 //!   [`Feeds::foxglove`].
 
 mod adsb;
 mod asterix;
+mod cot;
 mod counters;
 mod foxglove;
 
@@ -77,6 +80,15 @@ impl Feeds {
                     })?;
             let task = asterix::run(config.asterix.clone(), ctx.clone(), socket, dest);
             tasks.push(("asterix", tokio::spawn(task)));
+        }
+        if config.cot.enabled {
+            let task = cot::start(config.cot.clone(), ctx.clone())
+                .await
+                .map_err(|message| LiveError::Feed {
+                    feed: "cot",
+                    message,
+                })?;
+            tasks.push(("cot", tokio::spawn(task)));
         }
         let mut foxglove = None;
         if config.foxglove.enabled {

@@ -14,6 +14,7 @@
 pub mod aircraft;
 mod api;
 pub mod asterix;
+pub mod cot;
 pub mod foxglove;
 pub mod sbs;
 

@@ -26,6 +26,7 @@ mod clock;
 mod dashboard;
 mod field_adsb;
 mod field_asterix;
+mod field_cot;
 mod field_foxglove;
 mod fuzz_regressions;
 mod guidance;

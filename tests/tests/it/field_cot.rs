@@ -1,0 +1,403 @@
+//! CoT out (`[cot]`, docs/cot.md): the live server sends its confirmed tracks to a TAK end point
+//! played by `tests/python/cot_listen.py`, which listens on UDP and TCP (loopback, port 0) and
+//! decodes every event with takproto, the independent TAK protocol library. The server gets
+//! simulated detections of one standing target over Zenoh (10 Hz, jittered by up to 2 m) and
+//! sends at 5 Hz to both of the listener's ports; once both have heard enough events, every
+//! event is checked against the tracker's snapshot of the same track at the same time (the
+//! event's `start`, the estimate's time; the snapshot's tracks are what `GET /api/v1/tracks`
+//! serves, checked too): position within 0.5 m, uid `harrier.it.track.<id>` of that track and
+//! one uid for the one target throughout, callsign, type and stale time. The publishing vehicle
+//! (`cot.vehicles`) comes as friendly air `harrier.it.uav.8` where its platform stands. Run once per encoding:
+//! TAK protocol v1 protobuf (mesh on UDP, stream on TCP) and CoT XML (on both), each also to
+//! TAK's multicast group 239.2.3.1 when the host can join it. In the XML run the listener
+//! closes its TCP connection after 10 events, and the feed must connect again. In the protobuf
+//! run the feed also connects over TLS (`tls://`, as to a TAK server's 8089) with a client
+//! certificate the listener requires (a test CA made with the openssl command).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::{BufRead as _, BufReader};
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::sync::{Arc, Mutex, mpsc};
+use std::time::Duration;
+
+use harrier_engine::TrackStatus;
+use harrier_link::geo::{Geodetic, LocalFrame};
+use harrier_server::config::{Config, CotEncoding};
+use harrier_tests::{
+    free_tcp_port, http_get, http_get_json, kill_group, publish_standing_target, python_script,
+    require_python_module, runtime, within,
+};
+use nalgebra::Vector3;
+use serde_json::Value;
+
+/// Events (the track's and the vehicle's) each transport must deliver.
+const EVENTS: usize = 40;
+/// The acceptance tolerance, m.
+const TOLERANCE_M: f64 = 0.5;
+
+/// The listener's JSON lines as they come.
+fn lines(child: &mut std::process::Child) -> mpsc::Receiver<Value> {
+    let out = child.stdout.take().expect("stdout");
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(Result::ok) {
+            if let Ok(v) = serde_json::from_str::<Value>(&line)
+                && tx.send(v).is_err()
+            {
+                return;
+            }
+        }
+    });
+    rx
+}
+
+/// Every confirmed track state the snapshot showed, by (track id, estimate time in ms).
+type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
+
+/// TAK's mesh multicast group.
+const GROUP: &str = "239.2.3.1";
+
+/// A test CA, a server certificate for 127.0.0.1 and a client certificate (P-256, made with
+/// the openssl command) in `dir`: `ca.pem`, `server.pem`/`server.key`, `client.pem`/`client.key`.
+fn certificates(dir: &Path) {
+    let openssl = |args: &[&str]| {
+        let out = Command::new("openssl")
+            .args(args)
+            .current_dir(dir)
+            .output()
+            .expect("run openssl");
+        assert!(
+            out.status.success(),
+            "openssl {args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let key = [
+        "-newkey",
+        "ec",
+        "-pkeyopt",
+        "ec_paramgen_curve:prime256v1",
+        "-nodes",
+    ];
+    openssl(
+        &[
+            &["req", "-x509", "-days", "2", "-subj", "/CN=harrier test CA"][..],
+            &key,
+            &["-keyout", "ca.key", "-out", "ca.pem"],
+            &["-addext", "basicConstraints=critical,CA:TRUE"],
+            &["-addext", "keyUsage=critical,keyCertSign,cRLSign"],
+        ]
+        .concat(),
+    );
+    for (name, ext) in [
+        (
+            "server",
+            "subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth\n",
+        ),
+        ("client", "extendedKeyUsage=clientAuth\n"),
+    ] {
+        std::fs::write(dir.join(format!("{name}.ext")), ext).expect("write ext");
+        let subject = format!("/CN=harrier test {name}");
+        let (k, csr) = (format!("{name}.key"), format!("{name}.csr"));
+        openssl(
+            &[
+                &["req", "-subj", &subject, "-keyout", &k, "-out", &csr][..],
+                &key,
+            ]
+            .concat(),
+        );
+        let (pem, extfile) = (format!("{name}.pem"), format!("{name}.ext"));
+        openssl(&[
+            "x509",
+            "-req",
+            "-days",
+            "2",
+            "-in",
+            &csr,
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-out",
+            &pem,
+            "-extfile",
+            &extfile,
+        ]);
+    }
+}
+
+/// One run: `encoding` to the listener's UDP, TCP and (when the host can join it) multicast
+/// ports, and with `tls` to its TLS port (client certificates required); with
+/// `drop_tcp_after`, the listener closes the first TCP connection after that many events, and
+/// the feed must connect again.
+fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
+    require_python_module("takproto", "takproto==3.0.1");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut listener = python_script("cot_listen.py");
+    listener
+        .args(["--timeout", "90", "--multicast", GROUP])
+        .args(["--drop-tcp-after", &drop_tcp_after.to_string()]);
+    if tls {
+        certificates(dir.path());
+        let file = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+        listener
+            .args([
+                "--tls-cert",
+                &file("server.pem"),
+                "--tls-key",
+                &file("server.key"),
+            ])
+            .args(["--tls-ca", &file("ca.pem")]);
+    }
+    let mut listener = listener
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start cot_listen.py");
+    let rx = lines(&mut listener);
+    let ready = rx
+        .recv_timeout(Duration::from_secs(20))
+        .expect("cot_listen.py did not say it listens");
+    let (udp, tcp) = (&ready["ready"]["udp"], &ready["ready"]["tcp"]);
+    let multicast = ready["ready"]["multicast"].as_u64();
+    if multicast.is_none() {
+        eprintln!("this host cannot join {GROUP}: multicast not tested");
+    }
+
+    let zenoh_port = free_tcp_port();
+    let mut config = Config::default();
+    config.api.listen = "127.0.0.1:0".parse().expect("addr");
+    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
+    // Both encodings' tests run at once: no fixed MAVLink port.
+    config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
+    config.cot.enabled = true;
+    config.cot.hz = 5.0;
+    config.cot.encoding = encoding;
+    config.cot.uid_prefix = "it".into();
+    config.cot.vehicles = true;
+    config.cot.destinations = vec![
+        format!("udp://127.0.0.1:{udp}"),
+        format!("tcp://127.0.0.1:{tcp}"),
+    ];
+    let mut vias = vec!["udp", "tcp"];
+    if let Some(port) = ready["ready"]["tls"].as_u64() {
+        config
+            .cot
+            .destinations
+            .push(format!("tls://127.0.0.1:{port}"));
+        let file = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
+        config.cot.tls_ca = file("ca.pem");
+        config.cot.tls_cert = file("client.pem");
+        config.cot.tls_key = file("client.key");
+        vias.push("tls");
+    }
+    if let Some(port) = multicast {
+        config
+            .cot
+            .destinations
+            .push(format!("udp://{GROUP}:{port}"));
+        vias.push("multicast");
+    }
+    let frame = LocalFrame::new(config.frame.origin);
+    let rt = runtime();
+    let server = rt
+        .block_on(within(
+            10,
+            "start the server",
+            harrier_server::start(&config),
+        ))
+        .expect("start the live server");
+    let addr = server.local_addr();
+
+    // Record every confirmed estimate the snapshot shows.
+    let seen: Seen = Arc::default();
+    let mut snapshot = server.snapshot();
+    let recorder = {
+        let seen = Arc::clone(&seen);
+        rt.spawn(async move {
+            loop {
+                {
+                    let s = snapshot.borrow_and_update();
+                    let mut seen = seen.lock().expect("seen");
+                    for t in s.tracks.iter() {
+                        if t.status == TrackStatus::Confirmed {
+                            let key = (t.id, (t.t * 1e3).round() as i64);
+                            seen.insert(key, [t.state[0], t.state[1], t.state[2]]);
+                        }
+                    }
+                }
+                if snapshot.changed().await.is_err() {
+                    return;
+                }
+            }
+        })
+    };
+    let (session, publisher) = rt.block_on(async {
+        let bus = harrier_link::bus::BusConfig {
+            connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
+            listen: Vec::new(),
+            ..harrier_link::bus::BusConfig::default()
+        }
+        .to_zenoh()
+        .expect("zenoh config");
+        let session = within(10, "open a session", zenoh::open(bus))
+            .await
+            .expect("zenoh session");
+        let publisher =
+            publish_standing_target(&session, 8, [80.0, 40.0], [0.0, 0.0, 50.0], 10.0).await;
+        (session, publisher)
+    });
+
+    // Every transport delivers EVENTS events (takproto decodes each, or says why not).
+    let mut events: Vec<Value> = Vec::new();
+    let (mut connections, mut closed) = (0, false);
+    let count = |events: &[Value], via: &str| events.iter().filter(|e| e["via"] == via).count();
+    while vias.iter().any(|via| count(&events, via) < EVENTS) {
+        let Ok(v) = rx.recv_timeout(Duration::from_secs(30)) else {
+            kill_group(&mut listener);
+            let counts: Vec<_> = vias.iter().map(|v| (v, count(&events, v))).collect();
+            panic!("cot_listen.py: 30 s without an event; so far {counts:?}");
+        };
+        assert!(v.get("error").is_none(), "takproto could not decode: {v}");
+        if v.get("uid").is_some() {
+            events.push(v);
+        } else if v.get("tls_connected").is_some() {
+            assert_eq!(v["client_cert"], true, "{v}");
+        } else if v.get("connected").is_some() {
+            connections += 1;
+        } else if v.get("closed").is_some() {
+            closed = true;
+        }
+    }
+    kill_group(&mut listener);
+
+    // The REST API serves the snapshot's tracks.
+    let (status, tracks) = http_get_json(addr, "/api/v1/tracks");
+    assert_eq!(status, 200);
+    let rest = tracks["tracks"].as_array().expect("tracks");
+    assert!(!rest.is_empty(), "{tracks}");
+    {
+        let seen = seen.lock().expect("seen");
+        for k in rest.iter().filter(|k| k["status"] == "confirmed") {
+            let id = k["id"].as_u64().expect("id");
+            let t = (k["t"].as_f64().expect("t") * 1e3).round() as i64;
+            let s = k["state"].as_array().expect("state");
+            let got = [0, 1, 2].map(|i| s[i].as_f64().expect("state value"));
+            if let Some(p) = seen.get(&(id, t)) {
+                assert!((Vector3::from(*p) - Vector3::from(got)).norm() < 1e-6);
+            }
+        }
+    }
+
+    let counters = server.feed_counters();
+    let (_, metrics) = http_get(addr, "/api/v1/metrics");
+    assert!(
+        metrics.contains("harrier_feed_events_total{feed=\"cot\",event=\"sent\"}"),
+        "{metrics}"
+    );
+    let want_encoding = match encoding {
+        CotEncoding::Xml => "xml",
+        CotEncoding::Protobuf => "protobuf",
+    };
+    if drop_tcp_after > 0 {
+        assert!(closed, "the listener never closed its TCP connection");
+        assert!(connections >= 2, "no reconnection after the close");
+        assert!(counters.get("cot", "connects") >= 2);
+    } else {
+        assert_eq!(connections, 1);
+    }
+    let seen = seen.lock().expect("seen").clone();
+    let mut uids = BTreeSet::new();
+    let (mut matched, mut worst) = (0, 0.0_f64);
+    let (mut uav_events, mut uav_worst) = (0, 0.0_f64);
+    for e in &events {
+        assert_eq!(e["encoding"], want_encoding, "{e}");
+        let uid = e["uid"].as_str().expect("uid");
+        let geo = Geodetic {
+            lat_deg: e["lat"].as_f64().expect("lat"),
+            lon_deg: e["lon"].as_f64().expect("lon"),
+            alt_m: e["hae"].as_f64().expect("hae"),
+        };
+        let got = frame.to_enu(&geo);
+        if uid.starts_with("harrier.it.uav.") {
+            // The publishing vehicle, friendly air, where its platform stands.
+            assert_eq!(uid, "harrier.it.uav.8", "{e}");
+            assert_eq!(e["type"], "a-f-A", "{e}");
+            assert_eq!(e["callsign"], "UAV 8", "{e}");
+            let err = (got - Vector3::new(0.0, 0.0, 50.0)).norm();
+            assert!(err < TOLERANCE_M, "the vehicle {err:.3} m off: {e}");
+            uav_worst = uav_worst.max(err);
+            uav_events += 1;
+            continue;
+        }
+        assert_eq!(e["type"], "a-u-G", "{e}");
+        assert_eq!(e["how"], "m-f", "{e}");
+        let id: u64 = uid
+            .strip_prefix("harrier.it.track.")
+            .and_then(|s| s.parse().ok())
+            .unwrap_or_else(|| panic!("uid {uid}"));
+        uids.insert(uid.to_owned());
+        assert_eq!(e["callsign"], format!("T{id}"), "{e}");
+        let time = e["time_ms"].as_i64().expect("time");
+        let start = e["start_ms"].as_i64().expect("start");
+        let stale = e["stale_ms"].as_i64().expect("stale");
+        // takproto's XML times go through a float: ±1 ms.
+        assert!((stale - time - 10_000).abs() <= 1, "{e}");
+        assert!(start <= time + 1 && time - start < 1_000, "{e}");
+        let truth = (start - 2..=start + 2).find_map(|t| seen.get(&(id, t)));
+        if let Some(p) = truth {
+            let err = (got - Vector3::from(*p)).norm();
+            assert!(
+                err < TOLERANCE_M,
+                "{uid}: {err:.3} m from the snapshot: {e}"
+            );
+            worst = worst.max(err);
+            matched += 1;
+        }
+    }
+    eprintln!(
+        "{want_encoding}: {} events (udp {}, tcp {}, multicast {}, tls {}), {matched} track events matched to the \
+         snapshot, worst {worst:.4} m; uids {uids:?}; {connections} TCP connections; cot \
+         counters sent {} dropped {} errors {} disconnects {}",
+        events.len(),
+        count(&events, "udp"),
+        count(&events, "tcp"),
+        count(&events, "multicast"),
+        count(&events, "tls"),
+        counters.get("cot", "sent"),
+        counters.get("cot", "dropped"),
+        counters.get("cot", "errors"),
+        counters.get("cot", "disconnects"),
+    );
+    eprintln!("{uav_events} vehicle events, worst {uav_worst:.4} m from the platform");
+    assert!(uav_events > 0, "no vehicle event");
+    // One standing target: one track, one uid throughout.
+    assert_eq!(uids.len(), 1, "{uids:?}");
+    // The snapshot watch may skip a state between two looks; nearly every event is matched.
+    let track_events = events.len() - uav_events;
+    assert!(
+        matched * 10 >= track_events * 9,
+        "only {matched} of {track_events} track events matched a snapshot state"
+    );
+    if drop_tcp_after == 0 {
+        assert_eq!(counters.get("cot", "errors"), 0);
+    }
+
+    publisher.abort();
+    recorder.abort();
+    rt.block_on(async {
+        let _ = session.close().await;
+        server.shutdown().await;
+    });
+}
+
+#[test]
+fn takproto_decodes_the_protobuf_events_over_udp_tcp_and_tls() {
+    run(CotEncoding::Protobuf, 0, true);
+}
+
+#[test]
+fn takproto_decodes_the_xml_events_over_udp_and_tcp_across_a_reconnection() {
+    run(CotEncoding::Xml, 10, false);
+}
