@@ -8,13 +8,13 @@
 //! turns on.
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
-//!   address, on [`Feeds::aircraft`].
+//!   address, on a `watch` the API reads (`GET /api/v1/aircraft`).
 //! - `asterix`: the tracks as EUROCONTROL ASTERIX CAT062 system track messages over UDP
 //!   (`[asterix]`), unicast or multicast.
 //! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
 //!   protobuf, over UDP (multicast or unicast), TCP and TLS.
 //! - `foxglove`: the tracks and vehicles on a Foxglove WebSocket server (`[foxglove]`), at
-//!   [`Feeds::foxglove`].
+//!   `foxglove.listen` ([`crate::LiveServer::foxglove_addr`]).
 
 mod adsb;
 mod asterix;

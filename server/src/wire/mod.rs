@@ -6,7 +6,9 @@
 //! client can generate its types from them.
 //!
 //! The transports (`http::ws`, `publish`) only serialise these; the domain types they are made
-//! of ([`TrackView`], [`TrackEvent`], [`Snapshot`], [`ScanEvents`]) stay off the wire.
+//! of ([`TrackView`](harrier_engine::TrackView), [`TrackEvent`](harrier_core::tracker::TrackEvent),
+//! [`Snapshot`](crate::tracker::Snapshot), [`ScanEvents`](crate::tracker::ScanEvents)) stay off the
+//! wire.
 //!
 //! Split by audience: `api` holds the service's own messages above. The encodings of the formats
 //! other tools speak sit beside it, one pure file each (a track and the frame in, bytes out).
