@@ -9,7 +9,7 @@ Runs `harrier bench` (10 vehicles × 50 Hz × 4 detections, one WebSocket client
 `harrier serve` on loopback: once with every feed off, once with every feed on and each output's
 consumer stalled —
 
-- CoT over TCP to a peer that accepts and never reads, and over UDP;
+- CoT at 50 Hz over TCP to a peer that accepts and never reads, and over UDP;
 - ASTERIX CAT062 over UDP to a socket that never reads;
 - Foxglove: a WebSocket client that subscribes to every channel and then never reads;
 - ADS-B in: tests/python/sbs_replay.py feeding 300 aircraft at 500 lines/s —
@@ -88,28 +88,27 @@ def stalled_foxglove_client(url, stop):
 
 
 def serve(binary, config_text):
+    """`harrier serve` with `config_text`, once it says it is ready (on stderr); its token."""
     path = f"/tmp/harrier-feeds-load-{os.getpid()}.toml"
     with open(path, "w") as f:
         f.write(config_text)
+    token = "feeds-load-token-0123456789abcdef"
     proc = subprocess.Popen(
         [binary, "serve", "-c", path],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
         text=True,
+        env={**os.environ, "HARRIER_TOKEN": token, "RUST_LOG": "warn"},
     )
-    token = None
-    deadline = time.monotonic() + 30
-    for line in proc.stdout:
-        m = re.search(r"Bearer <token>`\): (\w+)", line)
-        if m:
-            token = m.group(1)
+    ready = False
+    for line in proc.stderr:
+        if "harrier serve: ready" in line:
+            ready = True
             break
-        if time.monotonic() > deadline:
-            break
-    if token is None:
+    if not ready:
         proc.kill()
-        sys.exit("harrier serve did not say it was ready")
-    threading.Thread(target=lambda: [None for _ in proc.stdout], daemon=True).start()
+        sys.exit("harrier serve ended before it was ready")
+    threading.Thread(target=lambda: [None for _ in proc.stderr], daemon=True).start()
     return proc, token
 
 
@@ -156,7 +155,7 @@ def run(binary, seconds, feeds_on):
         sbs_port = json.loads(replay.stdout.readline())["ready"]
         fox = free_port()
         config += (
-            f'[cot]\nenabled = true\nhz = 10.0\ndestinations = ["tcp://127.0.0.1:{tcp.port}", '
+            f'[cot]\nenabled = true\nhz = 50.0\ndestinations = ["tcp://127.0.0.1:{tcp.port}", '
             f'"udp://127.0.0.1:{udp.getsockname()[1]}"]\n'
             f'[asterix]\nenabled = true\nhz = 10.0\ndestination = "127.0.0.1:{udp.getsockname()[1]}"\n'
             f'[foxglove]\nenabled = true\nlisten = "127.0.0.1:{fox}"\n'
