@@ -407,3 +407,21 @@ pub fn server_config() -> (harrier_server::config::Config, String) {
     config.mavlink.router = Vec::new();
     (config, zenoh)
 }
+
+/// The JSON lines a child (started with a piped stdout) prints, as they come, on a channel (a
+/// line that is not JSON is skipped); the channel ends with the child's stdout.
+pub fn json_lines(child: &mut Child) -> std::sync::mpsc::Receiver<serde_json::Value> {
+    use std::io::BufRead as _;
+    let out = child.stdout.take().expect("the child's stdout is piped");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(out).lines().map_while(Result::ok) {
+            if let Ok(v) = serde_json::from_str::<serde_json::Value>(&line)
+                && tx.send(v).is_err()
+            {
+                return;
+            }
+        }
+    });
+    rx
+}

@@ -16,7 +16,7 @@
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use harrier_core::tracker::identified::{IdentifiedTracks, Outcome, Report};
 use harrier_link::geo::{Geodetic, LocalFrame};
@@ -24,6 +24,7 @@ use nalgebra::Vector3;
 use tokio::net::TcpStream;
 use tokio::sync::watch;
 
+use super::throttle::Throttle;
 use super::{FeedContext, FeedCounters};
 use crate::clock::unix_now;
 use crate::config::AdsbConfig;
@@ -171,29 +172,6 @@ impl Aircraft {
     }
 }
 
-/// At most one log line per interval; returns how many were suppressed since the last one.
-struct Throttle {
-    every: Duration,
-    last: Option<Instant>,
-    suppressed: u64,
-}
-
-impl Throttle {
-    fn allow(&mut self) -> Option<u64> {
-        let now = Instant::now();
-        match self.last {
-            Some(at) if now.duration_since(at) < self.every => {
-                self.suppressed += 1;
-                None
-            }
-            _ => {
-                self.last = Some(now);
-                Some(std::mem::take(&mut self.suppressed))
-            }
-        }
-    }
-}
-
 /// Splits `buf` into complete lines, applying each; keeps the unfinished tail in `buf`. A tail
 /// longer than [`MAX_LINE`] is dropped as malformed and the rest of its line skipped
 /// (`discarding`).
@@ -251,11 +229,7 @@ pub(super) async fn run(
         stale_s: config.stale_s,
     };
     let mut stop = ctx.stop;
-    let mut log = Throttle {
-        every: Duration::from_secs(5),
-        last: None,
-        suppressed: 0,
-    };
+    let mut log = Throttle::default();
     let mut tick = tokio::time::interval(Duration::from_millis(500));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let max_wait = Duration::from_secs_f64(config.reconnect_max_s);
@@ -365,18 +339,10 @@ mod tests {
         }
     }
 
-    fn throttle() -> Throttle {
-        Throttle {
-            every: Duration::from_secs(5),
-            last: None,
-            suppressed: 0,
-        }
-    }
-
     #[test]
     fn lines_split_across_reads_and_broken_lines_are_counted() {
         let mut a = aircraft();
-        let mut log = throttle();
+        let mut log = Throttle::default();
         let mut buf = Vec::new();
         let mut discarding = false;
         let id = b"MSG,1,1,1,4CA2D6,1,,,,,RYR4TX,,,,,,,,,,,0\r\n";
@@ -424,7 +390,7 @@ mod tests {
     #[test]
     fn a_velocity_report_is_turned_into_the_servers_axes() {
         let mut a = aircraft();
-        let mut log = throttle();
+        let mut log = Throttle::default();
         // 1° of longitude east of the origin: its north is turned by ~0.74° from the frame's.
         a.line(
             b"MSG,3,1,1,ABCDEF,1,,,,,,10000,,,47.397742,9.545594,,,0,0,0,0",

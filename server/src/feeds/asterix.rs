@@ -19,12 +19,13 @@
 use std::collections::HashSet;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use harrier_engine::TrackStatus;
 use tokio::net::UdpSocket;
 
 use super::FeedContext;
+use super::throttle::Throttle;
 use crate::config::AsterixConfig;
 use crate::wire::asterix::{MAX_BLOCK, Source, data_blocks, track_record};
 
@@ -77,8 +78,7 @@ pub(super) async fn run(
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.hz));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     let mut sent_before: HashSet<u64> = HashSet::new();
-    let mut last_log: Option<Instant> = None;
-    let mut suppressed = 0_u64;
+    let mut log = Throttle::default();
     loop {
         tokio::select! {
             _ = tick.tick() => {}
@@ -117,16 +117,8 @@ pub(super) async fn run(
                     format!("cannot send to {dest}: {e}")
                 }
             };
-            let now = Instant::now();
-            if last_log.is_none_or(|at| now.duration_since(at) >= Duration::from_secs(5)) {
-                last_log = Some(now);
-                tracing::warn!(
-                    feed = FEED,
-                    suppressed = std::mem::take(&mut suppressed),
-                    "{failure}"
-                );
-            } else {
-                suppressed += 1;
+            if let Some(suppressed) = log.allow() {
+                tracing::warn!(feed = FEED, suppressed, "{failure}");
             }
         }
     }

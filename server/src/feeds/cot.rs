@@ -20,7 +20,7 @@
 use std::future::Future;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use tokio::io::{AsyncWrite, AsyncWriteExt as _};
 use tokio::net::{TcpStream, UdpSocket};
@@ -31,6 +31,7 @@ use tokio_rustls::rustls;
 use tokio_rustls::rustls::pki_types::pem::PemObject as _;
 use tokio_rustls::rustls::pki_types::{CertificateDer, PrivateKeyDer, ServerName};
 
+use super::throttle::Throttle;
 use super::{FeedContext, FeedCounters};
 use crate::clock::unix_now;
 use crate::config::{CotConfig, CotEncoding, CotTransport};
@@ -39,30 +40,6 @@ use crate::wire::cot::{CotEvent, CotSettings, track_event, vehicle_event};
 
 /// The counters' feed label.
 const FEED: &str = "cot";
-
-/// At most one log line per 5 s; counts what it suppressed.
-#[derive(Default)]
-struct Throttle {
-    last: Option<Instant>,
-    suppressed: u64,
-}
-
-impl Throttle {
-    /// `Some(suppressed since the last line)` when a line may be logged now.
-    fn allow(&mut self) -> Option<u64> {
-        let now = Instant::now();
-        match self.last {
-            Some(at) if now.duration_since(at) < Duration::from_secs(5) => {
-                self.suppressed += 1;
-                None
-            }
-            _ => {
-                self.last = Some(now);
-                Some(std::mem::take(&mut self.suppressed))
-            }
-        }
-    }
-}
 
 /// One destination as the sending loop sees it.
 enum Out {
@@ -410,6 +387,7 @@ mod tests {
     use crate::config::DEFAULT_ORIGIN;
     use harrier_engine::{TrackStatus, TrackView};
     use harrier_link::geo::LocalFrame;
+    use std::time::Instant;
 
     fn event() -> CotEvent {
         let track = TrackView {

@@ -21,6 +21,7 @@ mod asterix;
 mod cot;
 mod counters;
 mod foxglove;
+mod throttle;
 
 use std::net::SocketAddr;
 use std::sync::Arc;

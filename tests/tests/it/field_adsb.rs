@@ -6,35 +6,18 @@
 //! last position report carried on with its velocity to the track's time; and the ground tracks
 //! stay empty (aircraft are never ground targets).
 
-use std::io::{BufRead as _, BufReader};
 use std::process::Stdio;
-use std::sync::mpsc;
 use std::time::Duration;
 
 use harrier_link::geo::{Geodetic, LocalFrame};
-use harrier_tests::{http_get, http_get_json, kill_group, python_script, runtime, server_config};
+use harrier_tests::{
+    http_get, http_get_json, json_lines, kill_group, python_script, runtime, server_config,
+};
 use nalgebra::Vector3;
-use serde_json::Value;
 
 const AIRCRAFT: usize = 300;
 const RATE: f64 = 500.0;
 const DURATION_S: f64 = 15.0;
-
-/// The replayer's JSON lines as they come.
-fn lines(child: &mut std::process::Child) -> mpsc::Receiver<Value> {
-    let out = child.stdout.take().expect("stdout");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if let Ok(v) = serde_json::from_str::<Value>(&line)
-                && tx.send(v).is_err()
-            {
-                return;
-            }
-        }
-    });
-    rx
-}
 
 #[test]
 fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
@@ -46,7 +29,7 @@ fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
         .stdout(Stdio::piped())
         .spawn()
         .expect("start sbs_replay.py");
-    let rx = lines(&mut replay);
+    let rx = json_lines(&mut replay);
     let ready = rx
         .recv_timeout(Duration::from_secs(20))
         .expect("sbs_replay.py did not say it listens");

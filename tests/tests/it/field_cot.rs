@@ -15,18 +15,17 @@
 //! certificate the listener requires (a test CA made with the openssl command).
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::io::{BufRead as _, BufReader};
 use std::path::Path;
 use std::process::{Command, Stdio};
-use std::sync::{Arc, Mutex, mpsc};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use harrier_engine::TrackStatus;
 use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_server::config::{Config, CotEncoding};
 use harrier_tests::{
-    free_tcp_port, http_get, http_get_json, kill_group, publish_standing_target, python_script,
-    require_python_module, runtime, within,
+    free_tcp_port, http_get, http_get_json, json_lines, kill_group, publish_standing_target,
+    python_script, require_python_module, runtime, within,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -35,22 +34,6 @@ use serde_json::Value;
 const EVENTS: usize = 40;
 /// The acceptance tolerance, m.
 const TOLERANCE_M: f64 = 0.5;
-
-/// The listener's JSON lines as they come.
-fn lines(child: &mut std::process::Child) -> mpsc::Receiver<Value> {
-    let out = child.stdout.take().expect("stdout");
-    let (tx, rx) = mpsc::channel();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(Result::ok) {
-            if let Ok(v) = serde_json::from_str::<Value>(&line)
-                && tx.send(v).is_err()
-            {
-                return;
-            }
-        }
-    });
-    rx
-}
 
 /// Every confirmed track state the snapshot showed, by (track id, estimate time in ms).
 type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
@@ -155,7 +138,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         .stdout(Stdio::piped())
         .spawn()
         .expect("start cot_listen.py");
-    let rx = lines(&mut listener);
+    let rx = json_lines(&mut listener);
     let ready = rx
         .recv_timeout(Duration::from_secs(20))
         .expect("cot_listen.py did not say it listens");
