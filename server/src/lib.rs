@@ -156,9 +156,10 @@ impl LiveServer {
     pub fn metrics(&self) -> &Metrics {
         &self.metrics
     }
-    /// The field-format feeds' counters.
-    pub fn feed_counters(&self) -> &FeedCounters {
-        &self.feed_counters
+    /// The field-format feeds' counters (they outlive the service: read them after
+    /// [`LiveServer::shutdown`] for the final counts).
+    pub fn feed_counters(&self) -> Arc<FeedCounters> {
+        Arc::clone(&self.feed_counters)
     }
     /// The address of the Foxglove WebSocket server, when `[foxglove]` is on.
     pub fn foxglove_addr(&self) -> Option<SocketAddr> {

@@ -3,7 +3,9 @@
 //! `foxglove.hz` the tracker's latest snapshot is logged on the channels of
 //! [`crate::wire::foxglove`] (tracks as a scene and as location fixes, vehicles as location
 //! fixes and frame transforms) — also when nothing changed, so a client that connects sees the
-//! scene at once; nothing is encoded while no client is subscribed.
+//! scene at once; nothing is encoded while no client is subscribed. With `foxglove.mcap`, the
+//! SDK's MCAP writer on the same context records every message into that file (buffered writes
+//! on this task, never the tracker's), closed at `stop`.
 //!
 //! Never blocks the tracker: it reads the snapshot `watch`, and the SDK keeps a bounded backlog
 //! per client (a slow client loses the oldest messages, not the service). Counters
@@ -26,28 +28,53 @@ use crate::wire::foxglove::{scene_update, timestamp, track_fix, vehicle_fix, veh
 /// The counters' feed label.
 const FEED: &str = "foxglove";
 
-/// Starts the WebSocket server (failing when `listen` cannot be bound) and the task that
-/// publishes on it until `stop`; returns the task and the bound address.
+/// Starts the WebSocket server when `foxglove.enabled` (failing when `listen` cannot be bound),
+/// the MCAP recording when `foxglove.mcap` is set (failing when the file cannot be created), and
+/// the task that publishes on them until `stop`; returns the task and the server's address.
 pub(super) async fn start(
     config: &FoxgloveConfig,
     ctx: FeedContext,
-) -> Result<(JoinHandle<()>, SocketAddr), LiveError> {
+) -> Result<(JoinHandle<()>, Option<SocketAddr>), LiveError> {
+    let fail = |message: String| LiveError::Feed {
+        feed: FEED,
+        message,
+    };
     let fctx = Context::new();
-    let server = fctx
-        .websocket_server()
-        .name("harrier")
-        .bind(config.listen.ip().to_string(), config.listen.port())
-        .start()
-        .await
-        .map_err(|e| LiveError::Feed {
-            feed: FEED,
-            message: format!(
-                "cannot serve the Foxglove WebSocket on {}: {e}",
-                config.listen
-            ),
-        })?;
-    let addr = SocketAddr::new(config.listen.ip(), server.port());
-    tracing::info!(feed = FEED, %addr, "Foxglove WebSocket server (ws://{addr})");
+    let mcap = match config.mcap.as_str() {
+        "" => None,
+        path => {
+            let writer = fctx
+                .mcap_writer()
+                .create_new_buffered_file(path)
+                .map_err(|e| fail(format!("cannot create the MCAP file {path}: {e}")))?;
+            tracing::info!(
+                feed = FEED,
+                path,
+                "recording the Foxglove channels into MCAP"
+            );
+            Some((writer, path.to_owned()))
+        }
+    };
+    let server = if config.enabled {
+        let server = fctx
+            .websocket_server()
+            .name("harrier")
+            .bind(config.listen.ip().to_string(), config.listen.port())
+            .start()
+            .await
+            .map_err(|e| {
+                fail(format!(
+                    "cannot serve the Foxglove WebSocket on {}: {e}",
+                    config.listen
+                ))
+            })?;
+        let addr = SocketAddr::new(config.listen.ip(), server.port());
+        tracing::info!(feed = FEED, %addr, "Foxglove WebSocket server (ws://{addr})");
+        Some((server, addr))
+    } else {
+        None
+    };
+    let addr = server.as_ref().map(|(_, a)| *a);
     let tracks = fctx
         .channel_builder("/harrier/tracks")
         .build::<SceneUpdate>();
@@ -95,7 +122,15 @@ pub(super) async fn start(
             counters.add(FEED, "scenes", 1);
             counters.add(FEED, "messages", n + 1);
         }
-        server.stop().wait().await;
+        if let Some((server, _)) = server {
+            server.stop().wait().await;
+        }
+        if let Some((writer, path)) = mcap {
+            match writer.close() {
+                Ok(_) => tracing::info!(feed = FEED, path, "MCAP file closed"),
+                Err(e) => tracing::warn!(feed = FEED, path, "closing the MCAP file: {e}"),
+            }
+        }
     });
     Ok((task, addr))
 }

@@ -55,7 +55,7 @@ pub(crate) struct FeedContext {
 pub(crate) struct Feeds {
     /// The ADS-B aircraft (an empty list, feed `off`, unless `[adsb]` is on).
     pub(crate) aircraft: watch::Receiver<Arc<AircraftList>>,
-    /// The address of the Foxglove WebSocket server, when `[foxglove]` is on.
+    /// The address of the Foxglove WebSocket server, when `foxglove.enabled`.
     pub(crate) foxglove: Option<SocketAddr>,
     /// One task per feed the configuration turns on; they end at `stop`.
     tasks: Vec<(&'static str, JoinHandle<()>)>,
@@ -92,10 +92,10 @@ impl Feeds {
             tasks.push(("cot", tokio::spawn(task)));
         }
         let mut foxglove = None;
-        if config.foxglove.enabled {
+        if config.foxglove.on() {
             let (task, addr) = foxglove::start(&config.foxglove, ctx.clone()).await?;
             tasks.push(("foxglove", task));
-            foxglove = Some(addr);
+            foxglove = addr;
         }
         Ok(Self {
             aircraft,

@@ -5,7 +5,10 @@
 //! Foxglove's published `foxglove-schemas-protobuf` classes — subscribes to every channel: the
 //! four channels are advertised with their protobuf schemas, every message of each decodes, the
 //! two decodings agree, and each confirmed track's `LocationFix` is where `GET /api/v1/tracks`
-//! says the track is (the scans stopped first, so both read the same estimate).
+//! says the track is (the scans stopped first, so both read the same estimate). The same
+//! channels go to an MCAP file (`foxglove.mcap`), which the `mcap` package's reader
+//! (`tests/python/mcap_check.py`) reads after the server stopped: every message decodes against
+//! the schema in the file, and there are as many as the feed logged.
 
 use std::process::Stdio;
 use std::time::Duration;
@@ -28,6 +31,9 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
     let (mut config, zenoh) = server_config();
     config.foxglove.enabled = true;
     config.foxglove.listen = "127.0.0.1:0".parse().expect("addr");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mcap = dir.path().join("live.mcap");
+    config.foxglove.mcap = mcap.display().to_string();
     let frame = LocalFrame::new(config.frame.origin);
     let rt = runtime();
     let (server, publisher) = rt.block_on(async {
@@ -142,5 +148,35 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
     }
     assert!(compared >= 1, "no confirmed track compared");
     assert!(server.feed_counters().get("foxglove", "scenes") >= 3);
+    let counters = server.feed_counters();
     rt.block_on(server.shutdown());
+    let logged = counters.get("foxglove", "messages");
+
+    // The MCAP file, closed at shutdown.
+    let mut check = python_script("mcap_check.py")
+        .arg(&mcap)
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("start mcap_check.py");
+    let status = wait_with_deadline(&mut check, Duration::from_secs(60), "mcap_check.py");
+    let mut out = String::new();
+    std::io::Read::read_to_string(&mut check.stdout.take().expect("stdout"), &mut out)
+        .expect("read mcap_check.py's output");
+    assert!(status.success(), "mcap_check.py failed: {out}");
+    let file: Value = serde_json::from_str(out.trim()).expect("mcap_check.py's JSON");
+    eprintln!("MCAP: {file}");
+    assert_eq!(file["errors"], Value::Array(Vec::new()), "decoding errors");
+    for (topic, schema) in expected {
+        assert_eq!(file["schemas"][topic]["schema"], schema, "{topic}");
+        assert_eq!(file["schemas"][topic]["encoding"], "protobuf", "{topic}");
+        assert!(
+            file["counts"][topic].as_u64().unwrap_or(0) >= 3,
+            "{topic}: {file}"
+        );
+    }
+    assert_eq!(
+        file["total"].as_u64(),
+        Some(logged),
+        "every logged message is in the file"
+    );
 }
