@@ -126,6 +126,16 @@ pub struct TrackView {
     pub mode_probabilities: Vec<f64>,
 }
 
+impl TrackView {
+    /// The covariance of state indices `a` and `b` (`[x, y, z, vx, vy, vz]`), when `cov` covers
+    /// both and the entry is finite.
+    pub fn cov_at(&self, a: usize, b: usize) -> Option<f64> {
+        let i = self.cov_dims.iter().position(|&d| d == a)?;
+        let j = self.cov_dims.iter().position(|&d| d == b)?;
+        self.cov.get(i)?.get(j).copied().filter(|v| v.is_finite())
+    }
+}
+
 /// What one scan did ([`TrackEngine::ingest`]): harrier-core's events, and the view after the
 /// scan of every track the scan changed.
 ///

@@ -425,3 +425,107 @@ pub fn json_lines(child: &mut Child) -> std::sync::mpsc::Receiver<serde_json::Va
     });
     rx
 }
+
+/// Makes a test certificate authority and certificates for `names` (their common names, each
+/// for `localhost` and 127.0.0.1, for servers and clients) with the `openssl` CLI, in `dir`:
+/// `ca.pem`, `NAME.pem`, `NAME.key` (P-256, valid 2 days).
+pub fn test_certificates(dir: &Path, names: &[&str]) {
+    let openssl = |args: &[&str]| {
+        let out = Command::new("openssl")
+            .args(args)
+            .current_dir(dir)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap_or_else(|e| panic!("openssl not found ({e}): scripts/setup installs it"));
+        assert!(
+            out.status.success(),
+            "openssl {}: {}",
+            args.join(" "),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1"];
+    openssl(
+        &[
+            &[
+                "req",
+                "-x509",
+                "-nodes",
+                "-days",
+                "2",
+                "-subj",
+                "/CN=harrier-test-ca",
+            ][..],
+            &ec,
+            &["-keyout", "ca.key", "-out", "ca.pem"],
+        ]
+        .concat(),
+    );
+    for name in names {
+        let ext = format!("{name}.ext");
+        std::fs::write(
+            dir.join(&ext),
+            "basicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth,clientAuth\n\
+             subjectAltName=DNS:localhost,IP:127.0.0.1\n",
+        )
+        .expect("write the extensions");
+        let (key, csr, pem) = (
+            format!("{name}.key"),
+            format!("{name}.csr"),
+            format!("{name}.pem"),
+        );
+        let subj = format!("/CN={name}");
+        openssl(
+            &[
+                &["req", "-nodes", "-subj", &subj][..],
+                &ec,
+                &["-keyout", &key, "-out", &csr],
+            ]
+            .concat(),
+        );
+        openssl(&[
+            "x509",
+            "-req",
+            "-in",
+            &csr,
+            "-CA",
+            "ca.pem",
+            "-CAkey",
+            "ca.key",
+            "-CAcreateserial",
+            "-days",
+            "2",
+            "-extfile",
+            &ext,
+            "-out",
+            &pem,
+        ]);
+    }
+}
+
+/// Runs `tests/python/<script>` with `args` to its end within `timeout` and returns the JSON of
+/// the last line it printed; panics, with what it printed, when it fails or prints no JSON.
+pub fn python_json(script: &str, args: &[&str], timeout: Duration) -> serde_json::Value {
+    use std::io::Read as _;
+    let mut child = python_script(script)
+        .args(args)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("start {script}: {e}"));
+    let mut stdout = child.stdout.take().expect("stdout");
+    // Read on a thread, so that a long output cannot fill the pipe and stall the script.
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = stdout.read_to_string(&mut s);
+        s
+    });
+    let status = wait_with_deadline(&mut child, timeout, script);
+    let out = reader.join().unwrap_or_default();
+    assert!(status.success(), "{script} failed ({status}): {out}");
+    let last = out
+        .lines()
+        .rev()
+        .find(|l| !l.trim().is_empty())
+        .unwrap_or("");
+    serde_json::from_str(last).unwrap_or_else(|e| panic!("{script}: no JSON ({e}): {out}"))
+}

@@ -3,13 +3,14 @@
 //! `foxglove.hz` the tracker's latest snapshot is logged on the channels of
 //! [`crate::wire::foxglove`] (tracks as a scene and as location fixes, vehicles as location
 //! fixes and frame transforms) — also when nothing changed, so a client that connects sees the
-//! scene at once; nothing is encoded while no client is subscribed. With `foxglove.mcap`, the
-//! SDK's MCAP writer on the same context records every message into that file (buffered writes
-//! on this task, never the tracker's), closed at `stop`.
+//! scene at once; a channel's messages are built only while a client or the MCAP file
+//! subscribes to it. With `foxglove.mcap`, the SDK's MCAP writer on the same context records
+//! every message into that file (buffered writes on this task, never the tracker's), closed at
+//! `stop`.
 //!
 //! Never blocks the tracker: it reads the snapshot `watch`, and the SDK keeps a bounded backlog
 //! per client (a slow client loses the oldest messages, not the service). Counters
-//! (`harrier_feed_events_total{feed="foxglove"}`): `scenes` (snapshots published) and
+//! (`harrier_feed_events_total{feed="foxglove"}`): `scenes` (track scenes published) and
 //! `messages` (messages logged).
 
 use std::net::SocketAddr;
@@ -104,23 +105,36 @@ pub(super) async fn start(
             }
             let snap = Arc::clone(&snapshot.borrow_and_update());
             let stamp = timestamp(snap.t.unwrap_or_else(crate::clock::unix_now));
-            tracks.log(&scene_update(&snap.tracks, stamp));
-            let mut n = 1;
-            for fix in snap
-                .tracks
-                .iter()
-                .filter_map(|t| track_fix(t, &frame, stamp))
-            {
-                track_fixes.log(&fix);
+            // Only what some client or the MCAP file subscribes to is built.
+            let mut n = 0;
+            if tracks.has_sinks() {
+                tracks.log(&scene_update(&snap.tracks, stamp));
+                counters.add(FEED, "scenes", 1);
                 n += 1;
             }
-            for fix in snap.vehicles.iter().filter_map(|v| vehicle_fix(v, stamp)) {
-                vehicle_fixes.log(&fix);
+            if track_fixes.has_sinks() {
+                for fix in snap
+                    .tracks
+                    .iter()
+                    .filter_map(|t| track_fix(t, &frame, stamp))
+                {
+                    track_fixes.log(&fix);
+                    n += 1;
+                }
+            }
+            if vehicle_fixes.has_sinks() {
+                for fix in snap.vehicles.iter().filter_map(|v| vehicle_fix(v, stamp)) {
+                    vehicle_fixes.log(&fix);
+                    n += 1;
+                }
+            }
+            if tf.has_sinks() {
+                tf.log(&vehicle_transforms(&snap.vehicles, stamp));
                 n += 1;
             }
-            tf.log(&vehicle_transforms(&snap.vehicles, stamp));
-            counters.add(FEED, "scenes", 1);
-            counters.add(FEED, "messages", n + 1);
+            if n > 0 {
+                counters.add(FEED, "messages", n);
+            }
         }
         if let Some((server, _)) = server {
             server.stop().wait().await;

@@ -1,6 +1,7 @@
 //! Manned aircraft from ADS-B as the API sends them (`GET /api/v1/aircraft`): tracks of their
 //! own kind, keyed by their 24-bit address, never mixed with the ground tracks.
 
+use harrier_core::linalg::ellipse_axes;
 use harrier_core::tracker::identified::IdentifiedTrack;
 use harrier_link::geo::LocalFrame;
 use nalgebra::{Matrix2, Vector3};
@@ -115,7 +116,7 @@ pub fn aircraft_dto(
     let v = frame.rotation_to(&LocalFrame::new(geo)) * Vector3::new(m[3], m[4], m[5]);
     let [vx, vy, vz] = [v.x, v.y, v.z];
     let h = Matrix2::from(track.state.cov.fixed_view::<2, 2>(0, 0));
-    let sigma_h = h.symmetric_eigenvalues().max().max(0.0).sqrt();
+    let ([sigma_h, _], _) = ellipse_axes(&h);
     Some(AircraftDto {
         icao: icao_text(key),
         callsign: info.callsign.clone(),

@@ -71,15 +71,10 @@ pub struct TrackDto {
 /// The position block of `k`'s covariance over the state indices `dims` (`None` when absent or
 /// not finite).
 fn position_cov<const N: usize>(k: &TrackView, dims: [usize; N]) -> Option<[[f64; N]; N]> {
-    let mut at = [0; N];
-    for (a, d) in at.iter_mut().zip(dims) {
-        *a = k.cov_dims.iter().position(|&c| c == d)?;
-    }
-    let block = at.map(|i| at.map(|j| k.cov.get(i).and_then(|r| r.get(j)).copied()));
     let mut out = [[0.0; N]; N];
-    for (o, b) in out.iter_mut().zip(block) {
-        for (o, b) in o.iter_mut().zip(b) {
-            *o = b.filter(|v| v.is_finite())?;
+    for (row, &a) in out.iter_mut().zip(&dims) {
+        for (o, &b) in row.iter_mut().zip(&dims) {
+            *o = k.cov_at(a, b)?;
         }
     }
     Some(out)

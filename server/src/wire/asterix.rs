@@ -98,21 +98,9 @@ fn unsigned_sat(v: f64, lsb: f64, bits: u32) -> u32 {
     (v / lsb).round().clamp(0.0, max) as u32
 }
 
-/// The covariance of state indices `i`, `j`, if the track has it and it is finite.
-fn cov(track: &TrackView, i: usize, j: usize) -> Option<f64> {
-    let a = track.cov_dims.iter().position(|&d| d == i)?;
-    let b = track.cov_dims.iter().position(|&d| d == j)?;
-    track
-        .cov
-        .get(a)
-        .and_then(|r| r.get(b))
-        .copied()
-        .filter(|v| v.is_finite())
-}
-
 /// The standard deviation of state index `i`.
 fn sd(track: &TrackView, i: usize) -> Option<f64> {
-    cov(track, i, i).filter(|v| *v >= 0.0).map(f64::sqrt)
+    track.cov_at(i, i).filter(|v| *v >= 0.0).map(f64::sqrt)
 }
 
 /// The CAT062 record of `track` at `time_of_day_s` (seconds since UTC midnight), `None` when
@@ -204,7 +192,7 @@ fn accuracies(track: &TrackView, frame: &LocalFrame, geo: &Geodetic, aga: bool) 
         primary |= 0x80;
         body.extend_from_slice(&(unsigned_sat(sx, 0.5, 16) as u16).to_be_bytes());
         body.extend_from_slice(&(unsigned_sat(sy, 0.5, 16) as u16).to_be_bytes());
-        if let Some(c) = cov(track, 0, 1) {
+        if let Some(c) = track.cov_at(0, 1) {
             primary |= 0x40;
             let v = c.signum() * c.abs().sqrt() / 0.5;
             body.extend_from_slice(&(v.round().clamp(-32_768.0, 32_767.0) as i16).to_be_bytes());

@@ -33,9 +33,10 @@
 use std::fmt::Write as _;
 use std::time::{Duration, SystemTime};
 
+use harrier_core::linalg::ellipse_axes;
 use harrier_engine::{TrackStatus, TrackView};
 use harrier_link::geo::LocalFrame;
-use nalgebra::Vector3;
+use nalgebra::{Matrix2, Vector3};
 use prost::Message as _;
 
 use crate::tracker::VehicleView;
@@ -107,23 +108,14 @@ fn millis(unix_s: f64) -> Option<u64> {
     (ms.is_finite() && ms >= 0.0).then_some(ms as u64)
 }
 
-/// The covariance entry of state indices `a`, `b`, if `cov` covers them.
-fn cov_at(track: &TrackView, a: usize, b: usize) -> Option<f64> {
-    let i = track.cov_dims.iter().position(|&d| d == a)?;
-    let j = track.cov_dims.iter().position(|&d| d == b)?;
-    track.cov.get(i)?.get(j).copied()
-}
-
 /// √ of the larger eigenvalue of the horizontal 2×2 position covariance.
 fn horizontal_sigma(track: &TrackView) -> Option<f64> {
     let (xx, yy, xy) = (
-        cov_at(track, 0, 0)?,
-        cov_at(track, 1, 1)?,
-        cov_at(track, 0, 1)?,
+        track.cov_at(0, 0)?,
+        track.cov_at(1, 1)?,
+        track.cov_at(0, 1)?,
     );
-    let half_trace = 0.5 * (xx + yy);
-    let max_eig = half_trace + (0.25 * (xx - yy).powi(2) + xy * xy).sqrt();
-    let s = max_eig.sqrt();
+    let ([s, _], _) = ellipse_axes(&Matrix2::new(xx, xy, xy, yy));
     s.is_finite().then_some(s)
 }
 
@@ -147,7 +139,8 @@ pub fn track_event(
     let start_ms = millis(track.t)?.min(time_ms);
     let stale_ms = millis(now_unix + settings.stale_s)?;
     let ce = horizontal_sigma(track).unwrap_or(UNKNOWN_ERROR);
-    let le = cov_at(track, 2, 2)
+    let le = track
+        .cov_at(2, 2)
         .map(f64::sqrt)
         .filter(|s| s.is_finite())
         .unwrap_or(UNKNOWN_ERROR);

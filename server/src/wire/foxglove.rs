@@ -188,22 +188,20 @@ pub fn track_fix(track: &TrackView, frame: &LocalFrame, stamp: Timestamp) -> Opt
     if !(geo.lat_deg.is_finite() && geo.lon_deg.is_finite() && geo.alt_m.is_finite()) {
         return None;
     }
-    // The ENU position covariance, row-major; a planar track's z variance is unknown (0).
+    // The ENU position covariance, row-major; a planar track's z variance is unknown (0). An
+    // entry the covariance covers but that is not finite makes it unknown.
     let mut cov = [0.0; 9];
-    let index = |d: usize| track.cov_dims.iter().position(|&c| c == d);
+    let mut known = true;
     for i in 0..3 {
         for j in 0..3 {
-            if let (Some(a), Some(b)) = (index(i), index(j)) {
-                cov[3 * i + j] = track
-                    .cov
-                    .get(a)
-                    .and_then(|r| r.get(b))
-                    .copied()
-                    .unwrap_or(0.0);
+            if track.cov_dims.contains(&i) && track.cov_dims.contains(&j) {
+                match track.cov_at(i, j) {
+                    Some(c) => cov[3 * i + j] = c,
+                    None => known = false,
+                }
             }
         }
     }
-    let known = cov.iter().all(|c| c.is_finite());
     Some(LocationFix {
         timestamp: Some(stamp),
         frame_id: format!("track/{}", track.id),

@@ -15,8 +15,7 @@
 //! certificate the listener requires (a test CA made with the openssl command).
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -25,7 +24,7 @@ use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_server::config::{Config, CotEncoding};
 use harrier_tests::{
     free_tcp_port, http_get, http_get_json, json_lines, kill_group, publish_standing_target,
-    python_script, require_python_module, runtime, within,
+    python_script, require_python_module, runtime, test_certificates, within,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -41,76 +40,6 @@ type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
 /// TAK's mesh multicast group.
 const GROUP: &str = "239.2.3.1";
 
-/// A test CA, a server certificate for 127.0.0.1 and a client certificate (P-256, made with
-/// the openssl command) in `dir`: `ca.pem`, `server.pem`/`server.key`, `client.pem`/`client.key`.
-fn certificates(dir: &Path) {
-    let openssl = |args: &[&str]| {
-        let out = Command::new("openssl")
-            .args(args)
-            .current_dir(dir)
-            .output()
-            .expect("run openssl");
-        assert!(
-            out.status.success(),
-            "openssl {args:?}: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-    };
-    let key = [
-        "-newkey",
-        "ec",
-        "-pkeyopt",
-        "ec_paramgen_curve:prime256v1",
-        "-nodes",
-    ];
-    openssl(
-        &[
-            &["req", "-x509", "-days", "2", "-subj", "/CN=harrier test CA"][..],
-            &key,
-            &["-keyout", "ca.key", "-out", "ca.pem"],
-            &["-addext", "basicConstraints=critical,CA:TRUE"],
-            &["-addext", "keyUsage=critical,keyCertSign,cRLSign"],
-        ]
-        .concat(),
-    );
-    for (name, ext) in [
-        (
-            "server",
-            "subjectAltName=IP:127.0.0.1\nextendedKeyUsage=serverAuth\n",
-        ),
-        ("client", "extendedKeyUsage=clientAuth\n"),
-    ] {
-        std::fs::write(dir.join(format!("{name}.ext")), ext).expect("write ext");
-        let subject = format!("/CN=harrier test {name}");
-        let (k, csr) = (format!("{name}.key"), format!("{name}.csr"));
-        openssl(
-            &[
-                &["req", "-subj", &subject, "-keyout", &k, "-out", &csr][..],
-                &key,
-            ]
-            .concat(),
-        );
-        let (pem, extfile) = (format!("{name}.pem"), format!("{name}.ext"));
-        openssl(&[
-            "x509",
-            "-req",
-            "-days",
-            "2",
-            "-in",
-            &csr,
-            "-CA",
-            "ca.pem",
-            "-CAkey",
-            "ca.key",
-            "-CAcreateserial",
-            "-out",
-            &pem,
-            "-extfile",
-            &extfile,
-        ]);
-    }
-}
-
 /// One run: `encoding` to the listener's UDP, TCP and (when the host can join it) multicast
 /// ports, and with `tls` to its TLS port (client certificates required); with
 /// `drop_tcp_after`, the listener closes the first TCP connection after that many events, and
@@ -123,7 +52,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         .args(["--timeout", "90", "--multicast", GROUP])
         .args(["--drop-tcp-after", &drop_tcp_after.to_string()]);
     if tls {
-        certificates(dir.path());
+        test_certificates(dir.path(), &["server", "client"]);
         let file = |f: &str| dir.path().join(f).to_string_lossy().into_owned();
         listener
             .args([

@@ -10,13 +10,12 @@
 //! (`tests/python/mcap_check.py`) reads after the server stopped: every message decodes against
 //! the schema in the file, and there are as many as the feed logged.
 
-use std::process::Stdio;
 use std::time::Duration;
 
 use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_tests::{
-    http_get_json, open_session, publish_standing_target, python_script, require_python_module,
-    runtime, server_config, wait_with_deadline, within,
+    http_get_json, open_session, publish_standing_target, python_json, require_python_module,
+    runtime, server_config, within,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -76,18 +75,12 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         }
     }));
 
-    let mut client = python_script("foxglove_client.py")
-        .arg(format!("ws://{fox}"))
-        .args(["--seconds", "20", "--min", "3"])
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start foxglove_client.py");
-    let status = wait_with_deadline(&mut client, Duration::from_secs(40), "foxglove_client.py");
-    let mut out = String::new();
-    std::io::Read::read_to_string(&mut client.stdout.take().expect("stdout"), &mut out)
-        .expect("read the client's output");
-    assert!(status.success(), "foxglove_client.py failed: {out}");
-    let report: Value = serde_json::from_str(out.trim()).expect("the client's JSON");
+    let url = format!("ws://{fox}");
+    let report = python_json(
+        "foxglove_client.py",
+        &[&url, "--seconds", "20", "--min", "3"],
+        Duration::from_secs(40),
+    );
     eprintln!("foxglove client: {report}");
     assert_eq!(
         report["errors"],
@@ -153,17 +146,8 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
     let logged = counters.get("foxglove", "messages");
 
     // The MCAP file, closed at shutdown.
-    let mut check = python_script("mcap_check.py")
-        .arg(&mcap)
-        .stdout(Stdio::piped())
-        .spawn()
-        .expect("start mcap_check.py");
-    let status = wait_with_deadline(&mut check, Duration::from_secs(60), "mcap_check.py");
-    let mut out = String::new();
-    std::io::Read::read_to_string(&mut check.stdout.take().expect("stdout"), &mut out)
-        .expect("read mcap_check.py's output");
-    assert!(status.success(), "mcap_check.py failed: {out}");
-    let file: Value = serde_json::from_str(out.trim()).expect("mcap_check.py's JSON");
+    let path = mcap.display().to_string();
+    let file = python_json("mcap_check.py", &[&path], Duration::from_secs(60));
     eprintln!("MCAP: {file}");
     assert_eq!(file["errors"], Value::Array(Vec::new()), "decoding errors");
     for (topic, schema) in expected {

@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
-use harrier_tests::{free_tcp_port, http_get, target_bin, targets_at};
+use harrier_tests::{free_tcp_port, http_get, target_bin, targets_at, test_certificates};
 use serde_json::Value;
 use zenoh::Wait as _;
 
@@ -711,88 +711,11 @@ fn a_restarted_router_is_rejoined_and_the_loss_counted() {
     );
 }
 
-/// Makes a certificate authority and certificates for `names` (common names; the router's also
-/// for `localhost` and 127.0.0.1) with the `openssl` CLI, in `dir`: `ca.pem`, `NAME.pem`,
-/// `NAME.key` (P-256).
-fn certificates(dir: &Path, names: &[&str]) {
-    let openssl = |args: &[&str]| {
-        let out = Command::new("openssl")
-            .args(args)
-            .current_dir(dir)
-            .stdin(Stdio::null())
-            .output()
-            .unwrap_or_else(|e| panic!("openssl not found ({e}): scripts/setup installs it"));
-        assert!(
-            out.status.success(),
-            "openssl {}: {}",
-            args.join(" "),
-            String::from_utf8_lossy(&out.stderr)
-        );
-    };
-    let ec = ["-newkey", "ec", "-pkeyopt", "ec_paramgen_curve:prime256v1"];
-    openssl(
-        &[
-            &[
-                "req",
-                "-x509",
-                "-nodes",
-                "-days",
-                "2",
-                "-subj",
-                "/CN=harrier-test-ca",
-            ][..],
-            &ec,
-            &["-keyout", "ca.key", "-out", "ca.pem"],
-        ]
-        .concat(),
-    );
-    for name in names {
-        let ext = format!("{name}.ext");
-        std::fs::write(
-            dir.join(&ext),
-            "basicConstraints=CA:FALSE\nextendedKeyUsage=serverAuth,clientAuth\n\
-             subjectAltName=DNS:localhost,IP:127.0.0.1\n",
-        )
-        .expect("write the extensions");
-        let (key, csr, pem) = (
-            format!("{name}.key"),
-            format!("{name}.csr"),
-            format!("{name}.pem"),
-        );
-        let subj = format!("/CN={name}");
-        openssl(
-            &[
-                &["req", "-nodes", "-subj", &subj][..],
-                &ec,
-                &["-keyout", &key, "-out", &csr],
-            ]
-            .concat(),
-        );
-        openssl(&[
-            "x509",
-            "-req",
-            "-in",
-            &csr,
-            "-CA",
-            "ca.pem",
-            "-CAkey",
-            "ca.key",
-            "-CAcreateserial",
-            "-days",
-            "2",
-            "-extfile",
-            &ext,
-            "-out",
-            &pem,
-        ]);
-    }
-}
-
 #[test]
 fn tls_and_access_control() {
     let dir = tempfile::tempdir().expect("tempdir");
     let d = dir.path();
-    certificates(d, &["router", "harrier-sim", "harrier-gcs", "intruder"]);
+    test_certificates(d, &["router", "harrier-sim", "harrier-gcs", "intruder"]);
     let path = |f: &str| d.join(f).display().to_string();
     let port = free_tcp_port();
     let endpoint = format!("tls/127.0.0.1:{port}");
@@ -860,7 +783,7 @@ fn tls_and_access_control() {
     // A client certificate of another CA, even with the companion's name: no session.
     let rogue = d.join("rogue");
     std::fs::create_dir(&rogue).expect("mkdir rogue");
-    certificates(&rogue, &["harrier-sim"]);
+    test_certificates(&rogue, &["harrier-sim"]);
     let forged = client_session(
         &endpoint,
         TlsConfig {
