@@ -21,11 +21,13 @@
 
 mod error;
 pub mod estimators;
+pub mod region;
 pub mod registry;
 pub mod replay;
 pub mod track;
 
 pub use error::{EngineError, setup};
+pub use region::{CHI2_95_2, CHI2_95_3, Ellipse, Ellipsoid};
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
     Deployment, Handover, ScanOutcome, SensorScan, TrackEngine, TrackFilterBuildFn,

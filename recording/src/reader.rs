@@ -5,6 +5,7 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
+use harrier_engine::{TrackStatus, TrackView};
 use harrier_link::scenario_out::WriteError;
 use rusqlite::{Connection, OpenFlags, OptionalExtension};
 
@@ -111,6 +112,14 @@ pub enum SessionError {
     /// The directory cannot be written.
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// The MCAP file cannot be written.
+    #[error("{}: cannot write the MCAP file: {message}", path.display())]
+    Mcap {
+        /// The file.
+        path: PathBuf,
+        /// Why.
+        message: String,
+    },
 }
 
 /// A session file opened read-only.
@@ -259,6 +268,69 @@ impl<'a> Db<'a> {
             let v = parse(text.as_bytes())
                 .map_err(|e| self.malformed(id, format!("{table} row {row}: {e}")))?;
             out.push((row, v));
+        }
+        Ok(out)
+    }
+
+    /// The `tracks` rows of session `id` in the order written (each scan's changed tracks
+    /// together), as the views they were made of (a NULL number, a non-finite one written, is
+    /// NaN again).
+    pub(super) fn tracks(&self, id: i64) -> Result<Vec<TrackView>, SessionError> {
+        let mut st = self
+            .conn
+            .prepare(
+                "SELECT rowid, t, track, status, x, y, z, vx, vy, vz, cov_json, cov_dims, updated, \
+                 age, last_update, mode_probabilities FROM tracks WHERE session = ?1 ORDER BY rowid",
+            )
+            .map_err(|e| self.sql(e))?;
+        let mut rows = st.query([id]).map_err(|e| self.sql(e))?;
+        let mut out = Vec::new();
+        while let Some(r) = rows.next().map_err(|e| self.sql(e))? {
+            let row: i64 = r.get(0).map_err(|e| self.sql(e))?;
+            let bad = |m: String| self.malformed(id, format!("tracks row {row}: {m}"));
+            let num = |i: usize| -> Result<f64, SessionError> {
+                r.get::<_, Option<f64>>(i)
+                    .map(|v| v.unwrap_or(f64::NAN))
+                    .map_err(|e| bad(e.to_string()))
+            };
+            let text = |i: usize| -> Result<Option<String>, SessionError> {
+                r.get::<_, Option<String>>(i)
+                    .map_err(|e| bad(e.to_string()))
+            };
+            let status = match text(3)?.as_deref() {
+                Some("tentative") => TrackStatus::Tentative,
+                Some("confirmed") => TrackStatus::Confirmed,
+                other => return Err(bad(format!("status {other:?}"))),
+            };
+            let cov: Vec<Vec<Option<f64>>> = serde_json::from_str(&text(10)?.unwrap_or_default())
+                .map_err(|e| bad(format!("cov_json: {e}")))?;
+            let cov_dims: Vec<usize> = serde_json::from_str(&text(11)?.unwrap_or_default())
+                .map_err(|e| bad(format!("cov_dims: {e}")))?;
+            let mode_probabilities = match text(15)? {
+                Some(m) => serde_json::from_str::<Vec<Option<f64>>>(&m)
+                    .map_err(|e| bad(format!("mode_probabilities: {e}")))?
+                    .into_iter()
+                    .map(|p| p.unwrap_or(f64::NAN))
+                    .collect(),
+                None => Vec::new(),
+            };
+            let t = num(1)?;
+            out.push(TrackView {
+                id: u64::try_from(r.get::<_, i64>(2).map_err(|e| bad(e.to_string()))?)
+                    .map_err(|e| bad(format!("track: {e}")))?,
+                status,
+                t,
+                state: [num(4)?, num(5)?, num(6)?, num(7)?, num(8)?, num(9)?],
+                cov: cov
+                    .into_iter()
+                    .map(|row| row.into_iter().map(|c| c.unwrap_or(f64::NAN)).collect())
+                    .collect(),
+                cov_dims,
+                updated: r.get(12).map_err(|e| bad(e.to_string()))?,
+                age: r.get(13).map_err(|e| bad(e.to_string()))?,
+                last_update: num(14)?,
+                mode_probabilities,
+            });
         }
         Ok(out)
     }

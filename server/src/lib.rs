@@ -252,6 +252,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         config,
         &FeedContext {
             snapshot: pipeline.snapshot.clone(),
+            events: pipeline.events.clone(),
             frame: harrier_link::geo::LocalFrame::new(config.frame.origin),
             counters: Arc::clone(&feed_counters),
             stop: stop_rx.clone(),

@@ -6,7 +6,8 @@ message against the protobuf schema the server advertised for its channel (a Fil
 through google.protobuf's descriptor pool), and decodes it a second time with Foxglove's own
 published classes (foxglove-schemas-protobuf) to check that both agree.
 
-Prints one JSON line, after `--seconds` or once every channel has `--min` messages: the
+Prints one JSON line, after `--seconds` or once every channel (but those named by
+`--quiet-topic`, which may stay silent) has `--min` messages: the
 channels (topic, schema name, encoding), the count of messages per topic, and the last location
 fix of each track (`frame_id`, latitude, longitude, altitude, receive time).
 
@@ -43,7 +44,7 @@ def message_class(schema_name, schema_b64):
     return message_factory.GetMessageClass(pool.FindMessageTypeByName(schema_name))
 
 
-async def run(url, seconds, minimum):
+async def run(url, seconds, minimum, quiet):
     channels = {}  # channel id → advertisement
     subs = {}  # subscription id → (channel, class)
     counts = {}
@@ -94,7 +95,8 @@ async def run(url, seconds, minimum):
                     "received_unix": time.time(),
                     "stamp": m.timestamp.seconds + m.timestamp.nanos * 1e-9,
                 }
-            if subs and all(counts.get(c["topic"], 0) >= minimum for c, _ in subs.values()):
+            waited = [c["topic"] for c, _ in subs.values() if c["topic"] not in quiet]
+            if waited and all(counts.get(t, 0) >= minimum for t in waited):
                 break
     print(
         json.dumps(
@@ -117,8 +119,9 @@ def main():
     p.add_argument("url")
     p.add_argument("--seconds", type=float, default=20.0)
     p.add_argument("--min", type=int, default=3, help="messages per channel before stopping")
+    p.add_argument("--quiet-topic", action="append", default=[], help="a topic not waited for")
     a = p.parse_args()
-    asyncio.run(run(a.url, a.seconds, a.min))
+    asyncio.run(run(a.url, a.seconds, a.min, set(a.quiet_topic)))
 
 
 if __name__ == "__main__":

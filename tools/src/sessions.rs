@@ -4,7 +4,7 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
-use harrier_recording::export::{Exported, export};
+use harrier_recording::export::{Exported, McapExported, export, mcap};
 use harrier_recording::reader::{SessionInfo, info, list};
 
 /// Arguments of `harrier sessions`.
@@ -36,16 +36,32 @@ pub enum SessionsCommand {
         #[arg(long)]
         json: bool,
     },
-    /// Export one session as a gcs-scenario/1 directory (FORMAT-MULTI.md when the truth has several
-    /// targets or a scan several detections), for `harrier replay` and `score.py`.
+    /// Export one session: as a gcs-scenario/1 directory (FORMAT-MULTI.md when the truth has
+    /// several targets or a scan several detections), for `harrier replay` and `score.py`; or, with
+    /// `--format mcap`, as an MCAP file of the live Foxglove feed's topics (docs/foxglove.md), for
+    /// Foxglove, Lichtblick and the `mcap` tools.
     Export {
         /// The session file.
         db: PathBuf,
         /// Session id (`harrier sessions list`).
         id: i64,
-        /// Output directory (must not exist, or be empty; written atomically).
-        out_dir: PathBuf,
+        /// Output: a directory (scenario: must not exist, or be empty) or a file (mcap: must not
+        /// exist). Written atomically.
+        out: PathBuf,
+        /// What to write.
+        #[arg(long, value_enum, default_value_t = ExportFormat::Scenario)]
+        format: ExportFormat,
     },
+}
+
+/// What `harrier sessions export` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportFormat {
+    /// A gcs-scenario/1 directory (FORMAT.md, FORMAT-MULTI.md).
+    Scenario,
+    /// An MCAP file of Foxglove's schemas (`foxglove.SceneUpdate`, `foxglove.LocationFix`,
+    /// `foxglove.FrameTransforms`).
+    Mcap,
 }
 
 /// A UNIX time as `YYYY-MM-DD hh:mm:ssZ` (UTC).
@@ -170,6 +186,22 @@ fn export_lines(out_dir: &Path, e: &Exported) -> Vec<String> {
     lines
 }
 
+/// What `harrier sessions export --format mcap` wrote.
+fn mcap_lines(e: &McapExported) -> Vec<String> {
+    let total: u64 = e.messages.values().sum();
+    let mut lines = vec![format!(
+        "wrote {} (MCAP, Foxglove schemas): {total} messages from {} scans and {} track rows, \
+         {:.1} s on the {} time line",
+        e.path.display(),
+        e.scans,
+        e.track_rows,
+        e.span[1] - e.span[0],
+        e.time_line
+    )];
+    lines.extend(e.messages.iter().map(|(t, n)| format!("  {t}: {n}")));
+    lines
+}
+
 /// Runs `harrier sessions`: the reader's or the export's answer, printed as text or JSON.
 pub fn run(args: &SessionsArgs) -> anyhow::Result<()> {
     let lines = match &args.command {
@@ -189,11 +221,22 @@ pub fn run(args: &SessionsArgs) -> anyhow::Result<()> {
                 info_lines(&s)
             }
         }
-        SessionsCommand::Export { db, id, out_dir } => {
+        SessionsCommand::Export {
+            db,
+            id,
+            out,
+            format: ExportFormat::Scenario,
+        } => {
             let e = export(db, *id)?;
-            e.write_to(out_dir)?;
-            export_lines(out_dir, &e)
+            e.write_to(out)?;
+            export_lines(out, &e)
         }
+        SessionsCommand::Export {
+            db,
+            id,
+            out,
+            format: ExportFormat::Mcap,
+        } => mcap_lines(&mcap(db, *id, out)?),
     };
     let mut stdout = std::io::stdout().lock();
     for l in lines {

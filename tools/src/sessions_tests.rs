@@ -11,8 +11,8 @@ use harrier_link::geo::LocalFrame;
 use nalgebra::Vector3;
 use rusqlite::Connection;
 
-use super::{SessionsArgs, SessionsCommand, run};
-use harrier_recording::export::export;
+use super::{ExportFormat, SessionsArgs, SessionsCommand, run};
+use harrier_recording::export::{export, mcap};
 use harrier_recording::fixtures::{HOME, T0_UNIX, meta, scan, track, truth};
 use harrier_recording::reader::{SessionError, info, list};
 use harrier_recording::writer::{Record, Recorder};
@@ -272,7 +272,8 @@ fn the_command_line_lists_and_exports() {
         SessionsCommand::Export {
             db: db.clone(),
             id: 1,
-            out_dir: out.clone(),
+            out: out.clone(),
+            format: ExportFormat::Scenario,
         },
     ] {
         run(&SessionsArgs { command }).expect("runs");
@@ -283,8 +284,66 @@ fn the_command_line_lists_and_exports() {
     let again = SessionsCommand::Export {
         db,
         id: 1,
-        out_dir: out.clone(),
+        out: out.clone(),
+        format: ExportFormat::Scenario,
     };
     let e = run(&SessionsArgs { command: again }).expect_err("not empty");
     assert!(e.to_string().contains("session1"), "{e}");
+}
+
+#[test]
+fn an_mcap_export_holds_a_message_per_scan_and_track_row_as_the_mcap_crate_reads_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let db = session(dir.path(), 2, 0.0);
+    let out = dir.path().join("session1.mcap");
+    let e = mcap(&db, 1, &out).expect("exports");
+    let c = Connection::open(&db).expect("open");
+    let count = |sql: &str| -> u64 {
+        let n: i64 = c.query_row(sql, [], |r| r.get(0)).expect(sql);
+        u64::try_from(n).expect("a count")
+    };
+    let scans = count("SELECT count(*) FROM scans");
+    let groups = count("SELECT count(DISTINCT t) FROM tracks");
+    let confirmed = count("SELECT count(*) FROM tracks WHERE status = 'confirmed'");
+    assert!(scans > 0 && groups > 0 && confirmed > 0);
+    let bytes = std::fs::read(&out).expect("read");
+    let mut read: std::collections::BTreeMap<String, u64> = Default::default();
+    let mut last = 0;
+    let mut encodings = std::collections::BTreeSet::new();
+    for m in mcap::MessageStream::new(&bytes).expect("an MCAP file") {
+        let m = m.expect("a whole message");
+        *read.entry(m.channel.topic.clone()).or_default() += 1;
+        assert!(m.log_time >= last, "in time order");
+        last = m.log_time;
+        let schema = m.channel.schema.as_ref().expect("a schema");
+        encodings.insert((schema.encoding.clone(), m.channel.message_encoding.clone()));
+    }
+    let want = [
+        ("/harrier/detections", scans),
+        ("/harrier/vehicles/location", scans),
+        ("/tf", scans),
+        ("/harrier/tracks", groups),
+        ("/harrier/tracks/location", confirmed),
+    ];
+    for (topic, n) in want {
+        assert_eq!(read.get(topic).copied(), Some(n), "{topic}: {read:?}");
+        assert_eq!(e.messages[topic], n, "{topic}");
+    }
+    assert_eq!(
+        encodings.into_iter().collect::<Vec<_>>(),
+        [("protobuf".to_owned(), "protobuf".to_owned())]
+    );
+    // The log times are the tracker's UNIX times.
+    assert!((last as f64 / 1e9 - (T0_UNIX + 40.0)).abs() < 1.0, "{last}");
+    assert!(!dir.path().join("session1.mcap.partial").exists());
+    // An existing file is refused, and left alone.
+    let again = SessionsCommand::Export {
+        db,
+        id: 1,
+        out: out.clone(),
+        format: ExportFormat::Mcap,
+    };
+    let err = run(&SessionsArgs { command: again }).expect_err("exists");
+    assert!(err.to_string().contains("session1.mcap"), "{err}");
+    assert_eq!(std::fs::read(&out).expect("read"), bytes);
 }

@@ -1,5 +1,5 @@
 //! A recorded session exported as a `gcs-scenario/1` directory ([`export`]) that `harrier
-//! replay` runs and `score.py` scores.
+//! replay` runs and `score.py` scores, or as an MCAP file of Foxglove's schemas ([`mcap`]).
 //!
 //! An export puts the session's scans into the session's ENU frame (harrier-link's
 //! `scan_in_frame`) and its times relative to the first scan, on the time line the tracker used
@@ -9,8 +9,10 @@
 //!
 //! The export follows the session: `session` reads it and puts its scans in its frame,
 //! `times` puts them on the time axis (the time line, the multi-target scan grid), `truth`
-//! interpolates the truth at the scan times, and `scenario` builds the scenario's files.
+//! interpolates the truth at the scan times, and `scenario` builds the scenario's files;
+//! `mcap_file` logs the session's scans and tracks as the live Foxglove feed would.
 
+mod mcap_file;
 mod scenario;
 mod session;
 mod times;
@@ -23,6 +25,7 @@ use harrier_link::geo::LocalFrame;
 use harrier_link::scenario_out;
 
 use super::reader::{Db, SessionError};
+pub use mcap_file::{McapExported, mcap};
 use scenario::{
     Shape, first_fix_prior, measurements_jsonl, scenario_document, scenario_sensors, sensor_ids,
 };

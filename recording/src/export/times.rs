@@ -131,7 +131,7 @@ impl TimeLine {
         line
     }
     /// A message's time on this line (`None`: it lacks `time_unix`).
-    fn absolute(self, t: f64, time_unix: Option<f64>) -> Option<f64> {
+    pub(super) fn absolute(self, t: f64, time_unix: Option<f64>) -> Option<f64> {
         if self.unix { time_unix } else { Some(t) }
     }
     /// A message's time relative to the epoch.

@@ -74,6 +74,7 @@ pub(super) async fn run(
         frame,
         counters,
         mut stop,
+        ..
     } = ctx;
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.hz));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -193,6 +194,7 @@ mod tests {
         let counters = Arc::new(crate::feeds::FeedCounters::default());
         let ctx = FeedContext {
             snapshot: snap_rx,
+            events: tokio::sync::broadcast::channel(1).0,
             frame: LocalFrame::new(DEFAULT_ORIGIN),
             counters: Arc::clone(&counters),
             stop,

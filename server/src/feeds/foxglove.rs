@@ -1,17 +1,18 @@
 //! The live scene for Foxglove (and Lichtblick): a Foxglove WebSocket server, the official
 //! `foxglove` SDK's, on `foxglove.listen`, with its own SDK context (nothing global). At
 //! `foxglove.hz` the tracker's latest snapshot is logged on the channels of
-//! [`crate::wire::foxglove`] (tracks as a scene and as location fixes, vehicles as location
-//! fixes and frame transforms) — also when nothing changed, so a client that connects sees the
-//! scene at once; a channel's messages are built only while a client or the MCAP file
-//! subscribes to it. With `foxglove.mcap`, the SDK's MCAP writer on the same context records
-//! every message into that file (buffered writes on this task, never the tracker's), closed at
-//! `stop`.
+//! [`harrier_recording::foxglove`] (tracks as a scene and as location fixes, vehicles as
+//! location fixes and frame transforms) — also when nothing changed, so a client that connects
+//! sees the scene at once — and every processed scan's detections as it comes (the tracker's
+//! scan events, a `broadcast`: a lagging feed skips scans, counted as `lagged`); a channel's
+//! messages are built only while a client or the MCAP file subscribes to it. With
+//! `foxglove.mcap`, the SDK's MCAP writer on the same context records every message into that
+//! file (buffered writes on this task, never the tracker's), closed at `stop`.
 //!
 //! Never blocks the tracker: it reads the snapshot `watch`, and the SDK keeps a bounded backlog
 //! per client (a slow client loses the oldest messages, not the service). Counters
-//! (`harrier_feed_events_total{feed="foxglove"}`): `scenes` (track scenes published) and
-//! `messages` (messages logged).
+//! (`harrier_feed_events_total{feed="foxglove"}`): `scenes` (track scenes published), `scans`
+//! (detection scenes published), `lagged` (scans skipped) and `messages` (messages logged).
 
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -19,12 +20,17 @@ use std::time::Duration;
 
 use foxglove::Context;
 use foxglove::messages::{FrameTransforms, LocationFix, SceneUpdate};
+use harrier_recording::foxglove::{
+    DETECTIONS, ScanLines, TF, TRACK_FIXES, TRACKS, VEHICLE_FIXES, VehiclePose, detections_entity,
+    scene_update, timestamp, track_fix, vehicle_fix, vehicle_transforms,
+};
+use tokio::sync::broadcast::error::RecvError;
 use tokio::task::JoinHandle;
 
 use super::FeedContext;
 use crate::config::FoxgloveConfig;
 use crate::error::LiveError;
-use crate::wire::foxglove::{scene_update, timestamp, track_fix, vehicle_fix, vehicle_transforms};
+use crate::tracker::{ScanEvents, VehicleView};
 
 /// The counters' feed label.
 const FEED: &str = "foxglove";
@@ -34,6 +40,7 @@ const FEED: &str = "foxglove";
 /// the task that publishes on them until `stop`; returns the task and the server's address.
 pub(super) async fn start(
     config: &FoxgloveConfig,
+    plane_z: f64,
     ctx: FeedContext,
 ) -> Result<(JoinHandle<()>, Option<SocketAddr>), LiveError> {
     let fail = |message: String| LiveError::Feed {
@@ -76,23 +83,20 @@ pub(super) async fn start(
         None
     };
     let addr = server.as_ref().map(|(_, a)| *a);
-    let tracks = fctx
-        .channel_builder("/harrier/tracks")
-        .build::<SceneUpdate>();
-    let track_fixes = fctx
-        .channel_builder("/harrier/tracks/location")
-        .build::<LocationFix>();
-    let vehicle_fixes = fctx
-        .channel_builder("/harrier/vehicles/location")
-        .build::<LocationFix>();
-    let tf = fctx.channel_builder("/tf").build::<FrameTransforms>();
+    let tracks = fctx.channel_builder(TRACKS).build::<SceneUpdate>();
+    let track_fixes = fctx.channel_builder(TRACK_FIXES).build::<LocationFix>();
+    let detections = fctx.channel_builder(DETECTIONS).build::<SceneUpdate>();
+    let vehicle_fixes = fctx.channel_builder(VEHICLE_FIXES).build::<LocationFix>();
+    let tf = fctx.channel_builder(TF).build::<FrameTransforms>();
     let period = Duration::from_secs_f64(1.0 / config.hz);
     let FeedContext {
         mut snapshot,
+        events,
         frame,
         counters,
         mut stop,
     } = ctx;
+    let mut scans = events.subscribe();
     let task = tokio::spawn(async move {
         // The channels live as long as their context: it is held here until the end.
         let _context = fctx;
@@ -101,6 +105,20 @@ pub(super) async fn start(
         loop {
             tokio::select! {
                 _ = tick.tick() => {}
+                scan = scans.recv() => {
+                    match scan {
+                        Ok(scan) => {
+                            if detections.has_sinks() {
+                                detections.log(&scan_update(&scan, plane_z));
+                                counters.add(FEED, "scans", 1);
+                                counters.add(FEED, "messages", 1);
+                            }
+                        }
+                        Err(RecvError::Lagged(n)) => counters.add(FEED, "lagged", n),
+                        Err(RecvError::Closed) => break,
+                    }
+                    continue;
+                }
                 () = crate::gcs::transport::stopped(&mut stop) => break,
             }
             let snap = Arc::clone(&snapshot.borrow_and_update());
@@ -122,14 +140,15 @@ pub(super) async fn start(
                     n += 1;
                 }
             }
+            let poses: Vec<_> = snap.vehicles.iter().map(pose).collect();
             if vehicle_fixes.has_sinks() {
-                for fix in snap.vehicles.iter().filter_map(|v| vehicle_fix(v, stamp)) {
+                for fix in poses.iter().filter_map(|v| vehicle_fix(v, stamp)) {
                     vehicle_fixes.log(&fix);
                     n += 1;
                 }
             }
             if tf.has_sinks() {
-                tf.log(&vehicle_transforms(&snap.vehicles, stamp));
+                tf.log(&vehicle_transforms(&poses, stamp));
                 n += 1;
             }
             if n > 0 {
@@ -147,4 +166,31 @@ pub(super) async fn start(
         }
     });
     Ok((task, addr))
+}
+
+/// A vehicle as the scene shows it.
+fn pose(v: &VehicleView) -> VehiclePose<'_> {
+    VehiclePose {
+        label: &v.vehicle,
+        position: v.position,
+        geodetic: v.geodetic,
+    }
+}
+
+/// A processed scan's detections as a scene update.
+fn scan_update(scan: &ScanEvents, plane_z: f64) -> SceneUpdate {
+    SceneUpdate {
+        deletions: Vec::new(),
+        entities: vec![detections_entity(
+            &ScanLines {
+                vehicle: &scan.vehicle,
+                sensor: &scan.sensor,
+                kind: scan.kind,
+                platform: scan.platform,
+                detections: &scan.detections,
+                plane_z,
+            },
+            timestamp(scan.t),
+        )],
+    }
 }

@@ -13,8 +13,9 @@
 //!   (`[asterix]`), unicast or multicast.
 //! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
 //!   protobuf, over UDP (multicast or unicast), TCP and TLS.
-//! - `foxglove`: the tracks and vehicles on a Foxglove WebSocket server (`[foxglove]`), at
-//!   `foxglove.listen` ([`crate::LiveServer::foxglove_addr`]).
+//! - `foxglove`: the tracks, detections and vehicles on a Foxglove WebSocket server
+//!   (`[foxglove]`), at `foxglove.listen` ([`crate::LiveServer::foxglove_addr`]), and into a
+//!   live MCAP file.
 
 mod adsb;
 mod asterix;
@@ -26,12 +27,12 @@ mod throttle;
 use std::net::SocketAddr;
 use std::sync::Arc;
 
-use tokio::sync::watch;
+use tokio::sync::{broadcast, watch};
 use tokio::task::JoinHandle;
 
 use crate::config::Config;
 use crate::error::LiveError;
-use crate::tracker::Snapshot;
+use crate::tracker::{ScanEvents, Snapshot};
 use crate::wire::aircraft::AircraftList;
 
 pub use counters::FeedCounters;
@@ -42,6 +43,8 @@ pub use counters::FeedCounters;
 pub(crate) struct FeedContext {
     /// The tracker's latest snapshot.
     pub(crate) snapshot: watch::Receiver<Arc<Snapshot>>,
+    /// The tracker's scan events, for a feed that wants every scan (subscribe at start).
+    pub(crate) events: broadcast::Sender<Arc<ScanEvents>>,
     /// The server's ENU frame (its origin is the configuration's `frame.origin`).
     pub(crate) frame: harrier_link::geo::LocalFrame,
     /// The feeds' counters.
@@ -93,7 +96,8 @@ impl Feeds {
         }
         let mut foxglove = None;
         if config.foxglove.on() {
-            let (task, addr) = foxglove::start(&config.foxglove, ctx.clone()).await?;
+            let (task, addr) =
+                foxglove::start(&config.foxglove, config.frame.plane_z, ctx.clone()).await?;
             tasks.push(("foxglove", task));
             foxglove = addr;
         }

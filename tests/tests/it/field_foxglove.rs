@@ -8,14 +8,18 @@
 //! says the track is (the scans stopped first, so both read the same estimate). The same
 //! channels go to an MCAP file (`foxglove.mcap`), which the `mcap` package's reader
 //! (`tests/python/mcap_check.py`) reads after the server stopped: every message decodes against
-//! the schema in the file, and there are as many as the feed logged.
+//! the schema in the file, and there are as many as the feed logged. The scans are recorded
+//! (`[recorder]`), and `harrier sessions export --format mcap` writes the session as an MCAP file
+//! of the same topics, which the same reader decodes whole, with a message per `scans` row (its
+//! detections, the vehicle's pose and transform), per scan's group of `tracks` rows and per
+//! confirmed `tracks` row, as SQLite counts them.
 
 use std::time::Duration;
 
 use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_tests::{
     http_get_json, open_session, publish_standing_target, python_json, require_python_module,
-    runtime, server_config, within,
+    runtime, server_config, target_bin, within,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -33,6 +37,9 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
     let dir = tempfile::tempdir().expect("tempdir");
     let mcap = dir.path().join("live.mcap");
     config.foxglove.mcap = mcap.display().to_string();
+    let db = dir.path().join("rec.sqlite");
+    config.recorder.path = db.display().to_string();
+    config.recorder.flush_ms = 100;
     let frame = LocalFrame::new(config.frame.origin);
     let rt = runtime();
     let (server, publisher) = rt.block_on(async {
@@ -75,10 +82,19 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         }
     }));
 
+    // The scans have stopped: every channel but the detections' gets messages.
     let url = format!("ws://{fox}");
     let report = python_json(
         "foxglove_client.py",
-        &[&url, "--seconds", "20", "--min", "3"],
+        &[
+            &url,
+            "--seconds",
+            "20",
+            "--min",
+            "3",
+            "--quiet-topic",
+            "/harrier/detections",
+        ],
         Duration::from_secs(40),
     );
     eprintln!("foxglove client: {report}");
@@ -101,6 +117,7 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         .collect();
     channels.sort();
     let expected = [
+        ("/harrier/detections", "foxglove.SceneUpdate"),
         ("/harrier/tracks", "foxglove.SceneUpdate"),
         ("/harrier/tracks/location", "foxglove.LocationFix"),
         ("/harrier/vehicles/location", "foxglove.LocationFix"),
@@ -110,7 +127,7 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         channels,
         expected.map(|(t, s)| (t.to_owned(), s.to_owned())).to_vec()
     );
-    for (topic, _) in expected {
+    for (topic, _) in &expected[1..] {
         assert!(
             report["counts"][topic].as_u64().unwrap_or(0) >= 3,
             "{topic}: fewer than 3 messages decoded: {report}"
@@ -163,4 +180,53 @@ fn a_foxglove_client_decodes_every_channel_and_finds_the_tracks_where_the_api_ha
         Some(logged),
         "every logged message is in the file"
     );
+
+    // The recorded session, exported.
+    let out = dir.path().join("session1.mcap");
+    let run = std::process::Command::new(target_bin("harrier"))
+        .args(["sessions", "export"])
+        .arg(&db)
+        .arg("1")
+        .arg(&out)
+        .args(["--format", "mcap"])
+        .output()
+        .expect("run harrier sessions export");
+    let said = String::from_utf8_lossy(&run.stdout);
+    eprintln!("harrier sessions export: {said}");
+    assert!(
+        run.status.success(),
+        "{said}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let path = out.display().to_string();
+    let file = python_json("mcap_check.py", &[&path], Duration::from_secs(60));
+    eprintln!("exported MCAP: {file}");
+    assert_eq!(file["errors"], Value::Array(Vec::new()), "decoding errors");
+    let c = rusqlite::Connection::open(&db).expect("open the session file");
+    let count = |sql: &str| -> u64 {
+        c.query_row(sql, [], |r| r.get::<_, i64>(0))
+            .map(|n| n as u64)
+            .expect(sql)
+    };
+    let scans = count("SELECT count(*) FROM scans WHERE session = 1");
+    let want = [
+        ("/harrier/detections", scans),
+        ("/harrier/vehicles/location", scans),
+        ("/tf", scans),
+        (
+            "/harrier/tracks",
+            count("SELECT count(DISTINCT t) FROM tracks WHERE session = 1"),
+        ),
+        (
+            "/harrier/tracks/location",
+            count("SELECT count(*) FROM tracks WHERE session = 1 AND status = 'confirmed'"),
+        ),
+    ];
+    assert!(scans >= 3, "{scans} scans recorded");
+    for (topic, n) in want {
+        assert_eq!(file["counts"][topic].as_u64(), Some(n), "{topic}: {file}");
+    }
+    for (topic, schema) in expected {
+        assert_eq!(file["schemas"][topic]["schema"], schema, "{topic}");
+    }
 }
