@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """A TAK end point for harrier's CoT feed: listens on UDP and TCP (loopback, port 0: the OS
 picks) and decodes every event with takproto (the TAK protocol library of pytak):
-`takproto.parse_proto` takes a TAK protocol version 1 mesh datagram (`0xbf 0x01 0xbf`), a stream
-frame (`0xbf`, varint length) or a CoT XML document (which it parses with xml.etree into the
-same TakMessage). On TCP the frames are cut from the stream: XML at each `</event>`, protobuf by
-its varint length.
+`takproto.parse_proto` takes a TAK protocol version 1 mesh datagram (`0xbf 0x01 0xbf`) or a
+stream frame (`0xbf`, varint length), and its `xml2message` a CoT XML document, with or without
+its `<?xml` declaration (which it parses with xml.etree into the same TakMessage). On TCP the
+frames are cut from the stream: XML at each `</event>`, protobuf by its varint length.
 
 Prints one JSON line `{"ready": {"udp": PORT, "tcp": PORT}}` once it listens, then one JSON line
 per decoded event (`via`, `encoding`, `uid`, `type`, `how`, `lat`, `lon`, `hae`, `ce`, `le`,
@@ -27,6 +27,7 @@ import sys
 import time
 
 import takproto
+from takproto.functions import xml2message
 
 MESH = b"\xbf\x01\xbf"
 
@@ -37,9 +38,14 @@ def emit(obj):
 
 
 def report(frame, via):
-    encoding = "xml" if frame.startswith(b"<?xml") else "protobuf"
+    # XML starts with its declaration or, from some servers, the <event> element itself.
+    encoding = "xml" if frame.startswith(b"<") else "protobuf"
     try:
-        msg = takproto.parse_proto(bytearray(frame))
+        # parse_proto takes XML only with its declaration (`<?xml`); xml2message is what it calls.
+        if encoding == "xml":
+            msg = xml2message(bytearray(frame))
+        else:
+            msg = takproto.parse_proto(bytearray(frame))
     except Exception as e:  # noqa: BLE001 - any decoder failure is reported
         emit({"error": f"{via} {encoding}: {e!r}", "frame": frame[:80].hex()})
         return

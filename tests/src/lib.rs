@@ -529,3 +529,162 @@ pub fn python_json(script: &str, args: &[&str], timeout: Duration) -> serde_json
         .unwrap_or("");
     serde_json::from_str(last).unwrap_or_else(|e| panic!("{script}: no JSON ({e}): {out}"))
 }
+
+/// Every confirmed track estimate a live server's snapshot showed (what `GET /api/v1/tracks`
+/// serves): its position (server frame, m) by (track id, estimate time in ms). Clones share it.
+#[derive(Debug, Clone, Default)]
+pub struct ConfirmedStates(std::sync::Arc<std::sync::Mutex<StatesByTime>>);
+
+/// Positions (server frame, m) by (track id, estimate time in ms).
+type StatesByTime = std::collections::BTreeMap<(u64, i64), [f64; 3]>;
+
+impl ConfirmedStates {
+    /// The confirmed position of track `id` at `ms` (an event's `start`, the estimate's time;
+    /// ±2 ms, for times that went through a float), if the snapshot showed it.
+    pub fn at(&self, id: u64, ms: i64) -> Option<[f64; 3]> {
+        let seen = self.0.lock().expect("seen");
+        (ms - 2..=ms + 2).find_map(|t| seen.get(&(id, t)).copied())
+    }
+
+    /// The position the snapshot showed for track `id` at exactly `ms`.
+    fn exactly(&self, id: u64, ms: i64) -> Option<[f64; 3]> {
+        self.0.lock().expect("seen").get(&(id, ms)).copied()
+    }
+}
+
+/// A live server ([`harrier_server::start`]) on loopback fed over Zenoh with the scans of one
+/// standing target ([`publish_standing_target`]: vehicle [`Self::VEHICLE`] sees it at
+/// [`Self::TARGET`] from a platform standing at [`Self::PLATFORM`], 10 Hz), recording every
+/// confirmed estimate its snapshot shows: what the CoT tests (`field_cot`, `field_tak`) compare
+/// the events they decode with.
+pub struct StandingTargetServer {
+    /// The runtime the server runs on.
+    pub rt: tokio::runtime::Runtime,
+    /// The server.
+    pub server: harrier_server::LiveServer,
+    /// Every confirmed estimate its snapshot showed so far (kept by clones after [`Self::stop`]).
+    pub seen: ConfirmedStates,
+    session: zenoh::Session,
+    tasks: [tokio::task::JoinHandle<()>; 2],
+}
+
+impl std::fmt::Debug for StandingTargetServer {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("StandingTargetServer")
+            .field("api", &self.server.local_addr())
+            .finish_non_exhaustive()
+    }
+}
+
+impl StandingTargetServer {
+    /// The vehicle whose scans see the target.
+    pub const VEHICLE: u8 = 8;
+    /// Where the target stands (server frame, m).
+    pub const TARGET: [f64; 2] = [80.0, 40.0];
+    /// Where the vehicle's platform stands (server frame, m).
+    pub const PLATFORM: [f64; 3] = [0.0, 0.0, 50.0];
+
+    /// Starts the server with `config` made to listen on loopback only (the API on port 0,
+    /// Zenoh on a free port, the GCS link on UDP port 0, no MAVLink router: tests run at once),
+    /// then the target's scans and the recording of the snapshot.
+    pub fn start(mut config: harrier_server::config::Config) -> Self {
+        let zenoh_port = free_tcp_port();
+        config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
+        config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
+        config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
+        let rt = runtime();
+        let server = rt
+            .block_on(within(
+                10,
+                "start the server",
+                harrier_server::start(&config),
+            ))
+            .expect("start the live server");
+        let seen = ConfirmedStates::default();
+        let mut snapshot = server.snapshot();
+        let recorder = {
+            let seen = seen.clone();
+            rt.spawn(async move {
+                loop {
+                    {
+                        let s = snapshot.borrow_and_update();
+                        let mut seen = seen.0.lock().expect("seen");
+                        for t in s.tracks.iter() {
+                            if t.status == harrier_engine::TrackStatus::Confirmed {
+                                let key = (t.id, (t.t * 1e3).round() as i64);
+                                seen.insert(key, [t.state[0], t.state[1], t.state[2]]);
+                            }
+                        }
+                    }
+                    if snapshot.changed().await.is_err() {
+                        return;
+                    }
+                }
+            })
+        };
+        let (session, publisher) = rt.block_on(async {
+            let bus = harrier_link::bus::BusConfig {
+                connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
+                listen: Vec::new(),
+                ..harrier_link::bus::BusConfig::default()
+            }
+            .to_zenoh()
+            .expect("zenoh config");
+            let session = within(10, "open a session", zenoh::open(bus))
+                .await
+                .expect("zenoh session");
+            let publisher = publish_standing_target(
+                &session,
+                Self::VEHICLE,
+                Self::TARGET,
+                Self::PLATFORM,
+                10.0,
+            )
+            .await;
+            (session, publisher)
+        });
+        Self {
+            rt,
+            server,
+            seen,
+            session,
+            tasks: [recorder, publisher],
+        }
+    }
+
+    /// Checks that `GET /api/v1/tracks` serves the snapshot's tracks: it has a confirmed track,
+    /// and every confirmed track it serves at a time the snapshot showed is where the snapshot
+    /// had it. Returns the number of confirmed tracks served.
+    pub fn check_rest_tracks(&self) -> usize {
+        let (status, tracks) = http_get_json(self.server.local_addr(), "/api/v1/tracks");
+        assert_eq!(status, 200);
+        let rest = tracks["tracks"].as_array().expect("tracks");
+        let confirmed: Vec<_> = rest.iter().filter(|k| k["status"] == "confirmed").collect();
+        assert!(!confirmed.is_empty(), "no confirmed track: {tracks}");
+        for k in &confirmed {
+            let id = k["id"].as_u64().expect("id");
+            let t = (k["t"].as_f64().expect("t") * 1e3).round() as i64;
+            let s = k["state"].as_array().expect("state");
+            let got = [0, 1, 2].map(|i| s[i].as_f64().expect("state value"));
+            if let Some(p) = self.seen.exactly(id, t) {
+                let d = nalgebra::Vector3::from(p) - nalgebra::Vector3::from(got);
+                assert!(
+                    d.norm() < 1e-6,
+                    "track {id} at {t} ms: {got:?}, snapshot {p:?}"
+                );
+            }
+        }
+        confirmed.len()
+    }
+
+    /// Stops the scans, the recording and the server.
+    pub fn stop(self) {
+        for task in &self.tasks {
+            task.abort();
+        }
+        self.rt.block_on(async {
+            let _ = self.session.close().await;
+            self.server.shutdown().await;
+        });
+    }
+}

@@ -14,17 +14,15 @@
 //! run the feed also connects over TLS (`tls://`, as to a TAK server's 8089) with a client
 //! certificate the listener requires (a test CA made with the openssl command).
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::process::Stdio;
-use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use harrier_engine::TrackStatus;
 use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_server::config::{Config, CotEncoding};
 use harrier_tests::{
-    free_tcp_port, http_get, http_get_json, json_lines, kill_group, publish_standing_target,
-    python_script, require_python_module, runtime, test_certificates, within,
+    StandingTargetServer, http_get, json_lines, kill_group, python_script, require_python_module,
+    test_certificates,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -33,9 +31,6 @@ use serde_json::Value;
 const EVENTS: usize = 40;
 /// The acceptance tolerance, m.
 const TOLERANCE_M: f64 = 0.5;
-
-/// Every confirmed track state the snapshot showed, by (track id, estimate time in ms).
-type Seen = Arc<Mutex<BTreeMap<(u64, i64), [f64; 3]>>>;
 
 /// TAK's mesh multicast group.
 const GROUP: &str = "239.2.3.1";
@@ -77,12 +72,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         eprintln!("this host cannot join {GROUP}: multicast not tested");
     }
 
-    let zenoh_port = free_tcp_port();
     let mut config = Config::default();
-    config.api.listen = "127.0.0.1:0".parse().expect("addr");
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
-    // Both encodings' tests run at once: no fixed MAVLink port.
-    config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
     config.cot.enabled = true;
     config.cot.hz = 5.0;
     config.cot.encoding = encoding;
@@ -112,54 +102,9 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         vias.push("multicast");
     }
     let frame = LocalFrame::new(config.frame.origin);
-    let rt = runtime();
-    let server = rt
-        .block_on(within(
-            10,
-            "start the server",
-            harrier_server::start(&config),
-        ))
-        .expect("start the live server");
-    let addr = server.local_addr();
-
-    // Record every confirmed estimate the snapshot shows.
-    let seen: Seen = Arc::default();
-    let mut snapshot = server.snapshot();
-    let recorder = {
-        let seen = Arc::clone(&seen);
-        rt.spawn(async move {
-            loop {
-                {
-                    let s = snapshot.borrow_and_update();
-                    let mut seen = seen.lock().expect("seen");
-                    for t in s.tracks.iter() {
-                        if t.status == TrackStatus::Confirmed {
-                            let key = (t.id, (t.t * 1e3).round() as i64);
-                            seen.insert(key, [t.state[0], t.state[1], t.state[2]]);
-                        }
-                    }
-                }
-                if snapshot.changed().await.is_err() {
-                    return;
-                }
-            }
-        })
-    };
-    let (session, publisher) = rt.block_on(async {
-        let bus = harrier_link::bus::BusConfig {
-            connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
-            listen: Vec::new(),
-            ..harrier_link::bus::BusConfig::default()
-        }
-        .to_zenoh()
-        .expect("zenoh config");
-        let session = within(10, "open a session", zenoh::open(bus))
-            .await
-            .expect("zenoh session");
-        let publisher =
-            publish_standing_target(&session, 8, [80.0, 40.0], [0.0, 0.0, 50.0], 10.0).await;
-        (session, publisher)
-    });
+    // Both encodings' tests run at once: the server listens on free ports only.
+    let live = StandingTargetServer::start(config);
+    let addr = live.server.local_addr();
 
     // Every transport delivers EVENTS events (takproto decodes each, or says why not).
     let mut events: Vec<Value> = Vec::new();
@@ -185,24 +130,9 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
     kill_group(&mut listener);
 
     // The REST API serves the snapshot's tracks.
-    let (status, tracks) = http_get_json(addr, "/api/v1/tracks");
-    assert_eq!(status, 200);
-    let rest = tracks["tracks"].as_array().expect("tracks");
-    assert!(!rest.is_empty(), "{tracks}");
-    {
-        let seen = seen.lock().expect("seen");
-        for k in rest.iter().filter(|k| k["status"] == "confirmed") {
-            let id = k["id"].as_u64().expect("id");
-            let t = (k["t"].as_f64().expect("t") * 1e3).round() as i64;
-            let s = k["state"].as_array().expect("state");
-            let got = [0, 1, 2].map(|i| s[i].as_f64().expect("state value"));
-            if let Some(p) = seen.get(&(id, t)) {
-                assert!((Vector3::from(*p) - Vector3::from(got)).norm() < 1e-6);
-            }
-        }
-    }
+    live.check_rest_tracks();
 
-    let counters = server.feed_counters();
+    let counters = live.server.feed_counters();
     let (_, metrics) = http_get(addr, "/api/v1/metrics");
     assert!(
         metrics.contains("harrier_feed_events_total{feed=\"cot\",event=\"sent\"}"),
@@ -219,7 +149,6 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
     } else {
         assert_eq!(connections, 1);
     }
-    let seen = seen.lock().expect("seen").clone();
     let mut uids = BTreeSet::new();
     let (mut matched, mut worst) = (0, 0.0_f64);
     let (mut uav_events, mut uav_worst) = (0, 0.0_f64);
@@ -234,10 +163,14 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         let got = frame.to_enu(&geo);
         if uid.starts_with("harrier.it.uav.") {
             // The publishing vehicle, friendly air, where its platform stands.
-            assert_eq!(uid, "harrier.it.uav.8", "{e}");
+            assert_eq!(
+                uid,
+                format!("harrier.it.uav.{}", StandingTargetServer::VEHICLE),
+                "{e}"
+            );
             assert_eq!(e["type"], "a-f-A", "{e}");
             assert_eq!(e["callsign"], "UAV 8", "{e}");
-            let err = (got - Vector3::new(0.0, 0.0, 50.0)).norm();
+            let err = (got - Vector3::from(StandingTargetServer::PLATFORM)).norm();
             assert!(err < TOLERANCE_M, "the vehicle {err:.3} m off: {e}");
             uav_worst = uav_worst.max(err);
             uav_events += 1;
@@ -257,9 +190,8 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         // takproto's XML times go through a float: ±1 ms.
         assert!((stale - time - 10_000).abs() <= 1, "{e}");
         assert!(start <= time + 1 && time - start < 1_000, "{e}");
-        let truth = (start - 2..=start + 2).find_map(|t| seen.get(&(id, t)));
-        if let Some(p) = truth {
-            let err = (got - Vector3::from(*p)).norm();
+        if let Some(p) = live.seen.at(id, start) {
+            let err = (got - Vector3::from(p)).norm();
             assert!(
                 err < TOLERANCE_M,
                 "{uid}: {err:.3} m from the snapshot: {e}"
@@ -296,12 +228,7 @@ fn run(encoding: CotEncoding, drop_tcp_after: usize, tls: bool) {
         assert_eq!(counters.get("cot", "errors"), 0);
     }
 
-    publisher.abort();
-    recorder.abort();
-    rt.block_on(async {
-        let _ = session.close().await;
-        server.shutdown().await;
-    });
+    live.stop();
 }
 
 #[test]

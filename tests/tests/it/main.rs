@@ -28,6 +28,7 @@ mod field_adsb;
 mod field_asterix;
 mod field_cot;
 mod field_foxglove;
+mod field_tak;
 mod fuzz_regressions;
 mod guidance;
 mod http_limits;
