@@ -16,8 +16,10 @@
 pub mod aircraft;
 mod api;
 pub mod asterix;
+pub mod beast;
 pub mod cot;
 pub mod foxglove;
+pub mod mode_s;
 pub mod sbs;
 
 pub use api::*;
