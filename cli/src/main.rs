@@ -195,10 +195,14 @@ struct ServeArgs {
     /// (repeatable; replaces `mavlink.router`; `none`: no router).
     #[arg(long, value_name = "ENDPOINT")]
     router: Vec<String>,
-    /// Track the manned aircraft of an ADS-B receiver's SBS-1 output, e.g. 127.0.0.1:30003
+    /// Track the manned aircraft of an ADS-B receiver's output, e.g. SBS-1 on 127.0.0.1:30003
     /// (turns `[adsb]` on with this `adsb.address`; docs/adsb.md).
     #[arg(long, value_name = "HOST:PORT")]
     adsb: Option<String>,
+    /// What the ADS-B receiver's output is: sbs (SBS-1 text, port 30003) or beast (Beast
+    /// binary, port 30005) (`adsb.format`; default sbs).
+    #[arg(long, value_name = "FORMAT")]
+    adsb_format: Option<harrier_server::config::AdsbFormat>,
 }
 
 /// A repeatable endpoint option: empty keeps the configuration, `none` clears it.
@@ -244,6 +248,9 @@ fn run_serve(a: &ServeArgs) -> anyhow::Result<()> {
     if let Some(address) = &a.adsb {
         config.adsb.enabled = true;
         config.adsb.address.clone_from(address);
+    }
+    if let Some(format) = a.adsb_format {
+        config.adsb.format = format;
     }
     config.check()?;
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -1,10 +1,36 @@
 //! `[adsb]`: manned traffic from an ADS-B receiver's BaseStation (SBS-1) output (dump1090,
-//! readsb: TCP port 30003), tracked per aircraft (`docs/adsb.md`).
+//! readsb: TCP port 30003) or its Beast binary output (port 30005), tracked per aircraft
+//! (`docs/adsb.md`).
 
 use serde::{Deserialize, Serialize};
 
 use super::error::ConfigError;
 use harrier_core::tracker::identified::IdentifiedConfig;
+
+/// What the receiver's output is.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum AdsbFormat {
+    /// BaseStation SBS-1 text, one decoded message per line (port 30003).
+    #[default]
+    Sbs,
+    /// Beast binary, the raw Mode S messages (port 30005), decoded here.
+    Beast,
+}
+
+impl std::str::FromStr for AdsbFormat {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "sbs" => Ok(Self::Sbs),
+            "beast" => Ok(Self::Beast),
+            _ => Err(format!(
+                "adsb.format must be \"sbs\" or \"beast\", got {s:?}"
+            )),
+        }
+    }
+}
 
 /// `[adsb]`.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -12,12 +38,14 @@ use harrier_core::tracker::identified::IdentifiedConfig;
 pub struct AdsbConfig {
     /// Connect to the receiver and track its aircraft.
     pub enabled: bool,
-    /// The receiver's SBS-1 output, `host:port`.
+    /// The receiver's output, `host:port`.
     pub address: String,
+    /// What that output is: `sbs` (port 30003) or `beast` (port 30005).
+    pub format: AdsbFormat,
     /// An aircraft without a report for this long is dropped, s.
     pub stale_s: f64,
     /// Standard deviation of a reported horizontal position, m (SBS-1 does not carry the
-    /// position's accuracy category; 10 m is NACp 9's bound).
+    /// position's accuracy category, nor is it read from Beast; 10 m is NACp 9's bound).
     pub position_std_m: f64,
     /// Standard deviation of a reported altitude, m (Mode C altitudes come in 25 ft steps).
     pub altitude_std_m: f64,
@@ -34,6 +62,7 @@ impl Default for AdsbConfig {
         Self {
             enabled: false,
             address: "127.0.0.1:30003".into(),
+            format: AdsbFormat::Sbs,
             stale_s: 60.0,
             position_std_m: 10.0,
             altitude_std_m: 10.0,

@@ -23,7 +23,7 @@ mod sections;
 #[cfg(test)]
 mod tests;
 
-pub use adsb::AdsbConfig;
+pub use adsb::{AdsbConfig, AdsbFormat};
 pub use asterix::AsterixConfig;
 pub use cot::{CotConfig, CotDestination, CotEncoding, CotTransport};
 pub use error::ConfigError;

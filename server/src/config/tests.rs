@@ -144,3 +144,19 @@ fn signing_keys_from_hex_or_file_and_never_written_out() {
         assert!(e.to_string().contains(says), "{bad}: {e}");
     }
 }
+
+#[test]
+fn the_adsb_format_is_sbs_or_beast() {
+    assert_eq!(Config::default().adsb.format, AdsbFormat::Sbs);
+    let c = Config::parse("[adsb]\nformat = \"beast\"\n", "f").expect("beast");
+    assert_eq!(c.adsb.format, AdsbFormat::Beast);
+    let e = Config::parse("[adsb]\nformat = \"avr\"\n", "f").unwrap_err();
+    let e = e.to_string();
+    assert!(
+        e.contains("format") && e.contains("avr") && e.contains("beast"),
+        "{e}"
+    );
+    assert_eq!("beast".parse(), Ok(AdsbFormat::Beast));
+    let e = "Beast".parse::<AdsbFormat>().unwrap_err();
+    assert!(e.contains("adsb.format") && e.contains("\"sbs\""), "{e}");
+}

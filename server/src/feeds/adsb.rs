@@ -1,18 +1,25 @@
 //! ADS-B in: a TCP client of an ADS-B receiver's BaseStation (SBS-1) output (dump1090, readsb:
-//! port 30003). Every line is parsed ([`crate::wire::sbs`]), stamped with its arrival time and
-//! applied to the aircraft's own track ([`IdentifiedTracks`], keyed by the 24-bit address);
-//! twice a second the aircraft silent for `adsb.stale_s` are dropped and the list
-//! ([`AircraftList`]) is published on a `watch` for the API and the page.
+//! port 30003) or, with `adsb.format = "beast"`, its Beast binary output (port 30005). Every
+//! SBS-1 line is parsed ([`crate::wire::sbs`]); every Beast frame is split from the stream
+//! ([`crate::wire::beast`]) and its Mode S message decoded ([`crate::wire::mode_s`]) into the
+//! same report. Each report is stamped with its arrival time and applied to the aircraft's own
+//! track ([`IdentifiedTracks`], keyed by the 24-bit address); twice a second the aircraft silent
+//! for `adsb.stale_s` are dropped and the list ([`AircraftList`]) is published on a `watch` for
+//! the API and the page.
 //!
-//! The socket is this actor's queue: it reads as fast as lines come (a line costs a few µs) and
-//! TCP holds the receiver back, so no line is dropped. A malformed line (not UTF-8, longer than
-//! [`MAX_LINE`], refused by the parser) is counted (`malformed`) and skipped, and logged at most
-//! once per 5 s. A lost connection is retried with doubling waits up to `adsb.reconnect_max_s`;
-//! the tracks are kept meanwhile (and age out).
+//! The socket is this actor's queue: it reads as fast as lines or frames come (a few µs each)
+//! and TCP holds the receiver back, so nothing is dropped. A malformed line (not UTF-8, longer
+//! than [`MAX_LINE`], refused by the parser) or Beast frame (bytes outside a frame, an unknown
+//! type, cut short, an extended squitter in a short frame, a bad callsign character) is counted
+//! (`malformed`) and skipped, and logged at most once per 5 s. A lost connection is retried with
+//! doubling waits up to `adsb.reconnect_max_s`; the tracks are kept meanwhile (and age out).
 //!
-//! Counters (`harrier_feed_events_total{feed="adsb"}`): `lines`, `malformed`, `other` (valid
-//! non-`MSG` lines), `started`, `updated`, `gated`, `late`, `no_track`, `reset`, `aged_out`,
-//! `connects`, `connect_errors`, `disconnects`.
+//! Counters (`harrier_feed_events_total{feed="adsb"}`): `lines` (SBS-1), `frames` (Beast),
+//! `malformed`, `crc_failed` (Beast: a DF17/18 whose parity fails), `cpr_wait` (Beast: a position
+//! message waiting for its even/odd pair), `cpr_failed` (Beast: a pair that does not decode),
+//! `other` (valid non-`MSG` lines; Mode A/C and Mode S messages not used), `started`, `updated`,
+//! `gated`, `late`, `no_track`, `reset`, `aged_out`, `connects`, `connect_errors`,
+//! `disconnects`.
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -27,8 +34,10 @@ use tokio::sync::watch;
 use super::throttle::Throttle;
 use super::{FeedContext, FeedCounters};
 use crate::clock::unix_now;
-use crate::config::AdsbConfig;
+use crate::config::{AdsbConfig, AdsbFormat};
 use crate::wire::aircraft::{AdsbFeedState, AircraftInfo, AircraftList, aircraft_dto};
+use crate::wire::beast::{BeastDecoder, BeastFrame, FrameKind, Refusal};
+use crate::wire::mode_s::{AdsbDecoder, Decoded, ModeSError};
 use crate::wire::sbs::{self, SbsReport};
 
 /// The counters' feed label.
@@ -46,6 +55,8 @@ struct Aircraft {
     info: BTreeMap<u32, AircraftInfo>,
     /// Last reported altitude per aircraft, m (for a position without one).
     altitude: BTreeMap<u32, f64>,
+    /// Beast: the Mode S decoder and its CPR memory.
+    mode_s: AdsbDecoder,
     frame: LocalFrame,
     counters: Arc<FeedCounters>,
     /// `adsb.stale_s`.
@@ -77,6 +88,40 @@ impl Aircraft {
                 feed = FEED,
                 suppressed,
                 "malformed SBS-1 line skipped: {why}"
+            );
+        }
+    }
+
+    /// Decodes and applies one Beast frame (or counts its refusal) that arrived at `now`.
+    fn frame(&mut self, frame: Result<BeastFrame, Refusal>, now: f64, log: &mut Throttle) {
+        let frame = match frame {
+            Ok(f) => f,
+            Err(why) => return self.malformed_frame(log, &why.to_string()),
+        };
+        self.counters.add(FEED, "frames", 1);
+        if frame.kind == FrameKind::ModeAc {
+            return self.counters.add(FEED, "other", 1);
+        }
+        match self.mode_s.decode(frame.message(), now) {
+            Ok(Decoded::Report(r)) => self.apply(&r, now),
+            Ok(Decoded::Pending(r)) => {
+                self.counters.add(FEED, "cpr_wait", 1);
+                self.apply(&r, now);
+            }
+            Ok(Decoded::Other) => self.counters.add(FEED, "other", 1),
+            Err(ModeSError::Crc) => self.counters.add(FEED, "crc_failed", 1),
+            Err(ModeSError::Cpr) => self.counters.add(FEED, "cpr_failed", 1),
+            Err(e) => self.malformed_frame(log, &e.to_string()),
+        }
+    }
+
+    fn malformed_frame(&self, log: &mut Throttle, why: &str) {
+        self.counters.add(FEED, "malformed", 1);
+        if let Some(suppressed) = log.allow() {
+            tracing::warn!(
+                feed = FEED,
+                suppressed,
+                "malformed Beast frame skipped: {why}"
             );
         }
     }
@@ -157,6 +202,7 @@ impl Aircraft {
             .retain(|k, i| tracks.get(k).is_some() || now - i.heard_unix <= stale);
         let info = &self.info;
         self.altitude.retain(|k, _| info.contains_key(k));
+        self.mode_s.forget_before(now - stale);
         let aircraft = tracks
             .iter()
             .filter_map(|(&k, t)| {
@@ -206,6 +252,18 @@ fn split_lines(
     }
 }
 
+/// Decodes the Beast frames of `bytes` (the decoder keeps a frame split between reads) and
+/// applies each.
+fn beast_frames(
+    decoder: &mut BeastDecoder,
+    bytes: &[u8],
+    aircraft: &mut Aircraft,
+    now: f64,
+    log: &mut Throttle,
+) {
+    decoder.push(bytes, |f| aircraft.frame(f, now, log));
+}
+
 /// Runs the feed until `stop`: connects, reads, tracks, publishes on `out`.
 pub(super) async fn run(
     config: AdsbConfig,
@@ -224,6 +282,7 @@ pub(super) async fn run(
         tracks: filter,
         info: BTreeMap::new(),
         altitude: BTreeMap::new(),
+        mode_s: AdsbDecoder::default(),
         frame: ctx.frame,
         counters: Arc::clone(&ctx.counters),
         stale_s: config.stale_s,
@@ -278,6 +337,7 @@ pub(super) async fn run(
         tracing::info!(
             feed = FEED,
             address = config.address,
+            format = ?config.format,
             "connected to the ADS-B receiver"
         );
         wait = Duration::from_millis(500);
@@ -287,6 +347,7 @@ pub(super) async fn run(
         let mut buf = Vec::with_capacity(2 * MAX_LINE);
         let mut chunk = vec![0_u8; 64 * 1024];
         let mut discarding = false;
+        let mut beast = BeastDecoder::default();
         loop {
             tokio::select! {
                 r = stream.readable() => {
@@ -299,10 +360,15 @@ pub(super) async fn run(
                             tracing::warn!(feed = FEED, "the ADS-B receiver closed the connection");
                             break;
                         }
-                        Ok(n) => {
-                            buf.extend_from_slice(&chunk[..n]);
-                            split_lines(&mut buf, &mut discarding, &mut aircraft, unix_now(), &mut log);
-                        }
+                        Ok(n) => match config.format {
+                            AdsbFormat::Sbs => {
+                                buf.extend_from_slice(&chunk[..n]);
+                                split_lines(&mut buf, &mut discarding, &mut aircraft, unix_now(), &mut log);
+                            }
+                            AdsbFormat::Beast => {
+                                beast_frames(&mut beast, &chunk[..n], &mut aircraft, unix_now(), &mut log);
+                            }
+                        },
                         Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
                         Err(e) => {
                             tracing::warn!(feed = FEED, "ADS-B receiver connection: {e}");
@@ -333,6 +399,7 @@ mod tests {
             tracks: IdentifiedTracks::new(AdsbConfig::default().filter()).unwrap(),
             info: BTreeMap::new(),
             altitude: BTreeMap::new(),
+            mode_s: AdsbDecoder::default(),
             frame: LocalFrame::new(DEFAULT_ORIGIN),
             counters: Arc::default(),
             stale_s: 60.0,
@@ -385,6 +452,54 @@ mod tests {
                 .is_empty()
         );
         assert_eq!(c.get(FEED, "aged_out"), 1);
+    }
+
+    #[test]
+    fn beast_frames_split_across_reads_become_reports_and_refusals_are_counted() {
+        use crate::wire::beast::encode;
+        let hex = |s: &str| -> Vec<u8> {
+            (0..s.len())
+                .step_by(2)
+                .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
+                .collect()
+        };
+        let mut a = aircraft();
+        let mut log = Throttle::default();
+        let mut stream = b"joined mid-frame".to_vec();
+        // The Riddle's examples: an identification, a velocity, an odd then even position.
+        stream.extend(encode(1, 0x1a, &hex("8D4840D6202CC371C32CE0576098")));
+        stream.extend(encode(2, 9, &hex("8D485020994409940838175B284F")));
+        stream.extend(encode(3, 9, &hex("8D40621D58C386435CC412692AD6")));
+        // One bit off: the parity fails.
+        stream.extend(encode(4, 9, &hex("8D40621D58C382D690C8AC2863A6")));
+        stream.extend(encode(5, 9, &hex("8D40621D58C382D690C8AC2863A7")));
+        // A Mode A/C reply and a DF11 all-call reply: valid, not used.
+        stream.extend(encode(6, 9, &[0x12, 0x34]));
+        stream.extend(encode(7, 9, &hex("5D484FDEA248F5")));
+        let mut decoder = BeastDecoder::default();
+        for piece in stream.chunks(5) {
+            beast_frames(&mut decoder, piece, &mut a, 1000.0, &mut log);
+        }
+        let c = Arc::clone(&a.counters);
+        let counts = [
+            "frames",
+            "malformed",
+            "crc_failed",
+            "cpr_wait",
+            "other",
+            "started",
+            "no_track",
+        ]
+        .map(|e| c.get(FEED, e));
+        // The velocity of 485020 has no track to go to; 40621D's second position starts its.
+        assert_eq!(counts, [7, 1, 1, 1, 2, 1, 1]);
+        let list = a.list(1000.0, AdsbFeedState::Connected);
+        assert_eq!(list.aircraft.len(), 1);
+        let ac = &list.aircraft[0];
+        assert_eq!(ac.icao, "40621D");
+        assert!((ac.lat_deg - 52.257_20).abs() < 1e-5 && (ac.lon_deg - 3.919_37).abs() < 1e-5);
+        assert!((ac.altitude_m - 38_000.0 * FT).abs() < 0.01);
+        assert_eq!(a.info[&0x48_40D6].callsign.as_deref(), Some("KLM1023"));
     }
 
     #[test]

@@ -17,7 +17,9 @@
 pub mod aircraft;
 mod api;
 pub mod asterix;
+pub mod beast;
 pub mod cot;
+pub mod mode_s;
 pub mod sbs;
 
 pub use api::*;
