@@ -21,19 +21,16 @@ closes the connection and exits; exits with an error if pyModeS disagrees with a
     python3 beast_replay.py --aircraft 150 --rate 1000 --duration 15 --origin 47.397742,8.545594
 """
 
-import argparse
 import json
 import math
 import random
-import socket
 import sys
 import time
 
 import pyModeS
 
-FT = 0.3048
-KT = 1852.0 / 3600.0
-EARTH_R = 6_371_000.0
+import adsb_fleet
+from adsb_fleet import EARTH_R, FT, KT
 CHARSET = "#ABCDEFGHIJKLMNOPQRSTUVWXYZ##### ###############0123456789######"
 GENERATOR = 0xFFF409
 
@@ -115,32 +112,11 @@ def metres(lat1, lon1, lat2, lon2):
     return math.hypot(dn, de)
 
 
-class Aircraft:
+class Aircraft(adsb_fleet.Aircraft):
     def __init__(self, rng, index, origin, t0):
-        self.icao = 0x400000 + index * 37
-        self.hex = f"{self.icao:06X}"
-        self.callsign = f"HRR{index:04d}"
-        lat0, lon0 = origin
-        r = rng.uniform(2_000.0, 100_000.0)
-        b = rng.uniform(0.0, 2 * math.pi)
-        self.lat = lat0 + math.degrees(r * math.cos(b) / EARTH_R)
-        self.lon = lon0 + math.degrees(r * math.sin(b) / (EARTH_R * math.cos(math.radians(lat0))))
-        self.alt = rng.uniform(300.0, 12_000.0)
-        speed = rng.uniform(50.0, 250.0)
-        course = rng.uniform(0.0, 2 * math.pi)
-        self.ve, self.vn = speed * math.sin(course), speed * math.cos(course)
-        self.vu = rng.choice([0.0, 0.0, rng.uniform(-10.0, 10.0)])
-        self.t = t0
+        super().__init__(rng, index, origin, t0)
         self.sent = 0
         self.odd = False
-        self.last = None
-
-    def advance(self, t):
-        dt = t - self.t
-        self.lat += math.degrees(self.vn * dt / EARTH_R)
-        self.lon += math.degrees(self.ve * dt / (EARTH_R * math.cos(math.radians(self.lat))))
-        self.alt += self.vu * dt
-        self.t = t
 
     def message(self, t):
         """The next message: an identification every 10th, else a position and a velocity in
@@ -199,40 +175,18 @@ class Checker:
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--aircraft", type=int, default=150)
-    p.add_argument("--rate", type=float, default=1000.0, help="frames per second")
-    p.add_argument("--duration", type=float, default=15.0, help="seconds of replay")
+    p = adsb_fleet.arguments(__doc__, aircraft=150, rate=1000.0, unit="frames")
     p.add_argument("--corrupt-every", type=int, default=97, help="one corrupted frame every N frames")
-    p.add_argument("--origin", default="47.397742,8.545594", help="lat,lon the aircraft fly around")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--accept-timeout", type=float, default=30.0)
     a = p.parse_args()
     rng = random.Random(a.seed)
-    origin = tuple(float(v) for v in a.origin.split(","))
-
-    srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-    srv.bind(("127.0.0.1", 0))
-    srv.listen(1)
-    srv.settimeout(a.accept_timeout)
-    print(json.dumps({"ready": srv.getsockname()[1]}), flush=True)
-    conn, _ = srv.accept()
-    conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-
+    srv, conn = adsb_fleet.accept_one(a.accept_timeout)
     start = time.time()
-    fleet = [Aircraft(rng, i, origin, start) for i in range(a.aircraft)]
+    fleet = [Aircraft(rng, i, adsb_fleet.origin(a), start) for i in range(a.aircraft)]
     checker = Checker()
-    total = int(a.rate * a.duration)
-    sent = corrupted = escaped = 0
-    batch = max(1, int(a.rate / 100))  # every 10 ms
-    k = 0
-    while sent < total:
-        due = start + sent / a.rate
-        pause = due - time.time()
-        if pause > 0:
-            time.sleep(pause)
+    sent = corrupted = escaped = k = 0
+    for n in adsb_fleet.paced(start, a.rate, int(a.rate * a.duration)):
         out = []
-        for _ in range(min(batch, total - sent)):
+        for _ in range(n):
             now = time.time()
             ac = fleet[k % len(fleet)]
             if a.corrupt_every and (sent + 1) % a.corrupt_every == 0:
@@ -259,23 +213,18 @@ def main():
             out.append(frame)
             sent += 1
         conn.sendall(b"".join(out))
-    elapsed = time.time() - start
     report = {
         "sent": sent,
         "corrupted": corrupted,
         "escaped": escaped,
-        "elapsed_s": elapsed,
+        "elapsed_s": time.time() - start,
         "pymodes": {
             "checked": checker.checked,
             "positions": checker.positions,
             "worst_m": checker.worst_m,
             "errors": checker.errors,
         },
-        "aircraft": {
-            ac.hex: {**ac.last, "callsign": ac.callsign, "ve": ac.ve, "vn": ac.vn, "vu": ac.vu}
-            for ac in fleet
-            if ac.last is not None
-        },
+        "aircraft": adsb_fleet.fleet_report(fleet),
     }
     print(json.dumps(report), flush=True)
     conn.close()

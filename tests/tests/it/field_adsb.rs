@@ -119,16 +119,15 @@ fn assert_no_ground_track_and_metric(addr: SocketAddr, event: &str, value: u64) 
     );
 }
 
-#[test]
-fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
-    const AIRCRAFT: usize = 300;
-    const RATE: f64 = 500.0;
-    let (mut replay, rx, port) = start_replay("sbs_replay.py", AIRCRAFT, RATE);
-
+/// The live server reading the replay on loopback `port` in `format`, its runtime and frame.
+fn start_server(
+    port: u64,
+    format: AdsbFormat,
+) -> (tokio::runtime::Runtime, harrier_server::LiveServer, LocalFrame) {
     let (mut config, _) = server_config();
     config.adsb.enabled = true;
     config.adsb.address = format!("127.0.0.1:{port}");
-    let frame = LocalFrame::new(config.frame.origin);
+    config.adsb.format = format;
     let rt = runtime();
     let server = rt
         .block_on(harrier_tests::within(
@@ -137,6 +136,16 @@ fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
             harrier_server::start(&config),
         ))
         .expect("start the live server");
+    (rt, server, LocalFrame::new(config.frame.origin))
+}
+
+#[test]
+fn an_sbs1_feed_of_300_aircraft_becomes_300_aircraft_tracks() {
+    const AIRCRAFT: usize = 300;
+    const RATE: f64 = 500.0;
+    let (mut replay, rx, port) = start_replay("sbs_replay.py", AIRCRAFT, RATE);
+
+    let (rt, server, frame) = start_server(port, AdsbFormat::Sbs);
     let addr = server.local_addr();
 
     let report = replay_report("sbs_replay.py", &mut replay, &rx);
@@ -176,19 +185,7 @@ fn a_beast_feed_of_150_aircraft_becomes_150_aircraft_tracks() {
     const RATE: f64 = 1000.0;
     let (mut replay, rx, port) = start_replay("beast_replay.py", AIRCRAFT, RATE);
 
-    let (mut config, _) = server_config();
-    config.adsb.enabled = true;
-    config.adsb.address = format!("127.0.0.1:{port}");
-    config.adsb.format = AdsbFormat::Beast;
-    let frame = LocalFrame::new(config.frame.origin);
-    let rt = runtime();
-    let server = rt
-        .block_on(harrier_tests::within(
-            10,
-            "start the server",
-            harrier_server::start(&config),
-        ))
-        .expect("start the live server");
+    let (rt, server, frame) = start_server(port, AdsbFormat::Beast);
     let addr = server.local_addr();
 
     let report = replay_report("beast_replay.py", &mut replay, &rx);
