@@ -17,7 +17,9 @@ use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::{ScenarioError, SensorType, SimScenario, TargetMotion};
 
-use harrier_server::config::{Config, ObstacleConfig, SigningConfig};
+use harrier_server::config::{
+    Config, CotConfig, CotDestination, CotEncoding, CotTransport, ObstacleConfig, SigningConfig,
+};
 use harrier_server::{LiveError, LiveServer};
 
 /// Arguments of `harrier demo`.
@@ -70,6 +72,38 @@ pub struct DemoArgs {
     /// (dump1090, readsb: port 30003; docs/adsb.md).
     #[arg(long, value_name = "HOST:PORT")]
     pub adsb: Option<String>,
+    /// Send the confirmed tracks as Cursor-on-Target events to a TAK destination:
+    /// `udp://HOST:PORT` (e.g. TAK's mesh group udp://239.2.3.1:6969), `tcp://HOST:PORT` (a TAK
+    /// server's TCP input, 8087) (repeatable; turns `[cot]` on with these `cot.destinations`;
+    /// docs/cot.md).
+    #[arg(long = "cot", value_name = "DEST", value_parser = parse_cot_destination)]
+    pub cot: Vec<String>,
+    /// The encoding of the `--cot` events: xml (CoT 2.0) or protobuf (TAK protocol version 1);
+    /// default `[cot]`'s (xml).
+    #[arg(long, value_name = "xml|protobuf", value_parser = parse_cot_encoding, requires = "cot")]
+    pub cot_encoding: Option<CotEncoding>,
+}
+
+/// A `--cot` destination, checked as `cot.destinations` is (`tls://` needs the `[cot]` TLS
+/// files, which the demo has no options for).
+fn parse_cot_destination(s: &str) -> Result<String, String> {
+    let d = CotDestination::parse(s)?;
+    if d.transport == CotTransport::Tls {
+        return Err(format!(
+            "{s:?}: tls:// needs a CA and a client certificate (`[cot] tls_*`); use `harrier \
+             serve` with a configuration file for TLS"
+        ));
+    }
+    Ok(s.to_owned())
+}
+
+/// `xml` or `protobuf` of `--cot-encoding`.
+fn parse_cot_encoding(s: &str) -> Result<CotEncoding, String> {
+    match s {
+        "xml" => Ok(CotEncoding::Xml),
+        "protobuf" => Ok(CotEncoding::Protobuf),
+        _ => Err(format!("{s:?}: expected xml or protobuf")),
+    }
 }
 
 /// `X,Y,R` of `--obstacle`.
@@ -127,6 +161,8 @@ impl Default for DemoConfig {
             obstacles: Vec::new(),
             signing_key_file: None,
             adsb: None,
+            cot: Vec::new(),
+            cot_encoding: None,
         }
     }
 }
@@ -291,6 +327,13 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     if let Some(address) = &config.adsb {
         server_config.adsb.enabled = true;
         server_config.adsb.address.clone_from(address);
+    }
+    if !config.cot.is_empty() {
+        server_config.cot.enabled = true;
+        server_config.cot.destinations.clone_from(&config.cot);
+    }
+    if let Some(encoding) = config.cot_encoding {
+        server_config.cot.encoding = encoding;
     }
     server_config.mavlink.gcs = vec![config.gcs.clone()];
     server_config.mavlink.router = config
@@ -459,12 +502,21 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
             .server()
             .link()
             .map_or_else(Default::default, harrier_server::gcs::GcsLink::describe);
+        let cot = if args.cot.is_empty() {
+            String::new()
+        } else {
+            let encoding = match args.cot_encoding.unwrap_or(CotConfig::default().encoding) {
+                CotEncoding::Xml => "xml",
+                CotEncoding::Protobuf => "protobuf",
+            };
+            format!("\n  CoT        {encoding} to {}", args.cot.join(", "))
+        };
         let _ = writeln!(
             std::io::stdout().lock(),
             "harrier demo: ready\n  dashboard  http://{addr}/\n  API        http://{addr}/api/v1 \
              (e.g. /api/v1/tracks)\n  API token  {token} (`Authorization: Bearer <token>` on \
              mutating requests)\n  zenoh      {}\n  UAVs       {}\n  MAVLink    GCS link {gcs}; \
-             router (QGroundControl, MAVProxy, MAVSDK) {router}\nPress Ctrl-C to stop.",
+             router (QGroundControl, MAVProxy, MAVSDK) {router}{cot}\nPress Ctrl-C to stop.",
             demo.zenoh_endpoints().join(", "),
             mavlink.join(", ")
         );
@@ -478,6 +530,32 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `--cot` takes what `cot.destinations` takes (not TLS, which needs files), and says why
+    /// not; `--cot-encoding` xml or protobuf.
+    #[test]
+    fn cot_options_check_their_values() {
+        for good in [
+            "udp://127.0.0.1:6969",
+            "udp://239.2.3.1:6969",
+            "tcp://takserver:8087",
+        ] {
+            assert_eq!(parse_cot_destination(good).as_deref(), Ok(good));
+        }
+        for (bad, why) in [
+            ("127.0.0.1:6969", "scheme://host:port"),
+            ("udp://127.0.0.1", "no port"),
+            ("tcp://h:0", "1–65535"),
+            ("http://h:80", "unknown scheme"),
+            ("tls://takserver:8089", "tls_"),
+        ] {
+            let e = parse_cot_destination(bad).expect_err(bad);
+            assert!(e.contains(why), "{bad}: {e}");
+        }
+        assert_eq!(parse_cot_encoding("xml"), Ok(CotEncoding::Xml));
+        assert_eq!(parse_cot_encoding("protobuf"), Ok(CotEncoding::Protobuf));
+        assert!(parse_cot_encoding("json").is_err());
+    }
 
     /// The demo's world: two cars on one road that never meet (the slower one behind), a
     /// camera slaved to each.

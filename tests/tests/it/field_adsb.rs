@@ -123,7 +123,11 @@ fn assert_no_ground_track_and_metric(addr: SocketAddr, event: &str, value: u64) 
 fn start_server(
     port: u64,
     format: AdsbFormat,
-) -> (tokio::runtime::Runtime, harrier_server::LiveServer, LocalFrame) {
+) -> (
+    tokio::runtime::Runtime,
+    harrier_server::LiveServer,
+    LocalFrame,
+) {
     let (mut config, _) = server_config();
     config.adsb.enabled = true;
     config.adsb.address = format!("127.0.0.1:{port}");

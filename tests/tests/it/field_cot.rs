@@ -22,7 +22,7 @@ use harrier_link::geo::{Geodetic, LocalFrame};
 use harrier_server::config::{Config, CotEncoding};
 use harrier_tests::{
     StandingTargetServer, http_get, json_lines, kill_group, python_script, require_python_module,
-    test_certificates,
+    target_bin, test_certificates, wait_with_deadline,
 };
 use nalgebra::Vector3;
 use serde_json::Value;
@@ -239,4 +239,65 @@ fn takproto_decodes_the_protobuf_events_over_udp_tcp_and_tls() {
 #[test]
 fn takproto_decodes_the_xml_events_over_udp_and_tcp_across_a_reconnection() {
     run(CotEncoding::Xml, 10, false);
+}
+
+/// The acceptance check (scripts/cot_demo_check.py, BENCHMARKS.md) in short: 30 s of `harrier
+/// demo` (this build's binary) with `--cot` to cot_listen.py's UDP and TCP ports, once per
+/// encoding, both demos at once. takproto decodes every event; each track event is the API's
+/// state of its track at its `start` (the WebSocket's scans and `GET /api/v1/tracks` polled)
+/// within 0.5 m, or a coasted prediction the poll did not see (listed by the script, never
+/// more than a few); uids `harrier.harrier.track.<id>`, one per track.
+#[test]
+fn takproto_decodes_every_event_of_a_30_s_demo_where_the_api_says() {
+    use std::os::unix::process::CommandExt as _;
+    require_python_module("takproto", "takproto==3.0.1");
+    require_python_module("websockets", "websockets");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let summary_file = dir.path().join("summary.json");
+    let script =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scripts/cot_demo_check.py");
+    let mut child = std::process::Command::new("python3")
+        .arg(script)
+        .args(["--seconds", "30", "--encoding", "both", "--parallel"])
+        .arg("--bin")
+        .arg(target_bin("harrier"))
+        .arg("--json")
+        .arg(&summary_file)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .process_group(0)
+        .spawn()
+        .expect("start cot_demo_check.py");
+    let status = wait_with_deadline(&mut child, Duration::from_secs(100), "cot_demo_check.py");
+    let text = std::fs::read_to_string(&summary_file)
+        .unwrap_or_else(|e| panic!("cot_demo_check.py ({status}) wrote no summary: {e}"));
+    let summary: Value = serde_json::from_str(&text).expect("the summary is JSON");
+    let runs = summary["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 2, "{summary}");
+    for (r, encoding) in runs.iter().zip(["xml", "protobuf"]) {
+        assert_eq!(r["encoding"], encoding, "{r}");
+        assert_eq!(r["failures"], serde_json::json!([]), "{r}");
+        assert_eq!(r["error_lines"], 0, "{r}");
+        for via in ["udp", "tcp"] {
+            // Two cars, confirmed within seconds, at 1 Hz for 30 s.
+            let n = r["by_transport"][via].as_u64().unwrap_or(0);
+            assert!(n >= 20, "{via}: {n} events: {r}");
+        }
+        let track_events = r["track_events"].as_u64().expect("track_events");
+        let matched = r["matched"].as_u64().expect("matched");
+        let coasted = r["unmatched_coasted"].as_u64().expect("unmatched_coasted");
+        assert_eq!(r["unexplained"], 0, "{r}");
+        assert_eq!(matched + coasted, track_events, "{r}");
+        assert!(matched * 100 >= track_events * 95, "{r}");
+        assert!(r["worst_m"].as_f64().expect("worst") < TOLERANCE_M, "{r}");
+        assert_eq!(r["stable_uids"], true, "{r}");
+        let uids = r["uids"].as_object().expect("uids");
+        assert!(!uids.is_empty(), "{r}");
+        assert!(
+            uids.keys().all(|u| u.starts_with("harrier.harrier.track.")),
+            "{r}"
+        );
+    }
+    assert!(status.success(), "cot_demo_check.py: {status}: {summary}");
+    assert_eq!(summary["ok"], true, "{summary}");
 }
