@@ -552,6 +552,28 @@ impl ConfirmedStates {
     }
 }
 
+/// Checks a track event as `tests/python/cot_listen.py` prints it (a JSON line) against what
+/// [`StandingTargetServer`]'s CoT feed sends — type `a-u-G`, how `m-f`, uid
+/// `harrier.it.track.<id>`, callsign `T<id>`, stale 10 s after its time, `start` (the
+/// estimate's time) at most 1 s before its time — and returns the track id and `start` (ms).
+pub fn track_event(e: &serde_json::Value) -> (u64, i64) {
+    assert_eq!(e["type"], "a-u-G", "{e}");
+    assert_eq!(e["how"], "m-f", "{e}");
+    let uid = e["uid"].as_str().expect("uid");
+    let id: u64 = uid
+        .strip_prefix("harrier.it.track.")
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("uid {uid}"));
+    assert_eq!(e["callsign"], format!("T{id}"), "{e}");
+    let time = e["time_ms"].as_i64().expect("time");
+    let start = e["start_ms"].as_i64().expect("start");
+    let stale = e["stale_ms"].as_i64().expect("stale");
+    // takproto's XML times go through a float: ±1 ms.
+    assert!((stale - time - 10_000).abs() <= 1, "{e}");
+    assert!(start <= time + 1 && time - start < 1_000, "{e}");
+    (id, start)
+}
+
 /// A live server ([`harrier_server::start`]) on loopback fed over Zenoh with the scans of one
 /// standing target ([`publish_standing_target`]: vehicle [`Self::VEHICLE`] sees it at
 /// [`Self::TARGET`] from a platform standing at [`Self::PLATFORM`], 10 Hz), recording every
