@@ -6,28 +6,30 @@
 //!
 //! The time of track information is the estimate's time (`t`, the tracker's time line: UNIX
 //! time when the sources stamp their scans with `time_unix`, as they should) since UTC
-//! midnight. A track's first record on this feed carries TSB (I062/080).
+//! midnight. A track's first record on this feed carries TSB (I062/080); once it has left the
+//! snapshot (deleted), its last estimate is sent once more with TSE, so a receiver ends its
+//! track service instead of waiting for it to time out.
 //!
 //! The socket is non-blocking and never waited on: a datagram the kernel will not take now is
 //! counted `dropped`, one that fails is counted `errors`; both are logged at most once per 5 s
 //! and the feed goes on with the next. The snapshot is a `watch`, so the tracker is never held
 //! up.
 //!
-//! Counters (`harrier_feed_events_total{feed="asterix"}`): `sent` (records in the datagrams sent), `datagrams`,
-//! `dropped`, `errors`, `not_finite` (tracks left out).
+//! Counters (`harrier_feed_events_total{feed="asterix"}`): `sent` (records in the datagrams
+//! sent), `datagrams`, `dropped`, `errors`, `not_finite` (tracks left out), `ended` (TSE records).
 
 use std::collections::HashSet;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Duration;
 
-use harrier_engine::TrackStatus;
+use harrier_engine::{TrackStatus, TrackView};
 use tokio::net::UdpSocket;
 
 use super::FeedContext;
 use super::throttle::Throttle;
 use crate::config::AsterixConfig;
-use crate::wire::asterix::{MAX_BLOCK, Source, data_blocks, track_record};
+use crate::wire::asterix::{Lifecycle, MAX_BLOCK, Source, data_blocks, track_record};
 
 /// The counters' feed label.
 const FEED: &str = "asterix";
@@ -78,7 +80,9 @@ pub(super) async fn run(
     } = ctx;
     let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / config.hz));
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    // The tracks sent at the last tick (ids) and the snapshot's tracks then (in id order).
     let mut sent_before: HashSet<u64> = HashSet::new();
+    let mut before: Arc<Vec<TrackView>> = Arc::default();
     let mut log = Throttle::default();
     loop {
         tokio::select! {
@@ -92,16 +96,32 @@ pub(super) async fn run(
             .iter()
             .filter(|t| config.tentative || t.status == TrackStatus::Confirmed)
         {
-            let first = !sent_before.contains(&t.id);
-            match track_record(t, &frame, source, t.t.rem_euclid(DAY_S), first) {
-                Some(r) => {
-                    records.push(r);
-                    sent_now.insert(t.id);
-                }
+            let life = if sent_before.contains(&t.id) {
+                Lifecycle::Update
+            } else {
+                Lifecycle::First
+            };
+            // A track stays sent while it is in the snapshot, even when one estimate cannot be
+            // encoded.
+            sent_now.insert(t.id);
+            match track_record(t, &frame, source, t.t.rem_euclid(DAY_S), life) {
+                Some(r) => records.push(r),
                 None => counters.add(FEED, "not_finite", 1),
             }
         }
+        // A track sent before and gone now (deleted): its last estimate once more, with TSE.
+        for t in before
+            .iter()
+            .filter(|t| sent_before.contains(&t.id) && !sent_now.contains(&t.id))
+        {
+            if let Some(r) = track_record(t, &frame, source, t.t.rem_euclid(DAY_S), Lifecycle::Last)
+            {
+                records.push(r);
+                counters.add(FEED, "ended", 1);
+            }
+        }
         sent_before = sent_now;
+        before = tracks;
         for block in data_blocks(&records, MAX_BLOCK) {
             let failure = match socket.try_send_to(&block.bytes, dest) {
                 Ok(_) => {
@@ -130,7 +150,6 @@ mod tests {
     use super::*;
     use crate::config::DEFAULT_ORIGIN;
     use crate::tracker::Snapshot;
-    use harrier_engine::TrackView;
     use harrier_link::geo::LocalFrame;
     use tokio::sync::watch;
 
@@ -189,7 +208,7 @@ mod tests {
             ]),
             ..Snapshot::default()
         };
-        let (_snap_tx, snap_rx) = watch::channel(Arc::new(snapshot));
+        let (snap_tx, snap_rx) = watch::channel(Arc::new(snapshot));
         let (stop_tx, stop) = watch::channel(false);
         let counters = Arc::new(crate::feeds::FeedCounters::default());
         let ctx = FeedContext {
@@ -212,6 +231,25 @@ mod tests {
         // Only the confirmed track; TSB (first extent) on its first record only.
         assert_eq!(got[0], vec![(3, vec![0x39, 0x20])]);
         assert_eq!(got[1], vec![(3, vec![0x38])]);
+        // Track 3 deleted, 5 confirmed: 3's last record (TSE) once, then 5 alone.
+        snap_tx.send_replace(Arc::new(Snapshot {
+            tracks: Arc::new(vec![track(5, TrackStatus::Confirmed)]),
+            ..Snapshot::default()
+        }));
+        let mut ended = Vec::new();
+        while ended.len() < 2 {
+            let n = tokio::time::timeout(Duration::from_secs(5), rx.recv(&mut buf))
+                .await
+                .expect("a datagram within 5 s")
+                .unwrap();
+            let r = records(&buf[..n]);
+            if r.iter().any(|(id, _)| *id == 5) {
+                ended.push(r);
+            }
+        }
+        assert_eq!(ended[0], vec![(5, vec![0x39, 0x20]), (3, vec![0x39, 0x40])]);
+        assert_eq!(ended[1], vec![(5, vec![0x38])]);
+        assert_eq!(counters.get(FEED, "ended"), 1);
         stop_tx.send_replace(true);
         task.await.unwrap();
         assert!(counters.get(FEED, "sent") >= 2);

@@ -17,7 +17,7 @@
 //! | 6 | I062/100 calculated position Cartesian | 3 + 3 | x (east), y (north) of the estimate in the server's ENU frame, LSB 0.5 m: the system reference point is the frame origin (`frame.origin`) and the plane its tangent plane |
 //! | 7 | I062/185 calculated velocity Cartesian | 2 + 2 | vx, vy of the estimate turned into the target's own east/north axes (y to geographic north at the target), LSB 0.25 m/s |
 //! | 12 | I062/040 track number | 2 | the track id mod 2¹⁶ |
-//! | 13 | I062/080 track status | 1–4 | MON 0 (a system track fused from every sensor's detections), MRH 1 and SRC (6 "default height": a planar track's ground plane; 3 "triangulation": a 3-D estimate) when I062/130 is sent, CNF (tentative 1); first extent: TSB on the track's first record of this feed; third: CST when the last scan did not update the track (coasting). Extents are sent up to the last non-zero one |
+//! | 13 | I062/080 track status | 1–4 | MON 0 (a system track fused from every sensor's detections), MRH 1 and SRC (6 "default height": a planar track's ground plane; 3 "triangulation": a 3-D estimate) when I062/130 is sent, CNF (tentative 1); first extent: TSB on the track's first record of this feed, TSE on its last (sent once after the track left the snapshot: deleted, or no longer confirmed); third: CST when the last scan did not update the track (coasting). Extents are sent up to the last non-zero one |
 //! | 18 | I062/130 calculated geometric altitude | 2 | the estimate's height above the WGS-84 ellipsoid, LSB 6.25 ft |
 //! | 27 | I062/500 estimated accuracies | 1 + … | APC: σx, σy (LSB 0.5 m); COV: sign(Pxy)·√\|Pxy\| (LSB 0.5 m); APW: σ of latitude and longitude (LSB 180/2²³ °); AGA: σz of a 3-D estimate (LSB 6.25 ft); ATV: σvx, σvy (LSB 0.25 m/s), from the track's covariance |
 //!
@@ -103,15 +103,25 @@ fn sd(track: &TrackView, i: usize) -> Option<f64> {
     track.cov_at(i, i).filter(|v| *v >= 0.0).map(f64::sqrt)
 }
 
+/// Where a record stands in its track's life on this feed (I062/080 TSB and TSE).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lifecycle {
+    /// The track's first record (TSB).
+    First,
+    /// A record between its first and its last.
+    Update,
+    /// Its last record: the track service ends (TSE).
+    Last,
+}
+
 /// The CAT062 record of `track` at `time_of_day_s` (seconds since UTC midnight), `None` when
 /// the estimate, its position or the time is not finite or the time is outside the day.
-/// `first`: the track's first record on this feed (I062/080 TSB).
 pub fn track_record(
     track: &TrackView,
     frame: &LocalFrame,
     source: Source,
     time_of_day_s: f64,
-    first: bool,
+    life: Lifecycle,
 ) -> Option<Vec<u8>> {
     // The range refuses NaN too.
     if !(track.state.iter().all(|v| v.is_finite()) && (0.0..DAY_S).contains(&time_of_day_s)) {
@@ -150,7 +160,7 @@ pub fn track_record(
     let three_d = track.cov_dims.contains(&2);
     let alt_ft = geo.alt_m * FT_PER_M;
     let altitude = signed(alt_ft, 6.25, 16).filter(|_| (-1500.0..=150_000.0).contains(&alt_ft));
-    r.push(13, track_status(track, altitude.is_some(), three_d, first));
+    r.push(13, track_status(track, altitude.is_some(), three_d, life));
     if let Some(a) = altitude {
         r.push(18, (a as i16).to_be_bytes().to_vec());
     }
@@ -161,7 +171,7 @@ pub fn track_record(
 }
 
 /// I062/080: the first octet and the extents up to the last non-zero one.
-fn track_status(track: &TrackView, altitude: bool, three_d: bool, first: bool) -> Vec<u8> {
+fn track_status(track: &TrackView, altitude: bool, three_d: bool, life: Lifecycle) -> Vec<u8> {
     let mut octet = 0_u8; // MON 0: multisensor; SPI 0.
     if altitude {
         let src: u8 = if three_d { 3 } else { 6 };
@@ -170,7 +180,11 @@ fn track_status(track: &TrackView, altitude: bool, three_d: bool, first: bool) -
     if track.status == TrackStatus::Tentative {
         octet |= 0x02; // CNF
     }
-    let ext1 = if first { 0x20 } else { 0 }; // TSB
+    let ext1 = match life {
+        Lifecycle::First => 0x20, // TSB
+        Lifecycle::Update => 0,
+        Lifecycle::Last => 0x40, // TSE
+    };
     let ext3 = if track.updated { 0 } else { 0x80 }; // CST
     let mut out = vec![octet, ext1, 0, ext3];
     while out.len() > 1 && out.last() == Some(&0) {
@@ -420,7 +434,7 @@ mod tests {
         });
         // At the origin of a frame on the equator: lat = lon = 0, alt 0 ft.
         let t = track(TrackStatus::Confirmed, [0.0, 0.0, 0.0, 3.0, -4.5, 0.0]);
-        let rec = track_record(&t, &frame, SOURCE, 3600.5, true).unwrap();
+        let rec = track_record(&t, &frame, SOURCE, 3600.5, Lifecycle::First).unwrap();
         #[rustfmt::skip]
         let expected: Vec<u8> = vec![
             0xBF, 0x0D, 0x11, 0x04,             // FSPEC: FRN 1,3-7 | 12,13 | 18 | 27
@@ -443,8 +457,12 @@ mod tests {
         // Tentative, coasting, not first: CNF, and extents up to CST.
         let mut t = track(TrackStatus::Tentative, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0]);
         t.updated = false;
-        let d = decode(&track_record(&t, &frame, SOURCE, 0.0, false).unwrap());
+        let d = decode(&track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Update).unwrap());
         assert_eq!(d.status, vec![0x3B, 0x01, 0x01, 0x80]);
+        // The last record: TSE in the first extent.
+        let t = track(TrackStatus::Confirmed, [0.0; 6]);
+        let d = decode(&track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Last).unwrap());
+        assert_eq!(d.status, vec![0x39, 0x40]);
     }
 
     #[test]
@@ -452,7 +470,7 @@ mod tests {
         let frame = LocalFrame::new(DEFAULT_ORIGIN);
         let state = [1234.4, -567.8, 0.0, 3.0, 4.0, 0.0];
         let t = track(TrackStatus::Confirmed, state);
-        let rec = track_record(&t, &frame, SOURCE, 86_399.999, false).unwrap();
+        let rec = track_record(&t, &frame, SOURCE, 86_399.999, Lifecycle::Update).unwrap();
         let d = decode(&rec);
         // The last 1/256 s of the day is the next midnight.
         assert_eq!(d.tod, 0.0);
@@ -466,7 +484,7 @@ mod tests {
         assert!((back.x - state[0]).hypot(back.y - state[1]) < 0.5, "{back}");
         // 1.2 km from the origin, north turns by ~0.01°: 4 mm/s.
         assert!((d.vx - 3.0).abs() <= 0.125 && (d.vy - 4.0).abs() <= 0.125);
-        let d = decode(&track_record(&t, &frame, SOURCE, 12.3, false).unwrap());
+        let d = decode(&track_record(&t, &frame, SOURCE, 12.3, Lifecycle::Update).unwrap());
         assert!((d.tod - 12.3).abs() <= 1.0 / 256.0);
         // A 3-D estimate: SRC 3 (triangulation), and AGA (σz 2 m = 6.6 ft: 1) in I062/500.
         let mut t = track(TrackStatus::Confirmed, [0.0, 0.0, 50.0, 0.0, 0.0, 0.0]);
@@ -474,7 +492,7 @@ mod tests {
         t.cov = (0..6)
             .map(|i| (0..6).map(|j| if i == j { 4.0 } else { 0.0 }).collect())
             .collect();
-        let rec = track_record(&t, &frame, SOURCE, 0.0, false).unwrap();
+        let rec = track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Update).unwrap();
         assert_eq!(decode(&rec).status, vec![0x2C]);
         // I062/500 last: primary APC|COV|APW|AGA|ATV, …, AGA, ATV x, ATV y.
         let n = rec.len();
@@ -490,22 +508,22 @@ mod tests {
                 let mut s = [0.0; 6];
                 s[i] = bad;
                 let t = track(TrackStatus::Confirmed, s);
-                assert!(track_record(&t, &frame, SOURCE, 0.0, false).is_none());
+                assert!(track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Update).is_none());
             }
         }
         let t = track(TrackStatus::Confirmed, [0.0; 6]);
         for tod in [f64::NAN, -1.0, 86_400.0] {
-            assert!(track_record(&t, &frame, SOURCE, tod, false).is_none());
+            assert!(track_record(&t, &frame, SOURCE, tod, Lifecycle::Update).is_none());
         }
         // Too far for I062/100 and too fast for I062/185: those items are left out.
         let far = track(TrackStatus::Confirmed, [5e6, 0.0, 0.0, 2e4, 0.0, 0.0]);
-        let d = decode(&track_record(&far, &frame, SOURCE, 0.0, false).unwrap());
+        let d = decode(&track_record(&far, &frame, SOURCE, 0.0, Lifecycle::Update).unwrap());
         assert!(d.x.is_nan() && d.vx.is_nan() && d.lat.is_finite());
         // A non-finite covariance leaves I062/500's subfields out, not the record.
         let mut t = track(TrackStatus::Confirmed, [0.0; 6]);
         t.cov[0][0] = f64::NAN;
         t.cov[2][2] = f64::INFINITY;
-        assert!(track_record(&t, &frame, SOURCE, 0.0, false).is_some());
+        assert!(track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Update).is_some());
     }
 
     #[test]
@@ -518,7 +536,7 @@ mod tests {
                     [f64::from(i), 0.0, 0.0, 0.0, 0.0, 0.0],
                 );
                 t.id = u64::from(i);
-                track_record(&t, &frame, SOURCE, 0.0, false).unwrap()
+                track_record(&t, &frame, SOURCE, 0.0, Lifecycle::Update).unwrap()
             })
             .collect();
         let blocks = data_blocks(&records, MAX_BLOCK);
