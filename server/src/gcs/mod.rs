@@ -35,6 +35,7 @@
 //!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
 mod actor;
+pub mod filter;
 pub mod metrics;
 pub mod timesync;
 mod tlog;
