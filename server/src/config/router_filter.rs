@@ -184,6 +184,24 @@ mod tests {
     }
 
     #[test]
+    fn the_example_filter_uncommented_is_valid() {
+        let text = include_str!("../../../harrier.example.toml");
+        let mut on = false;
+        let lines: Vec<&str> = text
+            .lines()
+            .map(|l| {
+                on = (on || l == "# [[mavlink.router_filter]]") && !l.is_empty();
+                if on { &l[2..] } else { l }
+            })
+            .collect();
+        let c = Config::parse(&lines.join("\n"), "example").expect("uncommented example");
+        let specs = c.mavlink.router_filters().expect("example filter");
+        assert_eq!(specs[0].block_msg, vec![24, 245]);
+        assert_eq!(specs[0].max_rate_hz, vec![(30, 2.0), (33, 1.0)]);
+        c.check().expect("example");
+    }
+
+    #[test]
     fn router_as_a_list_of_strings_keeps_working() {
         let specs = filters("").unwrap();
         assert_eq!(specs.len(), 2);

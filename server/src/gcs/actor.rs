@@ -241,7 +241,7 @@ impl Actor {
     ) {
         // Every vehicle frame goes to every client its endpoint's filter lets it through to,
         // unchanged.
-        let routed = self.to_clients(&Arc::from(f.bytes.as_slice()), at);
+        let routed = self.send_to_clients(&Arc::from(f.bytes.as_slice()), at);
         self.metrics
             .routed_to_clients
             .fetch_add(routed, Ordering::Relaxed);
@@ -361,7 +361,7 @@ impl Actor {
 
     /// Queues `bytes` for every router endpoint whose filter lets them through at `now` (counting
     /// the filtered and the dropped frames); the number queued.
-    fn to_clients(&mut self, bytes: &Arc<[u8]>, now: Instant) -> u64 {
+    fn send_to_clients(&mut self, bytes: &Arc<[u8]>, now: Instant) -> u64 {
         let mut queued = 0;
         let router = &self.endpoints[self.config.gcs.len()..];
         for (e, filter) in router.iter().zip(&mut self.filters) {
@@ -418,7 +418,7 @@ impl Actor {
             Request::ToClients(messages) => {
                 for m in &messages {
                     let Some(bytes) = self.frame(m) else { continue };
-                    self.to_clients(&bytes, Instant::now());
+                    self.send_to_clients(&bytes, Instant::now());
                     self.metrics.track_messages.fetch_add(1, Ordering::Relaxed);
                 }
             }
@@ -555,7 +555,7 @@ impl Actor {
                     let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
                 }
                 if self.config.router_heartbeat {
-                    self.to_clients(&bytes, now);
+                    self.send_to_clients(&bytes, now);
                 }
                 self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
             }

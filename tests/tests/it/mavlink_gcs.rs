@@ -819,7 +819,9 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
     let is_blocked_sys =
         |k: &str| (k.starts_with("3/") || k.starts_with("255/")) && !is_blocked_msg(k);
     let is_attitude = |k: &str| k == "1/ATTITUDE" || k == "2/ATTITUDE";
-    let checks: [(&str, &dyn Fn(&str) -> bool, f64); 3] = [
+    /// Which `SYSTEM/TYPE` keys a reason is about.
+    type Pick<'a> = &'a dyn Fn(&str) -> bool;
+    let checks: [(&str, Pick<'_>, f64); 3] = [
         ("blocked_msg", &is_blocked_msg, 0.0),
         ("blocked_sys", &is_blocked_sys, 0.0),
         ("rate", &is_attitude, sum(&limited, &is_attitude, false)),
