@@ -5,6 +5,7 @@
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 7 --command 7 --signing-key HEX
     python3 gcs_router_client.py --tlog FILE.tlog --db FILE.sqlite --vehicles 1
     python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --tracks 1
+    python3 gcs_router_client.py --connect udpout:127.0.0.1:14551 --vehicles 1,2 --count 10
 
 With --api: the vehicle routes with httpx (401, 404, 422, a refused command's ACK result, an
 accepted arm, a timeout from the --silent vehicle, assignment errors, the counters in /metrics).
@@ -19,7 +20,12 @@ session file's vehicle log (telemetry, link events, command outcomes) and action
 signing, link id 1) and accepts only correctly signed messages: the router forwards the vehicles'
 signed frames unchanged. With --tracks N the --connect client also waits for N of Harrier's
 tracks as ADSB_VEHICLE messages from the ground station and prints each as a line
-`TRACK {json}`. Prints what it saw; exits non-zero on any failure.
+`TRACK {json}`. With --count S the --connect client, once it has the listed vehicles' HEARTBEATs,
+counts every message it receives for S seconds, by source system and type, and prints a line
+`COUNTS {json}`: for each `SYSTEM/TYPE` the number received and the rate, (n - 1) over the time
+from the first to the last (the router's filters, tests/tests/it/mavlink_gcs.rs); with
+--gcs-heartbeat the ground station's HEARTBEAT (mavlink.router_heartbeat) is no failure. Prints what it
+saw; exits non-zero on any failure.
 """
 
 import argparse
@@ -37,7 +43,7 @@ def fail(msg):
     sys.exit(1)
 
 
-def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
+def client(url, vehicles, command, signing_key=None, tracks=0, count_s=0.0, gcs_heartbeat=False, timeout_s=20.0):
     if signing_key:
         # Signing needs MAVLink 2 framing from the first message sent.
         os.environ["MAVLINK20"] = "1"
@@ -59,7 +65,7 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
             first = m.wait_heartbeat(timeout=0.5)
         if first is None:
             fail(f"{url}: no HEARTBEAT within {timeout_s} s")
-        if first.get_srcSystem() not in want:
+        if first.get_srcSystem() not in want and not (gcs_heartbeat and first.get_srcSystem() == 255):
             fail(f"wait_heartbeat() found system {first.get_srcSystem()}, not a vehicle of {sorted(want)}")
         seen[first.get_srcSystem()] = first.type
     while not want <= set(seen) and time.monotonic() < deadline:
@@ -73,7 +79,7 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
             seen[msg.get_srcSystem()] = msg.type
     if not want <= set(seen):
         fail(f"{url}: heartbeats seen from {sorted(seen)}, wanted {sorted(want)}")
-    if 255 in seen:
+    if 255 in seen and not gcs_heartbeat:
         fail("the ground station's own HEARTBEAT (system 255) reached a router client")
     print(f"{url}: heartbeats from {sorted(seen)}")
     if command:
@@ -115,7 +121,33 @@ def client(url, vehicles, command, signing_key=None, tracks=0, timeout_s=20.0):
             print("TRACK " + json.dumps(track), flush=True)
         if len(got) < tracks:
             fail(f"{url}: ADSB_VEHICLE of {sorted(got)}, wanted {tracks} tracks")
+    if count_s:
+        count(m, url, count_s)
     m.close()
+
+
+def count(m, url, seconds):
+    """Counts the messages received for `seconds`, by source system and type; prints COUNTS."""
+    seen = {}
+    start = time.monotonic()
+    last_hb = 0.0
+    while time.monotonic() - start < seconds:
+        if time.monotonic() - last_hb > 0.5:
+            # Stay the endpoint's peer.
+            m.mav.heartbeat_send(mavutil.mavlink.MAV_TYPE_GCS, mavutil.mavlink.MAV_AUTOPILOT_INVALID, 0, 0, 0)
+            last_hb = time.monotonic()
+        msg = m.recv_match(blocking=True, timeout=0.2)
+        if msg is None or msg.get_type() == "BAD_DATA":
+            continue
+        now = time.monotonic()
+        c = seen.setdefault(f"{msg.get_srcSystem()}/{msg.get_type()}", [0, now, now])
+        c[0] += 1
+        c[2] = now
+    messages = {
+        k: {"n": n, "hz": (n - 1) / (last - first) if n > 1 and last > first else 0.0}
+        for k, (n, first, last) in sorted(seen.items())
+    }
+    print("COUNTS " + json.dumps({"url": url, "seconds": seconds, "messages": messages}), flush=True)
 
 
 def rest(url, token, vehicle, silent):
@@ -218,12 +250,14 @@ def main():
     p.add_argument("--db")
     p.add_argument("--signing-key")
     p.add_argument("--tracks", type=int, default=0, help="wait for this many tracks as ADSB_VEHICLE")
+    p.add_argument("--gcs-heartbeat", action="store_true", help="the ground station's HEARTBEAT may come (mavlink.router_heartbeat)")
+    p.add_argument("--count", type=float, default=0.0, help="count the messages for this many seconds")
     a = p.parse_args()
     vehicles = [int(v) for v in a.vehicles.split(",") if v]
     if a.api:
         rest(a.api, a.token, vehicles[0], a.silent)
     for url in a.connect:
-        client(url, vehicles, a.command, a.signing_key, a.tracks)
+        client(url, vehicles, a.command, a.signing_key, a.tracks, a.count, a.gcs_heartbeat)
     if a.tlog:
         tlog(a.tlog, vehicles)
     if a.db:

@@ -107,6 +107,7 @@ impl Config {
             harrier_link::frame::Endpoint::parse(e)
                 .map_err(|e| ConfigError::Invalid(format!("mavlink: {e}")))?;
         }
+        m.router_filters()?;
         if m.system_id == 0 {
             return bad("mavlink.system_id must be 1-255".into());
         }

@@ -48,6 +48,7 @@ impl Config {
             tlog,
             signing: m.signing.resolve()?,
             router_heartbeat: m.router_heartbeat,
+            router_filters: m.router_filters()?,
         }))
     }
 

@@ -11,6 +11,7 @@ use harrier_link::signing::{Signing, SigningKey, SigningMode};
 use serde::{Deserialize, Serialize};
 
 use super::error::ConfigError;
+use super::router_filter::RouterFilterConfig;
 
 /// The MAVLink GCS link and router ([`crate::gcs`]).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
@@ -48,6 +49,9 @@ pub struct MavlinkConfig {
     /// system as its target, and Harrier's (system 255, as QGroundControl's and MAVProxy's own)
     /// would win over the vehicles'.
     pub router_heartbeat: bool,
+    /// Per router endpoint: the messages and source systems it gets, and their rates
+    /// (`[[mavlink.router_filter]]`; none: every frame to every client).
+    pub router_filter: Vec<RouterFilterConfig>,
 }
 
 /// MAVLink 2 signing of the GCS link and router (`[mavlink.signing]`; docs/mavlink-signing.md).
@@ -118,6 +122,7 @@ impl Default for MavlinkConfig {
             signing: SigningConfig::default(),
             tracks_hz: 1.0,
             router_heartbeat: false,
+            router_filter: Vec::new(),
         }
     }
 }

@@ -15,6 +15,7 @@ use harrier_link::mavlink::dialects::common::{
 use harrier_link::signing::{Rejection, Signer, Signing};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
+use super::filter::{FilterSpec, RouterFilter};
 use super::handle::GcsLink;
 use super::messages::{
     CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
@@ -66,6 +67,8 @@ struct Actor {
     signer: Option<Arc<Signer>>,
     /// Last log line about refused frames per (GCS side, reason), and the refusals since.
     reject_log: HashMap<(bool, Rejection), (Instant, u64)>,
+    /// Each router endpoint's filter, in the order of the router endpoints.
+    filters: Vec<RouterFilter>,
 }
 
 /// Shortest time between two log lines about refused frames of one side and reason.
@@ -120,7 +123,12 @@ pub async fn start(
         metrics: Arc::clone(&metrics),
         epoch,
     };
+    let open = FilterSpec::default();
+    let filters = (0..config.router.len())
+        .map(|i| RouterFilter::new(config.router_filters.get(i).unwrap_or(&open)))
+        .collect();
     let actor = Actor {
+        filters,
         config,
         endpoints,
         vehicles: BTreeMap::new(),
@@ -231,17 +239,12 @@ impl Actor {
         at: Instant,
         f: &harrier_link::frame::Frame,
     ) {
-        // Every vehicle frame goes to every client, unchanged.
-        let bytes: Arc<[u8]> = Arc::from(f.bytes.as_slice());
-        for e in &self.endpoints[self.config.gcs.len()..] {
-            if e.tx.try_send(Outbound::All(Arc::clone(&bytes))).is_ok() {
-                self.metrics
-                    .routed_to_clients
-                    .fetch_add(1, Ordering::Relaxed);
-            } else {
-                e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
-            }
-        }
+        // Every vehicle frame goes to every client its endpoint's filter lets it through to,
+        // unchanged.
+        let routed = self.send_to_clients(&Arc::from(f.bytes.as_slice()), at);
+        self.metrics
+            .routed_to_clients
+            .fetch_add(routed, Ordering::Relaxed);
         let Ok(id) = u8::try_from(f.header.system_id) else {
             return;
         };
@@ -356,6 +359,23 @@ impl Actor {
         }
     }
 
+    /// Queues `bytes` for every router endpoint whose filter lets them through at `now` (counting
+    /// the filtered and the dropped frames); the number queued.
+    fn send_to_clients(&mut self, bytes: &Arc<[u8]>, now: Instant) -> u64 {
+        let mut queued = 0;
+        let router = &self.endpoints[self.config.gcs.len()..];
+        for (e, filter) in router.iter().zip(&mut self.filters) {
+            if let Err(why) = filter.check(bytes, now) {
+                e.counters.filtered[why as usize].fetch_add(1, Ordering::Relaxed);
+            } else if e.tx.try_send(Outbound::All(Arc::clone(bytes))).is_ok() {
+                queued += 1;
+            } else {
+                e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        queued
+    }
+
     /// Serialises `msg` as the ground station's next frame (signed when signing is on).
     fn frame(&mut self, msg: &MavMessage) -> Option<Arc<[u8]>> {
         let header = MavHeader {
@@ -398,9 +418,7 @@ impl Actor {
             Request::ToClients(messages) => {
                 for m in &messages {
                     let Some(bytes) = self.frame(m) else { continue };
-                    for e in &self.endpoints[self.config.gcs.len()..] {
-                        let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
-                    }
+                    self.send_to_clients(&bytes, Instant::now());
                     self.metrics.track_messages.fetch_add(1, Ordering::Relaxed);
                 }
             }
@@ -531,14 +549,13 @@ impl Actor {
             });
             if let Some(bytes) = self.frame(&hb) {
                 // To the vehicles; to the router's clients only when configured (their scripts'
-                // `wait_heartbeat()` would take the ground station for a vehicle).
-                let to = if self.config.router_heartbeat {
-                    self.endpoints.len()
-                } else {
-                    self.config.gcs.len()
-                };
-                for e in &self.endpoints[..to] {
+                // `wait_heartbeat()` would take the ground station for a vehicle), through
+                // their filters.
+                for e in &self.endpoints[..self.config.gcs.len()] {
                     let _ = e.tx.try_send(Outbound::All(Arc::clone(&bytes)));
+                }
+                if self.config.router_heartbeat {
+                    self.send_to_clients(&bytes, now);
                 }
                 self.metrics.heartbeats.fetch_add(1, Ordering::Relaxed);
             }

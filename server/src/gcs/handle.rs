@@ -77,6 +77,7 @@ impl GcsLink {
     /// Appends the link's counters to a Prometheus text.
     pub fn render_metrics(&self, out: &mut String) {
         let vehicles = self.vehicles.borrow().clone();
-        self.metrics.render(&vehicles, &self.endpoints, out);
+        self.metrics
+            .render(&vehicles, &self.endpoints, self.gcs_endpoints, out);
     }
 }

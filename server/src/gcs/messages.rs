@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 use tokio::sync::oneshot;
 use utoipa::ToSchema;
 
+use super::filter::FilterSpec;
 use super::vehicle::VehicleLinkView;
 
 /// Settings of the link (the `[mavlink]` section, checked).
@@ -41,6 +42,9 @@ pub struct GcsConfig {
     pub signing: Option<Signing>,
     /// The ground station's HEARTBEAT goes to the router's clients too.
     pub router_heartbeat: bool,
+    /// What each router endpoint lets through, in the order of `router` (an endpoint without
+    /// one lets everything through).
+    pub router_filters: Vec<FilterSpec>,
 }
 
 /// Why the link cannot start.

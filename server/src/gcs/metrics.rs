@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use harrier_link::signing::Rejection;
 
+use super::filter::Filtered;
 use super::messages::VehicleSample;
 use super::transport::EndpointHandle;
 use super::vehicle::LinkState;
@@ -35,11 +36,13 @@ pub struct LinkMetrics {
 }
 
 impl LinkMetrics {
-    /// Appends the Prometheus text of the link's counters, of `endpoints` and of `vehicles`.
+    /// Appends the Prometheus text of the link's counters, of `endpoints` (the first
+    /// `gcs_endpoints` of them the GCS endpoints, then the router's) and of `vehicles`.
     pub fn render(
         &self,
         vehicles: &[VehicleSample],
         endpoints: &[EndpointHandle],
+        gcs_endpoints: usize,
         out: &mut String,
     ) {
         self.render_frames(out);
@@ -54,6 +57,19 @@ impl LinkMetrics {
                 &[("endpoint", &e.endpoint)],
                 e.counters.send_dropped.load(Ordering::Relaxed),
             );
+        }
+        let mut filtered = Family::counter(
+            out,
+            "harrier_router_filtered_total",
+            "Frames a router endpoint's filter kept from its clients ([[mavlink.router_filter]]), by reason: blocked_msg, not_allowed_msg, blocked_sys, not_allowed_sys, rate.",
+        );
+        for e in endpoints.get(gcs_endpoints..).unwrap_or_default() {
+            for (reason, n) in Filtered::ALL.iter().zip(&e.counters.filtered) {
+                filtered.sample(
+                    &[("endpoint", &e.endpoint), ("reason", &reason.as_str())],
+                    n.load(Ordering::Relaxed),
+                );
+            }
         }
         render_vehicles(vehicles, out);
     }

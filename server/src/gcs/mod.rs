@@ -22,6 +22,11 @@
 //!   client's frame goes to the vehicle its `target_system` names, or to every vehicle when it
 //!   names none (0 or no such field). Frames of other dialects fail their checksum and are not
 //!   routed (counted as malformed).
+//! - Router filters (`[[mavlink.router_filter]]`, [`filter`]): per client endpoint, allow or
+//!   block lists of message ids and of source systems and a rate limit per message id and
+//!   source, checked on the raw header of every frame going to that endpoint (the vehicles' and
+//!   the ground station's own); a dropped frame is counted per endpoint and reason. Client
+//!   frames to the vehicles are not filtered.
 //! - Garbage datagrams and undecodable frames are counted per endpoint and skipped.
 //! - MAVLink 2 signing (`[mavlink.signing]`, harrier-link's
 //!   [`Signer`](harrier_link::signing::Signer), one for the whole link): the ground station signs
@@ -35,6 +40,7 @@
 //!   unsigned client frame accepted in `sign` mode reaches the vehicle unsigned.
 
 mod actor;
+pub mod filter;
 pub mod metrics;
 pub mod timesync;
 mod tlog;

@@ -113,6 +113,9 @@ pub struct EndpointCounters {
     pub sent: AtomicU64,
     /// Frames dropped: a TCP client's queue was full, or a send failed.
     pub send_dropped: AtomicU64,
+    /// Frames a router endpoint's filter kept from its clients, by
+    /// [`Filtered`](super::filter::Filtered) reason (in the order of `Filtered::ALL`).
+    pub filtered: [AtomicU64; 5],
 }
 
 /// An open endpoint: where it is bound, and the queue of bytes to send on it.

@@ -23,7 +23,14 @@
 //!   of captured valid frames are sent to the GCS port (HEARTBEATs of new system ids, an "armed"
 //!   HEARTBEAT of the disarmed vehicle) and to the router (arm commands): every one is refused and
 //!   counted by side and reason in `/metrics`, no vehicle appears, the vehicle stays disarmed.
+//! - `router_filters_rate_limit_and_block_per_endpoint`: three harrier-sim vehicles (ATTITUDE at
+//!   10 Hz) and two pymavlink clients counting messages for 10 s on two router endpoints, one
+//!   filtered (`[[mavlink.router_filter]]`: ATTITUDE ≤ 2 Hz per vehicle, GPS_RAW_INT and
+//!   EXTENDED_SYS_STATE blocked, systems 3 and 255 blocked), one not: the limited client gets
+//!   each vehicle's ATTITUDE at 1.8–2.1 Hz and nothing blocked, the other everything at the full
+//!   rate, and `harrier_router_filtered_total` counts what the first did not get.
 
+use std::collections::BTreeMap;
 use std::ffi::OsStr;
 use std::net::{SocketAddr, UdpSocket};
 use std::path::{Path, PathBuf};
@@ -34,7 +41,9 @@ use std::time::{Duration, Instant};
 use harrier_link::frame::{Frame, parse_datagram};
 use harrier_link::signing::{Signer, Signing, SigningKey, SigningMode};
 use harrier_server::LiveServer;
-use harrier_server::config::{Config, MavlinkConfig, SigningConfig};
+use harrier_server::config::{
+    Config, MavlinkConfig, MessageRef, RouterFilterConfig, SigningConfig,
+};
 use harrier_server::gcs::LinkEventKind;
 use harrier_server::guidance::{AssignmentState, SlotState};
 use harrier_sim::mavlink::MavHeader;
@@ -630,4 +639,221 @@ fn signed_only_link_refuses_unsigned_forged_and_replayed_frames() {
         .sum();
     assert_eq!(refused, 3 * N);
     rt.block_on(server.shutdown());
+}
+
+/// Runs `gcs_router_client.py --count` with `args` and returns its `COUNTS` line's messages:
+/// `SYSTEM/TYPE` → (number received, rate in Hz).
+fn spawn_counting_client(
+    args: Vec<String>,
+) -> std::thread::JoinHandle<BTreeMap<String, (u64, f64)>> {
+    std::thread::spawn(move || {
+        use std::io::Read as _;
+        let mut child = python_script("gcs_router_client.py")
+            .args(&args)
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("run gcs_router_client.py --count");
+        let mut stdout = child.stdout.take().expect("stdout");
+        let reader = std::thread::spawn(move || {
+            let mut s = String::new();
+            let _ = stdout.read_to_string(&mut s);
+            s
+        });
+        let status = wait_with_deadline(&mut child, Duration::from_secs(90), "counting client");
+        let out = reader.join().unwrap_or_default();
+        assert!(
+            status.success(),
+            "gcs_router_client.py {args:?} failed ({status}): {out}"
+        );
+        let line = out
+            .lines()
+            .find_map(|l| l.strip_prefix("COUNTS "))
+            .unwrap_or_else(|| panic!("no COUNTS line: {out}"));
+        let v: serde_json::Value = serde_json::from_str(line).expect("COUNTS json");
+        v["messages"]
+            .as_object()
+            .expect("messages")
+            .iter()
+            .map(|(k, m)| {
+                let n = m["n"].as_u64().expect("n");
+                (k.clone(), (n, m["hz"].as_f64().expect("hz")))
+            })
+            .collect()
+    })
+}
+
+/// The router's per-endpoint filters, end to end: three harrier-sim vehicles (ATTITUDE at 10 Hz)
+/// and two pymavlink clients counting for 10 s, one on an endpoint with ATTITUDE ≤ 2 Hz, two
+/// blocked messages (GPS_RAW_INT by name, EXTENDED_SYS_STATE by id) and systems 3 and 255 (the
+/// ground station's HEARTBEAT, `router_heartbeat`) blocked, the other unfiltered; the drops
+/// counted in `/metrics` by endpoint and reason.
+#[test]
+fn router_filters_rate_limit_and_block_per_endpoint() {
+    require_python_module("pymavlink", "pymavlink==2.4.50");
+    require_python_module("httpx", "httpx==0.28.1"); // imported by gcs_router_client.py
+    const LIMITED: &str = "udpin:127.0.0.1:0";
+    const SECONDS: f64 = 10.0;
+    let rt = runtime();
+    let server = rt.block_on(async {
+        let mut config = Config::default();
+        config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+        config.zenoh.tracks_key = String::new();
+        config.mavlink = MavlinkConfig {
+            // Two endpoints that differ in their address, so that the filter can name one.
+            router: vec![LIMITED.into(), "udpin:127.0.0.2:0".into()],
+            router_filter: vec![RouterFilterConfig {
+                endpoint: LIMITED.into(),
+                block_msg: vec![MessageRef::Name("GPS_RAW_INT".into()), MessageRef::Id(245)],
+                // The ground station's own frames pass the same filter.
+                block_src_sys: vec![3, 255],
+                max_rate_hz: BTreeMap::from([("ATTITUDE".to_owned(), 2.0)]),
+                ..RouterFilterConfig::default()
+            }],
+            router_heartbeat: true,
+            ..MavlinkConfig::ephemeral()
+        };
+        within(20, "start the server", harrier_server::start(&config))
+            .await
+            .expect("start the server")
+    });
+    let started = Instant::now();
+    let gcs = gcs_addr(&server);
+    let vehicles: Vec<_> = (1..=3)
+        .map(|id| {
+            spawn(
+                VehicleConfig::new(id),
+                &LinkConfig {
+                    endpoints: vec![format!("udpout:{gcs}")],
+                    signing: None,
+                },
+            )
+            .expect("start a vehicle")
+        })
+        .collect();
+    rt.block_on(async {
+        for id in 1..=3 {
+            heard(&server, id).await;
+        }
+    });
+    let link = server.link().expect("link").clone();
+    let router: Vec<SocketAddr> = link.router().map(|e| e.addr()).collect();
+    let client = |addr: SocketAddr, vehicles: &str| {
+        spawn_counting_client(
+            [
+                "--connect",
+                &format!("udpout:{addr}"),
+                "--vehicles",
+                vehicles,
+                "--count",
+                &SECONDS.to_string(),
+                "--gcs-heartbeat",
+            ]
+            .map(str::to_owned)
+            .to_vec(),
+        )
+    };
+    let limited = client(router[0], "1,2");
+    let open = client(router[1], "1,2,3");
+    let limited = limited.join().expect("limited client");
+    let open = open.join().expect("unfiltered client");
+    let lifetime = started.elapsed().as_secs_f64();
+    let get = |m: &BTreeMap<String, (u64, f64)>, k: &str| m.get(k).copied().unwrap_or((0, 0.0));
+    for id in [1, 2] {
+        let (n, hz) = get(&limited, &format!("{id}/ATTITUDE"));
+        let (n_open, hz_open) = get(&open, &format!("{id}/ATTITUDE"));
+        eprintln!(
+            "vehicle {id} ATTITUDE: limited client {n} in {SECONDS} s, {hz:.3} Hz; unfiltered \
+             {n_open}, {hz_open:.3} Hz"
+        );
+        assert!(
+            (1.8..=2.1).contains(&hz),
+            "vehicle {id}: limited ATTITUDE at {hz} Hz"
+        );
+        assert!(
+            hz_open >= 9.0,
+            "vehicle {id}: unfiltered ATTITUDE at {hz_open} Hz"
+        );
+        // Only ATTITUDE is limited: the position comes at the full rate.
+        let (_, pos) = get(&limited, &format!("{id}/GLOBAL_POSITION_INT"));
+        assert!(pos >= 9.0, "vehicle {id}: GLOBAL_POSITION_INT at {pos} Hz");
+    }
+    for blocked in ["GPS_RAW_INT", "EXTENDED_SYS_STATE"] {
+        for id in [1, 2, 3] {
+            let k = format!("{id}/{blocked}");
+            assert_eq!(get(&limited, &k).0, 0, "{k} reached the limited client");
+            assert!(
+                get(&open, &k).0 > 0,
+                "{k} did not reach the unfiltered client"
+            );
+        }
+    }
+    assert!(
+        limited
+            .keys()
+            .all(|k| !k.starts_with("3/") && !k.starts_with("255/")),
+        "system 3 or the ground station reached the limited client: {limited:?}"
+    );
+    assert!(get(&open, "3/ATTITUDE").0 > 0, "{open:?}");
+    assert!(get(&open, "255/HEARTBEAT").0 > 0, "{open:?}");
+
+    // The counters: at least what the unfiltered client got and the limited one did not over
+    // the 10 s (10 % less, as the two windows do not quite coincide), at most what the vehicles
+    // sent over the server's life.
+    let series = |endpoint: SocketAddr, reason: &str| {
+        metric(
+            &server,
+            &format!(
+                "harrier_router_filtered_total{{endpoint=\"udpin:{endpoint}\",reason=\"{reason}\"}}"
+            ),
+        ) as f64
+    };
+    let sum = |m: &BTreeMap<String, (u64, f64)>, want: &dyn Fn(&str) -> bool, hz: bool| -> f64 {
+        m.iter()
+            .filter(|(k, _)| want(k))
+            .map(|(_, &(n, r))| if hz { r } else { n as f64 })
+            .sum()
+    };
+    let is_blocked_msg =
+        |k: &str| k.ends_with("/GPS_RAW_INT") || k.ends_with("/EXTENDED_SYS_STATE");
+    let is_blocked_sys =
+        |k: &str| (k.starts_with("3/") || k.starts_with("255/")) && !is_blocked_msg(k);
+    let is_attitude = |k: &str| k == "1/ATTITUDE" || k == "2/ATTITUDE";
+    /// Which `SYSTEM/TYPE` keys a reason is about.
+    type Pick<'a> = &'a dyn Fn(&str) -> bool;
+    let checks: [(&str, Pick<'_>, f64); 3] = [
+        ("blocked_msg", &is_blocked_msg, 0.0),
+        ("blocked_sys", &is_blocked_sys, 0.0),
+        ("rate", &is_attitude, sum(&limited, &is_attitude, false)),
+    ];
+    for (reason, want, passed) in checks {
+        let counted = series(router[0], reason);
+        let low = 0.9 * (sum(&open, want, false) - passed);
+        let high = 1.2 * sum(&open, want, true) * lifetime + 10.0;
+        eprintln!("filtered {reason}: {counted} (window: ≥ {low:.0}; life: ≤ {high:.0})");
+        assert!(
+            counted > 0.0 && counted >= low && counted <= high,
+            "{reason}: {counted}"
+        );
+    }
+    for reason in ["not_allowed_msg", "not_allowed_sys"] {
+        assert_eq!(series(router[0], reason), 0.0, "{reason}");
+    }
+    for reason in [
+        "blocked_msg",
+        "not_allowed_msg",
+        "blocked_sys",
+        "not_allowed_sys",
+        "rate",
+    ] {
+        assert_eq!(
+            series(router[1], reason),
+            0.0,
+            "unfiltered endpoint: {reason}"
+        );
+    }
+    rt.block_on(server.shutdown());
+    for v in vehicles {
+        v.stop();
+    }
 }
