@@ -1,7 +1,7 @@
 //! `[[mavlink.router_filter]]`: what the router sends to one client endpoint (message ids and
 //! source systems allowed or blocked, a rate limit per message id), named after mavlink-router's
 //! outgoing filters, checked and resolved into the link's
-//! [`FilterSpec`](crate::gcs::filter::FilterSpec)s ([`MavlinkConfig::router_filters`]).
+//! [`FilterSpec`](crate::gcs::filter::FilterSpec)s (`MavlinkConfig::router_filters`).
 
 use std::collections::BTreeMap;
 
@@ -11,7 +11,6 @@ use harrier_link::mavlink::dialects::common::MavMessage;
 use serde::{Deserialize, Serialize};
 
 use super::error::ConfigError;
-use super::sections::MavlinkConfig;
 use crate::gcs::filter::FilterSpec;
 
 /// Largest MAVLink message id (24 bits in MAVLink 2).
@@ -129,45 +128,48 @@ impl RouterFilterConfig {
     }
 }
 
-impl MavlinkConfig {
-    /// Each router endpoint's filter, in the order of `router` (open where none is
-    /// configured); refuses a filter that names no router endpoint, one of two equal endpoints,
-    /// or an endpoint already filtered, and the values [`RouterFilterConfig`] cannot take.
-    pub fn router_filters(&self) -> Result<Vec<FilterSpec>, ConfigError> {
-        let parse = |e: &str, what: &str| {
-            Endpoint::parse(e).map_err(|e| ConfigError::Invalid(format!("{what}: {e}")))
-        };
-        let router = self
-            .router
+/// Each endpoint of `router`'s filter among `filters`, in the order of `router` (open where
+/// none is configured); refuses a filter that names no router endpoint, one of two equal
+/// endpoints, or an endpoint already filtered, and the values [`RouterFilterConfig`] cannot
+/// take.
+pub(super) fn resolve_all(
+    router: &[String],
+    filters: &[RouterFilterConfig],
+) -> Result<Vec<FilterSpec>, ConfigError> {
+    let parse = |e: &str, what: &str| {
+        Endpoint::parse(e).map_err(|e| ConfigError::Invalid(format!("{what}: {e}")))
+    };
+    let endpoints = router
+        .iter()
+        .map(|e| parse(e, "mavlink.router"))
+        .collect::<Result<Vec<_>, _>>()?;
+    let mut specs = vec![FilterSpec::default(); endpoints.len()];
+    let mut filtered = vec![false; endpoints.len()];
+    for f in filters {
+        let what = format!("mavlink.router_filter {:?}", f.endpoint);
+        let endpoint = parse(&f.endpoint, &format!("{what}: endpoint"))?;
+        let mut at = endpoints
             .iter()
-            .map(|e| parse(e, "mavlink.router"))
-            .collect::<Result<Vec<_>, _>>()?;
-        let mut specs = vec![FilterSpec::default(); router.len()];
-        let mut filtered = vec![false; router.len()];
-        for f in &self.router_filter {
-            let what = format!("mavlink.router_filter {:?}", f.endpoint);
-            let endpoint = parse(&f.endpoint, &format!("{what}: endpoint"))?;
-            let mut at = router.iter().enumerate().filter(|(_, r)| **r == endpoint);
-            let (i, _) = at.next().ok_or_else(|| {
-                ConfigError::Invalid(format!(
-                    "{what}: endpoint is not one of mavlink.router {:?}",
-                    self.router
-                ))
-            })?;
-            if at.next().is_some() {
-                return Err(ConfigError::Invalid(format!(
-                    "{what}: mavlink.router lists this endpoint twice; which one is meant?"
-                )));
-            }
-            if std::mem::replace(&mut filtered[i], true) {
-                return Err(ConfigError::Invalid(format!(
-                    "{what}: a second [[mavlink.router_filter]] for the same endpoint"
-                )));
-            }
-            specs[i] = f.resolve(&what)?;
+            .enumerate()
+            .filter(|(_, r)| **r == endpoint);
+        let (i, _) = at.next().ok_or_else(|| {
+            ConfigError::Invalid(format!(
+                "{what}: endpoint is not one of mavlink.router {router:?}"
+            ))
+        })?;
+        if at.next().is_some() {
+            return Err(ConfigError::Invalid(format!(
+                "{what}: mavlink.router lists this endpoint twice; which one is meant?"
+            )));
         }
-        Ok(specs)
+        if std::mem::replace(&mut filtered[i], true) {
+            return Err(ConfigError::Invalid(format!(
+                "{what}: a second [[mavlink.router_filter]] for the same endpoint"
+            )));
+        }
+        specs[i] = f.resolve(&what)?;
     }
+    Ok(specs)
 }
 
 #[cfg(test)]

@@ -54,6 +54,15 @@ pub struct MavlinkConfig {
     pub router_filter: Vec<RouterFilterConfig>,
 }
 
+impl MavlinkConfig {
+    /// Each router endpoint's filter, in the order of `router` (open where none is
+    /// configured); refuses a filter that names no router endpoint, one of two equal endpoints,
+    /// or an endpoint already filtered, and the values [`RouterFilterConfig`] cannot take.
+    pub fn router_filters(&self) -> Result<Vec<crate::gcs::filter::FilterSpec>, ConfigError> {
+        super::router_filter::resolve_all(&self.router, &self.router_filter)
+    }
+}
+
 /// MAVLink 2 signing of the GCS link and router (`[mavlink.signing]`; docs/mavlink-signing.md).
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]

@@ -140,16 +140,18 @@ pub(super) async fn start(
                     n += 1;
                 }
             }
-            let poses: Vec<_> = snap.vehicles.iter().map(pose).collect();
-            if vehicle_fixes.has_sinks() {
-                for fix in poses.iter().filter_map(|v| vehicle_fix(v, stamp)) {
-                    vehicle_fixes.log(&fix);
+            if vehicle_fixes.has_sinks() || tf.has_sinks() {
+                let poses: Vec<_> = snap.vehicles.iter().map(pose).collect();
+                if vehicle_fixes.has_sinks() {
+                    for fix in poses.iter().filter_map(|v| vehicle_fix(v, stamp)) {
+                        vehicle_fixes.log(&fix);
+                        n += 1;
+                    }
+                }
+                if tf.has_sinks() {
+                    tf.log(&vehicle_transforms(&poses, stamp));
                     n += 1;
                 }
-            }
-            if tf.has_sinks() {
-                tf.log(&vehicle_transforms(&poses, stamp));
-                n += 1;
             }
             if n > 0 {
                 counters.add(FEED, "messages", n);
