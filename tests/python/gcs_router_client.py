@@ -13,7 +13,8 @@ With --connect: connects through the router as QGroundControl or MAVProxy would,
 listed vehicle's HEARTBEAT (and checks that the ground station's own, system 255, is not among
 those it sees, nor is its first one: `wait_heartbeat()` must find a vehicle), then sends
 COMMAND_LONG MAV_CMD_COMPONENT_ARM_DISARM (disarm) to vehicle --command and waits for its
-COMMAND_ACK, which comes back through the router. With --tlog: reads a session's .tlog and checks
+COMMAND_ACK, which comes back through the router (with --blocked: sends it three times and fails
+if any COMMAND_ACK comes within a second of each, as a router filter keeps it from the vehicle). With --tlog: reads a session's .tlog and checks
 it holds HEARTBEATs of the ground station and of every listed vehicle. With --db: reads the
 session file's vehicle log (telemetry, link events, command outcomes) and actions. With
 --signing-key (64 hex characters) the --connect client signs everything it sends (MAVLink 2
@@ -43,7 +44,8 @@ def fail(msg):
     sys.exit(1)
 
 
-def client(url, vehicles, command, signing_key=None, tracks=0, count_s=0.0, gcs_heartbeat=False, timeout_s=20.0):
+def client(url, vehicles, command, signing_key=None, tracks=0, count_s=0.0, gcs_heartbeat=False, timeout_s=20.0,
+           blocked=False):
     if signing_key:
         # Signing needs MAVLink 2 framing from the first message sent.
         os.environ["MAVLINK20"] = "1"
@@ -82,7 +84,15 @@ def client(url, vehicles, command, signing_key=None, tracks=0, count_s=0.0, gcs_
     if 255 in seen and not gcs_heartbeat:
         fail("the ground station's own HEARTBEAT (system 255) reached a router client")
     print(f"{url}: heartbeats from {sorted(seen)}")
-    if command:
+    if command and blocked:
+        # The endpoint's incoming filter keeps the command from the vehicle: no ACK ever comes.
+        for attempt in range(3):
+            m.mav.command_long_send(command, 1, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, attempt, 0, 0, 0, 0, 0, 0, 0)
+            ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=1.0)
+            if ack is not None:
+                fail(f"{url}: a blocked command was acknowledged: {ack}")
+        print(f"{url}: 3 COMMAND_LONGs to vehicle {command}, no COMMAND_ACK (blocked)")
+    elif command:
         for attempt in range(3):
             m.mav.command_long_send(command, 1, mavutil.mavlink.MAV_CMD_COMPONENT_ARM_DISARM, attempt, 0, 0, 0, 0, 0, 0, 0)
             ack = m.recv_match(type="COMMAND_ACK", blocking=True, timeout=2.0)
@@ -252,12 +262,13 @@ def main():
     p.add_argument("--tracks", type=int, default=0, help="wait for this many tracks as ADSB_VEHICLE")
     p.add_argument("--gcs-heartbeat", action="store_true", help="the ground station's HEARTBEAT may come (mavlink.router_heartbeat)")
     p.add_argument("--count", type=float, default=0.0, help="count the messages for this many seconds")
+    p.add_argument("--blocked", action="store_true", help="--command must NOT be acknowledged (a router filter blocks it)")
     a = p.parse_args()
     vehicles = [int(v) for v in a.vehicles.split(",") if v]
     if a.api:
         rest(a.api, a.token, vehicles[0], a.silent)
     for url in a.connect:
-        client(url, vehicles, a.command, a.signing_key, a.tracks, a.count, a.gcs_heartbeat)
+        client(url, vehicles, a.command, a.signing_key, a.tracks, a.count, a.gcs_heartbeat, blocked=a.blocked)
     if a.tlog:
         tlog(a.tlog, vehicles)
     if a.db:

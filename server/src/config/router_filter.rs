@@ -1,6 +1,7 @@
-//! `[[mavlink.router_filter]]`: what the router sends to one client endpoint (message ids and
-//! source systems allowed or blocked, a rate limit per message id), named after mavlink-router's
-//! outgoing filters, checked and resolved into the link's
+//! `[[mavlink.router_filter]]`: what the router sends to one client endpoint (message ids, source
+//! components and source systems allowed or blocked, a rate limit per message id) and what that
+//! endpoint's clients may send to the vehicles (the same lists, `…_in`), named after
+//! mavlink-router's filters, checked and resolved into the link's
 //! [`FilterSpec`](crate::gcs::filter::FilterSpec)s (`MavlinkConfig::router_filters`).
 
 use std::collections::BTreeMap;
@@ -11,7 +12,7 @@ use harrier_link::mavlink::dialects::common::MavMessage;
 use serde::{Deserialize, Serialize};
 
 use super::error::ConfigError;
-use crate::gcs::filter::FilterSpec;
+use crate::gcs::filter::{FilterSpec, Lists};
 
 /// Largest MAVLink message id (24 bits in MAVLink 2).
 const MAX_MESSAGE_ID: u32 = 0xFF_FFFF;
@@ -62,6 +63,10 @@ pub struct RouterFilterConfig {
     pub allow_msg: Vec<MessageRef>,
     /// These messages never go to the endpoint (`BlockMsgIdOut`).
     pub block_msg: Vec<MessageRef>,
+    /// Only frames of these source components go to the endpoint (`AllowSrcCompOut`).
+    pub allow_src_comp: Vec<u8>,
+    /// Frames of these source components never go to the endpoint (`BlockSrcCompOut`).
+    pub block_src_comp: Vec<u8>,
     /// Only frames of these source systems go to the endpoint (`AllowSrcSysOut`).
     pub allow_src_sys: Vec<u8>,
     /// Frames of these source systems never go to the endpoint (`BlockSrcSysOut`).
@@ -69,33 +74,39 @@ pub struct RouterFilterConfig {
     /// Most frames per second of a message (by name or id) from each source system and
     /// component: `{ ATTITUDE = 2.0 }`.
     pub max_rate_hz: BTreeMap<String, f64>,
+    /// Only these messages go from the endpoint's clients to the vehicles (`AllowMsgIdIn`).
+    pub allow_msg_in: Vec<MessageRef>,
+    /// These messages from the endpoint's clients never reach a vehicle (`BlockMsgIdIn`).
+    pub block_msg_in: Vec<MessageRef>,
+    /// Only the clients' frames of these source components reach the vehicles
+    /// (`AllowSrcCompIn`).
+    pub allow_src_comp_in: Vec<u8>,
+    /// The clients' frames of these source components never reach a vehicle (`BlockSrcCompIn`).
+    pub block_src_comp_in: Vec<u8>,
+    /// Only the clients' frames of these source systems reach the vehicles (`AllowSrcSysIn`).
+    pub allow_src_sys_in: Vec<u8>,
+    /// The clients' frames of these source systems never reach a vehicle (`BlockSrcSysIn`).
+    pub block_src_sys_in: Vec<u8>,
 }
 
 impl RouterFilterConfig {
     /// The checked filter (`what` names it in errors).
     fn resolve(&self, what: &str) -> Result<FilterSpec, ConfigError> {
         let bad = |m: String| Err(ConfigError::Invalid(format!("{what}: {m}")));
-        if !self.allow_msg.is_empty() && !self.block_msg.is_empty() {
-            return bad(
-                "allow_msg and block_msg are both set: an allow list lets only its messages \
-                 through, leave the blocked ones out of it"
-                    .into(),
-            );
-        }
-        if !self.allow_src_sys.is_empty() && !self.block_src_sys.is_empty() {
-            return bad(
-                "allow_src_sys and block_src_sys are both set: an allow list lets only its \
-                 systems through, leave the blocked ones out of it"
-                    .into(),
-            );
-        }
-        let ids = |list: &[MessageRef], key: &str| {
-            list.iter()
-                .map(|m| m.resolve(&format!("{what}.{key}")))
-                .collect::<Result<Vec<u32>, _>>()
-        };
-        let allow_msg = ids(&self.allow_msg, "allow_msg")?;
-        let block_msg = ids(&self.block_msg, "block_msg")?;
+        let out = lists(
+            what,
+            "",
+            [&self.allow_msg, &self.block_msg],
+            [&self.allow_src_comp, &self.block_src_comp],
+            [&self.allow_src_sys, &self.block_src_sys],
+        )?;
+        let incoming = lists(
+            what,
+            "_in",
+            [&self.allow_msg_in, &self.block_msg_in],
+            [&self.allow_src_comp_in, &self.block_src_comp_in],
+            [&self.allow_src_sys_in, &self.block_src_sys_in],
+        )?;
         let mut max_rate_hz = Vec::new();
         for (name, &hz) in &self.max_rate_hz {
             let Some(id) = message_id(name) else {
@@ -107,7 +118,9 @@ impl RouterFilterConfig {
             if !(hz.is_finite() && hz > 0.0) {
                 return bad(format!("max_rate_hz.{name} must be > 0 (Hz), got {hz}"));
             }
-            if block_msg.contains(&id) || (!allow_msg.is_empty() && !allow_msg.contains(&id)) {
+            if out.block_msg.contains(&id)
+                || (!out.allow_msg.is_empty() && !out.allow_msg.contains(&id))
+            {
                 return bad(format!(
                     "max_rate_hz.{name}: the message never goes to this endpoint (allow_msg, \
                      block_msg)"
@@ -119,13 +132,55 @@ impl RouterFilterConfig {
             max_rate_hz.push((id, hz));
         }
         Ok(FilterSpec {
-            allow_msg,
-            block_msg,
-            allow_src_sys: self.allow_src_sys.clone(),
-            block_src_sys: self.block_src_sys.clone(),
+            out,
             max_rate_hz,
+            incoming,
         })
     }
+}
+
+/// The checked lists of one direction (`suffix`: `""` out, `"_in"` in): each pair an allow and
+/// a block list, which cannot both be set.
+fn lists(
+    what: &str,
+    suffix: &str,
+    [allow_msg, block_msg]: [&[MessageRef]; 2],
+    [allow_src_comp, block_src_comp]: [&[u8]; 2],
+    [allow_src_sys, block_src_sys]: [&[u8]; 2],
+) -> Result<Lists, ConfigError> {
+    for (kind, allow, block) in [
+        ("msg", allow_msg.is_empty(), block_msg.is_empty()),
+        (
+            "src_comp",
+            allow_src_comp.is_empty(),
+            block_src_comp.is_empty(),
+        ),
+        (
+            "src_sys",
+            allow_src_sys.is_empty(),
+            block_src_sys.is_empty(),
+        ),
+    ] {
+        if !allow && !block {
+            return Err(ConfigError::Invalid(format!(
+                "{what}: allow_{kind}{suffix} and block_{kind}{suffix} are both set: an allow \
+                 list lets only its members through, leave the blocked ones out of it"
+            )));
+        }
+    }
+    let ids = |list: &[MessageRef], key: &str| {
+        list.iter()
+            .map(|m| m.resolve(&format!("{what}.{key}{suffix}")))
+            .collect::<Result<Vec<u32>, _>>()
+    };
+    Ok(Lists {
+        allow_msg: ids(allow_msg, "allow_msg")?,
+        block_msg: ids(block_msg, "block_msg")?,
+        allow_src_comp: allow_src_comp.to_vec(),
+        block_src_comp: block_src_comp.to_vec(),
+        allow_src_sys: allow_src_sys.to_vec(),
+        block_src_sys: block_src_sys.to_vec(),
+    })
 }
 
 /// Each endpoint of `router`'s filter among `filters`, in the order of `router` (open where
@@ -198,7 +253,8 @@ mod tests {
             .collect();
         let c = Config::parse(&lines.join("\n"), "example").expect("uncommented example");
         let specs = c.mavlink.router_filters().expect("example filter");
-        assert_eq!(specs[0].block_msg, vec![24, 245]);
+        assert_eq!(specs[0].out.block_msg, vec![24, 245]);
+        assert_eq!(specs[0].incoming.allow_msg, vec![0]);
         assert_eq!(specs[0].max_rate_hz, vec![(30, 2.0), (33, 1.0)]);
         c.check().expect("example");
     }
@@ -218,10 +274,22 @@ mod tests {
              max_rate_hz = { ATTITUDE = 2.0, \"33\" = 0.5 }\n",
         )
         .unwrap();
-        assert_eq!(specs[0].block_msg, vec![1, 24]);
-        assert_eq!(specs[0].allow_src_sys, vec![1, 2]);
+        assert_eq!(specs[0].out.block_msg, vec![1, 24]);
+        assert_eq!(specs[0].out.allow_src_sys, vec![1, 2]);
         assert_eq!(specs[0].max_rate_hz, vec![(33, 0.5), (30, 2.0)]);
         assert!(specs[1].is_open());
+        let specs = filters(
+            "[[mavlink.router_filter]]\nendpoint = \"tcpin:0.0.0.0:5760\"\n\
+             block_src_comp = [100]\nallow_msg_in = [\"HEARTBEAT\", \"COMMAND_LONG\", 11]\n\
+             allow_src_comp_in = [190]\nblock_src_sys_in = [3]\n",
+        )
+        .unwrap();
+        assert!(specs[0].is_open());
+        assert_eq!(specs[1].out.block_src_comp, vec![100]);
+        assert_eq!(specs[1].incoming.allow_msg, vec![0, 76, 11]);
+        assert_eq!(specs[1].incoming.allow_src_comp, vec![190]);
+        assert_eq!(specs[1].incoming.block_src_sys, vec![3]);
+        assert!(specs[1].out.block_msg.is_empty() && specs[1].max_rate_hz.is_empty());
     }
 
     #[test]
@@ -250,6 +318,23 @@ mod tests {
                 format!("{ep}allow_src_sys = [1]\nblock_src_sys = [2]\n"),
                 "allow_src_sys and block_src_sys are both set",
             ),
+            (
+                format!("{ep}allow_src_comp = [1]\nblock_src_comp = [2]\n"),
+                "allow_src_comp and block_src_comp are both set",
+            ),
+            (
+                format!("{ep}allow_msg_in = [0]\nblock_msg_in = [1]\n"),
+                "allow_msg_in and block_msg_in are both set",
+            ),
+            (
+                format!("{ep}allow_src_sys_in = [1]\nblock_src_sys_in = [2]\n"),
+                "allow_src_sys_in and block_src_sys_in are both set",
+            ),
+            (
+                format!("{ep}block_msg_in = [\"COMMAND_LONGER\"]\n"),
+                "block_msg_in: \"COMMAND_LONGER\" is not a message",
+            ),
+            (format!("{ep}block_src_comp_in = [256]\n"), "256"),
             (
                 format!("{ep}max_rate_hz = {{ ATTITUDE = 0.0 }}\n"),
                 "must be > 0",

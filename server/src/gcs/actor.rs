@@ -7,15 +7,15 @@ use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
-use harrier_link::mavlink::MavHeader;
 use harrier_link::mavlink::dialects::common::{
     HEARTBEAT_DATA, MavAutopilot, MavCmd, MavMessage, MavModeFlag, MavResult, MavState, MavType,
     TIMESYNC_DATA,
 };
+use harrier_link::mavlink::{MavHeader, Message};
 use harrier_link::signing::{Rejection, Signer, Signing};
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
-use super::filter::{FilterSpec, RouterFilter};
+use super::filter::{Direction, FilterSpec, FrameKey, RouterFilter};
 use super::handle::GcsLink;
 use super::messages::{
     CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
@@ -204,7 +204,7 @@ impl Actor {
                 self.metrics.frames_in.fetch_add(1, Ordering::Relaxed);
                 self.on_vehicle_frame(i.endpoint, i.peer, i.at, &f);
             } else {
-                self.on_client_frame(&f);
+                self.on_client_frame(i.endpoint - self.config.gcs.len(), &f);
             }
         }
     }
@@ -329,10 +329,23 @@ impl Actor {
         });
     }
 
-    fn on_client_frame(&mut self, f: &harrier_link::frame::Frame) {
+    /// A frame from a client of router endpoint `router` (its index among the router's): to its
+    /// target vehicle, or to every vehicle, when the endpoint's incoming filter lets it through.
+    fn on_client_frame(&mut self, router: usize, f: &harrier_link::frame::Frame) {
         self.metrics
             .frames_from_clients
             .fetch_add(1, Ordering::Relaxed);
+        let key = FrameKey {
+            system: f.header.system_id,
+            component: f.header.component_id,
+            message: f.message.message_id(),
+        };
+        if let Err(why) = self.filters[router].check_incoming(key) {
+            let e = &self.endpoints[self.config.gcs.len() + router];
+            e.counters.filtered[Direction::In as usize][why as usize]
+                .fetch_add(1, Ordering::Relaxed);
+            return;
+        }
         let bytes: Arc<[u8]> = Arc::from(f.bytes.as_slice());
         let targets: Vec<&VehicleLink> = match f.target_system() {
             Some(t) => match self.vehicles.get(&t) {
@@ -366,7 +379,8 @@ impl Actor {
         let router = &self.endpoints[self.config.gcs.len()..];
         for (e, filter) in router.iter().zip(&mut self.filters) {
             if let Err(why) = filter.check(bytes, now) {
-                e.counters.filtered[why as usize].fetch_add(1, Ordering::Relaxed);
+                e.counters.filtered[Direction::Out as usize][why as usize]
+                    .fetch_add(1, Ordering::Relaxed);
             } else if e.tx.try_send(Outbound::All(Arc::clone(bytes))).is_ok() {
                 queued += 1;
             } else {

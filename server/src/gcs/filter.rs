@@ -1,12 +1,16 @@
 //! The router's per-endpoint filters ([`RouterFilter`]): which frames going out to one client
-//! endpoint pass, read from the raw frame's header ([`FrameKey::read`]: MAVLink 1 and 2, no
-//! decoding), and the rate limit per message id and source.
+//! endpoint pass, and which frames its clients send on to the vehicles, read from the raw frame's
+//! header ([`FrameKey::read`]: MAVLink 1 and 2, no decoding), and the rate limit per message id
+//! and source on the way out.
 //!
-//! The checks and their order follow mavlink-router's outgoing filters (`AllowMsgIdOut`,
-//! `BlockMsgIdOut`, `AllowSrcSysOut`, `BlockSrcSysOut`): an allow list, when not empty, lets
-//! only its members through; a block list stops its members; message ids are checked before
-//! source systems. The rate limit (`max_rate_hz`, which mavlink-router does not have) comes last:
-//! only a frame that passed the lists uses up its stream's slot.
+//! The checks and their order follow mavlink-router's filters: outgoing `AllowMsgIdOut`,
+//! `BlockMsgIdOut`, `AllowSrcCompOut`, `BlockSrcCompOut`, `AllowSrcSysOut`, `BlockSrcSysOut`,
+//! and the same six `…In` lists for the frames an endpoint's clients send
+//! (`Endpoint::allowed_by_incoming_filters`): an allow list, when not empty, lets only its
+//! members through; a block list stops its members; message ids are checked first, then source
+//! components, then source systems. The rate limit (`max_rate_hz`, which mavlink-router does not
+//! have) comes last and only on the way out: only a frame that passed the lists uses up its
+//! stream's slot.
 //!
 //! **Rate.** A stream is one (source system, source component, message id) on one endpoint; its
 //! frames are let through at most at the configured rate, with the generic cell rate
@@ -18,10 +22,10 @@
 //! five, every 0.5 s; a plain "no sooner than 1/rate after the last one sent" would miss the
 //! slot whenever a frame came a millisecond early, and fall to 1.67 Hz).
 //!
-//! Per frame: at most two hash-set and two bit-set look-ups, and for a limited message a hash-map
-//! look-up;
-//! nothing is allocated but when a stream is first seen (at most [`MAX_STREAMS`] per endpoint:
-//! a full table is emptied, each stream then sends one frame early at most).
+//! Per frame: at most two hash-set and four bit-set look-ups, and for a limited message a
+//! hash-map look-up; nothing is allocated but when a stream is first seen (at most
+//! [`MAX_STREAMS`] per endpoint: a full table is emptied, each stream then sends one frame early
+//! at most).
 
 use std::collections::{HashMap, HashSet};
 use std::time::{Duration, Instant};
@@ -29,26 +33,55 @@ use std::time::{Duration, Instant};
 /// Most rate-limited streams remembered per endpoint.
 pub const MAX_STREAMS: usize = 4096;
 
-/// Why a frame did not go to an endpoint (the `reason` label of `harrier_router_filtered_total`).
+/// Which way a frame crosses a router endpoint (the `direction` label of
+/// `harrier_router_filtered_total`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// From the vehicles (and the ground station) to the endpoint's clients.
+    Out,
+    /// From the endpoint's clients to the vehicles.
+    In,
+}
+
+impl Direction {
+    /// Both, in the order of their `usize` values.
+    pub const ALL: [Self; 2] = [Self::Out, Self::In];
+
+    /// The label value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Out => "out",
+            Self::In => "in",
+        }
+    }
+}
+
+/// Why a frame did not cross an endpoint (the `reason` label of `harrier_router_filtered_total`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Filtered {
-    /// Its message id is in `block_msg`.
+    /// Its message id is in the block list.
     BlockedMsg,
-    /// `allow_msg` is set and its message id is not in it.
+    /// There is an allow list of message ids and its id is not in it.
     NotAllowedMsg,
-    /// Its source system is in `block_src_sys`.
+    /// Its source component is in the block list.
+    BlockedComp,
+    /// There is an allow list of source components and its component is not in it.
+    NotAllowedComp,
+    /// Its source system is in the block list.
     BlockedSys,
-    /// `allow_src_sys` is set and its source system is not in it.
+    /// There is an allow list of source systems and its system is not in it.
     NotAllowedSys,
-    /// Sooner than its stream's `max_rate_hz` allows.
+    /// Sooner than its stream's `max_rate_hz` allows (outgoing only).
     Rate,
 }
 
 impl Filtered {
     /// Every reason, in the order of their `usize` values.
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 7] = [
         Self::BlockedMsg,
         Self::NotAllowedMsg,
+        Self::BlockedComp,
+        Self::NotAllowedComp,
         Self::BlockedSys,
         Self::NotAllowedSys,
         Self::Rate,
@@ -59,6 +92,8 @@ impl Filtered {
         match self {
             Self::BlockedMsg => "blocked_msg",
             Self::NotAllowedMsg => "not_allowed_msg",
+            Self::BlockedComp => "blocked_comp",
+            Self::NotAllowedComp => "not_allowed_comp",
             Self::BlockedSys => "blocked_sys",
             Self::NotAllowedSys => "not_allowed_sys",
             Self::Rate => "rate",
@@ -115,34 +150,48 @@ impl FrameKey {
     }
 }
 
-/// One endpoint's filter settings, checked (`[[mavlink.router_filter]]` with its message names
-/// resolved). The default lets everything through.
-#[derive(Debug, Clone, PartialEq, Default)]
-pub struct FilterSpec {
+/// The allow and block lists of one direction (each empty: no check).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Lists {
     /// Only these message ids pass (empty: any).
     pub allow_msg: Vec<u32>,
     /// These message ids never pass.
     pub block_msg: Vec<u32>,
+    /// Only frames of these source components pass (empty: any).
+    pub allow_src_comp: Vec<u8>,
+    /// Frames of these source components never pass.
+    pub block_src_comp: Vec<u8>,
     /// Only frames of these source systems pass (empty: any).
     pub allow_src_sys: Vec<u8>,
     /// Frames of these source systems never pass.
     pub block_src_sys: Vec<u8>,
-    /// Most frames per second of each (source system, source component) for a message id.
+}
+
+/// One endpoint's filter settings, checked (`[[mavlink.router_filter]]` with its message names
+/// resolved). The default lets everything through both ways.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct FilterSpec {
+    /// The lists of frames going out to the endpoint's clients.
+    pub out: Lists,
+    /// Most frames per second going out of each (source system, source component) for a
+    /// message id.
     pub max_rate_hz: Vec<(u32, f64)>,
+    /// The lists of frames the endpoint's clients send to the vehicles.
+    pub incoming: Lists,
 }
 
 impl FilterSpec {
-    /// Whether it lets every frame through.
+    /// Whether it lets every frame through both ways.
     pub fn is_open(&self) -> bool {
         *self == Self::default()
     }
 }
 
-/// A set of system ids (0–255).
+/// A set of 8-bit ids (systems or components).
 #[derive(Debug, Clone, Copy, Default)]
-struct SysSet([u64; 4]);
+struct IdSet([u64; 4]);
 
-impl SysSet {
+impl IdSet {
     fn of(ids: &[u8]) -> Self {
         let mut s = Self::default();
         for &id in ids {
@@ -160,43 +209,90 @@ impl SysSet {
     }
 }
 
-/// One router endpoint's filter and its streams' rate state.
-#[derive(Debug, Clone)]
-pub struct RouterFilter {
+/// [`Lists`] ready to check.
+#[derive(Debug, Clone, Default)]
+struct ListFilter {
     allow_msg: HashSet<u32>,
     block_msg: HashSet<u32>,
-    allow_sys: SysSet,
-    block_sys: SysSet,
+    allow_comp: IdSet,
+    block_comp: IdSet,
+    allow_sys: IdSet,
+    block_sys: IdSet,
+    /// Every list is empty.
+    open: bool,
+}
+
+impl ListFilter {
+    fn new(lists: &Lists) -> Self {
+        Self {
+            allow_msg: lists.allow_msg.iter().copied().collect(),
+            block_msg: lists.block_msg.iter().copied().collect(),
+            allow_comp: IdSet::of(&lists.allow_src_comp),
+            block_comp: IdSet::of(&lists.block_src_comp),
+            allow_sys: IdSet::of(&lists.allow_src_sys),
+            block_sys: IdSet::of(&lists.block_src_sys),
+            open: *lists == Lists::default(),
+        }
+    }
+
+    /// The lists in mavlink-router's order: message ids, source components, source systems.
+    fn check(&self, key: FrameKey) -> Result<(), Filtered> {
+        if self.open {
+            return Ok(());
+        }
+        if !self.allow_msg.is_empty() && !self.allow_msg.contains(&key.message) {
+            return Err(Filtered::NotAllowedMsg);
+        }
+        if self.block_msg.contains(&key.message) {
+            return Err(Filtered::BlockedMsg);
+        }
+        let component = u32::from(key.component);
+        if !self.allow_comp.is_empty() && !self.allow_comp.contains(component) {
+            return Err(Filtered::NotAllowedComp);
+        }
+        if self.block_comp.contains(component) {
+            return Err(Filtered::BlockedComp);
+        }
+        if !self.allow_sys.is_empty() && !self.allow_sys.contains(key.system) {
+            return Err(Filtered::NotAllowedSys);
+        }
+        if self.block_sys.contains(key.system) {
+            return Err(Filtered::BlockedSys);
+        }
+        Ok(())
+    }
+}
+
+/// One router endpoint's filter and its outgoing streams' rate state.
+#[derive(Debug, Clone)]
+pub struct RouterFilter {
+    out: ListFilter,
+    incoming: ListFilter,
     /// The period of each limited message id.
     period: HashMap<u32, Duration>,
     /// Each limited stream's theoretical time of its next frame.
     due: HashMap<FrameKey, Instant>,
-    /// Nothing to check: every frame passes.
-    open: bool,
 }
 
 impl RouterFilter {
     /// The filter of `spec` (whose rates are finite and > 0: the configuration checks them).
     pub fn new(spec: &FilterSpec) -> Self {
         Self {
-            allow_msg: spec.allow_msg.iter().copied().collect(),
-            block_msg: spec.block_msg.iter().copied().collect(),
-            allow_sys: SysSet::of(&spec.allow_src_sys),
-            block_sys: SysSet::of(&spec.block_src_sys),
+            out: ListFilter::new(&spec.out),
+            incoming: ListFilter::new(&spec.incoming),
             period: spec
                 .max_rate_hz
                 .iter()
                 .map(|&(id, hz)| (id, Duration::from_secs_f64(1.0 / hz)))
                 .collect(),
             due: HashMap::new(),
-            open: spec.is_open(),
         }
     }
 
-    /// Whether the frame `bytes` goes to the endpoint at `now`; a frame whose header cannot be
-    /// read passes (the parser only hands over whole frames).
+    /// Whether the frame `bytes` goes out to the endpoint at `now`; a frame whose header cannot
+    /// be read passes (the parser only hands over whole frames).
     pub fn check(&mut self, bytes: &[u8], now: Instant) -> Result<(), Filtered> {
-        if self.open {
+        if self.out.open && self.period.is_empty() {
             return Ok(());
         }
         let Some(key) = FrameKey::read(bytes) else {
@@ -205,20 +301,14 @@ impl RouterFilter {
         self.check_key(key, now)
     }
 
+    /// Whether a frame one of the endpoint's clients sent goes on to the vehicles.
+    pub fn check_incoming(&self, key: FrameKey) -> Result<(), Filtered> {
+        self.incoming.check(key)
+    }
+
     /// [`check`](Self::check) of a frame's header.
     pub fn check_key(&mut self, key: FrameKey, now: Instant) -> Result<(), Filtered> {
-        if !self.allow_msg.is_empty() && !self.allow_msg.contains(&key.message) {
-            return Err(Filtered::NotAllowedMsg);
-        }
-        if self.block_msg.contains(&key.message) {
-            return Err(Filtered::BlockedMsg);
-        }
-        if !self.allow_sys.is_empty() && !self.allow_sys.contains(key.system) {
-            return Err(Filtered::NotAllowedSys);
-        }
-        if self.block_sys.contains(key.system) {
-            return Err(Filtered::BlockedSys);
-        }
+        self.out.check(key)?;
         let Some(&period) = self.period.get(&key.message) else {
             return Ok(());
         };
@@ -248,6 +338,7 @@ mod tests {
 
     const ATTITUDE: u32 = 30;
     const GPS_RAW_INT: u32 = 24;
+    const COMMAND_LONG: u32 = 76;
 
     fn key(system: u32, component: u8, message: u32) -> FrameKey {
         FrameKey {
@@ -293,14 +384,22 @@ mod tests {
         }
     }
 
+    /// A filter whose outgoing lists are `out`.
+    fn out(out: Lists) -> RouterFilter {
+        RouterFilter::new(&FilterSpec {
+            out,
+            ..FilterSpec::default()
+        })
+    }
+
     #[test]
     fn allow_and_block_lists_in_mavlink_router_order() {
-        let mut f = RouterFilter::new(&FilterSpec {
+        let mut f = out(Lists {
             allow_msg: vec![0, ATTITUDE, GPS_RAW_INT],
             block_msg: vec![GPS_RAW_INT],
             allow_src_sys: vec![1, 2, 255],
             block_src_sys: vec![2],
-            ..FilterSpec::default()
+            ..Lists::default()
         });
         let now = Instant::now();
         assert_eq!(f.check_key(key(1, 1, ATTITUDE), now), Ok(()));
@@ -326,9 +425,9 @@ mod tests {
             f.check_key(key(257, 1, 0), now),
             Err(Filtered::NotAllowedSys)
         );
-        let mut f = RouterFilter::new(&FilterSpec {
+        let mut f = out(Lists {
             block_src_sys: vec![0, 63, 64, 255],
-            ..FilterSpec::default()
+            ..Lists::default()
         });
         for s in [0, 63, 64, 255] {
             assert_eq!(
@@ -343,10 +442,92 @@ mod tests {
     }
 
     #[test]
-    fn raw_frames_are_checked_by_their_header() {
+    fn components_are_checked_between_messages_and_systems() {
+        let now = Instant::now();
+        // A camera (component 100) and the autopilot (1) of vehicle 1; the ground station's 190.
+        let mut f = out(Lists {
+            block_msg: vec![GPS_RAW_INT],
+            allow_src_comp: vec![1, 190],
+            block_src_sys: vec![3],
+            ..Lists::default()
+        });
+        assert_eq!(f.check_key(key(1, 1, ATTITUDE), now), Ok(()));
+        assert_eq!(f.check_key(key(255, 190, 0), now), Ok(()));
+        assert_eq!(
+            f.check_key(key(1, 100, ATTITUDE), now),
+            Err(Filtered::NotAllowedComp)
+        );
+        // Message ids come first, systems last.
+        assert_eq!(
+            f.check_key(key(1, 100, GPS_RAW_INT), now),
+            Err(Filtered::BlockedMsg)
+        );
+        assert_eq!(
+            f.check_key(key(3, 100, ATTITUDE), now),
+            Err(Filtered::NotAllowedComp)
+        );
+        assert_eq!(
+            f.check_key(key(3, 1, ATTITUDE), now),
+            Err(Filtered::BlockedSys)
+        );
+        let mut f = out(Lists {
+            block_src_comp: vec![0, 100, 255],
+            ..Lists::default()
+        });
+        for c in [0, 100, 255] {
+            assert_eq!(
+                f.check_key(key(1, c, 0), now),
+                Err(Filtered::BlockedComp),
+                "{c}"
+            );
+        }
+        for c in [1, 99, 101, 190, 254] {
+            assert_eq!(f.check_key(key(1, c, 0), now), Ok(()), "{c}");
+        }
+    }
+
+    #[test]
+    fn incoming_lists_apply_only_to_what_the_clients_send() {
+        let now = Instant::now();
         let mut f = RouterFilter::new(&FilterSpec {
-            block_msg: vec![0],
+            incoming: Lists {
+                block_msg: vec![COMMAND_LONG],
+                allow_src_sys: vec![255, 200],
+                block_src_comp: vec![191],
+                ..Lists::default()
+            },
             ..FilterSpec::default()
+        });
+        assert_eq!(f.check_incoming(key(255, 190, 0)), Ok(()));
+        assert_eq!(
+            f.check_incoming(key(255, 190, COMMAND_LONG)),
+            Err(Filtered::BlockedMsg)
+        );
+        assert_eq!(
+            f.check_incoming(key(200, 191, 0)),
+            Err(Filtered::BlockedComp)
+        );
+        assert_eq!(
+            f.check_incoming(key(201, 190, 0)),
+            Err(Filtered::NotAllowedSys)
+        );
+        // The way out is open.
+        for k in [key(255, 190, COMMAND_LONG), key(200, 191, 0), key(1, 1, 30)] {
+            assert_eq!(f.check_key(k, now), Ok(()));
+        }
+        // And an outgoing filter leaves the way in open.
+        let f = out(Lists {
+            block_msg: vec![COMMAND_LONG],
+            ..Lists::default()
+        });
+        assert_eq!(f.check_incoming(key(255, 190, COMMAND_LONG)), Ok(()));
+    }
+
+    #[test]
+    fn raw_frames_are_checked_by_their_header() {
+        let mut f = out(Lists {
+            block_msg: vec![0],
+            ..Lists::default()
         });
         let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA::DEFAULT);
         let att = MavMessage::ATTITUDE(ATTITUDE_DATA::DEFAULT);
@@ -462,7 +643,10 @@ mod tests {
     #[test]
     fn only_frames_that_pass_the_lists_use_a_slot() {
         let mut f = RouterFilter::new(&FilterSpec {
-            block_src_sys: vec![2],
+            out: Lists {
+                block_src_sys: vec![2],
+                ..Lists::default()
+            },
             max_rate_hz: vec![(ATTITUDE, 1.0)],
             ..FilterSpec::default()
         });

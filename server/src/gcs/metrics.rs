@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use harrier_link::signing::Rejection;
 
-use super::filter::Filtered;
+use super::filter::{Direction, Filtered};
 use super::messages::VehicleSample;
 use super::transport::EndpointHandle;
 use super::vehicle::LinkState;
@@ -61,14 +61,24 @@ impl LinkMetrics {
         let mut filtered = Family::counter(
             out,
             "harrier_router_filtered_total",
-            "Frames a router endpoint's filter kept from its clients ([[mavlink.router_filter]]), by reason: blocked_msg, not_allowed_msg, blocked_sys, not_allowed_sys, rate.",
+            "Frames a router endpoint's filter ([[mavlink.router_filter]]) kept from its clients (direction out) or from the vehicles (direction in), by reason: blocked_msg, not_allowed_msg, blocked_comp, not_allowed_comp, blocked_sys, not_allowed_sys, rate.",
         );
         for e in endpoints.get(gcs_endpoints..).unwrap_or_default() {
-            for (reason, n) in Filtered::ALL.iter().zip(&e.counters.filtered) {
-                filtered.sample(
-                    &[("endpoint", &e.endpoint), ("reason", &reason.as_str())],
-                    n.load(Ordering::Relaxed),
-                );
+            for (direction, counts) in Direction::ALL.iter().zip(&e.counters.filtered) {
+                for (reason, n) in Filtered::ALL.iter().zip(counts) {
+                    // Nothing is rate-limited on the way in.
+                    if *direction == Direction::In && *reason == Filtered::Rate {
+                        continue;
+                    }
+                    filtered.sample(
+                        &[
+                            ("endpoint", &e.endpoint),
+                            ("direction", &direction.as_str()),
+                            ("reason", &reason.as_str()),
+                        ],
+                        n.load(Ordering::Relaxed),
+                    );
+                }
             }
         }
         render_vehicles(vehicles, out);

@@ -113,9 +113,10 @@ pub struct EndpointCounters {
     pub sent: AtomicU64,
     /// Frames dropped: a TCP client's queue was full, or a send failed.
     pub send_dropped: AtomicU64,
-    /// Frames a router endpoint's filter kept from its clients, by
-    /// [`Filtered`](super::filter::Filtered) reason (in the order of `Filtered::ALL`).
-    pub filtered: [AtomicU64; 5],
+    /// Frames a router endpoint's filter kept from its clients (`Direction::Out`) or from the
+    /// vehicles (`Direction::In`), by [`Direction`](super::filter::Direction) and
+    /// [`Filtered`](super::filter::Filtered) reason (in the order of their `ALL`).
+    pub filtered: [[AtomicU64; 7]; 2],
 }
 
 /// An open endpoint: where it is bound, and the queue of bytes to send on it.

@@ -26,9 +26,11 @@
 //! - `router_filters_rate_limit_and_block_per_endpoint`: three harrier-sim vehicles (ATTITUDE at
 //!   10 Hz) and two pymavlink clients counting messages for 10 s on two router endpoints, one
 //!   filtered (`[[mavlink.router_filter]]`: ATTITUDE ≤ 2 Hz per vehicle, GPS_RAW_INT and
-//!   EXTENDED_SYS_STATE blocked, systems 3 and 255 blocked), one not: the limited client gets
-//!   each vehicle's ATTITUDE at 1.8–2.1 Hz and nothing blocked, the other everything at the full
-//!   rate, and `harrier_router_filtered_total` counts what the first did not get.
+//!   EXTENDED_SYS_STATE blocked, systems 3 and 255 blocked; COMMAND_LONG from its clients
+//!   blocked), one not: the limited client gets each vehicle's ATTITUDE at 1.8–2.1 Hz and
+//!   nothing blocked, and its three COMMAND_LONGs are never acknowledged; the other gets
+//!   everything at the full rate; `harrier_router_filtered_total` counts what the first did not
+//!   get and what it could not send.
 
 use std::collections::BTreeMap;
 use std::ffi::OsStr;
@@ -708,6 +710,8 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
                 // The ground station's own frames pass the same filter.
                 block_src_sys: vec![3, 255],
                 max_rate_hz: BTreeMap::from([("ATTITUDE".to_owned(), 2.0)]),
+                // Its clients may not command the vehicles.
+                block_msg_in: vec![MessageRef::Name("COMMAND_LONG".into())],
                 ..RouterFilterConfig::default()
             }],
             router_heartbeat: true,
@@ -738,23 +742,24 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
     });
     let link = server.link().expect("link").clone();
     let router: Vec<SocketAddr> = link.router().map(|e| e.addr()).collect();
-    let client = |addr: SocketAddr, vehicles: &str| {
-        spawn_counting_client(
-            [
-                "--connect",
-                &format!("udpout:{addr}"),
-                "--vehicles",
-                vehicles,
-                "--count",
-                &SECONDS.to_string(),
-                "--gcs-heartbeat",
-            ]
-            .map(str::to_owned)
-            .to_vec(),
-        )
+    let client = |addr: SocketAddr, vehicles: &str, extra: &[&str]| {
+        let mut args: Vec<String> = [
+            "--connect",
+            &format!("udpout:{addr}"),
+            "--vehicles",
+            vehicles,
+            "--count",
+            &SECONDS.to_string(),
+            "--gcs-heartbeat",
+        ]
+        .map(str::to_owned)
+        .to_vec();
+        args.extend(extra.iter().map(|s| (*s).to_owned()));
+        spawn_counting_client(args)
     };
-    let limited = client(router[0], "1,2");
-    let open = client(router[1], "1,2,3");
+    // The limited client first sends vehicle 1 three disarm commands that must not reach it.
+    let limited = client(router[0], "1,2", &["--command", "1", "--blocked"]);
+    let open = client(router[1], "1,2,3", &[]);
     let limited = limited.join().expect("limited client");
     let open = open.join().expect("unfiltered client");
     let lifetime = started.elapsed().as_secs_f64();
@@ -804,7 +809,7 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
         metric(
             &server,
             &format!(
-                "harrier_router_filtered_total{{endpoint=\"udpin:{endpoint}\",reason=\"{reason}\"}}"
+                "harrier_router_filtered_total{{endpoint=\"udpin:{endpoint}\",direction=\"out\",reason=\"{reason}\"}}"
             ),
         ) as f64
     };
@@ -836,12 +841,19 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
             "{reason}: {counted}"
         );
     }
-    for reason in ["not_allowed_msg", "not_allowed_sys"] {
+    for reason in [
+        "not_allowed_msg",
+        "blocked_comp",
+        "not_allowed_comp",
+        "not_allowed_sys",
+    ] {
         assert_eq!(series(router[0], reason), 0.0, "{reason}");
     }
     for reason in [
         "blocked_msg",
         "not_allowed_msg",
+        "blocked_comp",
+        "not_allowed_comp",
         "blocked_sys",
         "not_allowed_sys",
         "rate",
@@ -852,6 +864,18 @@ fn router_filters_rate_limit_and_block_per_endpoint() {
             "unfiltered endpoint: {reason}"
         );
     }
+    // The way in: exactly the three commands, and nothing of what the clients sent else.
+    let incoming = |endpoint: SocketAddr, reason: &str| {
+        metric(
+            &server,
+            &format!(
+                "harrier_router_filtered_total{{endpoint=\"udpin:{endpoint}\",direction=\"in\",reason=\"{reason}\"}}"
+            ),
+        )
+    };
+    assert_eq!(incoming(router[0], "blocked_msg"), 3);
+    assert_eq!(incoming(router[1], "blocked_msg"), 0);
+    assert_eq!(incoming(router[0], "blocked_sys"), 0);
     rt.block_on(server.shutdown());
     for v in vehicles {
         v.stop();
