@@ -63,6 +63,7 @@ pub mod identified;
 mod initiate;
 pub mod metrics;
 mod multi;
+pub mod retrodict;
 
 pub use associate::{Gater, Hypothesis, TrackHypotheses, global_nearest_neighbour, hypothesise};
 pub use delete::{DeleteReason, Deleter};
