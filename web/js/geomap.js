@@ -11,6 +11,9 @@ import { EnuFrame, metresPerPixel } from "./geo.js";
 import { Painter } from "./painter.js";
 
 const L = window.L;
+const RAD = Math.PI / 180;
+/** Leaflet's (and Web Mercator's) latitude limit (°). */
+const MAX_LAT = 85.0511287798;
 
 /** The canvas over the map: a Leaflet layer in the map's container, above the tiles. */
 const OverlayLayer = L
@@ -67,6 +70,7 @@ export class GeoMapView {
       return false;
     }
     this.frame = new EnuFrame(body.origin);
+    this.geodetic = new WeakMap(); // stored ENU points → [lat, lon, h]
     const map = L.map(this.el, { zoomAnimation: false, zoomSnap: 1, minZoom: 2, maxZoom: 21, worldCopyJump: false });
     this.map = map;
     const o = body.origin;
@@ -122,11 +126,46 @@ export class GeoMapView {
     return this.el.clientHeight;
   }
 
-  /** Canvas pixels of ENU (m), on the ground plane. */
+  /**
+   * Canvas pixels of ENU (m), on the ground plane: WGS-84 through the frame (geo.js), then
+   * Leaflet's projection of the view (EPSG:3857, `map.project` less the container's pixel
+   * origin, read once a frame in `draw`). Not `map.latLngToContainerPoint`, which rounds to
+   * whole pixels: 3 m at zoom 15 here, and a moving track would jump from pixel to pixel.
+   */
   toScreen(x, y) {
     const g = this.frame.toGeodetic(x, y, this.store.planeZ);
-    const p = this.map.latLngToContainerPoint([g[0], g[1]]);
-    return [p.x, p.y];
+    return this.project(g[0], g[1]);
+  }
+
+  /** `toScreen` of a point that never changes (`key`, its array): its WGS-84 is kept. */
+  toScreenCached(key, x, y) {
+    let g = this.geodetic.get(key);
+    if (!g) {
+      g = this.frame.toGeodetic(x, y, this.store.planeZ);
+      this.geodetic.set(key, g);
+    }
+    return this.project(g[0], g[1]);
+  }
+
+  /** Canvas pixels of a latitude and longitude (°): Leaflet's spherical Mercator, inlined. */
+  project(lat, lon) {
+    const v = this.view;
+    const s = Math.sin(Math.max(Math.min(lat, MAX_LAT), -MAX_LAT) * RAD);
+    return [v.k * (lon * RAD) + v.x0, -v.k * 0.5 * Math.log((1 + s) / (1 - s)) + v.y0];
+  }
+
+  /**
+   * The view's projection constants: pixels per radian (256 · 2^zoom / 2π) and where the
+   * projected origin falls on the canvas, from Leaflet's own state (its pixel origin and the
+   * pane's offset), so that `project` agrees with `map.project`.
+   */
+  readView() {
+    const map = this.map;
+    const zoom = map.getZoom();
+    const k = (256 * 2 ** zoom) / (2 * Math.PI);
+    const origin = map.getPixelOrigin();
+    const pane = map.containerPointToLayerPoint([0, 0]);
+    this.view = { k, x0: 128 * 2 ** zoom - origin.x - pane.x, y0: 128 * 2 ** zoom - origin.y - pane.y };
   }
 
   /** [lat, lon] under canvas pixels (Leaflet's own inverse; the tests check against it). */
@@ -149,7 +188,11 @@ export class GeoMapView {
     }
   }
 
-  /** Frames everything known (vehicles, tracks, truth); a change only when it moves the view. */
+  /**
+   * Frames everything known (vehicles, tracks, truth). The view changes only when something
+   * would be outside it, or when all of it fits a closer zoom level: tiles are not asked again
+   * for every small move.
+   */
   fit() {
     const e = Painter.extent(this.store);
     if (!e || !this.map || !this.width) return false;
@@ -157,9 +200,9 @@ export class GeoMapView {
     const ne = this.frame.toGeodetic(e[2], e[3]);
     const b = L.latLngBounds([sw[0], sw[1]], [ne[0], ne[1]]);
     const zoom = Math.min(this.map.getBoundsZoom(b), 19);
-    const c = b.getCenter();
-    const off = this.map.latLngToContainerPoint(c).distanceTo([this.width / 2, this.height / 2]);
-    if (zoom !== this.map.getZoom() || off > 25) this.programmatic(() => this.map.setView(c, zoom, { animate: false }));
+    if (zoom !== this.map.getZoom() || !this.map.getBounds().contains(b)) {
+      this.programmatic(() => this.map.setView(b.getCenter(), zoom, { animate: false }));
+    }
     return true;
   }
 
@@ -173,6 +216,7 @@ export class GeoMapView {
       this.fitted = this.fit() || this.fitted;
     }
     if (this.follow != null) {
+      this.readView();
       const k = this.store.tracks.get(this.follow);
       if (k) {
         const [px, py] = this.toScreen(k.view.state[0], k.view.state[1]);
@@ -186,6 +230,7 @@ export class GeoMapView {
       this.canvas.width = w;
       this.canvas.height = h;
     }
+    this.readView();
     const centre = this.map.getCenter();
     this.scale = 1 / metresPerPixel(centre.lat, this.map.getZoom());
     const ctx = this.ctx;

@@ -94,6 +94,9 @@ export class MapView {
   toScreen(x, y) {
     return [this.width / 2 + (x - this.center[0]) * this.scale, this.height / 2 - (y - this.center[1]) * this.scale];
   }
+  toScreenCached(_key, x, y) {
+    return this.toScreen(x, y);
+  }
   toWorld(px, py) {
     return [this.center[0] + (px - this.width / 2) / this.scale, this.center[1] - (py - this.height / 2) / this.scale];
   }

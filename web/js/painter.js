@@ -2,8 +2,10 @@
 // velocity and history, OBE bounds, detections and bearing rays, UAVs with heading and trail,
 // truth, the roads and no-fly discs of GET /world, standoff circles, formation links, ADS-B
 // aircraft. The local grid (map.js) and the geographic map (geomap.js) both draw it, each with
-// its own projection `p`: `toScreen(x, y)` (ENU metres → canvas pixels), `scale` (pixels per
-// metre there), `visible(px, py, r)` and `follow` (the followed track's id).
+// its own projection `p`: `toScreen(x, y)` (ENU metres → canvas pixels), `toScreenCached(key, x,
+// y)` (the same for a stored point that never changes, `key` its array: history, trails, truth,
+// roads; a projection may keep what it computed for it), `scale` (pixels per metre there),
+// `visible(px, py, r)` and `follow` (the followed track's id).
 
 import { Store } from "./store.js";
 import { colorFor, detectionPoint, detectionRay, fmtDist } from "./util.js";
@@ -65,7 +67,7 @@ export class Painter {
       ctx.setLineDash([6, 5]);
       ctx.beginPath();
       pts.forEach((p, i) => {
-        const [px, py] = this.p.toScreen(p[1], p[2]);
+        const [px, py] = this.p.toScreenCached(p, p[1], p[2]);
         if (i) ctx.lineTo(px, py);
         else ctx.moveTo(px, py);
       });
@@ -127,7 +129,7 @@ export class Painter {
         ctx.lineWidth = 1.5;
         ctx.beginPath();
         k.history.forEach((p, i) => {
-          const [hx, hy] = this.p.toScreen(p[1], p[2]);
+          const [hx, hy] = this.p.toScreenCached(p, p[1], p[2]);
           if (i) ctx.lineTo(hx, hy);
           else ctx.moveTo(hx, hy);
         });
@@ -217,7 +219,7 @@ export class Painter {
       const path = () => {
         ctx.beginPath();
         road.points.forEach((p, i) => {
-          const [x, y] = this.p.toScreen(p[0], p[1]);
+          const [x, y] = this.p.toScreenCached(p, p[0], p[1]);
           if (i) ctx.lineTo(x, y);
           else ctx.moveTo(x, y);
         });
@@ -409,7 +411,7 @@ export class Painter {
         ctx.lineWidth = 1.2;
         ctx.beginPath();
         v.trail.forEach((p, i) => {
-          const [tx, ty] = this.p.toScreen(p[1], p[2]);
+          const [tx, ty] = this.p.toScreenCached(p, p[1], p[2]);
           if (i) ctx.lineTo(tx, ty);
           else ctx.moveTo(tx, ty);
         });

@@ -3,8 +3,8 @@
 //! tiles and zoom levels join without seams. It shows a map is there and gives the eye a scale;
 //! it is not the real ground.
 
-/// Field sizes (m): across and along the furrows.
-const FIELD_M: (f64, f64) = (170.0, 115.0);
+/// Field sizes (m): the shortest width, how much wider a row's fields may be, the rows' depth.
+const FIELD_M: (f64, f64, f64) = (90.0, 180.0, 115.0);
 /// Wavelengths of the noise that decides where the woods are (m).
 const WOOD_SCALES_M: (f64, f64) = (900.0, 260.0);
 /// Noise above which the ground is wood.
@@ -53,29 +53,59 @@ fn noise(u: f64, v: f64, cell: f64, salt: u64) -> f64 {
     top + (bottom - top) * sv
 }
 
-/// The ground's colour at `(u, v)` (metres east and north on a plane of the world's scale)
-/// when a pixel covers `m_per_px` metres.
-pub(super) fn colour(u: f64, v: f64, m_per_px: f64) -> [u8; 3] {
-    let wood = 0.65 * noise(u, v, WOOD_SCALES_M.0, 1) + 0.35 * noise(u, v, WOOD_SCALES_M.1, 2);
-    if wood > WOOD_LEVEL {
-        // Darker towards the middle of a wood.
-        let shade = ((wood - WOOD_LEVEL) * 40.0).min(8.0) as u8;
-        return WOOD.map(|c| c.saturating_sub(shade));
-    }
-    // Rows of fields, each row shifted by its own amount so the hedges do not line up.
-    let row = (v / FIELD_M.1).floor();
-    let shift = unit(hash(0, row as i64, 3)) * FIELD_M.0;
-    let col = ((u + shift) / FIELD_M.0).floor();
-    // Hedges a pixel wide (at least 3 m), only once fields are several pixels across.
-    let hedge_m = (1.2 * m_per_px).max(3.0);
-    if m_per_px < FIELD_M.1 / 8.0 {
-        let du = (u + shift) - col * FIELD_M.0;
-        let dv = v - row * FIELD_M.1;
-        if du < hedge_m || dv < hedge_m {
-            return HEDGE;
+/// The noise that makes woods at `(u, v)`: smooth over [`WOOD_SPACING_M`], so that a renderer
+/// may sample it that far apart and interpolate.
+pub(super) fn wood(u: f64, v: f64) -> f64 {
+    0.65 * noise(u, v, WOOD_SCALES_M.0, 1) + 0.35 * noise(u, v, WOOD_SCALES_M.1, 2)
+}
+
+/// How far apart [`wood`] may be sampled (m): a tenth of its shortest wavelength.
+pub(super) const WOOD_SPACING_M: f64 = WOOD_SCALES_M.1 / 10.0;
+
+/// One row of fields: the ground along a line of constant `v` (metres north on a plane of the
+/// world's scale) when a pixel covers `m_per_px` metres. Each row of fields has its own field
+/// width and shift, so that nothing lines up.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Row {
+    row: i64,
+    width: f64,
+    shift: f64,
+    /// Hedges are drawn (fields are several pixels across), this wide (m).
+    hedge_m: Option<f64>,
+    /// On the hedge between two rows of fields.
+    on_hedge: bool,
+}
+
+impl Row {
+    pub(super) fn new(v: f64, m_per_px: f64) -> Self {
+        let row = (v / FIELD_M.2).floor();
+        let width = FIELD_M.0 + FIELD_M.1 * unit(hash(1, row as i64, 3));
+        // Hedges a pixel wide (at least 3 m), only once fields are several pixels across.
+        let hedge_m = (m_per_px < FIELD_M.2 / 8.0).then_some((1.2 * m_per_px).max(3.0));
+        Self {
+            row: row as i64,
+            width,
+            shift: unit(hash(0, row as i64, 3)) * width,
+            on_hedge: hedge_m.is_some_and(|h| v - row * FIELD_M.2 < h),
+            hedge_m,
         }
     }
-    FIELDS[(hash(col as i64, row as i64, 4) % FIELDS.len() as u64) as usize]
+
+    /// The ground's colour at `u` (metres east), `wood` being [`wood`] there.
+    pub(super) fn colour(&self, u: f64, wood: f64) -> [u8; 3] {
+        if wood > WOOD_LEVEL {
+            // Darker towards the middle of a wood, in a few steps (flat areas keep PNGs small).
+            let shade = ((wood - WOOD_LEVEL) * 40.0).min(8.0) as u8;
+            return WOOD.map(|c| c.saturating_sub(shade));
+        }
+        let col = ((u + self.shift) / self.width).floor();
+        if let Some(h) = self.hedge_m
+            && (self.on_hedge || (u + self.shift) - col * self.width < h)
+        {
+            return HEDGE;
+        }
+        FIELDS[(hash(col as i64, self.row, 4) % FIELDS.len() as u64) as usize]
+    }
 }
 
 #[cfg(test)]
@@ -89,8 +119,8 @@ mod tests {
         for i in 0..200 {
             for j in 0..200 {
                 let (u, v) = (f64::from(i) * 37.0, f64::from(j) * 29.0);
-                let c = colour(u, v, 1.0);
-                assert_eq!(c, colour(u, v, 1.0));
+                let c = Row::new(v, 1.0).colour(u, wood(u, v));
+                assert_eq!(c, Row::new(v, 1.0).colour(u, wood(u, v)));
                 woods += usize::from(c[0] <= WOOD[0]);
                 kinds.insert(c);
             }

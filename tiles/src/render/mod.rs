@@ -135,7 +135,7 @@ impl Default for RenderOptions {
         Self {
             min_zoom: 12,
             max_zoom: 17,
-            margin_m: 1_500.0,
+            margin_m: 2_500.0,
             threads: std::thread::available_parallelism().map_or(1, usize::from),
         }
     }

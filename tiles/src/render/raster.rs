@@ -138,18 +138,32 @@ impl Scene {
         encode(&pixmap)
     }
 
-    /// Fills the pixmap with the ground under it.
+    /// Fills the pixmap with the ground under it. The woods' noise is smooth: it is computed on a
+    /// lattice of pixels [`ground::WOOD_SPACING_M`] apart and interpolated in between.
     fn ground(&self, pixmap: &mut Pixmap, ox: f64, oy: f64) {
         let w = pixmap.width() as usize;
         let world = mercator::world_px(self.z);
         // Web Mercator metres of a global pixel, scaled to the world's latitude: ground metres.
         let k = 2.0 * PI * 6_378_137.0 * self.plane_scale / world;
+        let at = |i: f64, j: f64| ((ox + i + 0.5 - world / 2.0) * k, (world / 2.0 - (oy + j + 0.5)) * k);
+        let step = ((ground::WOOD_SPACING_M / self.m_per_px).floor() as usize).clamp(1, 16);
+        let n = w.div_ceil(step) + 1;
+        let lattice: Vec<f64> = (0..n * n)
+            .map(|c| {
+                let (u, v) = at(((c % n) * step) as f64, ((c / n) * step) as f64);
+                ground::wood(u, v)
+            })
+            .collect();
         let data = pixmap.data_mut();
         for (j, row) in data.chunks_exact_mut(4 * w).enumerate() {
-            let v = (world / 2.0 - (oy + j as f64 + 0.5)) * k;
+            let (gj, fj) = (j / step, (j % step) as f64 / step as f64);
+            let fields = ground::Row::new(at(0.0, j as f64).1, self.m_per_px);
             for (i, px) in row.chunks_exact_mut(4).enumerate() {
-                let u = (ox + i as f64 + 0.5 - world / 2.0) * k;
-                let [r, g, b] = ground::colour(u, v, self.m_per_px);
+                let (gi, fi) = (i / step, (i % step) as f64 / step as f64);
+                let l = |a: usize, b: usize| lattice[(gj + b) * n + gi + a];
+                let top = l(0, 0) + (l(1, 0) - l(0, 0)) * fi;
+                let bottom = l(0, 1) + (l(1, 1) - l(0, 1)) * fi;
+                let [r, g, b] = fields.colour(at(i as f64, j as f64).0, top + (bottom - top) * fj);
                 px.copy_from_slice(&[r, g, b, 255]);
             }
         }
