@@ -139,17 +139,18 @@ def test_offline_tiles_under_the_tracks_and_everything_at_its_wgs84_place(sessio
             r = rest.get(k["id"])
             if r is None:
                 continue
-            if r["t"] == k["t"]:
-                want = r["state"][:2]
-            else:
+            # REST's estimates of that time: the state, or the history (several scans may share a
+            # time: every update of it is a candidate).
+            want = [r["state"][:2]] if r["t"] == k["t"] else []
+            if not want:
                 hist = httpx.get(f"{URL}/api/v1/tracks/{k['id']}", timeout=5).json()["history"]
-                same = [e for e in hist if e[0] == k["t"]]
-                if not same:
-                    continue
-                want = same[0][1:3]
+                want = [e[1:3] for e in hist if e[0] == k["t"]]
+            if not want:
+                continue
             got = enu(origin, k["ll"][0], k["ll"][1], h)
-            err = math.hypot(got[0] - want[0], got[1] - want[1])
-            assert err <= 2.0, f"track {k['id']} drawn {err:.2f} m from REST's estimate ({got} vs {want})"
+            err = min(math.hypot(got[0] - w[0], got[1] - w[1]) for w in want)
+            assert err <= 2.0, f"track {k['id']} drawn {err:.2f} m from REST's estimates of its time ({got} vs {want})"
+            # And where the page meant to draw it (its own store's estimate).
             assert math.hypot(got[0] - k["x"], got[1] - k["y"]) <= 2.0
             worst["tracks"] = max(worst["tracks"], err)
             matched.add(k["id"])

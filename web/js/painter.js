@@ -45,6 +45,25 @@ export class Painter {
     return [cx - hw, cy - hh, cx + hw, cy + hh];
   }
 
+  /**
+   * Begins a path through stored points (`pts[i][at]`, `pts[i][at + 1]`: ENU x, y), leaving out
+   * those less than a pixel from the last one kept (a history of 200 updates is a few pixels
+   * long at a wide view); the last point is always in.
+   */
+  tracePath(ctx, pts, at) {
+    ctx.beginPath();
+    let [lx, ly] = [NaN, NaN];
+    const n = pts.length;
+    for (let i = 0; i < n; i += 1) {
+      const p = pts[i];
+      const [x, y] = this.p.toScreenCached(p, p[at], p[at + 1]);
+      if (i === 0) ctx.moveTo(x, y);
+      else if (Math.abs(x - lx) + Math.abs(y - ly) >= 1 || i === n - 1) ctx.lineTo(x, y);
+      else continue;
+      [lx, ly] = [x, y];
+    }
+  }
+
   /** Draws every layer that is on through projection `p`, counting into `st`. */
   draw(ctx, p, now, st) {
     this.p = p;
@@ -65,12 +84,7 @@ export class Painter {
       ctx.strokeStyle = "rgba(235,240,245,0.55)";
       ctx.lineWidth = 1.5;
       ctx.setLineDash([6, 5]);
-      ctx.beginPath();
-      pts.forEach((p, i) => {
-        const [px, py] = this.p.toScreenCached(p, p[1], p[2]);
-        if (i) ctx.lineTo(px, py);
-        else ctx.moveTo(px, py);
-      });
+      this.tracePath(ctx, pts, 1);
       ctx.stroke();
       ctx.setLineDash([]);
       const last = pts[pts.length - 1];
@@ -127,12 +141,7 @@ export class Painter {
         ctx.strokeStyle = color;
         ctx.globalAlpha = confirmed ? 0.55 : 0.3;
         ctx.lineWidth = 1.5;
-        ctx.beginPath();
-        k.history.forEach((p, i) => {
-          const [hx, hy] = this.p.toScreenCached(p, p[1], p[2]);
-          if (i) ctx.lineTo(hx, hy);
-          else ctx.moveTo(hx, hy);
-        });
+        this.tracePath(ctx, k.history, 1);
         ctx.lineTo(px, py);
         ctx.stroke();
         ctx.globalAlpha = 1;
@@ -216,14 +225,7 @@ export class Painter {
     const { roads, obstacles } = this.store.world;
     for (const road of roads) {
       if (!road.points || road.points.length < 2) continue;
-      const path = () => {
-        ctx.beginPath();
-        road.points.forEach((p, i) => {
-          const [x, y] = this.p.toScreenCached(p, p[0], p[1]);
-          if (i) ctx.lineTo(x, y);
-          else ctx.moveTo(x, y);
-        });
-      };
+      const path = () => this.tracePath(ctx, road.points, 0);
       ctx.lineJoin = "round";
       ctx.lineCap = "round";
       ctx.strokeStyle = "rgba(150,160,175,0.22)";
@@ -409,12 +411,7 @@ export class Painter {
       if (this.layers.trails && v.trail.length > 1) {
         ctx.strokeStyle = "rgba(200,215,235,0.35)";
         ctx.lineWidth = 1.2;
-        ctx.beginPath();
-        v.trail.forEach((p, i) => {
-          const [tx, ty] = this.p.toScreenCached(p, p[1], p[2]);
-          if (i) ctx.lineTo(tx, ty);
-          else ctx.moveTo(tx, ty);
-        });
+        this.tracePath(ctx, v.trail, 1);
         ctx.stroke();
       }
       const [px, py] = this.p.toScreen(v.position[0], v.position[1]);

@@ -194,7 +194,9 @@ pub fn render(
 ) -> Result<RenderStats, TilesError> {
     let started = Instant::now();
     options.check().map_err(|e| TilesError::file(out, e))?;
+    // As the file will say it (7 decimals): a reader asks for exactly the tiles these touch.
     let bounds = world.bounds(options.margin_m);
+    let bounds = Bounds::parse(&bounds.to_metadata()).unwrap_or(bounds);
     let ranges: Vec<_> = (options.min_zoom..=options.max_zoom)
         .map(|z| bounds.tile_range(z))
         .collect();

@@ -96,7 +96,7 @@ fn a_world_renders_into_an_mbtiles_file_that_reads_back() {
     };
     let mut calls = Vec::new();
     let stats = render(&world(), &options, &out, false, |p| calls.push(p)).expect("render");
-    let b = world().bounds(500.0);
+    let b = Bounds::parse(&world().bounds(500.0).to_metadata()).expect("bounds");
     let want: u64 = (13..=15).map(|z| b.tile_range(z).len()).sum();
     assert_eq!(stats.tiles, want);
     assert_eq!(calls.last(), Some(&Progress { done: want, total: want }));
@@ -104,7 +104,8 @@ fn a_world_renders_into_an_mbtiles_file_that_reads_back() {
     let meta = m.metadata();
     assert_eq!((meta.min_zoom, meta.max_zoom), (13, 15));
     assert_eq!(meta.format, crate::format::TileFormat::Png);
-    assert_eq!(meta.bounds, Bounds::parse(&b.to_metadata()));
+    assert_eq!(meta.bounds, Some(b));
+    assert_eq!(stats.bounds, b);
     assert_eq!(meta.attribution.as_deref(), Some(ATTRIBUTION));
     let counts = m.counts().expect("counts");
     assert_eq!(counts.iter().map(|c| c.tiles).sum::<u64>(), want);
