@@ -83,7 +83,7 @@ pub struct DemoArgs {
     #[arg(long, value_name = "xml|protobuf", value_parser = parse_cot_encoding, requires = "cot")]
     pub cot_encoding: Option<CotEncoding>,
     /// The map's online tiles: a URL template with {z}, {x}, {y} (`[map] tile_url`, e.g.
-    /// https://tile.openstreetmap.org/{z}/{x}/{y}.png, credited to OpenStreetMap), shown before
+    /// `https://tile.openstreetmap.org/{z}/{x}/{y}.png`, credited to OpenStreetMap), shown before
     /// the offline tiles.
     #[arg(long, value_name = "URL")]
     pub tile_url: Option<String>,
@@ -142,13 +142,15 @@ pub(crate) fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
 pub type DemoConfig = DemoArgs;
 
 impl DemoConfig {
-    /// The default demo with its API on `listen`, its GCS link on a free loopback port and no
-    /// router: for tests, where the well-known ports may be taken.
+    /// The default demo with its API on `listen`, its GCS link on a free loopback port, no
+    /// router and no offline map (`mbtiles` `none`: nothing rendered at start): for tests, where
+    /// the well-known ports may be taken. A test of the map sets `mbtiles: None`.
     pub fn ephemeral(listen: SocketAddr) -> Self {
         Self {
             listen,
             gcs: "udpin:127.0.0.1:0".into(),
             router: Vec::new(),
+            mbtiles: Some("none".into()),
             ..Self::default()
         }
     }

@@ -41,7 +41,12 @@ struct RenderArgs {
     out: PathBuf,
     /// The world of this `harrier serve` configuration: `[frame] origin`, `[tracker] roads`,
     /// `[guidance] obstacles`.
-    #[arg(long, value_name = "TOML", required_unless_present = "demo", conflicts_with = "demo")]
+    #[arg(
+        long,
+        value_name = "TOML",
+        required_unless_present = "demo",
+        conflicts_with = "demo"
+    )]
     config: Option<PathBuf>,
     /// The world of `harrier demo` (with its `--obstacle`s).
     #[arg(long)]
@@ -98,7 +103,10 @@ fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         min_zoom: args.min_zoom,
         max_zoom: args.max_zoom,
         margin_m: args.margin,
-        threads: args.threads.unwrap_or(RenderOptions::default().threads).max(1),
+        threads: args
+            .threads
+            .unwrap_or(RenderOptions::default().threads)
+            .max(1),
     };
     options.check().map_err(anyhow::Error::msg)?;
     let tty = std::io::stderr().is_terminal();
@@ -107,7 +115,12 @@ fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         // A line per tenth (a rewritten line on a terminal).
         let tenth = 10 * p.done / p.total.max(1);
         if tty {
-            eprint!("\rrendering: {}/{} tiles ({} %)", p.done, p.total, 100 * p.done / p.total.max(1));
+            eprint!(
+                "\rrendering: {}/{} tiles ({} %)",
+                p.done,
+                p.total,
+                100 * p.done / p.total.max(1)
+            );
         } else if tenth > last || p.done == p.total {
             eprintln!("rendering: {}/{} tiles", p.done, p.total);
         }
@@ -152,10 +165,22 @@ fn info(file: &Path) -> anyhow::Result<()> {
     }
     let counts = m.counts()?;
     for c in &counts {
-        let _ = writeln!(out, "  zoom {:>2}  {:>8} tiles  {:>9.1} kB", c.zoom, c.tiles, c.bytes as f64 / 1e3);
+        let _ = writeln!(
+            out,
+            "  zoom {:>2}  {:>8} tiles  {:>9.1} kB",
+            c.zoom,
+            c.tiles,
+            c.bytes as f64 / 1e3
+        );
     }
-    let (n, bytes) = counts.iter().fold((0, 0), |(n, b), c| (n + c.tiles, b + c.bytes));
-    let _ = writeln!(out, "  total    {n:>8} tiles  {:>9.1} kB", bytes as f64 / 1e3);
+    let (n, bytes) = counts
+        .iter()
+        .fold((0, 0), |(n, b), c| (n + c.tiles, b + c.bytes));
+    let _ = writeln!(
+        out,
+        "  total    {n:>8} tiles  {:>9.1} kB",
+        bytes as f64 / 1e3
+    );
     let _ = std::io::stdout().lock().write_all(out.as_bytes());
     Ok(())
 }
@@ -208,7 +233,10 @@ fn cache_dir() -> PathBuf {
         .filter(|d| !d.is_empty())
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
-        .map_or_else(|| std::env::temp_dir().join("harrier-cache"), |d| d.join("harrier"))
+        .map_or_else(
+            || std::env::temp_dir().join("harrier-cache"),
+            |d| d.join("harrier"),
+        )
 }
 
 /// The demo's offline map: the MBTiles file of `config`'s world in the cache
@@ -276,8 +304,15 @@ mod tests {
         let road = &WorldBody::of(&config).roads[0];
         assert_eq!(w.roads[0].points.len(), road.points.len());
         for (g, p) in w.roads[0].points.iter().zip(&road.points) {
-            let back = frame.to_enu(&harrier_link::geo::Geodetic::new(g.lat, g.lon, config.frame.origin.alt_m + config.frame.plane_z));
-            assert!((back.x - p[0]).abs() < 0.01 && (back.y - p[1]).abs() < 0.01, "{back:?} {p:?}");
+            let back = frame.to_enu(&harrier_link::geo::Geodetic::new(
+                g.lat,
+                g.lon,
+                config.frame.origin.alt_m + config.frame.plane_z,
+            ));
+            assert!(
+                (back.x - p[0]).abs() < 0.01 && (back.y - p[1]).abs() < 0.01,
+                "{back:?} {p:?}"
+            );
         }
         assert_eq!(w.areas.len(), 1);
         assert_eq!(w.areas[0].radius_m, 40.0);

@@ -303,6 +303,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
 }
 
 /// What the HTTP handlers read: the parts of the running service, the configuration's world.
+// One argument per part of the running service, as `start` made them.
+#[allow(clippy::too_many_arguments)]
 fn api_state(
     config: &Config,
     pipeline: &Pipeline,

@@ -225,10 +225,16 @@ mod tests {
         assert_eq!(src.kind, TileSourceKind::Url);
         assert_eq!(src.format.as_deref(), Some("png"));
         assert!(src.raster);
-        assert_eq!(src.attribution.as_deref(), Some("© OpenStreetMap contributors"));
+        assert_eq!(
+            src.attribution.as_deref(),
+            Some("© OpenStreetMap contributors")
+        );
         assert_eq!((src.min_zoom, src.max_zoom), (0, 19));
         assert_eq!(s.body.origin.lat_deg, config.frame.origin.lat_deg);
-        assert_eq!(url_format("http://h/{z}/{x}/{y}.pbf?key=1").as_deref(), Some("pbf"));
+        assert_eq!(
+            url_format("http://h/{z}/{x}/{y}.pbf?key=1").as_deref(),
+            Some("pbf")
+        );
         assert_eq!(url_format("http://127.0.0.1:9000/{z}/{x}/{y}"), None);
     }
 }

@@ -81,11 +81,23 @@ mod tests {
         assert_eq!(TileFormat::from_metadata("jpeg"), Some(TileFormat::Jpeg));
         assert_eq!(TileFormat::from_metadata("pbf"), Some(TileFormat::Pbf));
         assert_eq!(TileFormat::from_metadata("tiff"), None);
-        assert_eq!(TileFormat::sniff(b"\x89PNG\r\n\x1a\n...."), Some(TileFormat::Png));
-        assert_eq!(TileFormat::sniff(&[0xff, 0xd8, 0xff, 0xe0]), Some(TileFormat::Jpeg));
-        assert_eq!(TileFormat::sniff(b"RIFF\0\0\0\0WEBPVP8 "), Some(TileFormat::Webp));
+        assert_eq!(
+            TileFormat::sniff(b"\x89PNG\r\n\x1a\n...."),
+            Some(TileFormat::Png)
+        );
+        assert_eq!(
+            TileFormat::sniff(&[0xff, 0xd8, 0xff, 0xe0]),
+            Some(TileFormat::Jpeg)
+        );
+        assert_eq!(
+            TileFormat::sniff(b"RIFF\0\0\0\0WEBPVP8 "),
+            Some(TileFormat::Webp)
+        );
         assert_eq!(TileFormat::sniff(&[0x1f, 0x8b, 8, 0]), None);
         assert!(is_gzip(&[0x1f, 0x8b, 8, 0]) && !is_gzip(b"\x1a\x02"));
-        assert_eq!(TileFormat::Pbf.content_type(), "application/vnd.mapbox-vector-tile");
+        assert_eq!(
+            TileFormat::Pbf.content_type(),
+            "application/vnd.mapbox-vector-tile"
+        );
     }
 }

@@ -6,7 +6,7 @@
 //!   ([`MbTiles::open`]), tiles read by their XYZ address from a small pool of connections;
 //!   [`writer`]: a new file written whole or not at all.
 //! - [`mercator`]: Web Mercator tile arithmetic (XYZ, TMS rows, bounds).
-//! - [`format`]: what a tile's bytes are and how they are served.
+//! - [`format`](mod@format): what a tile's bytes are and how they are served.
 //! - `render` (feature `render`): the offline renderer, a deployment's roads and no-fly areas
 //!   on a made-up ground, drawn with tiny-skia into PNG tiles over a zoom range and written as an
 //!   MBTiles file (`harrier tiles render`, and `harrier demo`'s map on its first run).

@@ -248,7 +248,10 @@ fn read_metadata(path: &Path, conn: &Connection) -> Result<Metadata, TilesError>
         bounds: entries.get("bounds").and_then(|b| Bounds::parse(b)),
         min_zoom,
         max_zoom,
-        attribution: entries.get("attribution").filter(|a| !a.is_empty()).cloned(),
+        attribution: entries
+            .get("attribution")
+            .filter(|a| !a.is_empty())
+            .cloned(),
         entries,
     })
 }
@@ -293,8 +296,14 @@ mod tests {
         assert_eq!((m.metadata().min_zoom, m.metadata().max_zoom), (3, 3));
         assert!(m.metadata().bounds.is_some());
         let t = m.tile(id).expect("read").expect("a tile");
-        assert_eq!((t.data.as_slice(), t.format, t.gzip), (PNG, TileFormat::Png, false));
-        assert_eq!(m.tile(TileId::new(3, 2, 6).expect("tile")).expect("read"), None);
+        assert_eq!(
+            (t.data.as_slice(), t.format, t.gzip),
+            (PNG, TileFormat::Png, false)
+        );
+        assert_eq!(
+            m.tile(TileId::new(3, 2, 6).expect("tile")).expect("read"),
+            None
+        );
         assert_eq!(
             m.counts().expect("counts"),
             vec![ZoomCount {
@@ -311,7 +320,11 @@ mod tests {
         let id = TileId::new(0, 0, 0).expect("tile");
         let gz = [0x1f, 0x8b, 8, 0, 1, 2, 3];
         let path = written(dir.path(), &[("format", "pbf")], &[(id, &gz)]);
-        let t = MbTiles::open(&path).expect("open").tile(id).expect("read").expect("tile");
+        let t = MbTiles::open(&path)
+            .expect("open")
+            .tile(id)
+            .expect("read")
+            .expect("tile");
         assert_eq!((t.format, t.gzip), (TileFormat::Pbf, true));
     }
 
@@ -326,7 +339,11 @@ mod tests {
         check(&dir.path().join("missing.mbtiles"), "no such file");
         check(dir.path(), "not a regular file");
         let text = dir.path().join("text.mbtiles");
-        std::fs::write(&text, "hello, not SQLite at all, but long enough to be read as a header").expect("write");
+        std::fs::write(
+            &text,
+            "hello, not SQLite at all, but long enough to be read as a header",
+        )
+        .expect("write");
         check(&text, "not an MBTiles file");
         let empty = dir.path().join("empty.mbtiles");
         Connection::open(&empty)

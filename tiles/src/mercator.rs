@@ -106,9 +106,9 @@ impl TileRange {
 
     /// Every tile, row by row.
     pub fn iter(&self) -> impl Iterator<Item = TileId> + '_ {
-        self.y.clone().flat_map(move |y| {
-            self.x.clone().map(move |x| TileId { z: self.z, x, y })
-        })
+        self.y
+            .clone()
+            .flat_map(move |y| self.x.clone().map(move |x| TileId { z: self.z, x, y }))
     }
 }
 

@@ -80,20 +80,28 @@ impl MbTilesWriter {
     /// Commits, closes and renames the file into place; returns its path.
     pub fn finish(mut self) -> Result<PathBuf, TilesError> {
         let partial = self.partial.clone();
-        let conn = self.conn.take().ok_or_else(|| TilesError::file(&partial, "finished twice"))?;
+        let conn = self
+            .conn
+            .take()
+            .ok_or_else(|| TilesError::file(&partial, "finished twice"))?;
         conn.execute_batch("COMMIT")
             .map_err(TilesError::sql(&partial))?;
         conn.close()
             .map_err(|(_, e)| TilesError::sql(&partial)(e))?;
         std::fs::rename(&partial, &self.path).map_err(|e| {
-            TilesError::file(&self.path, format!("cannot move {} there: {e}", partial.display()))
+            TilesError::file(
+                &self.path,
+                format!("cannot move {} there: {e}", partial.display()),
+            )
         })?;
         Ok(self.path.clone())
     }
 
     /// The open connection (until `finish`).
     fn conn(&self) -> &Connection {
-        self.conn.as_ref().expect("the connection is open until finish")
+        self.conn
+            .as_ref()
+            .expect("the connection is open until finish")
     }
 }
 

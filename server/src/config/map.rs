@@ -94,8 +94,9 @@ mod tests {
     fn a_tile_url_needs_its_placeholders_and_osm_is_credited_by_default() {
         let osm = map("tile_url = \"https://tile.openstreetmap.org/{z}/{x}/{y}.png\"").expect("ok");
         assert_eq!(osm.url_attribution().as_deref(), Some(OSM_ATTRIBUTION));
-        let own = map("tile_url = \"http://127.0.0.1:9000/{z}/{x}/{y}.png\"\nattribution = \"© us\"")
-            .expect("ok");
+        let own =
+            map("tile_url = \"http://127.0.0.1:9000/{z}/{x}/{y}.png\"\nattribution = \"© us\"")
+                .expect("ok");
         assert_eq!(own.url_attribution().as_deref(), Some("© us"));
         let e = map("tile_url = \"http://h/{z}/{x}.png\"").expect_err("no y");
         assert!(e.contains("has no {y}"), "{e}");

@@ -82,7 +82,11 @@ async fn tile(
     let id = tile_id(&z, &x, &y)?;
     let tile = match m.tile(id).await {
         Ok(Some(t)) => t,
-        Ok(None) => return Err(ApiError::not_found(format!("no tile {z}/{x}/{y} in map.mbtiles"))),
+        Ok(None) => {
+            return Err(ApiError::not_found(format!(
+                "no tile {z}/{x}/{y} in map.mbtiles"
+            )));
+        }
         Err(e @ TileError::NoFile) => return Err(ApiError::not_found(e.to_string())),
         Err(e @ TileError::Read(_)) => return Err(ApiError::Internal(e.to_string())),
     };
@@ -179,7 +183,8 @@ mod tests {
             w.set_metadata(k, v).expect("metadata");
         }
         for &(x, y, data) in tiles {
-            w.insert(TileId::new(14, x, y).expect("tile"), data).expect("insert");
+            w.insert(TileId::new(14, x, y).expect("tile"), data)
+                .expect("insert");
         }
         w.finish().expect("finish");
         Arc::new(MbTiles::open(&path).expect("open"))
@@ -229,7 +234,10 @@ mod tests {
         assert_eq!(r.status, StatusCode::NOT_FOUND);
         assert_eq!(r.error(), "no tile 14/8581/10646 in map.mbtiles");
         let metrics = String::from_utf8_lossy(&app.get("/metrics").await.body).into_owned();
-        assert!(metrics.contains("harrier_tiles_served_total{result=\"ok\"} 3"), "{metrics}");
+        assert!(
+            metrics.contains("harrier_tiles_served_total{result=\"ok\"} 3"),
+            "{metrics}"
+        );
         assert!(metrics.contains("harrier_tiles_served_total{result=\"not_modified\"} 1"));
         assert_eq!(app.refused("not_found", 404), 1);
     }
@@ -240,9 +248,19 @@ mod tests {
         let app = app_with(file(dir.path(), "pbf", &[(1, 2, GZ_PBF)]));
         let r = app.get("/tiles/14/1/2.pbf").await;
         assert_eq!((r.status, r.body.as_slice()), (StatusCode::OK, GZ_PBF));
-        assert_eq!(r.headers[header::CONTENT_TYPE], "application/vnd.mapbox-vector-tile");
+        assert_eq!(
+            r.headers[header::CONTENT_TYPE],
+            "application/vnd.mapbox-vector-tile"
+        );
         assert_eq!(r.headers[header::CONTENT_ENCODING], "gzip");
-        for bad in ["/tiles/a/1/2", "/tiles/14/-1/2", "/tiles/14/1/2x", "/tiles/3/8/0", "/tiles/31/0/0", "/tiles/300/0/0"] {
+        for bad in [
+            "/tiles/a/1/2",
+            "/tiles/14/-1/2",
+            "/tiles/14/1/2x",
+            "/tiles/3/8/0",
+            "/tiles/31/0/0",
+            "/tiles/300/0/0",
+        ] {
             let r = app.get(bad).await;
             assert_eq!(r.status, StatusCode::BAD_REQUEST, "{bad}");
             assert!(r.error().contains("/tiles/"), "{bad}: {}", r.error());
@@ -277,7 +295,10 @@ mod tests {
         assert_eq!(s[1]["format"], "png");
         assert_eq!(s[1]["raster"], true);
         assert_eq!(s[1]["attribution"], "© test");
-        assert_eq!((s[1]["min_zoom"].as_u64(), s[1]["max_zoom"].as_u64()), (Some(14), Some(14)));
+        assert_eq!(
+            (s[1]["min_zoom"].as_u64(), s[1]["max_zoom"].as_u64()),
+            (Some(14), Some(14))
+        );
         assert_eq!(s[1]["bounds"], serde_json::json!([8.5, 47.3, 8.6, 47.4]));
     }
 }

@@ -139,6 +139,8 @@ fn config(listen: SocketAddr, adsb: SocketAddr) -> DemoConfig {
         // The UAVs wait on the ground: the page assigns them.
         no_assign: true,
         adsb: Some(adsb.to_string()),
+        // The offline map the demo renders of its world on its first run (then cached).
+        mbtiles: None,
         ..DemoConfig::ephemeral(listen)
     }
 }
@@ -290,10 +292,13 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
                     config.map.tile_url = template.trim().to_owned();
                     config.map.attribution = "© Harrier test tiles".into();
                     let server = runtime.block_on(async {
-                        tokio::time::timeout(Duration::from_secs(20), harrier_server::start(&config))
-                            .await
-                            .expect("the tile-URL server started within 20 s")
-                            .expect("the tile-URL server starts")
+                        tokio::time::timeout(
+                            Duration::from_secs(20),
+                            harrier_server::start(&config),
+                        )
+                        .await
+                        .expect("the tile-URL server started within 20 s")
+                        .expect("the tile-URL server starts")
                     });
                     writeln!(stdin, "tile-server http://{}", server.local_addr())
                         .expect("answer the script");
@@ -346,7 +351,13 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
         output.contains("13 passed"),
         "every test ran (none skipped):\n{output}"
     );
-    for name in ["dashboard.png", "map.png", "3d.png", "geomap.png", "geomap-url.png"] {
+    for name in [
+        "dashboard.png",
+        "map.png",
+        "3d.png",
+        "geomap.png",
+        "geomap-url.png",
+    ] {
         assert!(
             shots.join(name).is_file(),
             "no {name} in {}",

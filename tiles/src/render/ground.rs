@@ -125,7 +125,10 @@ mod tests {
                 kinds.insert(c);
             }
         }
-        assert!((2_000..30_000).contains(&woods), "{woods} of 40 000 in woods");
+        assert!(
+            (2_000..30_000).contains(&woods),
+            "{woods} of 40 000 in woods"
+        );
         assert!(kinds.len() >= FIELDS.len(), "{kinds:?}");
         let n = noise(123.4, -567.8, 50.0, 9);
         assert!((0.0..1.0).contains(&n));

@@ -66,8 +66,20 @@ impl Scene {
                 let width_px = (r.width_m * px_per_m).max(1.5);
                 let pad = width_px / 2.0 + 2.0;
                 let bbox = points.iter().fold(
-                    [f64::INFINITY, f64::INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY],
-                    |b, &(x, y)| [b[0].min(x - pad), b[1].min(y - pad), b[2].max(x + pad), b[3].max(y + pad)],
+                    [
+                        f64::INFINITY,
+                        f64::INFINITY,
+                        f64::NEG_INFINITY,
+                        f64::NEG_INFINITY,
+                    ],
+                    |b, &(x, y)| {
+                        [
+                            b[0].min(x - pad),
+                            b[1].min(y - pad),
+                            b[2].max(x + pad),
+                            b[3].max(y + pad),
+                        ]
+                    },
                 );
                 RoadPx {
                     name: r.name.clone(),
@@ -124,7 +136,13 @@ impl Scene {
         if self.z >= NAMES_FROM_ZOOM {
             for road in self.roads.iter().filter(|r| !r.name.is_empty()) {
                 let (x, y) = road.name_at;
-                label(&mut pixmap, &road.name, x - ox, y - oy - road.width_px - 10.0, Size2::Name);
+                label(
+                    &mut pixmap,
+                    &road.name,
+                    x - ox,
+                    y - oy - road.width_px - 10.0,
+                    Size2::Name,
+                );
             }
             for area in self.areas.iter().filter(|a| !a.name.is_empty()) {
                 let (x, y) = area.center;
@@ -145,7 +163,12 @@ impl Scene {
         let world = mercator::world_px(self.z);
         // Web Mercator metres of a global pixel, scaled to the world's latitude: ground metres.
         let k = 2.0 * PI * 6_378_137.0 * self.plane_scale / world;
-        let at = |i: f64, j: f64| ((ox + i + 0.5 - world / 2.0) * k, (world / 2.0 - (oy + j + 0.5)) * k);
+        let at = |i: f64, j: f64| {
+            (
+                (ox + i + 0.5 - world / 2.0) * k,
+                (world / 2.0 - (oy + j + 0.5)) * k,
+            )
+        };
         let step = ((ground::WOOD_SPACING_M / self.m_per_px).floor() as usize).clamp(1, 16);
         let n = w.div_ceil(step) + 1;
         let lattice: Vec<f64> = (0..n * n)
@@ -202,7 +225,13 @@ fn draw_road(pixmap: &mut Pixmap, road: &RoadPx, ox: f64, oy: f64) {
         ..Stroke::default()
     };
     let id = Transform::identity();
-    pixmap.stroke_path(&path, &paint(ROAD_CASING), &stroke(road.width_px + 2.5), id, None);
+    pixmap.stroke_path(
+        &path,
+        &paint(ROAD_CASING),
+        &stroke(road.width_px + 2.5),
+        id,
+        None,
+    );
     pixmap.stroke_path(&path, &paint(ROAD), &stroke(road.width_px), id, None);
 }
 
@@ -213,7 +242,13 @@ fn draw_area(pixmap: &mut Pixmap, cx: f64, cy: f64, r: f64) {
     };
     let id = Transform::identity();
     let [red, green, blue] = AREA;
-    pixmap.fill_path(&disc, &paint([red, green, blue, 46]), FillRule::Winding, id, None);
+    pixmap.fill_path(
+        &disc,
+        &paint([red, green, blue, 46]),
+        FillRule::Winding,
+        id,
+        None,
+    );
     if let Some(mut mask) = Mask::new(pixmap.width(), pixmap.height()) {
         mask.fill_path(&disc, FillRule::Winding, true, id);
         let mut pb = PathBuilder::new();
@@ -233,7 +268,13 @@ fn draw_area(pixmap: &mut Pixmap, cx: f64, cy: f64, r: f64) {
                 width: 1.2,
                 ..Stroke::default()
             };
-            pixmap.stroke_path(&hatch, &paint([red, green, blue, 150]), &stroke, id, Some(&mask));
+            pixmap.stroke_path(
+                &hatch,
+                &paint([red, green, blue, 150]),
+                &stroke,
+                id,
+                Some(&mask),
+            );
         }
     }
     let rim = Stroke {

@@ -50,7 +50,11 @@ fn decode(png_bytes: &[u8]) -> (u32, Vec<[u8; 3]>) {
 fn tile_of(p: LonLat, z: u8) -> (TileId, usize, usize) {
     let (x, y) = mercator::to_pixel(p.lon, p.lat, z);
     let id = TileId::new(z, (x / 256.0) as u32, (y / 256.0) as u32).expect("tile");
-    (id, (x - f64::from(id.x) * 256.0) as usize, (y - f64::from(id.y) * 256.0) as usize)
+    (
+        id,
+        (x - f64::from(id.x) * 256.0) as usize,
+        (y - f64::from(id.y) * 256.0) as usize,
+    )
 }
 
 #[test]
@@ -76,12 +80,18 @@ fn a_tile_over_a_road_has_the_road_colour_where_the_road_is_and_ground_beside_it
     let (_, px2) = decode(&scene.tile(id2).expect("render"));
     let ground = px2[j2 * 256 + i2];
     assert_ne!(ground, road);
-    assert!(ground.iter().all(|&c| c < 110), "ground is dark: {ground:?}");
+    assert!(
+        ground.iter().all(|&c| c < 110),
+        "ground is dark: {ground:?}"
+    );
     // The no-fly disc: reddish at its centre (its name may sit there: look beside it).
     let (id3, i3, j3) = tile_of(at(150.0, 200.0 - 25.0), z);
     let (_, px3) = decode(&scene.tile(id3).expect("render"));
     let c = px3[j3 * 256 + i3];
-    assert!(c[0] > c[1] + 15 && c[0] > c[2] + 15, "red inside the disc: {c:?}");
+    assert!(
+        c[0] > c[1] + 15 && c[0] > c[2] + 15,
+        "red inside the disc: {c:?}"
+    );
 }
 
 #[test]
@@ -99,7 +109,13 @@ fn a_world_renders_into_an_mbtiles_file_that_reads_back() {
     let b = Bounds::parse(&world().bounds(500.0).to_metadata()).expect("bounds");
     let want: u64 = (13..=15).map(|z| b.tile_range(z).len()).sum();
     assert_eq!(stats.tiles, want);
-    assert_eq!(calls.last(), Some(&Progress { done: want, total: want }));
+    assert_eq!(
+        calls.last(),
+        Some(&Progress {
+            done: want,
+            total: want
+        })
+    );
     let m = MbTiles::open(&out).expect("open");
     let meta = m.metadata();
     assert_eq!((meta.min_zoom, meta.max_zoom), (13, 15));

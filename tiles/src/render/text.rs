@@ -67,9 +67,18 @@ pub(super) fn label(pixmap: &mut Pixmap, text: &str, x: f64, y: f64, size: Size2
     let at = Point::new(x.round() as i32, y.round() as i32);
     let mut target = Target(pixmap);
     let halo = MonoTextStyle::new(font, Rgb888::new(16, 22, 18));
-    for (dx, dy) in [(-1, -1), (0, -1), (1, -1), (-1, 0), (1, 0), (-1, 1), (0, 1), (1, 1)] {
-        let _ = Text::with_text_style(text, at + Point::new(dx, dy), halo, layout)
-            .draw(&mut target);
+    for (dx, dy) in [
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+        (-1, 0),
+        (1, 0),
+        (-1, 1),
+        (0, 1),
+        (1, 1),
+    ] {
+        let _ =
+            Text::with_text_style(text, at + Point::new(dx, dy), halo, layout).draw(&mut target);
     }
     let ink = MonoTextStyle::new(font, Rgb888::new(236, 240, 228));
     let _ = Text::with_text_style(text, at, ink, layout).draw(&mut target);
