@@ -22,7 +22,6 @@ import math
 import os
 import pathlib
 import re
-import sys
 import threading
 import time
 import zlib
@@ -31,10 +30,11 @@ import struct
 import httpx
 import pytest
 from PIL import Image
-from playwright.sync_api import sync_playwright
 from pyproj import Transformer
 
-from test_dashboard import ARGS, CHROMIUM, STRESS, Console, ask
+# The browser and its one page per module, the console's errors, the stress load and the way to ask
+# tests/tests/it/dashboard.rs: test_dashboard.py's.
+from test_dashboard import STRESS, Console, ask, browser, session  # noqa: F401 (fixtures)
 
 URL = os.environ["HARRIER_URL"].rstrip("/")
 SHOTS = pathlib.Path(os.environ.get("HARRIER_SCREENSHOTS", "target/screenshots"))
@@ -54,23 +54,6 @@ def enu(origin, lat, lon, h):
     n = (-math.sin(la) * math.cos(lo), -math.sin(la) * math.sin(lo), math.cos(la))
     dot = lambda a: a[0] * d[0] + a[1] * d[1] + a[2] * d[2]  # noqa: E731
     return dot(e), dot(n)
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=CHROMIUM, args=ARGS, headless=True)
-        yield b
-        b.close()
-
-
-@pytest.fixture(scope="module")
-def session(browser):
-    ctx = browser.new_context(viewport={"width": 1600, "height": 1000}, device_scale_factor=1)
-    page = ctx.new_page()
-    console = Console(page)
-    yield page, console
-    ctx.close()
 
 
 def state(page):
