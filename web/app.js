@@ -4,7 +4,7 @@
 // and for the curious: open the console).
 
 import { ApiError, Stream, features, get, getText, getToken, request, setToken } from "./js/api.js";
-import { MapView } from "./js/map.js";
+import { MapPane } from "./js/mappane.js";
 import { SceneView } from "./js/scene3d.js";
 import { Store } from "./js/store.js";
 import { SeriesPanel, ServicePanel, StandoffPanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
@@ -86,7 +86,8 @@ $("token-form").addEventListener("submit", (e) => {
 
 // --- views and layers ---------------------------------------------------------------------------
 
-const map = new MapView($("map"), store);
+const map = new MapPane($("map"), store);
+hook.mapView = map;
 const scene = new SceneView($("scene"), store);
 if (scene.error) {
   $("scene-error").hidden = false;
@@ -100,7 +101,7 @@ for (const box of document.querySelectorAll("#layers input[data-layer]")) {
 }
 for (const b of document.querySelectorAll(".seg button[data-view]")) {
   b.addEventListener("click", () => {
-    for (const o of document.querySelectorAll(".seg button")) o.classList.toggle("on", o === b);
+    for (const o of document.querySelectorAll(".seg button[data-view]")) o.classList.toggle("on", o === b);
     $("panes").dataset.view = b.dataset.view;
   });
 }
@@ -605,6 +606,7 @@ async function start() {
   $("assign-panel").hidden = !feats.assignments;
   $("standoff-panel").hidden = !feats.assignments;
   document.body.dataset.features = Object.entries(feats).filter(([, v]) => v).map(([k]) => k).join(" ");
+  await map.init(feats);
   stream.connect();
   loadEstimators();
   setInterval(updatePanels, 250);

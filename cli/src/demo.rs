@@ -82,6 +82,19 @@ pub struct DemoArgs {
     /// default `[cot]`'s (xml).
     #[arg(long, value_name = "xml|protobuf", value_parser = parse_cot_encoding, requires = "cot")]
     pub cot_encoding: Option<CotEncoding>,
+    /// The map's online tiles: a URL template with {z}, {x}, {y} (`[map] tile_url`, e.g.
+    /// `https://tile.openstreetmap.org/{z}/{x}/{y}.png`, credited to OpenStreetMap), shown before
+    /// the offline tiles.
+    #[arg(long, value_name = "URL")]
+    pub tile_url: Option<String>,
+    /// What the page credits for `--tile-url`'s tiles (`[map] attribution`).
+    #[arg(long, value_name = "TEXT", requires = "tile_url")]
+    pub tile_attribution: Option<String>,
+    /// The map's offline tiles: this MBTiles file (`[map] mbtiles`) instead of the one the demo
+    /// renders of its world on its first run and keeps in ~/.cache/harrier/tiles; `none`: no
+    /// offline tiles.
+    #[arg(long, value_name = "FILE|none")]
+    pub mbtiles: Option<String>,
 }
 
 /// A `--cot` destination, checked as `cot.destinations` is (`tls://` needs the `[cot]` TLS
@@ -107,7 +120,7 @@ fn parse_cot_encoding(s: &str) -> Result<CotEncoding, String> {
 }
 
 /// `X,Y,R` of `--obstacle`.
-fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
+pub(crate) fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
     let v: Vec<f64> = s
         .split(',')
         .map(|x| x.trim().parse::<f64>())
@@ -129,13 +142,15 @@ fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
 pub type DemoConfig = DemoArgs;
 
 impl DemoConfig {
-    /// The default demo with its API on `listen`, its GCS link on a free loopback port and no
-    /// router: for tests, where the well-known ports may be taken.
+    /// The default demo with its API on `listen`, its GCS link on a free loopback port, no
+    /// router and no offline map (`mbtiles` `none`: nothing rendered at start): for tests, where
+    /// the well-known ports may be taken. A test of the map sets `mbtiles: None`.
     pub fn ephemeral(listen: SocketAddr) -> Self {
         Self {
             listen,
             gcs: "udpin:127.0.0.1:0".into(),
             router: Vec::new(),
+            mbtiles: Some("none".into()),
             ..Self::default()
         }
     }
@@ -163,6 +178,9 @@ impl Default for DemoConfig {
             adsb: None,
             cot: Vec::new(),
             cot_encoding: None,
+            tile_url: None,
+            tile_attribution: None,
+            mbtiles: None,
         }
     }
 }
@@ -188,6 +206,9 @@ pub enum DemoError {
     /// A blocking start or stop task failed.
     #[error("{0}")]
     Task(String),
+    /// The offline map could not be rendered.
+    #[error("offline map: {0}")]
+    Tiles(String),
 }
 
 /// Slant range of the demo's cameras (m): every point of the road is within it from a station.
@@ -279,22 +300,9 @@ impl Demo {
     }
 }
 
-/// Starts the live service and the simulated world; returns once the API accepts requests and
-/// the simulator publishes.
-pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
-    if !(config.speedup.is_finite() && config.speedup > 0.0 && config.speedup <= 100.0) {
-        return Err(DemoError::Invalid(format!(
-            "--speedup must be in (0, 100], got {}",
-            config.speedup
-        )));
-    }
-    if config.vehicles == 0 {
-        return Err(DemoError::Invalid("--vehicles must be ≥ 1".into()));
-    }
-    let scenario = scenario()?;
-    let server_endpoint = free_loopback_endpoint()?;
-    let sim_endpoint = free_loopback_endpoint()?;
-
+/// The live service's configuration of the demo (`scenario`'s frame, roads and motion models,
+/// `config`'s options); the Zenoh endpoints and the offline map are `start`'s.
+pub fn server_config(config: &DemoConfig, scenario: &SimScenario) -> Config {
     let mut server_config = Config::default();
     server_config.frame.origin = scenario.origin;
     server_config.frame.plane_z = scenario.plane_z();
@@ -311,15 +319,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     if let Some(motion) = &scenario.estimator.motion {
         server_config.tracker.motion = motion.clone();
     }
-    server_config.zenoh.listen = vec![server_endpoint.clone()];
     server_config.zenoh.connect = Vec::new();
     if config.speedup != 1.0 {
         // The simulator's `time_unix` runs `speedup` times faster than any real clock.
         server_config.clock.real_time = false;
-        tracing::info!(
-            speedup = config.speedup,
-            "clock.real_time = false: simulated time runs faster than the server's clock"
-        );
     }
     if let Some(path) = &config.record {
         server_config.recorder.path = path.display().to_string();
@@ -342,6 +345,12 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         .filter(|r| r.as_str() != "none")
         .cloned()
         .collect();
+    if let Some(url) = &config.tile_url {
+        server_config.map.tile_url.clone_from(url);
+    }
+    if let Some(text) = &config.tile_attribution {
+        server_config.map.attribution.clone_from(text);
+    }
     if let Some(key_file) = &config.signing_key_file {
         server_config.mavlink.signing = SigningConfig {
             mode: "signed_only".into(),
@@ -349,13 +358,48 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
             ..SigningConfig::default()
         };
     }
+    // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
+    server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
+    server_config
+}
+
+/// Starts the live service and the simulated world; returns once the API accepts requests and
+/// the simulator publishes.
+pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
+    if !(config.speedup.is_finite() && config.speedup > 0.0 && config.speedup <= 100.0) {
+        return Err(DemoError::Invalid(format!(
+            "--speedup must be in (0, 100], got {}",
+            config.speedup
+        )));
+    }
+    if config.vehicles == 0 {
+        return Err(DemoError::Invalid("--vehicles must be ≥ 1".into()));
+    }
+    let scenario = scenario()?;
+    let server_endpoint = free_loopback_endpoint()?;
+    let sim_endpoint = free_loopback_endpoint()?;
+
+    let mut server_config = server_config(config, &scenario);
+    server_config.zenoh.listen = vec![server_endpoint.clone()];
+    server_config.map.mbtiles = match config.mbtiles.as_deref() {
+        Some("none") => String::new(),
+        Some(file) => file.to_owned(),
+        None => crate::tiles::offline_tiles(&server_config)
+            .await?
+            .display()
+            .to_string(),
+    };
     let signing = server_config
         .mavlink
         .signing
         .resolve()
         .map_err(|e| DemoError::Invalid(e.to_string()))?;
-    // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
-    server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
+    if !server_config.clock.real_time {
+        tracing::info!(
+            speedup = config.speedup,
+            "clock.real_time = false: simulated time runs faster than the server's clock"
+        );
+    }
     let server = harrier_server::start(&server_config).await?;
     let gcs = server
         .link()

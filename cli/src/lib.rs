@@ -5,6 +5,8 @@
 //!
 //! * [`demo`] (`harrier demo`): the live service ([`harrier_server`]) with harrier-sim's world
 //!   in-process; the one place outside the tests where the service and the simulator meet.
+//! * [`tiles`] (`harrier tiles`): MBTiles files for the dashboard's map, rendered from a
+//!   deployment's roads and obstacles, and the demo's offline map.
 //! * [`init_logging`]: the structured logs every subcommand writes.
 //!
 //! The others: `harrier serve` is [`harrier_server::start`], `harrier replay`, `guidance-sim`,
@@ -12,6 +14,7 @@
 //! `harrier_bench`, and `harrier estimators` lists [`harrier_engine::registry`].
 
 pub mod demo;
+pub mod tiles;
 
 /// Structured logs on stderr for the `harrier` commands: the `RUST_LOG` filter if set, else
 /// `default`; colours only when stderr is a terminal (a redirected log gets no escape codes).

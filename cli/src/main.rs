@@ -65,6 +65,9 @@ enum Command {
     Serve(ServeArgs),
     /// Run the demo: the service, an in-process Zenoh peer and simulated UAVs, in one process.
     Demo(harrier_cli::demo::DemoArgs),
+    /// Build or inspect the MBTiles files of the dashboard's map (offline tiles of a
+    /// deployment's roads and no-fly areas).
+    Tiles(harrier_cli::tiles::TilesArgs),
     /// List recorded sessions, or export one as a gcs-scenario/1 directory.
     Sessions(harrier_tools::sessions::SessionsArgs),
     /// Load-test the live service: simulated vehicles' detections in, WebSocket and REST clients
@@ -99,6 +102,13 @@ fn main() -> ExitCode {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("harrier bench: error: {e:#}");
+                ExitCode::from(2)
+            }
+        },
+        Command::Tiles(args) => match harrier_cli::tiles::run(&args) {
+            Ok(()) => ExitCode::SUCCESS,
+            Err(e) => {
+                eprintln!("harrier tiles: error: {e:#}");
                 ExitCode::from(2)
             }
         },

@@ -382,3 +382,108 @@ fn generated_multi_target_scenario_replays_with_the_tracker() {
         assert!(v["tracks"].is_array());
     }
 }
+
+/// A configuration with a road and a no-fly disc, its API on a free port and no MAVLink link.
+const WORLD_TOML: &str = r#"
+[api]
+listen = "127.0.0.1:0"
+[mavlink]
+gcs = []
+router = []
+[[tracker.roads]]
+id = "r1"
+width_m = 7.0
+segments = [{ type = "line", start = [0.0, 0.0], end = [500.0, 300.0] }]
+[[guidance.obstacles]]
+x_m = 200.0
+y_m = -100.0
+radius_m = 40.0
+"#;
+
+#[test]
+fn tiles_render_a_configurations_world_refuse_to_overwrite_and_info_lists_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("area.toml");
+    std::fs::write(&config, WORLD_TOML).unwrap();
+    let out = dir.path().join("area.mbtiles");
+    let render = |extra: &[&str]| {
+        let mut args = vec!["tiles", "render", "--config", config.to_str().unwrap()];
+        args.extend_from_slice(&["--min-zoom", "12", "--max-zoom", "14", "--margin", "300"]);
+        args.extend_from_slice(extra);
+        args.push(out.to_str().unwrap());
+        harrier(&args)
+    };
+    let r = render(&[]);
+    let stdout = String::from_utf8_lossy(&r.stdout);
+    assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+    assert!(stdout.contains("tiles (zoom 12–14)"), "{stdout}");
+    // Progress on stderr (not a terminal: a line per tenth, the last at the total).
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        stderr
+            .lines()
+            .last()
+            .is_some_and(|l| l.starts_with("rendering: ")),
+        "{stderr}"
+    );
+    let again = render(&[]);
+    assert_eq!(again.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&again.stderr)
+            .contains("already exists (overwrite it with --force)")
+    );
+    assert!(render(&["--force"]).status.success());
+    let info = harrier(&["tiles", "info", out.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    for want in [
+        "format      png",
+        "zoom        12–14",
+        "name        AREA",
+        "zoom 12",
+        "zoom 14",
+        "total",
+    ] {
+        assert!(text.contains(want), "{want}: {text}");
+    }
+    let bad = harrier(&[
+        "tiles",
+        "render",
+        "--demo",
+        "--max-zoom",
+        "23",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("expected min ≤ max ≤ 22"));
+}
+
+#[test]
+fn serve_refuses_a_bad_mbtiles_file_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("not-tiles.mbtiles");
+    std::fs::write(&bad, "this is not an SQLite file, whatever its name says").unwrap();
+    let config = dir.path().join("serve.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "{WORLD_TOML}\n[map]\nmbtiles = {:?}\n",
+            bad.display().to_string()
+        ),
+    )
+    .unwrap();
+    let r = harrier(&["serve", "--config", config.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "map: MBTiles file {}: not an MBTiles file",
+            bad.display()
+        )),
+        "{stderr}"
+    );
+}

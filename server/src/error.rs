@@ -30,6 +30,10 @@ pub enum LiveError {
     /// The MAVLink link cannot start.
     #[error(transparent)]
     Gcs(#[from] gcs::GcsError),
+    /// The map's tiles cannot be served: `map.mbtiles` is missing or not an MBTiles file (the
+    /// message names the file).
+    #[error("map: {0}")]
+    Map(String),
     /// A feed the configuration turns on cannot start (its socket cannot be bound).
     #[error("feed {feed}: {message}")]
     Feed {

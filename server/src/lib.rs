@@ -54,6 +54,7 @@ pub mod gcs;
 pub mod guidance;
 pub mod http;
 pub mod ingest;
+pub mod map;
 pub mod metrics;
 mod pipeline;
 pub mod prom;
@@ -232,6 +233,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     let metrics = Arc::new(Metrics::default());
     let started = Instant::now();
     let (listener, addr) = bind(config.api.listen)?;
+    // Before anything is spawned: a bad `map.mbtiles` stops the start at once.
+    let tiles = Arc::new(map::MapService::open(config).await?);
     let (stop, stop_rx) = watch::channel(false);
 
     let recording = open_recording(config, &config.tracker.estimator);
@@ -278,6 +281,7 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         &control,
         &recording,
         service,
+        tiles,
     );
     let app = http::app(state, web_dir(config).as_deref(), &config.api.cors_origins);
     let limits = http::Limits::from(&config.api);
@@ -299,6 +303,8 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
 }
 
 /// What the HTTP handlers read: the parts of the running service, the configuration's world.
+// One argument per part of the running service, as `start` made them.
+#[allow(clippy::too_many_arguments)]
 fn api_state(
     config: &Config,
     pipeline: &Pipeline,
@@ -307,6 +313,7 @@ fn api_state(
     control: &Control,
     recording: &http::Recording,
     service: Service,
+    map: Arc<map::MapService>,
 ) -> ApiState {
     ApiState {
         tracking: Tracking {
@@ -324,6 +331,7 @@ fn api_state(
         },
         recording: recording.clone(),
         service,
+        map,
     }
 }
 

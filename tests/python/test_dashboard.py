@@ -58,7 +58,8 @@ class Console:
     def on_console(self, m):
         self.messages.append(f"{m.type}: {m.text}")
         if m.type == "error":
-            self.errors.append(f"console.error: {m.text}")
+            url = (m.location or {}).get("url")
+            self.errors.append(f"console.error: {m.text}" + (f" ({url})" if url else ""))
 
 
 @pytest.fixture(scope="module")

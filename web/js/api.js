@@ -100,7 +100,7 @@ export async function getText(path) {
  * 404; asking the document instead keeps the console clean).
  */
 export async function features() {
-  const f = { truth: false, world: false, aircraft: false, assignments: false, commands: false, estimator: true, metrics: true };
+  const f = { truth: false, world: false, aircraft: false, map: false, assignments: false, commands: false, estimator: true, metrics: true };
   try {
     const res = await fetch("api/openapi.json", { cache: "no-store" });
     if (!res.ok) return f;
@@ -110,6 +110,7 @@ export async function features() {
     f.truth = has("/api/v1/truth");
     f.world = has("/api/v1/world");
     f.aircraft = has("/api/v1/aircraft");
+    f.map = has("/api/v1/map");
     f.assignments = has("/api/v1/assignments");
     f.commands = paths.some((p) => /^\/api\/v1\/vehicles\/\{[^}]+\}\/commands$/.test(p));
     f.estimator = has("/api/v1/estimator");

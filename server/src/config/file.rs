@@ -9,6 +9,7 @@ use super::asterix::AsterixConfig;
 use super::cot::CotConfig;
 use super::error::ConfigError;
 use super::foxglove::FoxgloveConfig;
+use super::map::MapConfig;
 use super::sections::{
     ApiConfig, FrameConfig, GuidanceConfig, MavlinkConfig, RecorderConfig, TrackerConfig,
     ZenohConfig,
@@ -42,6 +43,8 @@ pub struct Config {
     pub asterix: AsterixConfig,
     /// The confirmed tracks as Cursor-on-Target events for TAK.
     pub cot: CotConfig,
+    /// The dashboard's geographic map: its tiles.
+    pub map: MapConfig,
 }
 
 impl Config {

@@ -19,6 +19,7 @@ mod cot;
 mod error;
 mod file;
 mod foxglove;
+mod map;
 mod router_filter;
 mod sections;
 #[cfg(test)]
@@ -30,6 +31,7 @@ pub use cot::{CotConfig, CotDestination, CotEncoding, CotTransport};
 pub use error::ConfigError;
 pub use file::Config;
 pub use foxglove::FoxgloveConfig;
+pub use map::{MapConfig, OSM_ATTRIBUTION};
 pub use router_filter::{MessageRef, RouterFilterConfig};
 pub use sections::{
     ApiConfig, DEFAULT_ORIGIN, FrameConfig, GuidanceConfig, MavlinkConfig, ObstacleConfig,

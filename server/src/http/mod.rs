@@ -8,7 +8,8 @@
 //! | `GET`/`PUT /estimator`, `GET /estimators` | [`estimator`] |
 //! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands` | [`vehicles`] |
 //! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}` | [`assignments`] |
-//! | `GET /truth`, `GET /world` | [`world`] |
+//! | `GET /truth`, `GET /world`, `GET /aircraft` | [`world`] |
+//! | `GET /map`, and `GET /tiles/{z}/{x}/{y}` at the root | [`map`] |
 //! | `GET /sessions`, `/sessions/{id}`, `/sessions/{id}/export` | [`sessions`] |
 //! | `GET /health`, `GET /metrics` (and `GET /metrics` at the root) | [`service`] |
 //! | `GET /ws` | [`ws`] |
@@ -34,6 +35,7 @@ pub mod assignments;
 mod error;
 pub mod estimator;
 mod extract;
+pub mod map;
 mod serve;
 pub mod service;
 pub mod sessions;
@@ -107,6 +109,7 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
         vehicles::Doc::openapi(),
         assignments::Doc::openapi(),
         world::Doc::openapi(),
+        map::Doc::openapi(),
         estimator::Doc::openapi(),
         service::Doc::openapi(),
         sessions::Doc::openapi(),
@@ -129,6 +132,7 @@ pub fn app(state: ApiState, web_dir: Option<&Path>, cors_origins: &[String]) -> 
         .merge(vehicles::routes())
         .merge(assignments::routes())
         .merge(world::routes())
+        .merge(map::routes())
         .merge(estimator::routes())
         .merge(service::routes())
         .merge(sessions::routes())
@@ -138,7 +142,10 @@ pub fn app(state: ApiState, web_dir: Option<&Path>, cors_origins: &[String]) -> 
         .layer(count.clone());
     let mut router = Router::new()
         .nest("/api/v1", api)
-        .merge(service::root_routes().route_layer(guard).route_layer(count))
+        .merge(service::root_routes().route_layer(guard).route_layer(count.clone()))
+        // Tiles are open like the dashboard (a browser loads them as images, without a token);
+        // their refusals are counted as the API's.
+        .merge(map::root_routes().route_layer(count))
         .route("/api/openapi.json", get(openapi_json));
     router = match web_dir {
         Some(dir) => router.fallback_service(
@@ -362,6 +369,7 @@ mod tests {
             "estimator",
             "estimators",
             "health",
+            "map",
             "metrics",
             "sessions",
             "sessions/{id}",
@@ -377,6 +385,7 @@ mod tests {
         ];
         let mut want: Vec<String> = v1.iter().map(|p| format!("/api/v1/{p}")).collect();
         want.push("/metrics".into());
+        want.push("/tiles/{z}/{x}/{y}".into());
         want.sort_unstable();
         assert_eq!(paths, want);
         assert_eq!(doc["info"]["title"], "Harrier ground station API");
@@ -391,6 +400,8 @@ mod tests {
             "AssignmentView",
             "WorldBody",
             "AircraftList",
+            "MapBody",
+            "TileSource",
         ] {
             assert!(doc["components"]["schemas"][schema].is_object(), "{schema}");
         }

@@ -1,6 +1,8 @@
 //! `GET /health`, `GET /metrics` (Prometheus text; also at the root, `GET /metrics`, where
 //! scrapers look by default).
 
+use std::sync::Arc;
+
 use axum::extract::State;
 use axum::http::header;
 use axum::response::IntoResponse;
@@ -12,6 +14,7 @@ use utoipa::{OpenApi, ToSchema};
 use super::error::ErrorBody;
 use super::state::{ApiState, Control, Recording, Service, Tracking};
 use crate::guidance::AssignmentState;
+use crate::map::MapService;
 use crate::prom::Family;
 
 /// The routes of this file under `/api/v1`.
@@ -91,10 +94,12 @@ async fn metrics(
     State(s): State<Service>,
     State(r): State<Recording>,
     State(c): State<Control>,
+    State(m): State<Arc<MapService>>,
 ) -> impl IntoResponse {
     let mut text = s.metrics.render(s.started.elapsed().as_secs_f64());
     s.connections.render(&mut text);
     s.feeds.render(&mut text);
+    m.render_metrics(&mut text);
     if let Some(recorder) = &r.recorder {
         crate::metrics::render_recorder(&recorder.stats(), &mut text);
     }
@@ -134,8 +139,9 @@ async fn root_metrics(
     s: State<Service>,
     r: State<Recording>,
     c: State<Control>,
+    m: State<Arc<MapService>>,
 ) -> impl IntoResponse {
-    metrics(s, r, c).await
+    metrics(s, r, c, m).await
 }
 
 #[cfg(test)]

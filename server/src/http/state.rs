@@ -1,4 +1,4 @@
-//! What the handlers read: [`ApiState`], in four parts a handler can take alone
+//! What the handlers read: [`ApiState`], in five parts a handler can take alone
 //! (`State<Tracking>`, …, through [`FromRef`]), and the access rule ([`Auth`]).
 
 use std::sync::Arc;
@@ -13,6 +13,7 @@ use crate::config::ApiConfig;
 use crate::feeds::FeedCounters;
 use crate::gcs::GcsLink;
 use crate::guidance::Guidance;
+use crate::map::MapService;
 use crate::metrics::Metrics;
 use crate::tracker::{Command, Recent, ScanEvents, Snapshot};
 use crate::wire::aircraft::AircraftList;
@@ -30,6 +31,8 @@ pub struct ApiState {
     pub recording: Recording,
     /// Counters, access rule, uptime, stop signal.
     pub service: Service,
+    /// The map's tile sources and the MBTiles file.
+    pub map: Arc<MapService>,
 }
 
 /// The tracker's side: its snapshot, its scans, its commands; the truth and the static world.
@@ -107,6 +110,12 @@ impl FromRef<ApiState> for Recording {
 impl FromRef<ApiState> for Service {
     fn from_ref(s: &ApiState) -> Self {
         s.service.clone()
+    }
+}
+
+impl FromRef<ApiState> for Arc<MapService> {
+    fn from_ref(s: &ApiState) -> Self {
+        Arc::clone(&s.map)
     }
 }
 

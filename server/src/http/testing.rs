@@ -118,6 +118,7 @@ impl TestApp {
             },
             control: Control::default(),
             recording: Recording::default(),
+            map: Arc::new(crate::map::MapService::new(&config, None)),
             service: Service {
                 metrics,
                 auth: Arc::new(Auth {

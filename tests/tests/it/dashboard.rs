@@ -1,8 +1,16 @@
-//! The web dashboard (`web/`) in a real browser: `tests/python/test_dashboard.py` drives headless
-//! Chromium (Debian's `/usr/bin/chromium`) with Playwright for Python against `harrier demo`'s
-//! world started here in-process (`harrier_cli::demo::start`, three UAVs on the ground with
-//! their MAVLink link, `no_assign`, a road with two cars, the CIMM track engine):
+//! The web dashboard (`web/`) in a real browser: `tests/python/test_map.py`, then
+//! `tests/python/test_dashboard.py`, drive headless Chromium (Debian's `/usr/bin/chromium`) with
+//! Playwright for Python against `harrier demo`'s world started here in-process
+//! (`harrier_cli::demo::start`, three UAVs on the ground with their MAVLink link, `no_assign`, a
+//! road with two cars, the CIMM track engine, the offline map the demo renders of its world;
+//! nothing on the page comes from outside this machine):
 //!
+//! - the geographic map (test_map.py): the offline tiles under the tracks in a screenshot, every
+//!   track and UAV at its WGS-84 place (within 2 m of REST's, through Leaflet's and PROJ's
+//!   conversions), no console error, the local grid as a choice, ≥ 30 fps with 20 tracks and 10
+//!   UAVs; and a second server this test starts with `[map] tile_url` pointing at the script's
+//!   own tile server (asked with a line `HARRIER-TILE-SERVER URL`, answered `tile-server
+//!   http://ADDR`), whose tiles the page requests and draws;
 //! - the page loads with no console error and, within 30 s, draws at least one track with its
 //!   95 % ellipse and three UAVs in the map, and the same with its ellipsoid in the 3-D view (what
 //!   the page exposes in `window.harrier` and data attributes, cross-checked with REST);
@@ -131,6 +139,8 @@ fn config(listen: SocketAddr, adsb: SocketAddr) -> DemoConfig {
         // The UAVs wait on the ground: the page assigns them.
         no_assign: true,
         adsb: Some(adsb.to_string()),
+        // The offline map the demo renders of its world on its first run (then cached).
+        mbtiles: None,
         ..DemoConfig::ephemeral(listen)
     }
 }
@@ -174,10 +184,12 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     let token = demo.as_ref().expect("demo").server().token().0.to_owned();
     let shots = screenshots_dir();
     let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/test_dashboard.py");
+    let map_script = Path::new(env!("CARGO_MANIFEST_DIR")).join("python/test_map.py");
 
     use std::os::unix::process::CommandExt as _;
     let mut child = Command::new("python3")
         .args(["-m", "pytest", "-q", "-s", "-p", "no:cacheprovider"])
+        .arg(&map_script)
         .arg(&script)
         .env("HARRIER_URL", format!("http://{addr}"))
         .env("HARRIER_TOKEN", &token)
@@ -207,10 +219,11 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
         s
     });
 
-    let deadline = Instant::now() + Duration::from_secs(150);
+    let deadline = Instant::now() + Duration::from_secs(240);
     let mut output = String::new();
     let mut restarts = 0;
     let mut vehicle: Option<SimProcess> = None;
+    let mut tile_url_server: Option<harrier_server::LiveServer> = None;
     let status = loop {
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok(line) => {
@@ -272,6 +285,26 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
                     writeln!(stdin, "killed {LOST_VEHICLE}").expect("answer the script");
                     stdin.flush().expect("flush");
                 }
+                if let Some((_, template)) = line.split_once("HARRIER-TILE-SERVER ") {
+                    // A plain server (no vehicles) whose map's tiles come from the script's tile
+                    // server.
+                    let (mut config, _) = harrier_tests::server_config();
+                    config.map.tile_url = template.trim().to_owned();
+                    config.map.attribution = "© Harrier test tiles".into();
+                    let server = runtime.block_on(async {
+                        tokio::time::timeout(
+                            Duration::from_secs(20),
+                            harrier_server::start(&config),
+                        )
+                        .await
+                        .expect("the tile-URL server started within 20 s")
+                        .expect("the tile-URL server starts")
+                    });
+                    writeln!(stdin, "tile-server http://{}", server.local_addr())
+                        .expect("answer the script");
+                    stdin.flush().expect("flush");
+                    tile_url_server = Some(server);
+                }
                 if line.trim_end().ends_with("HARRIER-RESTART") {
                     let t = Instant::now();
                     runtime.block_on(async {
@@ -302,7 +335,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
         }
         if Instant::now() > deadline {
             kill_group(&mut child);
-            panic!("the dashboard test did not finish within 150 s:\n{output}");
+            panic!("the dashboard test did not finish within 240 s:\n{output}");
         }
     };
     kill_group(&mut child);
@@ -315,16 +348,27 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     );
     assert_eq!(restarts, 1, "the script asked for one restart");
     assert!(
-        output.contains("9 passed"),
+        output.contains("13 passed"),
         "every test ran (none skipped):\n{output}"
     );
-    for name in ["dashboard.png", "map.png", "3d.png"] {
+    for name in [
+        "dashboard.png",
+        "map.png",
+        "3d.png",
+        "geomap.png",
+        "geomap-url.png",
+    ] {
         assert!(
             shots.join(name).is_file(),
             "no {name} in {}",
             shots.display()
         );
     }
-    runtime.block_on(demo.take().expect("demo").stop());
+    runtime.block_on(async {
+        if let Some(s) = tile_url_server.take() {
+            s.shutdown().await;
+        }
+        demo.take().expect("demo").stop().await;
+    });
     eprintln!("dashboard test: {:.1} s", started.elapsed().as_secs_f64());
 }
