@@ -77,6 +77,43 @@ pub fn joseph_update<const N: usize, const M: usize>(
     H: &SMatrix<f64, M, N>,
     R: &SMatrix<f64, M, M>,
 ) -> Result<Posterior<Gaussian<N>, M>> {
+    joseph_with(predicted, innovation, H, R, None)
+}
+
+/// The Joseph-form update of a Schmidt–Kalman ("consider") filter: the components with
+/// `estimated[i] == false` are *considered*, not estimated — their rows of the optimal gain are
+/// set to zero, so their mean and variance stay as predicted, while the covariance of every
+/// component, and the cross-covariance with the considered ones, stays the true error covariance
+/// of the suboptimal gain:
+///
+/// ```text
+/// K = [K_opt]_estimated rows, 0 elsewhere,  K_opt = P⁻ Hᵀ S⁻¹
+/// x = x⁻ + K ν,  P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
+/// ```
+/// (Schmidt 1966; the Joseph form holds for any gain, \[BLK01\] eq. (5.2.3-18)). With every
+/// component estimated it is [`joseph_update`].
+///
+/// # References
+/// * S. F. Schmidt, "Application of state-space methods to navigation problems", *Advances in
+///   Control Systems* 3, 1966.
+/// * R. Zanetti, C. D'Souza, "Recursive implementations of the consider filter", AAS 12-619, 2012.
+pub fn consider_update<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    innovation: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    R: &SMatrix<f64, M, M>,
+    estimated: &[bool; N],
+) -> Result<Posterior<Gaussian<N>, M>> {
+    joseph_with(predicted, innovation, H, R, Some(estimated))
+}
+
+fn joseph_with<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    innovation: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    R: &SMatrix<f64, M, M>,
+    estimated: Option<&[bool; N]>,
+) -> Result<Posterior<Gaussian<N>, M>> {
     ensure_finite(&innovation, "innovation")?;
     ensure_finite(H, "measurement Jacobian")?;
     let P = &predicted.cov;
@@ -87,7 +124,12 @@ pub fn joseph_update<const N: usize, const M: usize>(
     // K = P Hᵀ S⁻¹ with the explicit M × M inverse S⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L of S
     // (M triangular solves against the identity, cheaper than solving for the M × N right-hand
     // side Hᵀ P when M < N; S is SPD and checked by the factorisation, so the inverse is stable).
-    let K = PHt * chol.inverse();
+    let mut K = PHt * chol.inverse();
+    if let Some(estimated) = estimated {
+        for (i, _) in estimated.iter().enumerate().filter(|(_, e)| !**e) {
+            K.row_mut(i).fill(0.0);
+        }
+    }
     let mean = predicted.mean + K * innovation;
     // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N
     // product is formed:  A = (I − K H) P = P − K (H P),  A (I − K H)ᵀ = A − (A Hᵀ) Kᵀ.

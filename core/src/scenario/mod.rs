@@ -16,10 +16,10 @@ mod types;
 
 pub use document::{Frame, Generator, ScenarioDocument};
 pub use lines::{
-    Estimate, Measurement, PlatformPose, PredictionOut, ScenarioData, TruthRow, group_by_time,
-    truth_at,
+    Estimate, Measurement, PlatformPose, PredictionOut, Reference, ReferenceObject, ScenarioData,
+    TruthRow, group_by_time, truth_at,
 };
-pub use parse::{FormatError, ScenarioFile, parse_measurements, parse_truth};
+pub use parse::{FormatError, ScenarioFile, parse_measurements, parse_references, parse_truth};
 pub(crate) use parse::{err, finite_cell, header_columns};
 pub use types::{
     EllipsoidSpec, FORMAT_ID, LinearSystem, Motion, MotionModelSpec, Noise, Platform, Prior, Road,
