@@ -80,18 +80,19 @@ pub fn joseph_update<const N: usize, const M: usize>(
     joseph_with(predicted, innovation, H, R, None)
 }
 
-/// The Joseph-form update of a Schmidt–Kalman ("consider") filter: the components with
-/// `estimated[i] == false` are *considered*, not estimated — their rows of the optimal gain are
-/// set to zero, so their mean and variance stay as predicted, while the covariance of every
-/// component, and the cross-covariance with the considered ones, stays the true error covariance
-/// of the suboptimal gain:
+/// The Joseph-form update of a Schmidt–Kalman ("consider") filter restricted to a subspace: the
+/// optimal gain is projected by `T`, so that only the directions `T` keeps are estimated and the
+/// others are *considered* — their mean stays as predicted while the covariance of every
+/// component, and the cross-covariances with the considered directions, stay the true error
+/// covariance of the suboptimal gain:
 ///
 /// ```text
-/// K = [K_opt]_estimated rows, 0 elsewhere,  K_opt = P⁻ Hᵀ S⁻¹
+/// K = T K_opt,  K_opt = P⁻ Hᵀ S⁻¹
 /// x = x⁻ + K ν,  P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
 /// ```
-/// (Schmidt 1966; the Joseph form holds for any gain, \[BLK01\] eq. (5.2.3-18)). With every
-/// component estimated it is [`joseph_update`].
+/// (Schmidt 1966, whose considered states are the components `T` zeroes, `T` diagonal with
+/// zeros and ones; the Joseph form holds for any gain, \[BLK01\] eq. (5.2.3-18)). With
+/// `T = I` it is [`joseph_update`].
 ///
 /// # References
 /// * S. F. Schmidt, "Application of state-space methods to navigation problems", *Advances in
@@ -102,9 +103,10 @@ pub fn consider_update<const N: usize, const M: usize>(
     innovation: SVector<f64, M>,
     H: &SMatrix<f64, M, N>,
     R: &SMatrix<f64, M, M>,
-    estimated: &[bool; N],
+    T: &SMatrix<f64, N, N>,
 ) -> Result<Posterior<Gaussian<N>, M>> {
-    joseph_with(predicted, innovation, H, R, Some(estimated))
+    ensure_finite(T, "gain projection")?;
+    joseph_with(predicted, innovation, H, R, Some(T))
 }
 
 fn joseph_with<const N: usize, const M: usize>(
@@ -112,7 +114,7 @@ fn joseph_with<const N: usize, const M: usize>(
     innovation: SVector<f64, M>,
     H: &SMatrix<f64, M, N>,
     R: &SMatrix<f64, M, M>,
-    estimated: Option<&[bool; N]>,
+    projection: Option<&SMatrix<f64, N, N>>,
 ) -> Result<Posterior<Gaussian<N>, M>> {
     ensure_finite(&innovation, "innovation")?;
     ensure_finite(H, "measurement Jacobian")?;
@@ -125,10 +127,8 @@ fn joseph_with<const N: usize, const M: usize>(
     // (M triangular solves against the identity, cheaper than solving for the M × N right-hand
     // side Hᵀ P when M < N; S is SPD and checked by the factorisation, so the inverse is stable).
     let mut K = PHt * chol.inverse();
-    if let Some(estimated) = estimated {
-        for (i, _) in estimated.iter().enumerate().filter(|(_, e)| !**e) {
-            K.row_mut(i).fill(0.0);
-        }
+    if let Some(T) = projection {
+        K = T * K;
     }
     let mean = predicted.mean + K * innovation;
     // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N

@@ -5,9 +5,9 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
-use super::model::{BiasPrior, MAX_COMPONENTS, SensorBias, Term};
+use super::model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 use crate::filter::{Extended, Predictor, consider_update, joseph_update};
-use crate::linalg::ensure_finite;
+use crate::linalg::{ensure_finite, symmetric_eigen};
 use crate::measurement::{Locate, MeasurementModel, SensorModel, TargetSize, WithSensor};
 use crate::motion::{ConstantVelocity, TransitionModel};
 use crate::state::Gaussian;
@@ -53,11 +53,12 @@ enum Slot {
 /// The registration filter's tuning.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tuning {
-    /// Observability threshold κ: a bias term is determined by the data once the standard
-    /// deviation a filter estimating every term would have is at most κ times its prior's.
+    /// Observability threshold κ: a bias term (or a combination of terms) is determined by the
+    /// data once the standard deviation a filter estimating every term would have is at most κ
+    /// times its prior's.
     pub kappa: f64,
-    /// Hold the terms that are not determined yet at their prior (Schmidt–Kalman consider
-    /// updates); `false` estimates every term from the start (the plain augmented EKF).
+    /// Hold the bias directions that are not determined yet at their prior (Schmidt–Kalman
+    /// consider updates); `false` estimates every term from the start (the plain augmented EKF).
     pub hold: bool,
 }
 
@@ -137,6 +138,8 @@ pub struct Updated<const N: usize> {
     pub state: RegistrationState<N>,
     /// Normalised innovation squared of the detection.
     pub nis: f64,
+    /// Gaussian log-likelihood `ln N(ν; 0, S)` of the detection.
+    pub log_likelihood: f64,
 }
 
 impl<const K: usize, const N: usize> Registration<K, N> {
@@ -205,6 +208,22 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         })
     }
 
+    /// This filter with every random-walk term drifting `factor` times faster (its drift
+    /// intensity times `factor`), the other terms as they are.
+    pub fn with_drift_factor(&self, factor: f64) -> Self {
+        let mut out = self.clone();
+        for slot in &mut out.slots {
+            if let Slot::Bias(p) = slot {
+                if let Dynamics::RandomWalk { drift } = p.dynamics {
+                    p.dynamics = Dynamics::RandomWalk {
+                        drift: drift * factor,
+                    };
+                }
+            }
+        }
+        out
+    }
+
     /// Where each sensor's terms are, in the order of [`Registration::new`].
     pub fn sensors(&self) -> &[SensorSlots] {
         &self.sensors
@@ -253,8 +272,8 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         }
     }
 
-    /// Whether the bias term at state index `i` is determined by the data:
-    /// `full_cov[i][i] ≤ κ² σ_prior²`.
+    /// Whether the bias term at state index `i` is determined by the data on its own (is
+    /// observable): `full_cov[i][i] ≤ κ² σ_prior²`.
     pub fn determined(&self, state: &RegistrationState<N>, i: usize) -> bool {
         match self.slots.get(i) {
             Some(Slot::Bias(p)) => {
@@ -264,14 +283,54 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         }
     }
 
-    /// The components an update estimates: the target always, a bias term once it is
-    /// [determined](Self::determined) (every term when the tuning does not hold), padding never.
-    fn estimating(&self, state: &RegistrationState<N>) -> [bool; N] {
-        std::array::from_fn(|i| match self.slots[i] {
-            Slot::Kinematic => true,
-            Slot::Bias(_) => !self.tuning.hold || self.determined(state, i),
-            Slot::Unused => false,
-        })
+    /// The projection `T` of the optimal gain (`K = T K_opt`, [`consider_update`]): the target is
+    /// always estimated; of the bias terms, only the directions the data determine — the
+    /// eigenvectors of the normalised full covariance `C = D^{-1/2} P_f,bb D^{-1/2}` (`D` the
+    /// prior variances) whose eigenvalue is at most κ², so that a combination the data know
+    /// (a camera's azimuth offset with its latency, a radar's range offset with its scale) is
+    /// estimated while each term alone may not be; `T_bb = D^{1/2} V_o V_oᵀ D^{-1/2}`. Every
+    /// bias direction when the tuning does not hold; padding never.
+    fn gain_projection(&self, state: &RegistrationState<N>) -> SMatrix<f64, N, N> {
+        let mut T = SMatrix::<f64, N, N>::zeros();
+        let sd: [Option<f64>; N] = std::array::from_fn(|i| match self.slots[i] {
+            Slot::Bias(p) => Some(p.std),
+            Slot::Kinematic | Slot::Unused => None,
+        });
+        for (i, slot) in self.slots.iter().enumerate() {
+            let keep = match slot {
+                Slot::Kinematic => true,
+                Slot::Bias(_) => !self.tuning.hold,
+                Slot::Unused => false,
+            };
+            T[(i, i)] = if keep { 1.0 } else { 0.0 };
+        }
+        if !self.tuning.hold {
+            return T;
+        }
+        // Components that are not bias terms get an eigenvalue far above κ², alone.
+        const APART: f64 = 1e6;
+        let C = SMatrix::<f64, N, N>::from_fn(|i, j| match (sd[i], sd[j]) {
+            (Some(a), Some(b)) => state.full_cov[(i, j)] / (a * b),
+            _ if i == j => APART,
+            _ => 0.0,
+        });
+        let (values, vectors) = symmetric_eigen(&C);
+        let k2 = self.tuning.kappa * self.tuning.kappa;
+        let mut Vo = SMatrix::<f64, N, N>::zeros();
+        for (c, &l) in values.iter().enumerate() {
+            if l <= k2 {
+                let v = vectors.column(c);
+                Vo += v * v.transpose();
+            }
+        }
+        for i in 0..N {
+            for j in 0..N {
+                if let (Some(a), Some(b)) = (sd[i], sd[j]) {
+                    T[(i, j)] = a * Vo[(i, j)] / b;
+                }
+            }
+        }
+        T
     }
 
     /// Predicts both covariances and the mean `dt ≥ 0` seconds ahead: CV for the target, each
@@ -423,8 +482,8 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
     {
         let x = &self.state.estimate.mean;
         let (nu, Hx, R) = self.reg.linearise(model, x, self.slots, self.obs, self.seen)?;
-        let estimating = self.reg.estimating(self.state);
-        let post = consider_update(&self.state.estimate, nu, &Hx, &R, &estimating)?;
+        let T = self.reg.gain_projection(self.state);
+        let post = consider_update(&self.state.estimate, nu, &Hx, &R, &T)?;
         let full = Gaussian {
             mean: *x,
             cov: self.state.full_cov,
@@ -432,6 +491,7 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
         let full_cov = joseph_update(&full, nu, &Hx, &R)?.state.cov;
         Ok(Updated {
             nis: post.nis()?,
+            log_likelihood: post.log_likelihood()?,
             state: RegistrationState {
                 estimate: post.state,
                 full_cov,

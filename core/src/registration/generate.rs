@@ -150,9 +150,12 @@ pub struct Generated {
 const RADAR_POS: [f64; 3] = [-2400.0, -1800.0, 10.0];
 const RADAR_STD: [f64; 2] = [5.0, 0.002];
 /// Camera noise `[σ_az, σ_el]` (rad).
-const CAMERA_STD: [f64; 2] = [0.003, 0.003];
-/// UAV orbit: radius (m), height (m), speed (m/s).
-const ORBIT: [f64; 3] = [300.0, 120.0, 18.0];
+const CAMERA_STD: [f64; 2] = [0.002, 0.002];
+/// Scans per second of the cameras (the radar scans once a second).
+const CAMERA_RATE: usize = 5;
+/// UAV orbit: radius (m), height (m), airspeed (m/s); the wind's speed range (m/s).
+const ORBIT: [f64; 3] = [300.0, 120.0, 24.0];
+const WIND: [f64; 2] = [2.0, 6.0];
 /// GPS position noise of the reference UAV (m) and its velocity noise (m/s).
 const GPS_STD: [f64; 3] = [1.5, 1.5, 3.0];
 const GPS_VEL_STD: f64 = 0.2;
@@ -231,15 +234,63 @@ impl Drive {
     }
 }
 
-/// A UAV on a standoff orbit around the target: position and velocity at `t`.
-fn uav(drive: &Drive, phase: f64, t: f64) -> (Vector3<f64>, Vector3<f64>) {
-    let [r, h, v] = ORBIT;
-    let w = v / r;
-    let a = phase + w * t;
-    let x = drive.at(t);
-    let pos = Vector3::new(x[0] + r * a.sin(), x[1] + r * a.cos(), h);
-    let vel = Vector3::new(x[2] + r * w * a.cos(), x[3] - r * w * a.sin(), 0.0);
-    (pos, vel)
+/// A UAV on a standoff orbit of radius R around the moving target at constant airspeed in a
+/// steady wind: its ground velocity relative to the target is `s t̂` along the circle's tangent
+/// `t̂ = (cos θ, −sin θ)` (θ clockwise from North, the UAV at `target + R (sin θ, cos θ)`), with
+/// `s` solving `|v_target + s t̂ − wind| = airspeed`, so that it circles fast downwind and slowly
+/// upwind, as a fixed-wing UAV tracking a car does. θ is integrated (RK4) on a fine grid.
+#[derive(Debug, Clone)]
+struct Orbit {
+    theta: Vec<f64>,
+    wind: Vector2<f64>,
+}
+
+/// Orbit integration step (s) and how far before 0 it starts (for time offsets).
+const ORBIT_STEP: f64 = 0.05;
+const ORBIT_BEFORE: f64 = 2.0;
+
+impl Orbit {
+    fn fly(drive: &Drive, wind: Vector2<f64>, theta0: f64, duration: f64) -> Self {
+        let rate = |t: f64, th: f64| Self::speed(drive, wind, t, th) / ORBIT[0];
+        let n = ((duration + 2.0 * ORBIT_BEFORE) / ORBIT_STEP).ceil() as usize + 1;
+        let mut theta = Vec::with_capacity(n);
+        let mut th = theta0;
+        for k in 0..n {
+            theta.push(th);
+            let t = k as f64 * ORBIT_STEP - ORBIT_BEFORE;
+            let h = ORBIT_STEP;
+            let k1 = rate(t, th);
+            let k2 = rate(t + h / 2.0, th + h / 2.0 * k1);
+            let k3 = rate(t + h / 2.0, th + h / 2.0 * k2);
+            let k4 = rate(t + h, th + h * k3);
+            th += h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4);
+        }
+        Self { theta, wind }
+    }
+
+    /// Ground speed along the tangent relative to the target, `s ≥ 0`.
+    fn speed(drive: &Drive, wind: Vector2<f64>, t: f64, theta: f64) -> f64 {
+        let x = drive.at(t);
+        let tangent = Vector2::new(theta.cos(), -theta.sin());
+        let u = Vector2::new(x[2], x[3]) - wind;
+        let a = tangent.dot(&u);
+        let va = ORBIT[2];
+        -a + (a * a + va * va - u.norm_squared()).max(0.0).sqrt()
+    }
+
+    /// Position and velocity at `t`.
+    fn at(&self, drive: &Drive, t: f64) -> (Vector3<f64>, Vector3<f64>) {
+        let f = ((t + ORBIT_BEFORE) / ORBIT_STEP).max(0.0);
+        let i = (f.floor() as usize).min(self.theta.len() - 2);
+        let w = f - i as f64;
+        let th = (1.0 - w) * self.theta[i] + w * self.theta[i + 1];
+        let [r, h, _] = ORBIT;
+        let x = drive.at(t);
+        let s = Self::speed(drive, self.wind, t, th);
+        let pos = Vector3::new(x[0] + r * th.sin(), x[1] + r * th.cos(), h);
+        let vel = Vector3::new(x[2] + s * th.cos(), x[3] - s * th.sin(), 0.0);
+        (pos, vel)
+    }
 }
 
 fn normal(rng: &mut ChaCha8Rng) -> f64 {
@@ -302,6 +353,10 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let drive = Drive::draw(&mut rng, cfg.duration + 1.0);
     let phase = rng.random_range(0.0..TAU);
+    let wind_dir = rng.random_range(0.0..TAU);
+    let wind_speed = rng.random_range(WIND[0]..WIND[1]);
+    let wind = Vector2::new(wind_speed * wind_dir.sin(), wind_speed * wind_dir.cos());
+    let orbits = [0.0, FRAC_PI_2].map(|p| Orbit::fly(&drive, wind, phase + p, cfg.duration));
     let mut outages = Vec::new();
     let mut t = rng.random_range(60.0..120.0);
     loop {
@@ -365,10 +420,11 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
     let mut truth_csv = String::from("t,x,y,z,vx,vy,vz,mode\n");
     let mut bias_csv = String::from("t,sensor,term,value\n");
     let told_bias = cfg.variant == Variant::ToldBias;
-    let scans = cfg.duration.floor() as usize;
+    let ticks = cfg.duration.floor() as usize * CAMERA_RATE;
     let radar = Vector3::from(RADAR_POS);
-    for k in 0..=scans {
-        let t = k as f64;
+    for k in 0..=ticks {
+        let t = k as f64 / CAMERA_RATE as f64;
+        let radar_scan = k % CAMERA_RATE == 0;
         // Every draw of the scan, whatever the case uses.
         let noise: [[f64; 2]; 3] = std::array::from_fn(|_| [normal(&mut rng), normal(&mut rng)]);
         let painted = rng.random_bool(REFERENCE_PD);
@@ -396,18 +452,18 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         let blind = outages.iter().any(|&(a, b)| t >= a && t < b);
         for (i, (id, _, kind, std)) in SENSORS.iter().enumerate() {
             let camera = i < 2;
-            if camera && (!case.cameras() || blind) {
+            if (camera && (!case.cameras() || blind)) || (!camera && !radar_scan) {
                 continue;
             }
             let bias = if told_bias { &[][..] } else { &truth[i][..] };
             let delta = value(bias, Term::TimeOffset);
             let (pos, vel) = if camera {
-                uav(&drive, phase + i as f64 * FRAC_PI_2, t)
+                orbits[i].at(&drive, t)
             } else {
                 (radar, Vector3::zeros())
             };
             let (then, _) = if camera {
-                uav(&drive, phase + i as f64 * FRAC_PI_2, t - delta)
+                orbits[i].at(&drive, t - delta)
             } else {
                 (radar, Vector3::zeros())
             };
@@ -415,8 +471,8 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
             let z = measure(*kind, &then, &Vector3::new(seen[0], seen[1], 0.0), bias, std, &noise[i])?;
             line(&mut meas, t, id, *kind, &pos, &vel, &z, None);
         }
-        if case == Case::RadarReference && !told_bias && painted {
-            let (pos, vel) = uav(&drive, phase, t);
+        if case == Case::RadarReference && !told_bias && painted && radar_scan {
+            let (pos, vel) = orbits[0].at(&drive, t);
             let z = measure(
                 MeasKind::RangeBearing,
                 &radar,
@@ -450,7 +506,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         for terms in &mut truth {
             for (term, prior, v) in terms.iter_mut() {
                 if let super::Dynamics::GaussMarkov { tau } = prior.dynamics {
-                    let phi = (-1.0 / tau).exp();
+                    let phi = (-1.0 / (CAMERA_RATE as f64 * tau)).exp();
                     let n = if *term == Term::Offset(0) { gm_step[0] } else { gm_step[1] };
                     *v = prior.mean + phi * (*v - prior.mean) + prior.std * (1.0 - phi * phi).sqrt() * n;
                 }
@@ -467,6 +523,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         params: serde_json::json!({
             "case": case.name(), "variant": cfg.variant.name(), "duration": cfg.duration,
             "outages": outages, "radar": RADAR_POS, "orbit": ORBIT,
+            "wind": [wind.x, wind.y],
             "constant": draws.constant, "gm_std": draws.gm_std, "gm_tau": draws.gm_tau,
         }),
     };
@@ -591,6 +648,7 @@ fn scenario(
         .zip(models)
         .filter(|((id, ..), _)| cameras || *id == "radar1")
         .map(|((id, platform, kind, std), truth)| {
+            let rate = if *kind == MeasKind::AzEl { CAMERA_RATE } else { 1 };
             let bias = match cfg.variant {
                 Variant::Deployment => Some(SensorBias::typical(*kind)),
                 Variant::ToldModel => truth.clone(),
@@ -601,7 +659,7 @@ fn scenario(
                 platform: (*platform).into(),
                 kind: *kind,
                 ncomp: None,
-                rate_hz: Some(1.0),
+                rate_hz: Some(rate as f64),
                 noise: fmt::Noise::Gaussian { std: std.to_vec() },
                 bias: bias.map(|b| b.to_block()),
             }
@@ -629,7 +687,7 @@ fn scenario(
         plane_z: Some(0.0),
         time: fmt::TimeSpec {
             t0: 0.0,
-            dt: 1.0,
+            dt: 1.0 / CAMERA_RATE as f64,
             t_end: cfg.duration.floor(),
         },
         target: fmt::Target {

@@ -82,6 +82,7 @@
 
 mod filter;
 pub mod generate;
+mod imm;
 mod model;
 mod report;
 mod truth;
@@ -89,6 +90,7 @@ mod truth;
 pub use filter::{
     KnownObject, Observation, Registration, RegistrationState, Seen, SensorSlots, Tuning, Updated,
 };
+pub use imm::{DriftModes, RegistrationImm, RegistrationImmState};
 pub use model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 pub use report::{SensorEstimate, TermEstimate};
 pub use truth::BiasTruth;

@@ -189,8 +189,8 @@ impl SensorBias {
         match kind {
             MeasKind::RangeBearing => Self {
                 offset: vec![
-                    Some(BiasPrior::random_walk(50.0, 0.5)),
-                    Some(BiasPrior::random_walk(0.010, 5e-5)),
+                    Some(BiasPrior::random_walk(50.0, 0.1)),
+                    Some(BiasPrior::random_walk(0.010, 1e-5)),
                 ],
                 scale: vec![Some(BiasPrior::constant(0.005))],
                 time_offset,

@@ -291,3 +291,67 @@ fn generator_writes_references_and_told_models() {
     }
     assert!(generate(1, &GenConfig { duration: 10.0, ..cfg }).is_err());
 }
+
+/// The drift modes: a radar range offset that ramps at 1 m/s, seen against GPS references, makes
+/// the drifting mode win; a constant one leaves the steady mode in front.
+#[test]
+fn the_drift_modes_follow_what_the_references_show() {
+    let bias = SensorBias {
+        offset: vec![
+            Some(BiasPrior::random_walk(50.0, 0.05)),
+            Some(BiasPrior::random_walk(0.01, 1e-6)),
+        ],
+        scale: Vec::new(),
+        time_offset: None,
+    };
+    let run = |ramp: f64| {
+        let imm = RegistrationImm::new(radar_only(&bias, Tuning::default()), DriftModes::default())
+            .unwrap();
+        let g = Gaussian::new(
+            Vector4::new(2000.0, 1000.0, 0.0, 0.0),
+            Matrix4::from_diagonal(&Vector4::new(2500.0, 2500.0, 4.0, 4.0)),
+        )
+        .unwrap();
+        let mut s = imm.initial(&g).unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let radar = RangeBearing::new(Geometry::spatial(), Vector3::zeros(), [5.0, 0.002]);
+        let model = SensorModel::RangeBearing(radar);
+        for k in 1..=300 {
+            let a = 0.05 * k as f64;
+            let pos = Vector3::new(2000.0 + 300.0 * a.sin(), 1000.0 + 300.0 * a.cos(), 100.0);
+            let x6 = nalgebra::Vector6::new(pos.x, pos.y, pos.z, 0.0, 0.0, 0.0);
+            let h: Vector2<f64> = radar.function(&x6);
+            let n: [f64; 2] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
+            let z = [h[0] + 20.0 + ramp * k as f64 + 5.0 * n[0], h[1] + 0.002 * n[1]];
+            s = imm.predict(&s, 1.0).unwrap();
+            let obs = Observation {
+                sensor: 0,
+                model: &model,
+                platform_vel: Vector3::zeros(),
+                z: &z,
+            };
+            let known = Seen::Known(KnownObject {
+                pos,
+                vel: Vector3::new(15.0 * a.cos(), -15.0 * a.sin(), 0.0),
+                cov: Matrix3::identity(),
+            });
+            s = imm.update(&s, &obs, &known).unwrap();
+        }
+        let c = imm.combined(&s);
+        (s.probs, c.estimate.mean[4])
+    };
+    let (steady, b) = run(0.0);
+    assert!(steady[0] > 0.9 && (b - 20.0).abs() < 3.0, "{steady:?} {b}");
+    let (drifting, b) = run(1.0);
+    assert!(drifting[1] > 0.9 && (b - 320.0).abs() < 10.0, "{drifting:?} {b}");
+    assert!(
+        RegistrationImm::new(
+            radar_only(&bias, Tuning::default()),
+            DriftModes {
+                factor: 0.5,
+                ..DriftModes::default()
+            }
+        )
+        .is_err()
+    );
+}

@@ -6,7 +6,8 @@
 
 use harrier_core::measurement::{Geometry, SensorModel, TargetSize};
 use harrier_core::registration::{
-    KnownObject, Observation, Registration, RegistrationState, Seen, SensorBias, Tuning,
+    DriftModes, KnownObject, Observation, Registration, RegistrationImm, RegistrationImmState,
+    Seen, SensorBias, Tuning,
 };
 use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use nalgebra::{Matrix3, Vector3};
@@ -29,6 +30,18 @@ pub const REGISTRATION: EstimatorInfo = EstimatorInfo {
             "hold",
             "1: hold terms at their prior until observable (default); 0: estimate every term from the start",
         ),
+        (
+            "drift_factor",
+            "the drifting mode's random-walk terms drift this many times faster (default 20; 1: one mode)",
+        ),
+        (
+            "drift_sojourn",
+            "mean time in a drift mode before switching, s (default 300)",
+        ),
+        (
+            "drift_prob",
+            "probability of the drifting mode at the start (default 0.1)",
+        ),
     ],
     build,
 };
@@ -41,6 +54,12 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
     let tuning = Tuning {
         kappa: p.get("kappa", Tuning::default().kappa),
         hold: p.get("hold", 1.0) != 0.0,
+    };
+    let d = DriftModes::default();
+    let drift = DriftModes {
+        factor: p.get("drift_factor", d.factor),
+        sojourn: p.get("drift_sojourn", d.sojourn),
+        initial: p.get("drift_prob", d.initial),
     };
     let mut biases = Vec::with_capacity(sc.sensors.len());
     for s in &sc.sensors {
@@ -63,7 +82,7 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
         })?;
     macro_rules! boxed {
         ($k:literal, $n:literal) => {
-            Box::new(Driver::<$k, $n>::new(sc, q, &biases, tuning)?)
+            Box::new(Driver::<$k, $n>::new(sc, q, &biases, tuning, drift)?)
         };
     }
     Ok(match (sc.dims == 2, capacity) {
@@ -79,10 +98,10 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
 /// The replay of one scenario.
 #[derive(Debug)]
 struct Driver<const K: usize, const N: usize> {
-    filter: Registration<K, N>,
+    filter: RegistrationImm<K, N>,
     sc: Scenario,
     t: f64,
-    state: RegistrationState<N>,
+    state: RegistrationImmState<N>,
 }
 
 impl<const K: usize, const N: usize> Driver<K, N> {
@@ -91,6 +110,7 @@ impl<const K: usize, const N: usize> Driver<K, N> {
         q: f64,
         biases: &[Option<SensorBias>],
         tuning: Tuning,
+        drift: DriftModes,
     ) -> Result<Self, EngineError> {
         let sensors: Vec<_> = sc
             .sensors
@@ -99,6 +119,7 @@ impl<const K: usize, const N: usize> Driver<K, N> {
             .map(|(s, b)| (s.dim(), b.as_ref()))
             .collect();
         let filter = Registration::<K, N>::new(q, sc.plane_z(), &sensors, tuning)
+            .and_then(|f| RegistrationImm::new(f, drift))
             .map_err(|e| setup(format!("registration: {e}")))?;
         let (t, kinematic) = prior::<K>(sc, cv_dims(K))?;
         let state = filter.initial(&kinematic)?;
@@ -165,13 +186,15 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
                 platform_vel: Vector3::from(m.platform.vel),
                 z: &m.z,
             };
-            state = self.filter.update(&state, &obs, &seen)?.state;
+            state = self.filter.update(&state, &obs, &seen)?;
         }
         self.state = state;
         self.t = t;
-        let mut e = cv_estimate(self.sc.plane_z(), t, &self.filter.kinematic(&state));
+        let combined = self.filter.combined(&state);
+        let filter = self.filter.filter();
+        let mut e = cv_estimate(self.sc.plane_z(), t, &filter.kinematic(&combined));
         let mut bias = serde_json::Map::new();
-        for (s, est) in self.sc.sensors.iter().zip(self.filter.estimates(&state)) {
+        for (s, est) in self.sc.sensors.iter().zip(filter.estimates(&combined)) {
             if !est.terms.is_empty() {
                 bias.insert(s.id.clone(), est.to_json());
             }
@@ -179,6 +202,8 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
         if !bias.is_empty() {
             e.extra
                 .insert("bias_est".into(), serde_json::Value::Object(bias));
+            e.extra
+                .insert("bias_drift_prob".into(), serde_json::json!(state.probs[1]));
         }
         Ok(Some(e))
     }
