@@ -102,10 +102,10 @@ def rms(v):
 
 
 def bias_series(estimates, d, t_from):
-    """Per (sensor, term): errors from t_from on; per sensor: NEES and its dof per scan; the
-    observability flags of the last line."""
+    """Per (sensor, term): errors from t_from on and the error of the last line; per sensor: NEES
+    per scan and the last line's `bias_est` entry."""
     table = registration_crlb.read_bias_truth(os.path.join(d, "bias_truth.csv"))
-    errors, nees, last = {}, {}, {}
+    errors, nees, last, final = {}, {}, {}, {}
     for e in estimates:
         for sensor, b in (e.get("bias_est") or {}).items():
             terms = b["terms"]
@@ -113,13 +113,15 @@ def bias_series(estimates, d, t_from):
                                                                            e["t"])
                             for term in terms])
             last[sensor] = b
+            for term, x in zip(terms, err):
+                final[(sensor, term)] = float(x)
             if e["t"] < t_from:
                 continue
             for term, x in zip(terms, err):
                 errors.setdefault((sensor, term), []).append(x)
             cov = np.array(b["cov"])
             nees.setdefault(sensor, []).append(float(err @ np.linalg.solve(cov, err)))
-    return errors, nees, last
+    return errors, nees, last, final
 
 
 def _value(b, term):
@@ -173,26 +175,28 @@ def main():
                 runs["unbiased run"] = replay(harrier, unbiased, "registration", a.param)
             for name, est in runs.items():
                 rows["rmse"].setdefault(name, []).append(rms(pos_errors(est, truth, 10.0)))
-            errors, nees, last = bias_series(runs["registration"], dep, a.t_from)
+            errors, nees, last, final = bias_series(runs["registration"], dep, a.t_from)
             bound = registration_crlb.crlb(dep, a.t_from)[0]["terms"]
             for b in bound:
                 key = (b["sensor"], b["term"])
                 e = errors.get(key, [])
-                s = sq.setdefault(key, [0.0, 0.0, 0, 0])
+                s = sq.setdefault(key, [0.0, 0.0, 0, 0, 0.0])
                 s[0] += float(np.sum(np.square(e)))
                 s[1] += (b["rms_after"] or 0.0) ** 2 * len(e)
                 s[2] += len(e)
                 s[3] += bool(observable(last[b["sensor"]], b["term"]))
+                s[4] = max(s[4], abs(final.get(key, 0.0)))
             for sensor, v in nees.items():
                 dof = len(last[sensor]["terms"])
                 ok = np.mean(np.array(v) <= CHI2_95[dof])
                 rows["nees"].setdefault(sensor, []).append(float(ok))
-        for key, (e2, c2, n, obs) in sq.items():
+        for key, (e2, c2, n, obs, worst) in sq.items():
             if n == 0:
                 continue
             rows["bias"][f"{key[0]}/{key[1]}"] = {
                 "rms_error": math.sqrt(e2 / n), "rms_crlb": math.sqrt(c2 / n),
                 "ratio": math.sqrt(e2 / c2) if c2 > 0 else float("nan"),
+                "final_max_abs_error": worst,
                 "observable_at_end": f"{obs}/{len(seeds)}"}
         result["cases"][case] = rows
     if a.json:
@@ -206,9 +210,15 @@ def main():
             v = np.array(v)
             print(f"  pos RMSE {name:13} mean {v.mean():8.3f} m  max {v.max():8.3f}  "
                   f"ratio to told-bias mean {np.mean(v / base):.3f} max {np.max(v / base):.3f}")
+        reg = np.array(rows["rmse"]["registration"])
+        for name in ("told-model", "unbiased run"):
+            if name in rows["rmse"]:
+                r = reg / np.array(rows["rmse"][name])
+                print(f"  registration / {name}: mean {r.mean():.3f} max {r.max():.3f}")
         for k, b in rows["bias"].items():
             print(f"  bias {k:22} RMS err {b['rms_error']:.5g}  sqrt CRLB {b['rms_crlb']:.5g}  "
-                  f"ratio {b['ratio']:.3f}  observable {b['observable_at_end']}")
+                  f"ratio {b['ratio']:.3f}  worst final |err| {b['final_max_abs_error']:.5g}  "
+                  f"observable {b['observable_at_end']}")
         for sensor, v in rows["nees"].items():
             print(f"  bias NEES {sensor}: within chi2 95 % in {np.mean(v):.3f} of scans "
                   f"(worst seed {np.min(v):.3f})")

@@ -93,6 +93,9 @@ pub struct RegistrationState<const N: usize> {
     pub estimate: Gaussian<N>,
     /// Covariance of the full augmented filter along the same linearisation points.
     pub full_cov: SMatrix<f64, N, N>,
+    /// The gain projection of the updates of the current time (see
+    /// [`Registration::update`]): computed at the first one, `None` after a prediction.
+    pub projection: Option<SMatrix<f64, N, N>>,
 }
 
 /// A known object a sensor saw (a cooperative reference: a UAV reporting its own GPS position):
@@ -261,6 +264,7 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         Ok(RegistrationState {
             estimate,
             full_cov: cov,
+            projection: None,
         })
     }
 
@@ -351,11 +355,18 @@ impl<const K: usize, const N: usize> Registration<K, N> {
             cov: state.full_cov,
         };
         let full_cov = Extended.predict(&model, &full, dt)?.cov;
-        Ok(RegistrationState { estimate, full_cov })
+        Ok(RegistrationState {
+            estimate,
+            full_cov,
+            projection: None,
+        })
     }
 
     /// Updates the state with one detection of `seen` (the target, or a known object whose
-    /// detection updates only the biases — and, through their correlation, the target).
+    /// detection updates only the biases — and, through their correlation, the target). The
+    /// bias directions it estimates are those determined before the first update of the time
+    /// (the gain projection is computed once per time and kept in the state until the next
+    /// prediction), so the detections of one scan are weighed alike.
     pub fn update(
         &self,
         state: &RegistrationState<N>,
@@ -482,7 +493,10 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
     {
         let x = &self.state.estimate.mean;
         let (nu, Hx, R) = self.reg.linearise(model, x, self.slots, self.obs, self.seen)?;
-        let T = self.reg.gain_projection(self.state);
+        let T = match self.state.projection {
+            Some(T) => T,
+            None => self.reg.gain_projection(self.state),
+        };
         let post = consider_update(&self.state.estimate, nu, &Hx, &R, &T)?;
         let full = Gaussian {
             mean: *x,
@@ -495,6 +509,7 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
             state: RegistrationState {
                 estimate: post.state,
                 full_cov,
+                projection: Some(T),
             },
         })
     }

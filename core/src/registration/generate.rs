@@ -1,9 +1,10 @@
 //! A seeded generator of registration scenarios (FORMAT-REGISTRATION.md §5): a ground target
-//! driving legs of straight road and turns, a ground radar ~3 km away, and two UAVs whose
-//! gimbal cameras (`az_el`) look at it from a standoff orbit, both losing it together for
-//! 40–90 s several times (outages: the radar alone carries the target then). The [`Case`] says
-//! which sensor is biased and how; the [`Variant`] says what the written scenario tells the
-//! estimator.
+//! driving legs of straight road and turns; a ground radar ~3 km away (1 Hz, σ 5 m and 2 mrad);
+//! two fixed-wing UAVs circling it on a 300 m standoff orbit at 120 m in a steady wind (so that
+//! they go round faster downwind than upwind), whose gimbal cameras (`az_el`, 5 Hz, σ 2 mrad)
+//! both lose the target together for 40–90 s several times (outages: the radar alone carries the
+//! target then). The [`Case`] says which sensor is biased and how; the [`Variant`] says what the
+//! written scenario tells the estimator.
 //!
 //! Pure: everything comes from one ChaCha8 stream seeded by the caller, drawn in the same order
 //! whatever the case and variant, so that the cases and variants of one seed share the
@@ -11,7 +12,10 @@
 //! of its `mounting` case, and the `told-bias` variant holds the very noise of the biased data.
 //!
 //! The data are made with the exact geometry (a time offset δ: target and platform where they
-//! were at `t − δ`), not with the estimator's first-order model.
+//! were at `t − δ`), not with the estimator's first-order model. The wind matters: on an orbit
+//! centred on the target, a camera's latency shifts its azimuth by `δ s / R` (s the UAV's speed
+//! relative to the target along the circle); at a constant `s` that is a constant azimuth
+//! offset, and the two could not be told apart.
 
 use std::f64::consts::{FRAC_PI_2, TAU};
 use std::fmt::Write as _;
@@ -125,7 +129,7 @@ pub struct GenConfig {
     pub case: Case,
     /// What the scenario tells.
     pub variant: Variant,
-    /// Length of the run (s, ≥ 60); one scan per second.
+    /// Length of the run (s, ≥ 60): the cameras scan 5 times a second, the radar once.
     pub duration: f64,
 }
 
@@ -162,7 +166,7 @@ const GPS_VEL_STD: f64 = 0.2;
 /// Probability that the radar paints the reference UAV in a scan.
 const REFERENCE_PD: f64 = 0.9;
 /// Prior standard deviations of the target `[x, y, vx, vy]`.
-const PRIOR_STD: [f64; 4] = [50.0, 50.0, 3.0, 3.0];
+const PRIOR_STD: [f64; 4] = [20.0, 20.0, 2.0, 2.0];
 /// Mounting offset of the cameras (rad) and the latency of `cam1` (s).
 const MOUNTING: f64 = 0.5 * std::f64::consts::PI / 180.0;
 const LATENCY: f64 = 0.2;

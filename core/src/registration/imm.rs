@@ -162,5 +162,6 @@ fn mix<const N: usize>(modes: &[RegistrationState<N>; 2], w: &[f64; 2]) -> Regis
     RegistrationState {
         estimate,
         full_cov: symmetrize(&full_cov),
+        projection: None,
     }
 }
