@@ -210,7 +210,11 @@ mod tests {
         let m = b * b.transpose() + SMatrix::<f64, 5, 5>::from_diagonal_element(0.1);
         let (values, vectors) = symmetric_eigen(&m);
         let mut ours: Vec<f64> = values.iter().copied().collect();
-        let mut theirs: Vec<f64> = nalgebra::SymmetricEigen::new(m).eigenvalues.iter().copied().collect();
+        let mut theirs: Vec<f64> = nalgebra::SymmetricEigen::new(m)
+            .eigenvalues
+            .iter()
+            .copied()
+            .collect();
         ours.sort_by(f64::total_cmp);
         theirs.sort_by(f64::total_cmp);
         for (a, b) in ours.iter().zip(&theirs) {

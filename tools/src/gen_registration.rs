@@ -45,8 +45,7 @@ pub fn write(dir: &std::path::Path, seed: u64, cfg: &GenConfig) -> anyhow::Resul
     let refs = dir.join("references.jsonl");
     if g.references_jsonl.is_empty() {
         if refs.exists() {
-            std::fs::remove_file(&refs)
-                .with_context(|| format!("removing {}", refs.display()))?;
+            std::fs::remove_file(&refs).with_context(|| format!("removing {}", refs.display()))?;
         }
     } else {
         std::fs::write(&refs, &g.references_jsonl)

@@ -440,7 +440,8 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         let vrel = v - obs.platform_vel;
         // The world at t − δ: p − δ (v − v_platform), to first order.
         let shifted = p - vrel * delta;
-        let x6 = SVector::<f64, 6>::from_column_slice(&[shifted.x, shifted.y, shifted.z, 0.0, 0.0, 0.0]);
+        let x6 =
+            SVector::<f64, 6>::from_column_slice(&[shifted.x, shifted.y, shifted.z, 0.0, 0.0, 0.0]);
         let h0 = model.function(&x6);
         let Hp: SMatrix<f64, M, 3> = model.jacobian(&x6).fixed_columns::<3>(0).into_owned();
         // g_i = 1 + s_i
@@ -492,7 +493,9 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
         H: MeasurementModel<6, M> + Locate<M>,
     {
         let x = &self.state.estimate.mean;
-        let (nu, Hx, R) = self.reg.linearise(model, x, self.slots, self.obs, self.seen)?;
+        let (nu, Hx, R) = self
+            .reg
+            .linearise(model, x, self.slots, self.obs, self.seen)?;
         let T = match self.state.projection {
             Some(T) => T,
             None => self.reg.gain_projection(self.state),
@@ -600,8 +603,18 @@ mod tests {
             cov: Matrix3::identity(),
         });
         for (sensor, kind, at, vel) in [
-            (0, MeasKind::RangeBearing, Vector3::new(-2000.0, -1500.0, 10.0), Vector3::zeros()),
-            (1, MeasKind::AzEl, Vector3::new(150.0, 80.0, 120.0), Vector3::new(15.0, -8.0, 0.0)),
+            (
+                0,
+                MeasKind::RangeBearing,
+                Vector3::new(-2000.0, -1500.0, 10.0),
+                Vector3::zeros(),
+            ),
+            (
+                1,
+                MeasKind::AzEl,
+                Vector3::new(150.0, 80.0, 120.0),
+                Vector3::new(15.0, -8.0, 0.0),
+            ),
         ] {
             let model =
                 SensorModel::new(kind, Geometry::spatial(), at, &[1.0, 0.01], None).unwrap();
@@ -627,10 +640,15 @@ mod tests {
                     {
                         let slots = &self.reg.sensors[self.obs.sensor];
                         let nu = |x: &SVector<f64, 16>| {
-                            self.reg.linearise(model, x, slots, self.obs, self.seen).unwrap().0
+                            self.reg
+                                .linearise(model, x, slots, self.obs, self.seen)
+                                .unwrap()
+                                .0
                         };
-                        let (_, H, _) =
-                            self.reg.linearise(model, &self.x, slots, self.obs, self.seen).unwrap();
+                        let (_, H, _) = self
+                            .reg
+                            .linearise(model, &self.x, slots, self.obs, self.seen)
+                            .unwrap();
                         let mut numeric = SMatrix::<f64, M, 16>::zeros();
                         for c in 0..16 {
                             let e = 1e-6 * (1.0 + self.x[c].abs());

@@ -208,7 +208,11 @@ impl Drive {
             } else {
                 (0.0, rng.random_range(30.0..80.0))
             };
-            legs.push(Leg { t0: t, omega, x0: x });
+            legs.push(Leg {
+                t0: t,
+                omega,
+                x0: x,
+            });
             x = ConstantTurn::<4>::new(omega, 0.0).function(&x, len);
             t += len;
         }
@@ -472,7 +476,14 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
                 (radar, Vector3::zeros())
             };
             let seen = drive.at(t - delta);
-            let z = measure(*kind, &then, &Vector3::new(seen[0], seen[1], 0.0), bias, std, &noise[i])?;
+            let z = measure(
+                *kind,
+                &then,
+                &Vector3::new(seen[0], seen[1], 0.0),
+                bias,
+                std,
+                &noise[i],
+            )?;
             line(&mut meas, t, id, *kind, &pos, &vel, &z, None);
         }
         if case == Case::RadarReference && !told_bias && painted && radar_scan {
@@ -493,7 +504,15 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
             let rvel = vel + Vector3::new(gps[3], gps[4], gps[5]) * GPS_VEL_STD;
             let object = format!(
                 r#","object":{{"id":"uav1","pos":[{:.4},{:.4},{:.4}],"vel":[{:.4},{:.4},{:.4}],"std":[{},{},{}]}}"#,
-                reported.x, reported.y, reported.z, rvel.x, rvel.y, rvel.z, GPS_STD[0], GPS_STD[1], GPS_STD[2]
+                reported.x,
+                reported.y,
+                reported.z,
+                rvel.x,
+                rvel.y,
+                rvel.z,
+                GPS_STD[0],
+                GPS_STD[1],
+                GPS_STD[2]
             );
             line(
                 &mut refs,
@@ -511,8 +530,14 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
             for (term, prior, v) in terms.iter_mut() {
                 if let super::Dynamics::GaussMarkov { tau } = prior.dynamics {
                     let phi = (-1.0 / (CAMERA_RATE as f64 * tau)).exp();
-                    let n = if *term == Term::Offset(0) { gm_step[0] } else { gm_step[1] };
-                    *v = prior.mean + phi * (*v - prior.mean) + prior.std * (1.0 - phi * phi).sqrt() * n;
+                    let n = if *term == Term::Offset(0) {
+                        gm_step[0]
+                    } else {
+                        gm_step[1]
+                    };
+                    *v = prior.mean
+                        + phi * (*v - prior.mean)
+                        + prior.std * (1.0 - phi * phi).sqrt() * n;
                 }
             }
         }
@@ -554,7 +579,9 @@ fn with(term: Term, (prior, v): (BiasPrior, f64)) -> (Term, BiasPrior, f64) {
 }
 
 fn value(bias: &[(Term, BiasPrior, f64)], term: Term) -> f64 {
-    bias.iter().find(|(t, _, _)| *t == term).map_or(0.0, |b| b.2)
+    bias.iter()
+        .find(|(t, _, _)| *t == term)
+        .map_or(0.0, |b| b.2)
 }
 
 /// The true model of each sensor (what [`Variant::ToldModel`] tells), `None` when unbiased.
@@ -652,7 +679,11 @@ fn scenario(
         .zip(models)
         .filter(|((id, ..), _)| cameras || *id == "radar1")
         .map(|((id, platform, kind, std), truth)| {
-            let rate = if *kind == MeasKind::AzEl { CAMERA_RATE } else { 1 };
+            let rate = if *kind == MeasKind::AzEl {
+                CAMERA_RATE
+            } else {
+                1
+            };
             let bias = match cfg.variant {
                 Variant::Deployment => Some(SensorBias::typical(*kind)),
                 Variant::ToldModel => truth.clone(),
@@ -674,7 +705,11 @@ fn scenario(
         kind: kind.into(),
     };
     let var: Vec<Vec<f64>> = (0..4)
-        .map(|i| (0..4).map(|j| if i == j { PRIOR_STD[i].powi(2) } else { 0.0 }).collect())
+        .map(|i| {
+            (0..4)
+                .map(|j| if i == j { PRIOR_STD[i].powi(2) } else { 0.0 })
+                .collect()
+        })
         .collect();
     let [x, y, vx, vy] = prior_mean;
     Ok(fmt::Scenario {

@@ -22,7 +22,7 @@
 use nalgebra::SMatrix;
 
 use super::filter::{Observation, Registration, RegistrationState, Seen};
-use crate::filter::{log_normalize, moment_match};
+use crate::filter::{PROB_FLOOR, log_normalize, moment_match};
 use crate::linalg::symmetrize;
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
@@ -113,12 +113,18 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
         let p = 0.5 * (1.0 - (-2.0 * dt / self.drift.sojourn).exp());
         let tpm = [[1.0 - p, p], [p, 1.0 - p]];
         let mut out = *state;
-        for j in 0..2 {
+        for (j, (mode, filter)) in out.modes.iter_mut().zip(&self.modes).enumerate() {
             let w = [tpm[0][j] * state.probs[0], tpm[1][j] * state.probs[1]];
             let cbar = w[0] + w[1];
-            let mixed = mix(&state.modes, &[w[0] / cbar, w[1] / cbar]);
-            out.modes[j] = self.modes[j].predict(&mixed, dt)?;
-            out.probs[j] = cbar;
+            let mixed = if cbar > 0.0 {
+                mix(&state.modes, &[w[0] / cbar, w[1] / cbar])
+            } else {
+                // Mode j cannot be reached (a zero probability, a switch too rare to register):
+                // keep its own state.
+                state.modes[j]
+            };
+            *mode = filter.predict(&mixed, dt)?;
+            out.probs[j] = cbar.max(PROB_FLOOR);
         }
         let sum = out.probs[0] + out.probs[1];
         out.probs = out.probs.map(|v| v / sum);
@@ -134,10 +140,10 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
     ) -> Result<RegistrationImmState<N>> {
         let mut out = *state;
         let mut log_w = [0.0; 2];
-        for j in 0..2 {
+        for (j, (lw, mode)) in log_w.iter_mut().zip(out.modes.iter_mut()).enumerate() {
             let up = self.modes[j].update(&state.modes[j], obs, seen)?;
-            log_w[j] = state.probs[j].ln() + up.log_likelihood;
-            out.modes[j] = up.state;
+            *lw = state.probs[j].ln() + up.log_likelihood;
+            *mode = up.state;
         }
         out.probs = log_normalize(log_w)?;
         Ok(out)

@@ -48,9 +48,7 @@ impl Term {
         if let Some(rest) = name.strip_prefix("offset") {
             return index(rest).map(Self::Offset);
         }
-        name.strip_prefix("scale")
-            .and_then(index)
-            .map(Self::Scale)
+        name.strip_prefix("scale").and_then(index).map(Self::Scale)
     }
 }
 
@@ -234,9 +232,9 @@ impl SensorBias {
             }
         }
         for (term, prior) in self.terms() {
-            prior.check().map_err(|e| {
-                EstimationError::InvalidParameter(format!("{}: {e}", term.name()))
-            })?;
+            prior
+                .check()
+                .map_err(|e| EstimationError::InvalidParameter(format!("{}: {e}", term.name())))?;
         }
         Ok(())
     }
@@ -313,7 +311,10 @@ mod tests {
         let gm = serde_json::json!({"offset": [null, {"model": "gauss_markov", "std": 0.01, "tau": 60}]});
         let b = SensorBias::from_block(&gm, 2).unwrap().unwrap();
         assert_eq!(b.offset[0], None);
-        assert_eq!(b.offset[1].unwrap().dynamics, Dynamics::GaussMarkov { tau: 60.0 });
+        assert_eq!(
+            b.offset[1].unwrap().dynamics,
+            Dynamics::GaussMarkov { tau: 60.0 }
+        );
         for bad in [
             serde_json::json!({"offset": [{"model": "constant", "std": -1}]}),
             serde_json::json!({"offset": [{"model": "gauss_markov", "std": 1, "tau": 0}]}),

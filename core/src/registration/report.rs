@@ -116,14 +116,21 @@ impl SensorEstimate {
             if per.iter().all(Option::is_none) {
                 continue;
             }
-            out.insert(key.into(), json!(per.iter().map(|t| t.map(|t| t.value)).collect::<Vec<_>>()));
+            out.insert(
+                key.into(),
+                json!(per.iter().map(|t| t.map(|t| t.value)).collect::<Vec<_>>()),
+            );
             out.insert(
                 format!("{key}_std"),
                 json!(per.iter().map(|t| t.map(|t| t.std)).collect::<Vec<_>>()),
             );
             observable.insert(
                 key.into(),
-                json!(per.iter().map(|t| t.map(|t| t.observable)).collect::<Vec<_>>()),
+                json!(
+                    per.iter()
+                        .map(|t| t.map(|t| t.observable))
+                        .collect::<Vec<_>>()
+                ),
             );
         }
         if let Some(t) = self.term(Term::TimeOffset) {

@@ -158,19 +158,33 @@ fn references_make_a_radars_offsets_observable() {
         assert!((est.value - t).abs() < 3.0 * est.std, "{est:?} vs {t}");
     }
     let json = e.to_json();
-    assert_eq!(json["observable"]["offset"], serde_json::json!([true, true]));
-    assert_eq!(json["terms"], serde_json::json!(["offset0", "offset1", "time_offset"]));
+    assert_eq!(
+        json["observable"]["offset"],
+        serde_json::json!([true, true])
+    );
+    assert_eq!(
+        json["terms"],
+        serde_json::json!(["offset0", "offset1", "time_offset"])
+    );
     assert_eq!(json["cov"].as_array().unwrap().len(), 3);
     assert!(json.get("scale").is_none());
 }
 
 #[test]
 fn updates_refuse_bad_input_and_leave_the_state() {
-    let reg = radar_only(&SensorBias::typical(MeasKind::RangeBearing), Tuning::default());
+    let reg = radar_only(
+        &SensorBias::typical(MeasKind::RangeBearing),
+        Tuning::default(),
+    );
     let s = start(&reg, Vector4::new(2000.0, 1000.0, 5.0, 5.0));
-    let model =
-        SensorModel::new(MeasKind::RangeBearing, Geometry::spatial(), Vector3::zeros(), &[5.0, 0.002], None)
-            .unwrap();
+    let model = SensorModel::new(
+        MeasKind::RangeBearing,
+        Geometry::spatial(),
+        Vector3::zeros(),
+        &[5.0, 0.002],
+        None,
+    )
+    .unwrap();
     let obs = |z: &'static [f64], sensor| Observation {
         sensor,
         model: &model,
@@ -178,8 +192,14 @@ fn updates_refuse_bad_input_and_leave_the_state() {
         z,
     };
     assert!(reg.update(&s, &obs(&[2200.0], 0), &Seen::Target).is_err());
-    assert!(reg.update(&s, &obs(&[2200.0, 1.1], 3), &Seen::Target).is_err());
-    assert!(reg.update(&s, &obs(&[f64::NAN, 1.1], 0), &Seen::Target).is_err());
+    assert!(
+        reg.update(&s, &obs(&[2200.0, 1.1], 3), &Seen::Target)
+            .is_err()
+    );
+    assert!(
+        reg.update(&s, &obs(&[f64::NAN, 1.1], 0), &Seen::Target)
+            .is_err()
+    );
     let bad = Seen::Known(KnownObject {
         pos: Vector3::new(f64::INFINITY, 0.0, 0.0),
         vel: Vector3::zeros(),
@@ -188,7 +208,12 @@ fn updates_refuse_bad_input_and_leave_the_state() {
     assert!(reg.update(&s, &obs(&[2200.0, 1.1], 0), &bad).is_err());
     // Too many terms for the state.
     let many = SensorBias::typical(MeasKind::RangeBearing);
-    let e = Registration::<4, 8>::new(0.1, 0.0, &[(2, Some(&many)), (2, Some(&many))], Tuning::default());
+    let e = Registration::<4, 8>::new(
+        0.1,
+        0.0,
+        &[(2, Some(&many)), (2, Some(&many))],
+        Tuning::default(),
+    );
     assert!(e.is_err());
 }
 
@@ -200,15 +225,18 @@ fn generator_is_seeded_and_its_cases_and_variants_share_the_noise() {
         duration: 400.0,
     };
     let a = generate(5, &cfg(Case::Constant, Variant::Deployment)).unwrap();
-    assert_eq!(a, generate(5, &cfg(Case::Constant, Variant::Deployment)).unwrap());
+    assert_eq!(
+        a,
+        generate(5, &cfg(Case::Constant, Variant::Deployment)).unwrap()
+    );
     assert_ne!(
         a.measurements_jsonl,
         generate(6, &cfg(Case::Constant, Variant::Deployment))
             .unwrap()
             .measurements_jsonl
     );
-    let data = ScenarioData::parse(&a.scenario_json, &a.measurements_jsonl, Some(&a.truth_csv))
-        .unwrap();
+    let data =
+        ScenarioData::parse(&a.scenario_json, &a.measurements_jsonl, Some(&a.truth_csv)).unwrap();
     assert_eq!(data.scenario.sensors.len(), 3);
     assert!(a.outages.len() >= 2, "{:?}", a.outages);
     // No camera line during an outage; the radar every second.
@@ -241,7 +269,12 @@ fn generator_is_seeded_and_its_cases_and_variants_share_the_noise() {
     }
     // The none case of the seed is the unbiased data of every case.
     let none = generate(5, &cfg(Case::None, Variant::Deployment)).unwrap();
-    assert_eq!(none.measurements_jsonl, generate(5, &cfg(Case::Mounting, Variant::ToldBias)).unwrap().measurements_jsonl);
+    assert_eq!(
+        none.measurements_jsonl,
+        generate(5, &cfg(Case::Mounting, Variant::ToldBias))
+            .unwrap()
+            .measurements_jsonl
+    );
     assert_eq!(none.bias_truth_csv, "t,sensor,term,value\n");
 }
 
@@ -261,7 +294,14 @@ fn generator_writes_references_and_told_models() {
     let n = data.references.len();
     assert!((90..=121).contains(&n), "{n}");
     assert_eq!(data.references[0].object.id, "uav1");
-    let alone = generate(2, &GenConfig { case: Case::RadarAlone, ..cfg }).unwrap();
+    let alone = generate(
+        2,
+        &GenConfig {
+            case: Case::RadarAlone,
+            ..cfg
+        },
+    )
+    .unwrap();
     assert!(alone.references_jsonl.is_empty());
 
     let gm = generate(
@@ -274,11 +314,19 @@ fn generator_writes_references_and_told_models() {
     )
     .unwrap();
     let sc = crate::scenario::Scenario::parse(&gm.scenario_json).unwrap();
-    let cams: Vec<_> = sc.sensors.iter().filter(|s| s.id.starts_with("cam")).collect();
+    let cams: Vec<_> = sc
+        .sensors
+        .iter()
+        .filter(|s| s.id.starts_with("cam"))
+        .collect();
     assert!(cams.iter().all(|s| s.bias.is_none()));
     let radar = sc.sensor("radar1").unwrap();
-    let b = SensorBias::from_block(radar.bias.as_ref().unwrap(), 2).unwrap().unwrap();
-    assert!(matches!(b.offset[0].unwrap().dynamics, Dynamics::GaussMarkov { tau } if (60.0..200.0).contains(&tau)));
+    let b = SensorBias::from_block(radar.bias.as_ref().unwrap(), 2)
+        .unwrap()
+        .unwrap();
+    assert!(
+        matches!(b.offset[0].unwrap().dynamics, Dynamics::GaussMarkov { tau } if (60.0..200.0).contains(&tau))
+    );
     assert!(b.scale.is_empty() && b.time_offset.is_none());
     // A Gauss–Markov truth moves.
     let truth = BiasTruth::parse(&gm.bias_truth_csv).unwrap();
@@ -289,7 +337,16 @@ fn generator_writes_references_and_told_models() {
     for case in Case::ALL {
         assert_eq!(Case::parse(case.name()), Some(case));
     }
-    assert!(generate(1, &GenConfig { duration: 10.0, ..cfg }).is_err());
+    assert!(
+        generate(
+            1,
+            &GenConfig {
+                duration: 10.0,
+                ..cfg
+            }
+        )
+        .is_err()
+    );
 }
 
 /// The drift modes: a radar range offset that ramps at 1 m/s, seen against GPS references, makes
@@ -322,7 +379,10 @@ fn the_drift_modes_follow_what_the_references_show() {
             let x6 = nalgebra::Vector6::new(pos.x, pos.y, pos.z, 0.0, 0.0, 0.0);
             let h: Vector2<f64> = radar.function(&x6);
             let n: [f64; 2] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
-            let z = [h[0] + 20.0 + ramp * k as f64 + 5.0 * n[0], h[1] + 0.002 * n[1]];
+            let z = [
+                h[0] + 20.0 + ramp * k as f64 + 5.0 * n[0],
+                h[1] + 0.002 * n[1],
+            ];
             s = imm.predict(&s, 1.0).unwrap();
             let obs = Observation {
                 sensor: 0,
@@ -343,7 +403,10 @@ fn the_drift_modes_follow_what_the_references_show() {
     let (steady, b) = run(0.0);
     assert!(steady[0] > 0.9 && (b - 20.0).abs() < 3.0, "{steady:?} {b}");
     let (drifting, b) = run(1.0);
-    assert!(drifting[1] > 0.9 && (b - 320.0).abs() < 10.0, "{drifting:?} {b}");
+    assert!(
+        drifting[1] > 0.9 && (b - 320.0).abs() < 10.0,
+        "{drifting:?} {b}"
+    );
     assert!(
         RegistrationImm::new(
             radar_only(&bias, Tuning::default()),

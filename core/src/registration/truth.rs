@@ -20,9 +20,16 @@ impl BiasTruth {
         let mut lines = text.lines().enumerate();
         let header: Vec<&str> = match lines.next() {
             Some((_, h)) => h.split(',').map(str::trim).collect(),
-            None => return Err(err(f, Some(1), "empty file: expected header t,sensor,term,value")),
+            None => {
+                return Err(err(
+                    f,
+                    Some(1),
+                    "empty file: expected header t,sensor,term,value",
+                ));
+            }
         };
-        let ([ct, cs, cterm, cv], _) = header_columns(&header, ["t", "sensor", "term", "value"], f)?;
+        let ([ct, cs, cterm, cv], _) =
+            header_columns(&header, ["t", "sensor", "term", "value"], f)?;
         let mut series: BTreeMap<(String, Term), Vec<(f64, f64)>> = BTreeMap::new();
         let mut last_t = f64::NEG_INFINITY;
         for (i, line) in lines {
@@ -88,7 +95,8 @@ mod tests {
         assert_eq!(b.terms().count(), 2);
         let e = BiasTruth::parse("t,sensor,term,value\n0,r,offset9,1\n").unwrap_err();
         assert_eq!((e.file, e.line), (ScenarioFile::BiasTruth, Some(2)));
-        let e = BiasTruth::parse("t,sensor,term,value\n1,r,offset0,1\n0,r,offset0,1\n").unwrap_err();
+        let e =
+            BiasTruth::parse("t,sensor,term,value\n1,r,offset0,1\n0,r,offset0,1\n").unwrap_err();
         assert_eq!(e.line, Some(3));
         assert!(BiasTruth::parse("t,sensor,value\n").is_err());
         assert!(BiasTruth::parse("t,sensor,term,value\n0,r,offset0,nan\n").is_err());

@@ -220,51 +220,63 @@ fn strip_position(msg: &str) -> String {
 /// Parses `measurements.jsonl` and checks it against the scenario: known sensor, matching kind,
 /// right number of components, finite platform pose, time order.
 pub fn parse_measurements(text: &str, sc: &Scenario) -> Result<Vec<Measurement>, FormatError> {
-    let f = ScenarioFile::Measurements;
-    let mut out = Vec::new();
-    let mut last_t = f64::NEG_INFINITY;
-    for (i, line) in text.lines().enumerate() {
-        let ln = i + 1;
-        if line.trim().is_empty() {
-            continue;
-        }
-        let m: Measurement = serde_json::from_str(line)
-            .map_err(|e| err(f, Some(ln), strip_position(&e.to_string())))?;
-        check_line(&m, sc, f, ln, &mut last_t)?;
-        out.push(m);
-    }
-    Ok(out)
+    jsonl(
+        text,
+        ScenarioFile::Measurements,
+        sc,
+        |m: &Measurement| m,
+        |_| Ok(()),
+    )
 }
 
 /// Parses `references.jsonl` (FORMAT-REGISTRATION.md §2): measurement lines checked as
 /// [`parse_measurements`] does, each with a finite `z` and the `object` it saw (finite position
 /// and velocity, standard deviations > 0).
 pub fn parse_references(text: &str, sc: &Scenario) -> Result<Vec<Reference>, FormatError> {
-    let f = ScenarioFile::References;
+    jsonl(
+        text,
+        ScenarioFile::References,
+        sc,
+        |r: &Reference| &r.measurement,
+        |r| {
+            let o = &r.object;
+            if !r.measurement.is_finite() {
+                Err("z is not finite".into())
+            } else if o.pos.iter().chain(&o.vel).any(|v| !v.is_finite())
+                || o.std.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            {
+                Err(format!(
+                    "object {:?}: pos and vel must be finite, std > 0",
+                    o.id
+                ))
+            } else {
+                Ok(())
+            }
+        },
+    )
+}
+
+/// The lines of a JSON-lines file of measurement lines (`line` reaches each one's measurement),
+/// each checked against the scenario ([`check_line`]) and by `extra`; errors name the line.
+fn jsonl<T: serde::de::DeserializeOwned>(
+    text: &str,
+    f: ScenarioFile,
+    sc: &Scenario,
+    line: impl Fn(&T) -> &Measurement,
+    extra: impl Fn(&T) -> Result<(), String>,
+) -> Result<Vec<T>, FormatError> {
     let mut out = Vec::new();
     let mut last_t = f64::NEG_INFINITY;
-    for (i, line) in text.lines().enumerate() {
+    for (i, text) in text.lines().enumerate() {
         let ln = i + 1;
-        if line.trim().is_empty() {
+        if text.trim().is_empty() {
             continue;
         }
-        let r: Reference = serde_json::from_str(line)
+        let item: T = serde_json::from_str(text)
             .map_err(|e| err(f, Some(ln), strip_position(&e.to_string())))?;
-        check_line(&r.measurement, sc, f, ln, &mut last_t)?;
-        if !r.measurement.is_finite() {
-            return Err(err(f, Some(ln), "z is not finite"));
-        }
-        let o = &r.object;
-        if o.pos.iter().chain(&o.vel).any(|v| !v.is_finite())
-            || o.std.iter().any(|s| !(s.is_finite() && *s > 0.0))
-        {
-            return Err(err(
-                f,
-                Some(ln),
-                format!("object {:?}: pos and vel must be finite, std > 0", o.id),
-            ));
-        }
-        out.push(r);
+        check_line(line(&item), sc, f, ln, &mut last_t)?;
+        extra(&item).map_err(|m| err(f, Some(ln), m))?;
+        out.push(item);
     }
     Ok(out)
 }

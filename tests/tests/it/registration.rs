@@ -153,9 +153,8 @@ fn radar_nees_ok(run: &Run) -> f64 {
                 .iter()
                 .map(|t| value(b, *t) - truth.at("radar1", *t, e.t)),
         );
-        let cov = nalgebra::DMatrix::from_fn(k, k, |i, j| {
-            b["cov"][i][j].as_f64().expect("covariance")
-        });
+        let cov =
+            nalgebra::DMatrix::from_fn(k, k, |i, j| b["cov"][i][j].as_f64().expect("covariance"));
         let nees = err.dot(&cov.cholesky().expect("SPD").solve(&err));
         ok += usize::from(nees <= chi2_quantile(0.95, k));
         n += 1;
@@ -176,7 +175,10 @@ fn constant_radar_offsets_are_learnt_to_the_bound() {
         none.push(unbiased.rmse() / told);
         constant.push(run.rmse() / told);
         let offsets = [Term::Offset(0), Term::Offset(1)];
-        for (i, (e, b)) in bias_error_and_bound(&run, "radar1", &offsets).into_iter().enumerate() {
+        for (i, (e, b)) in bias_error_and_bound(&run, "radar1", &offsets)
+            .into_iter()
+            .enumerate()
+        {
             err[i] += e;
             bound[i] += b;
         }
@@ -244,7 +246,9 @@ fn camera_mounting_and_latency_are_estimated() {
         assert!(ratio <= 1.1, "seed {seed}: {ratio}");
         let late = Run::new(seed, Case::TimeOffset, Variant::Deployment, 600.0);
         let delta = value(bias(late.last(), "cam1"), Term::TimeOffset);
-        println!("seed {seed}: mounted / unbiased RMSE {ratio:.3}, latency 0.2 s estimated {delta:.4} s");
+        println!(
+            "seed {seed}: mounted / unbiased RMSE {ratio:.3}, latency 0.2 s estimated {delta:.4} s"
+        );
         assert!((delta - 0.2).abs() <= 0.02, "seed {seed}: {delta}");
     }
 }
@@ -280,7 +284,10 @@ fn a_painted_uav_makes_a_lone_radars_bias_observable() {
         .zip(prior)
         {
             assert!(!observable(b, term), "seed {seed} {term:?}");
-            assert!(value(b, term).abs() <= 0.05 * sigma, "seed {seed} {term:?}: {b}");
+            assert!(
+                value(b, term).abs() <= 0.05 * sigma,
+                "seed {seed} {term:?}: {b}"
+            );
         }
         println!(
             "seed {seed}: RMSE with the UAV {:.2} m, without {:.2} m",
@@ -290,6 +297,9 @@ fn a_painted_uav_makes_a_lone_radars_bias_observable() {
         assert!(painted.rmse() * 2.0 < alone.rmse());
     }
     let ratio = [(err[0] / bound[0]).sqrt(), (err[1] / bound[1]).sqrt()];
-    println!("bias error / √CRLB with the UAV: range {:.3}, azimuth {:.3}", ratio[0], ratio[1]);
+    println!(
+        "bias error / √CRLB with the UAV: range {:.3}, azimuth {:.3}",
+        ratio[0], ratio[1]
+    );
     assert!(ratio.iter().all(|r| *r <= 1.5), "{ratio:?}");
 }
