@@ -33,7 +33,7 @@
 //!           ẑ_i = (1 + s_i) h_i(p̃) + o_i,  G = diag(1 + s),  H_p = ∂h/∂p at p̃
 //!           ∂ẑ/∂p = G H_p,  ∂ẑ/∂v = −δ G H_p,  ∂ẑ/∂δ = −G H_p (v − v_s),
 //!           ∂ẑ_i/∂o_i = 1,  ∂ẑ_i/∂s_i = h_i(p̃)
-//! update:   ν = z ⊖ ẑ,  S = H P⁻ Hᵀ + R,  K = [P⁻ Hᵀ S⁻¹]_E  (rows of the estimated states E, 0 elsewhere)
+//! update:   ν = z ⊖ ẑ,  S = H P⁻ Hᵀ + R,  K = T P⁻ Hᵀ S⁻¹   (T: the target, and the determined bias directions)
 //!           X = X⁻ + K ν,  P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ        (Joseph, any gain: consider_update)
 //! ```
 //!
@@ -44,7 +44,7 @@
 //! registration of dissimilar sensors). The target still moves with it, through its correlation
 //! with the biases.
 //!
-//! # Observability: held at the prior until the data determine a term
+//! # Observability: held at the prior until the data determine it
 //!
 //! Beside the estimate's covariance `P` the state carries `P_f`, the covariance the full
 //! augmented filter (every term estimated from the start) would have along the same
@@ -58,12 +58,35 @@
 //! ```
 //!
 //! and a sensor's whole block once `λ_min(D^{1/2} P_f,bb⁻¹ D^{1/2}) ≥ 1/κ²` (`D` the prior
-//! variances): the smallest eigenvalue of its normalised information against a threshold. Until
-//! then the term is **held**: a Schmidt–Kalman consider state (Schmidt 1966), its gain row zero so
-//! that its estimate stays at the prior (or moves only by its dynamics), its uncertainty still in
-//! every covariance the target's estimate carries. A radar alone sees a rotated or scaled CV track
-//! as another CV track, so its azimuth offset and range scale stay held and reported
-//! unobservable instead of being fitted to the target's manoeuvres.
+//! variances): the smallest eigenvalue of its normalised information against a threshold.
+//!
+//! What the update estimates is every bias **direction** the data determine: the eigenvectors
+//! `V_o` of `C = D^{-1/2} P_f,bb D^{-1/2}` (all terms of all sensors) with eigenvalue ≤ κ²; the
+//! gain is projected on them, `K_b = D^{1/2} V_o V_oᵀ D^{-1/2} [K_opt]_b`, once per scan. Every
+//! other direction is **held**: a Schmidt–Kalman consider direction (Schmidt 1966), its estimate
+//! at the prior (or moving only by its dynamics), its uncertainty still in every covariance the
+//! target's estimate carries. Directions, not terms: a radar's range offset and range scale, or a
+//! camera's azimuth offset and latency (on an orbit centred on the target a latency looks like an
+//! azimuth offset), are each known long before either term alone; holding the terms kept their
+//! whole uncertainty in every update (BENCHMARKS.md, "Sensor registration"). A radar alone sees a
+//! rotated or scaled CV track as another CV track: its terms stay held and reported unobservable
+//! instead of being fitted to the target's manoeuvres.
+//!
+//! # Drift
+//!
+//! [`RegistrationImm`] runs the filter in two bias-dynamics modes, as configured and with every
+//! random-walk term drifting 20 times faster, weighed by their innovations (\[BLK01\] §11.6.6):
+//! no single drift suits both a steady bias and a Gauss–Markov one (see [`imm`'s
+//! docs](RegistrationImm)).
+//!
+//! # Later: the live multi-target tracker
+//!
+//! There a sensor's bias is shared by every track it sees, and an augmented state over all
+//! tracks grows with them. The form this module prepares is a separate bias filter fed by the
+//! scan's associated (track, detection) pairs, keeping each track's cross-covariance with the
+//! biases (the Schmidt form above, per track); Stone Soup's `GaussianBiasUpdater`, which drops
+//! that cross-covariance after each update, learns a camera's mounting offsets less
+//! well than this filter on the same data, an order of magnitude apart (BENCHMARKS.md).
 //!
 //! # References
 //! * \[BLK01\] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking

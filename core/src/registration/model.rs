@@ -176,8 +176,9 @@ impl SensorBias {
     /// registration acceptance runs, BENCHMARKS.md):
     ///
     /// * `range_bearing` (a ground radar): range offset, a random walk from `N(0, (50 m)²)`
-    ///   drifting 0.5 m/√s; azimuth offset, a random walk from `N(0, (10 mrad)²)` drifting
-    ///   0.05 mrad/√s; range scale, constant from `N(0, 0.005²)`;
+    ///   drifting 0.1 m/√s; azimuth offset, a random walk from `N(0, (10 mrad)²)` drifting
+    ///   0.01 mrad/√s; range scale, constant from `N(0, 0.005²)` (the drifting mode of
+    ///   [`RegistrationImm`](super::RegistrationImm) multiplies the drifts by 20);
     /// * `az_el`, `bearing_size` (a gimbal camera's mounting): azimuth and elevation offsets,
     ///   constant from `N(0, (1°)²)`;
     /// * every kind: a constant time offset from `N(0, (0.3 s)²)`.
