@@ -217,11 +217,6 @@ impl SensorBias {
             .chain(self.time_offset.map(|p| (Term::TimeOffset, p)))
     }
 
-    /// Whether the sensor has no bias term.
-    pub fn is_empty(&self) -> bool {
-        self.terms().next().is_none()
-    }
-
     /// Checks the terms against a sensor with `dim` measurement components.
     pub fn check(&self, dim: usize) -> Result<()> {
         for (what, v) in [("offset", &self.offset), ("scale", &self.scale)] {

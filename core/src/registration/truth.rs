@@ -70,11 +70,6 @@ impl BiasTruth {
         let i = rows.partition_point(|(rt, _)| *rt <= t + 1e-6);
         rows.get(i.max(1) - 1).map_or(0.0, |r| r.1)
     }
-
-    /// Every `(sensor, term)` the file has.
-    pub fn terms(&self) -> impl Iterator<Item = (&str, Term)> {
-        self.series.keys().map(|(s, t)| (s.as_str(), *t))
-    }
 }
 
 #[cfg(test)]
@@ -92,7 +87,6 @@ mod tests {
         assert_eq!(b.at("radar1", Term::Scale(0), 7.0), 0.002);
         assert_eq!(b.at("radar1", Term::Offset(1), 1.0), 0.0);
         assert_eq!(b.at("cam1", Term::TimeOffset, 1.0), 0.0);
-        assert_eq!(b.terms().count(), 2);
         let e = BiasTruth::parse("t,sensor,term,value\n0,r,offset9,1\n").unwrap_err();
         assert_eq!((e.file, e.line), (ScenarioFile::BiasTruth, Some(2)));
         let e =
