@@ -61,6 +61,27 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Write a seeded sensor-registration scenario: a ground target, a biased radar, two UAVs'
+    /// cameras with outages, bias truth and references (FORMAT-REGISTRATION.md).
+    GenRegistration {
+        /// Output directory (created if missing).
+        dir: PathBuf,
+        /// RNG seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Which biases: none, constant, gauss-markov, mounting, time-offset, radar-reference,
+        /// radar-alone.
+        #[arg(long, default_value = "constant")]
+        case: String,
+        /// What the scenario tells the estimator: deployment (every sensor with Harrier's
+        /// default bias model), told-model (the true bias models), told-bias (the biases taken
+        /// out of the measurements).
+        #[arg(long, default_value = "deployment")]
+        variant: String,
+        /// Length of the run, s (one scan per second).
+        #[arg(long, default_value_t = 600.0)]
+        duration: f64,
+    },
     /// Run the live tracking service: detections from Zenoh in, tracks over HTTP (`/api/v1`).
     Serve(ServeArgs),
     /// Run the demo: the service, an in-process Zenoh peer and simulated UAVs, in one process.
@@ -147,6 +168,23 @@ fn main() -> ExitCode {
                 ExitCode::FAILURE
             }
         },
+        Command::GenRegistration {
+            dir,
+            seed,
+            case,
+            variant,
+            duration,
+        } => {
+            let written = harrier_tools::gen_registration::config(&case, &variant, duration)
+                .and_then(|cfg| harrier_tools::gen_registration::write(&dir, seed, &cfg));
+            match written {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("harrier gen-registration: error: {e:#}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
         Command::GuidanceSim(args) => match run_guidance_sim(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {

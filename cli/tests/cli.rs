@@ -487,3 +487,83 @@ fn serve_refuses_a_bad_mbtiles_file_naming_it() {
         "{stderr}"
     );
 }
+
+#[test]
+fn a_generated_registration_scenario_replays_with_its_references() {
+    let dir = tempfile::tempdir().unwrap();
+    let sc = dir.path().join("reg");
+    let generate = |case: &str| {
+        harrier(&[
+            "gen-registration",
+            sc.to_str().unwrap(),
+            "--case",
+            case,
+            "--seed",
+            "4",
+            "--duration",
+            "120",
+        ])
+    };
+    let out = generate("radar-reference");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for f in [
+        "scenario.json",
+        "measurements.jsonl",
+        "truth.csv",
+        "bias_truth.csv",
+        "references.jsonl",
+    ] {
+        assert!(
+            std::fs::metadata(sc.join(f)).is_ok_and(|m| m.len() > 0),
+            "{f} missing or empty"
+        );
+    }
+    let est = dir.path().join("est.jsonl");
+    let out = replay(&sc, &est, "registration");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let last: serde_json::Value = serde_json::from_str(
+        std::fs::read_to_string(&est)
+            .unwrap()
+            .lines()
+            .last()
+            .unwrap(),
+    )
+    .unwrap();
+    // The UAV's GPS made the radar's offsets observable.
+    let radar = &last["bias_est"]["radar1"];
+    assert_eq!(
+        radar["observable"]["offset"],
+        serde_json::json!([true, true])
+    );
+    assert_eq!(radar["terms"].as_array().unwrap().len(), 4);
+
+    // The same directory as another case: its references go; a bad reference line is refused.
+    let out = generate("radar-alone");
+    assert!(out.status.success());
+    assert!(!sc.join("references.jsonl").exists());
+    std::fs::write(
+        sc.join("references.jsonl"),
+        r#"{"t":0,"sensor":"radar1","kind":"range_bearing","platform":{"pos":[0,0,0]},"z":[1,2],"object":{"id":"u","pos":[0,0,0],"std":[0,1,1]}}"#,
+    )
+    .unwrap();
+    let out = replay(&sc, &est, "registration");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("references.jsonl:1") && err.contains("std > 0"),
+        "{err}"
+    );
+
+    let out = generate("spline");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("unknown case \"spline\""));
+}

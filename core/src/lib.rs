@@ -48,6 +48,7 @@ pub mod linalg;
 pub mod measurement;
 pub mod metrics;
 pub mod motion;
+pub mod registration;
 pub mod road;
 pub mod scenario;
 pub mod state;

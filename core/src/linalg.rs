@@ -86,6 +86,59 @@ pub fn ln_det<const N: usize>(chol: &Cholesky<f64, Const<N>>) -> f64 {
         .sum::<f64>()
 }
 
+/// Eigenvalues and unit eigenvectors (the columns, in the same order) of a symmetric `N × N`
+/// matrix by the cyclic Jacobi method (Golub & Van Loan, *Matrix Computations*, 4th ed.,
+/// §8.5.3): rotations annihilate each off-diagonal entry in turn until they are below 1e-12 of
+/// the matrix's norm (at most 50 sweeps; a sweep is O(N³)). Stack matrices, no allocation, any
+/// const `N` (nalgebra's `SymmetricEigen` needs a type-level dimension).
+pub fn symmetric_eigen<const N: usize>(
+    a: &SMatrix<f64, N, N>,
+) -> (SVector<f64, N>, SMatrix<f64, N, N>) {
+    let mut a = symmetrize(a);
+    let mut v = SMatrix::<f64, N, N>::identity();
+    let scale = a.norm();
+    for _ in 0..50 {
+        let off: f64 = (0..N)
+            .flat_map(|i| (0..N).filter(move |j| *j != i).map(move |j| (i, j)))
+            .map(|(i, j)| a[(i, j)] * a[(i, j)])
+            .sum();
+        if off.sqrt() <= 1e-12 * scale {
+            break;
+        }
+        for p in 0..N {
+            for q in p + 1..N {
+                let apq = a[(p, q)];
+                if apq == 0.0 {
+                    continue;
+                }
+                // The rotation (c, s) that zeroes a[p][q]: t = tan θ, the smaller root of
+                // t² + 2τt − 1 = 0, τ = (a_qq − a_pp) / (2 a_pq).
+                let tau = (a[(q, q)] - a[(p, p)]) / (2.0 * apq);
+                let t = tau.signum() / (tau.abs() + (1.0 + tau * tau).sqrt());
+                let t = if tau == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (1.0 + t * t).sqrt();
+                let s = t * c;
+                for k in 0..N {
+                    let (akp, akq) = (a[(k, p)], a[(k, q)]);
+                    a[(k, p)] = c * akp - s * akq;
+                    a[(k, q)] = s * akp + c * akq;
+                }
+                for k in 0..N {
+                    let (apk, aqk) = (a[(p, k)], a[(q, k)]);
+                    a[(p, k)] = c * apk - s * aqk;
+                    a[(q, k)] = s * apk + c * aqk;
+                }
+                for k in 0..N {
+                    let (vkp, vkq) = (v[(k, p)], v[(k, q)]);
+                    v[(k, p)] = c * vkp - s * vkq;
+                    v[(k, q)] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    (a.diagonal(), v)
+}
+
 /// The ellipse `{x : xᵀ M⁻¹ x ≤ 1}` of a symmetric positive semi-definite 2 × 2 matrix `M`: its
 /// semi-axes `[√λ_max, √λ_min]` and the direction of the major axis (rad, counter-clockwise from
 /// the first axis). Scale `M` by a χ² quantile first for a confidence ellipse.
@@ -149,6 +202,34 @@ mod tests {
             cholesky(&n, "n").unwrap_err(),
             EstimationError::NonFinite("n")
         );
+    }
+
+    #[test]
+    fn jacobi_eigen_matches_nalgebra() {
+        let b = SMatrix::<f64, 5, 5>::from_fn(|i, j| ((i * 7 + j * 3) % 11) as f64 - 4.0);
+        let m = b * b.transpose() + SMatrix::<f64, 5, 5>::from_diagonal_element(0.1);
+        let (values, vectors) = symmetric_eigen(&m);
+        let mut ours: Vec<f64> = values.iter().copied().collect();
+        let mut theirs: Vec<f64> = nalgebra::SymmetricEigen::new(m)
+            .eigenvalues
+            .iter()
+            .copied()
+            .collect();
+        ours.sort_by(f64::total_cmp);
+        theirs.sort_by(f64::total_cmp);
+        for (a, b) in ours.iter().zip(&theirs) {
+            assert_relative_eq!(a, b, epsilon = 1e-9, max_relative = 1e-10);
+        }
+        // M V = V Λ, Vᵀ V = I.
+        let lambda = SMatrix::<f64, 5, 5>::from_diagonal(&values);
+        assert_relative_eq!(m * vectors, vectors * lambda, epsilon = 1e-8);
+        assert_relative_eq!(
+            vectors.transpose() * vectors,
+            SMatrix::<f64, 5, 5>::identity(),
+            epsilon = 1e-10
+        );
+        let (d, _) = symmetric_eigen(&SMatrix::<f64, 2, 2>::new(3.0, 0.0, 0.0, 1.0));
+        assert_eq!(d, nalgebra::Vector2::new(3.0, 1.0));
     }
 
     #[test]

@@ -288,6 +288,10 @@ impl BearingSize {
             r: diag_sq(std),
         }
     }
+    /// Where the target size comes from.
+    pub fn size(&self) -> TargetSize {
+        self.size
+    }
     fn size_of<const N: usize>(&self, x: &SVector<f64, N>) -> f64 {
         match self.size {
             TargetSize::Known(s) => s,

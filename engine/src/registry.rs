@@ -7,7 +7,9 @@
 
 use harrier_core::scenario::Scenario;
 
-use crate::estimators::{angles, bearings, bias, gaussian, icdkf, imm, multi_target, obe};
+use crate::estimators::{
+    angles, bearings, bias, gaussian, icdkf, imm, multi_target, obe, registration,
+};
 use crate::{
     Deployment, EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine, TrackFilterInfo,
     setup,
@@ -27,6 +29,7 @@ pub static ESTIMATORS: &[EstimatorInfo] = &[
     icdkf::ICDKF,
     icdkf::ICDKF_GENERAL,
     bias::CDKF_BIAS,
+    registration::REGISTRATION,
     bearings::MPEKF,
     bearings::MPEKF_NN,
     imm::IMM,

@@ -4,7 +4,7 @@
 
 use std::collections::BTreeMap;
 
-use harrier_core::scenario::{Estimate, Measurement, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Reference, Scenario};
 
 use crate::error::{EngineError, setup};
 
@@ -14,6 +14,10 @@ pub struct Step<'a> {
     pub t: f64,
     /// The measurements at `t`, sorted by sensor id, all with finite `z`.
     pub measurements: &'a [&'a Measurement],
+    /// The cooperative references (FORMAT-REGISTRATION.md §2) since the previous step, in time
+    /// order: every one with a time after the previous step's and at most `t`. Only the
+    /// estimators that register sensors read them.
+    pub references: &'a [&'a Reference],
     /// Next measurement time of a sensor after `t` (for one-step-ahead predictions).
     pub next_time: &'a dyn Fn(&str) -> Option<f64>,
 }
@@ -23,6 +27,7 @@ impl std::fmt::Debug for Step<'_> {
         f.debug_struct("Step")
             .field("t", &self.t)
             .field("measurements", &self.measurements)
+            .field("references", &self.references)
             .finish()
     }
 }

@@ -7,10 +7,12 @@
 //!   against its truth.
 //! * [`guidance_sim`] (`harrier guidance-sim`): closed-loop guidance scenarios and their figures.
 //! * [`gen_multi`] (`harrier gen-multi`): a seeded multi-target scenario.
+//! * [`gen_registration`] (`harrier gen-registration`): a seeded sensor-registration scenario.
 //! * [`sessions`] (`harrier sessions`): a recording's sessions listed, summarised and exported
 //!   ([`harrier_recording`]).
 
 pub mod gen_multi;
+pub mod gen_registration;
 pub mod guidance_sim;
 pub mod replay;
 pub mod sessions;

@@ -58,7 +58,8 @@ impl ReplayError {
     }
 }
 
-/// Loads a scenario directory; errors name the file and line.
+/// Loads a scenario directory (with `references.jsonl` when it is there,
+/// FORMAT-REGISTRATION.md); errors name the file and line.
 pub fn load(dir: &Path) -> Result<ScenarioData, ReplayError> {
     let read = |f: ScenarioFile| {
         let path = dir.join(f.file_name());
@@ -71,13 +72,21 @@ pub fn load(dir: &Path) -> Result<ScenarioData, ReplayError> {
         .exists()
         .then(|| read(ScenarioFile::Truth))
         .transpose()?;
-    ScenarioData::parse(&sc, &meas, truth.as_deref()).map_err(|e: FormatError| {
-        ReplayError::Format {
-            path: dir.join(e.file.file_name()),
-            line: e.line,
-            message: e.message,
-        }
-    })
+    let refs_path = dir.join(ScenarioFile::References.file_name());
+    let refs = refs_path
+        .exists()
+        .then(|| read(ScenarioFile::References))
+        .transpose()?;
+    let format = |e: FormatError| ReplayError::Format {
+        path: dir.join(e.file.file_name()),
+        line: e.line,
+        message: e.message,
+    };
+    let data = ScenarioData::parse(&sc, &meas, truth.as_deref()).map_err(format)?;
+    match refs {
+        Some(text) => data.with_references(&text).map_err(format),
+        None => Ok(data),
+    }
 }
 
 /// What a replay did.
@@ -114,11 +123,17 @@ pub fn run(
     let skipped = data.measurements.iter().filter(|m| !m.is_finite()).count();
     let mut estimates = Vec::new();
     let mut rejected = Vec::new();
+    // The references not handed to a step yet (they go with the next step at or after them).
+    let mut refs = data.references.iter().peekable();
     let start = Instant::now();
     for (t, group) in data.groups() {
         let finite: Vec<_> = group.into_iter().filter(|m| m.is_finite()).collect();
         if finite.is_empty() {
             continue;
+        }
+        let mut references = Vec::new();
+        while let Some(r) = refs.next_if(|r| r.measurement.t <= t + 1e-9) {
+            references.push(r);
         }
         let next_time = |sensor: &str| {
             let v = times.get(sensor)?;
@@ -127,6 +142,7 @@ pub fn run(
         let step = Step {
             t,
             measurements: &finite,
+            references: &references,
             next_time: &next_time,
         };
         match est.step(&step) {

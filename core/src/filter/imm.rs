@@ -132,7 +132,7 @@ impl<const N: usize, const R: usize> ImmState<N, R> {
 
 /// `Σ w_i N(x_i, P_i)` collapsed to one Gaussian: `x = Σ w_i x_i`,
 /// `P = Σ w_i [P_i + (x_i − x)(x_i − x)ᵀ]` (weights sum to 1).
-fn moment_match<const N: usize, const R: usize>(
+pub(crate) fn moment_match<const N: usize, const R: usize>(
     modes: &[Gaussian<N>; R],
     w: &[f64; R],
 ) -> Gaussian<N> {
@@ -331,7 +331,7 @@ fn combinable<const N: usize, const R: usize>(s: ImmState<N, R>) -> Result<ImmSt
 }
 
 /// `exp(l_j) / Σ_t exp(l_t)` by log-sum-exp, then floored at [`PROB_FLOOR`] and renormalised.
-fn log_normalize<const R: usize>(log_w: [f64; R]) -> Result<[f64; R]> {
+pub(crate) fn log_normalize<const R: usize>(log_w: [f64; R]) -> Result<[f64; R]> {
     let max = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     if !max.is_finite() {
         return Err(EstimationError::NonFinite("IMM mode likelihoods"));

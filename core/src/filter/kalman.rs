@@ -77,6 +77,45 @@ pub fn joseph_update<const N: usize, const M: usize>(
     H: &SMatrix<f64, M, N>,
     R: &SMatrix<f64, M, M>,
 ) -> Result<Posterior<Gaussian<N>, M>> {
+    joseph_with(predicted, innovation, H, R, None)
+}
+
+/// The Joseph-form update of a Schmidt–Kalman ("consider") filter restricted to a subspace: the
+/// optimal gain is projected by `T`, so that only the directions `T` keeps are estimated and the
+/// others are *considered* — their mean stays as predicted while the covariance of every
+/// component, and the cross-covariances with the considered directions, stay the true error
+/// covariance of the suboptimal gain:
+///
+/// ```text
+/// K = T K_opt,  K_opt = P⁻ Hᵀ S⁻¹
+/// x = x⁻ + K ν,  P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
+/// ```
+/// (Schmidt 1966, whose considered states are the components `T` zeroes, `T` diagonal with
+/// zeros and ones; the Joseph form holds for any gain, \[BLK01\] eq. (5.2.3-18)). With
+/// `T = I` it is [`joseph_update`].
+///
+/// # References
+/// * S. F. Schmidt, "Application of state-space methods to navigation problems", *Advances in
+///   Control Systems* 3, 1966.
+/// * R. Zanetti, C. D'Souza, "Recursive implementations of the consider filter", AAS 12-619, 2012.
+pub fn consider_update<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    innovation: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    R: &SMatrix<f64, M, M>,
+    T: &SMatrix<f64, N, N>,
+) -> Result<Posterior<Gaussian<N>, M>> {
+    ensure_finite(T, "gain projection")?;
+    joseph_with(predicted, innovation, H, R, Some(T))
+}
+
+fn joseph_with<const N: usize, const M: usize>(
+    predicted: &Gaussian<N>,
+    innovation: SVector<f64, M>,
+    H: &SMatrix<f64, M, N>,
+    R: &SMatrix<f64, M, M>,
+    projection: Option<&SMatrix<f64, N, N>>,
+) -> Result<Posterior<Gaussian<N>, M>> {
     ensure_finite(&innovation, "innovation")?;
     ensure_finite(H, "measurement Jacobian")?;
     let P = &predicted.cov;
@@ -87,7 +126,10 @@ pub fn joseph_update<const N: usize, const M: usize>(
     // K = P Hᵀ S⁻¹ with the explicit M × M inverse S⁻¹ = L⁻ᵀ L⁻¹ from the Cholesky factor L of S
     // (M triangular solves against the identity, cheaper than solving for the M × N right-hand
     // side Hᵀ P when M < N; S is SPD and checked by the factorisation, so the inverse is stable).
-    let K = PHt * chol.inverse();
+    let mut K = PHt * chol.inverse();
+    if let Some(T) = projection {
+        K = T * K;
+    }
     let mean = predicted.mean + K * innovation;
     // P = (I − K H) P (I − K H)ᵀ + K R Kᵀ, evaluated through the rank-M factors so that no N×N×N
     // product is formed:  A = (I − K H) P = P − K (H P),  A (I − K H)ᵀ = A − (A Hᵀ) Kᵀ.

@@ -38,7 +38,8 @@ pub use ese::{
 };
 pub use icdkf::{IcdkfForm, IncrementalCdkf, current};
 pub use imm::{Imm, ImmState, ModeModel, PROB_FLOOR};
-pub use kalman::{Extended, Kalman, joseph_update};
+pub(crate) use imm::{log_normalize, moment_match};
+pub use kalman::{Extended, Kalman, consider_update, joseph_update};
 pub use obe::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, intersect_strip,
     minkowski_outer,

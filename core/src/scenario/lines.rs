@@ -44,6 +44,31 @@ fn nullable_floats<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<f64>, D
     Ok(v.into_iter().map(|x| x.unwrap_or(f64::NAN)).collect())
 }
 
+/// One line of `references.jsonl` (FORMAT-REGISTRATION.md §2): a sensor's detection of a known
+/// object (a cooperative reference: a UAV reporting its own GPS position), not of the target.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+pub struct Reference {
+    /// The detection, a measurement line of the sensor.
+    #[serde(flatten)]
+    pub measurement: Measurement,
+    /// What it saw.
+    pub object: ReferenceObject,
+}
+
+/// The known object of a [`Reference`]: where it reported itself at the line's time.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+pub struct ReferenceObject {
+    /// Its id (a platform's).
+    pub id: String,
+    /// ENU position (m).
+    pub pos: [f64; 3],
+    /// ENU velocity (m/s).
+    #[serde(default)]
+    pub vel: [f64; 3],
+    /// Standard deviation of each position component (m).
+    pub std: [f64; 3],
+}
+
 /// One row of `truth.csv`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TruthRow {
@@ -64,6 +89,8 @@ pub struct ScenarioData {
     pub measurements: Vec<Measurement>,
     /// `truth.csv` when present.
     pub truth: Option<Vec<TruthRow>>,
+    /// `references.jsonl` (FORMAT-REGISTRATION.md; empty when absent), in file order.
+    pub references: Vec<Reference>,
 }
 
 impl ScenarioData {

@@ -16,10 +16,10 @@ mod types;
 
 pub use document::{Frame, Generator, ScenarioDocument};
 pub use lines::{
-    Estimate, Measurement, PlatformPose, PredictionOut, ScenarioData, TruthRow, group_by_time,
-    truth_at,
+    Estimate, Measurement, PlatformPose, PredictionOut, Reference, ReferenceObject, ScenarioData,
+    TruthRow, group_by_time, truth_at,
 };
-pub use parse::{FormatError, ScenarioFile, parse_measurements, parse_truth};
+pub use parse::{FormatError, ScenarioFile, parse_measurements, parse_references, parse_truth};
 pub(crate) use parse::{err, finite_cell, header_columns};
 pub use types::{
     EllipsoidSpec, FORMAT_ID, LinearSystem, Motion, MotionModelSpec, Noise, Platform, Prior, Road,
@@ -100,6 +100,37 @@ mod tests {
         );
         let text = good.replace("[1,2]", "[null,2]");
         assert!(!parse_measurements(&text, &sc).unwrap()[0].is_finite());
+    }
+
+    #[test]
+    fn reference_lines_are_checked_and_errors_name_the_line() {
+        let sc = Scenario::parse(SC).unwrap();
+        let good = r#"{"t":0,"sensor":"r","kind":"range_bearing","platform":{"pos":[0,0,0]},"z":[1,2],"object":{"id":"uav1","pos":[1,2,3],"std":[1,1,2]}}"#;
+        let r = parse_references(good, &sc).unwrap();
+        assert_eq!(
+            (r[0].object.id.as_str(), r[0].object.vel),
+            ("uav1", [0.0; 3])
+        );
+        for (bad, what) in [
+            (good.replace("[1,1,2]", "[1,0,2]"), "std > 0"),
+            (good.replace("[1,2]", "[null,2]"), "z is not finite"),
+            (good.replace("\"r\"", "\"q\""), "unknown sensor"),
+            (
+                good.replace(
+                    ",\"object\":{\"id\":\"uav1\",\"pos\":[1,2,3],\"std\":[1,1,2]}",
+                    "",
+                ),
+                "object",
+            ),
+        ] {
+            let e = parse_references(&format!("{good}\n{bad}\n"), &sc).unwrap_err();
+            assert_eq!(
+                (e.file, e.line),
+                (ScenarioFile::References, Some(2)),
+                "{bad}"
+            );
+            assert!(e.message.contains(what), "{}: {what}", e.message);
+        }
     }
 
     #[test]

@@ -4,11 +4,12 @@
 use std::collections::HashMap;
 use std::fmt;
 
-use super::lines::{Measurement, ScenarioData, TruthRow};
+use super::lines::{Measurement, Reference, ScenarioData, TruthRow};
 use super::types::{FORMAT_ID, Scenario};
 use crate::measurement::MeasKind;
 
-/// The three files of a scenario directory.
+/// The files of a scenario directory: FORMAT.md's three and the registration extension's two
+/// (FORMAT-REGISTRATION.md).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ScenarioFile {
     /// `scenario.json`
@@ -17,6 +18,10 @@ pub enum ScenarioFile {
     Measurements,
     /// `truth.csv`
     Truth,
+    /// `references.jsonl`: detections of cooperative references (optional).
+    References,
+    /// `bias_truth.csv`: the sensors' true biases (optional).
+    BiasTruth,
 }
 
 impl ScenarioFile {
@@ -26,6 +31,8 @@ impl ScenarioFile {
             Self::Scenario => "scenario.json",
             Self::Measurements => "measurements.jsonl",
             Self::Truth => "truth.csv",
+            Self::References => "references.jsonl",
+            Self::BiasTruth => "bias_truth.csv",
         }
     }
 }
@@ -213,76 +220,133 @@ fn strip_position(msg: &str) -> String {
 /// Parses `measurements.jsonl` and checks it against the scenario: known sensor, matching kind,
 /// right number of components, finite platform pose, time order.
 pub fn parse_measurements(text: &str, sc: &Scenario) -> Result<Vec<Measurement>, FormatError> {
-    let f = ScenarioFile::Measurements;
+    jsonl(
+        text,
+        ScenarioFile::Measurements,
+        sc,
+        |m: &Measurement| m,
+        |_| Ok(()),
+    )
+}
+
+/// Parses `references.jsonl` (FORMAT-REGISTRATION.md §2): measurement lines checked as
+/// [`parse_measurements`] does, each with a finite `z` and the `object` it saw (finite position
+/// and velocity, standard deviations > 0).
+pub fn parse_references(text: &str, sc: &Scenario) -> Result<Vec<Reference>, FormatError> {
+    jsonl(
+        text,
+        ScenarioFile::References,
+        sc,
+        |r: &Reference| &r.measurement,
+        |r| {
+            let o = &r.object;
+            if !r.measurement.is_finite() {
+                Err("z is not finite".into())
+            } else if o.pos.iter().chain(&o.vel).any(|v| !v.is_finite())
+                || o.std.iter().any(|s| !(s.is_finite() && *s > 0.0))
+            {
+                Err(format!(
+                    "object {:?}: pos and vel must be finite, std > 0",
+                    o.id
+                ))
+            } else {
+                Ok(())
+            }
+        },
+    )
+}
+
+/// The lines of a JSON-lines file of measurement lines (`line` reaches each one's measurement),
+/// each checked against the scenario ([`check_line`]) and by `extra`; errors name the line.
+fn jsonl<T: serde::de::DeserializeOwned>(
+    text: &str,
+    f: ScenarioFile,
+    sc: &Scenario,
+    line: impl Fn(&T) -> &Measurement,
+    extra: impl Fn(&T) -> Result<(), String>,
+) -> Result<Vec<T>, FormatError> {
     let mut out = Vec::new();
     let mut last_t = f64::NEG_INFINITY;
-    for (i, line) in text.lines().enumerate() {
+    for (i, text) in text.lines().enumerate() {
         let ln = i + 1;
-        if line.trim().is_empty() {
+        if text.trim().is_empty() {
             continue;
         }
-        let m: Measurement = serde_json::from_str(line)
+        let item: T = serde_json::from_str(text)
             .map_err(|e| err(f, Some(ln), strip_position(&e.to_string())))?;
-        if !m.t.is_finite() {
-            return Err(err(f, Some(ln), "t is not finite"));
-        }
-        if m.t < last_t {
-            return Err(err(
-                f,
-                Some(ln),
-                format!("t = {} is earlier than the previous line's {last_t}", m.t),
-            ));
-        }
-        // No line may move the replay's clock without bound: times lie in the scenario's span
-        // (one nominal period of slack either side).
-        let (t0, t_end, slack) = (sc.time.t0, sc.time.t_end, sc.time.dt.abs());
-        if !(m.t >= t0 - slack && m.t <= t_end + slack) {
-            return Err(err(
-                f,
-                Some(ln),
-                format!(
-                    "t = {} is outside the scenario's time span [{t0}, {t_end}] (scenario.json time)",
-                    m.t
-                ),
-            ));
-        }
-        last_t = m.t;
-        let Some(s) = sc.sensor(&m.sensor) else {
-            return Err(err(f, Some(ln), format!("unknown sensor {:?}", m.sensor)));
-        };
-        if s.kind != m.kind {
-            return Err(err(
-                f,
-                Some(ln),
-                format!(
-                    "kind {:?} does not match sensor {:?} ({:?})",
-                    m.kind, s.id, s.kind
-                ),
-            ));
-        }
-        if m.z.len() != s.dim() {
-            return Err(err(
-                f,
-                Some(ln),
-                format!(
-                    "z has {} components, sensor {:?} gives {}",
-                    m.z.len(),
-                    s.id,
-                    s.dim()
-                ),
-            ));
-        }
-        if m.platform
-            .pos
-            .iter()
-            .chain(&m.platform.vel)
-            .any(|v| !v.is_finite())
-        {
-            return Err(err(f, Some(ln), "platform pose is not finite"));
-        }
-        out.push(m);
+        check_line(line(&item), sc, f, ln, &mut last_t)?;
+        extra(&item).map_err(|m| err(f, Some(ln), m))?;
+        out.push(item);
     }
     Ok(out)
+}
+
+/// The checks of one measurement line of `file` (line `ln`) against the scenario.
+fn check_line(
+    m: &Measurement,
+    sc: &Scenario,
+    f: ScenarioFile,
+    ln: usize,
+    last_t: &mut f64,
+) -> Result<(), FormatError> {
+    if !m.t.is_finite() {
+        return Err(err(f, Some(ln), "t is not finite"));
+    }
+    if m.t < *last_t {
+        return Err(err(
+            f,
+            Some(ln),
+            format!("t = {} is earlier than the previous line's {last_t}", m.t),
+        ));
+    }
+    // No line may move the replay's clock without bound: times lie in the scenario's span
+    // (one nominal period of slack either side).
+    let (t0, t_end, slack) = (sc.time.t0, sc.time.t_end, sc.time.dt.abs());
+    if !(m.t >= t0 - slack && m.t <= t_end + slack) {
+        return Err(err(
+            f,
+            Some(ln),
+            format!(
+                "t = {} is outside the scenario's time span [{t0}, {t_end}] (scenario.json time)",
+                m.t
+            ),
+        ));
+    }
+    *last_t = m.t;
+    let Some(s) = sc.sensor(&m.sensor) else {
+        return Err(err(f, Some(ln), format!("unknown sensor {:?}", m.sensor)));
+    };
+    if s.kind != m.kind {
+        return Err(err(
+            f,
+            Some(ln),
+            format!(
+                "kind {:?} does not match sensor {:?} ({:?})",
+                m.kind, s.id, s.kind
+            ),
+        ));
+    }
+    if m.z.len() != s.dim() {
+        return Err(err(
+            f,
+            Some(ln),
+            format!(
+                "z has {} components, sensor {:?} gives {}",
+                m.z.len(),
+                s.id,
+                s.dim()
+            ),
+        ));
+    }
+    if m.platform
+        .pos
+        .iter()
+        .chain(&m.platform.vel)
+        .any(|v| !v.is_finite())
+    {
+        return Err(err(f, Some(ln), "platform pose is not finite"));
+    }
+    Ok(())
 }
 
 /// Parses `truth.csv` (header `t,x,y,z,vx,vy,vz,mode`).
@@ -345,6 +409,14 @@ impl ScenarioData {
             scenario,
             measurements,
             truth,
+            references: Vec::new(),
         })
+    }
+
+    /// This scenario with the cooperative references of `references.jsonl`
+    /// ([`parse_references`]).
+    pub fn with_references(mut self, references_jsonl: &str) -> Result<Self, FormatError> {
+        self.references = parse_references(references_jsonl, &self.scenario)?;
+        Ok(self)
     }
 }

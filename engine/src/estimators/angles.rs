@@ -469,6 +469,7 @@ mod tests {
                     .step(&Step {
                         t: m.t,
                         measurements: &group,
+                        references: &[],
                         next_time: &next,
                     })
                     .unwrap()

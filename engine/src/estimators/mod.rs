@@ -13,6 +13,7 @@ pub mod icdkf;
 pub mod imm;
 pub mod multi_target;
 pub mod obe;
+pub mod registration;
 
 use harrier_core::EstimationError;
 use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};

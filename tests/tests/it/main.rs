@@ -40,6 +40,7 @@ mod no_alloc;
 mod pymavlink_client;
 mod radar;
 mod recording;
+mod registration;
 mod set_membership;
 mod sim_record;
 mod tracker;

@@ -173,6 +173,7 @@ impl SimEstimator {
         let step = Step {
             t,
             measurements: &refs,
+            references: &[],
             next_time: &no_next,
         };
         match est.step(&step) {

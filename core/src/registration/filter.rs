@@ -1,0 +1,673 @@
+//! The registration filter: an EKF on the target's CV state augmented with every sensor's bias
+//! terms, with Schmidt–Kalman "consider" updates for the terms the data do not determine yet
+//! (the equations are in the [module docs](super)).
+#![allow(non_snake_case)]
+
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+
+use super::model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
+use crate::filter::{Extended, Predictor, consider_update, joseph_update};
+use crate::linalg::{ensure_finite, symmetric_eigen};
+use crate::measurement::{Locate, MeasurementModel, SensorModel, TargetSize, WithSensor};
+use crate::motion::{ConstantVelocity, TransitionModel};
+use crate::state::Gaussian;
+use crate::{EstimationError, Result};
+
+/// Where one sensor's bias terms sit in the state vector.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorSlots {
+    /// Number of measurement components of the sensor.
+    pub dim: usize,
+    /// State index of the offset of each component.
+    pub offset: [Option<usize>; MAX_COMPONENTS],
+    /// State index of the scale of each component.
+    pub scale: [Option<usize>; MAX_COMPONENTS],
+    /// State index of the time offset.
+    pub time_offset: Option<usize>,
+}
+
+impl SensorSlots {
+    /// Every term of the sensor with its state index, in state order.
+    pub fn terms(&self) -> impl Iterator<Item = (Term, usize)> + '_ {
+        let offsets = self.offset.iter().enumerate();
+        let offsets = offsets.filter_map(|(i, s)| s.map(|s| (Term::Offset(i), s)));
+        let scales = self.scale.iter().enumerate();
+        let scales = scales.filter_map(|(i, s)| s.map(|s| (Term::Scale(i), s)));
+        offsets
+            .chain(scales)
+            .chain(self.time_offset.map(|s| (Term::TimeOffset, s)))
+    }
+}
+
+/// What a state component is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Slot {
+    /// Part of the target's CV state.
+    Kinematic,
+    /// A bias term with its model.
+    Bias(BiasPrior),
+    /// Padding up to the const size N: never observed, never estimated.
+    Unused,
+}
+
+/// The registration filter's tuning.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tuning {
+    /// Observability threshold κ: a bias term (or a combination of terms) is determined by the
+    /// data once the standard deviation a filter estimating every term would have is at most κ
+    /// times its prior's.
+    pub kappa: f64,
+    /// Hold the bias directions that are not determined yet at their prior (Schmidt–Kalman
+    /// consider updates); `false` estimates every term from the start (the plain augmented EKF).
+    pub hold: bool,
+}
+
+impl Default for Tuning {
+    /// κ = 0.3, hold.
+    fn default() -> Self {
+        Self {
+            kappa: 0.3,
+            hold: true,
+        }
+    }
+}
+
+/// The filter: the target's nearly-constant-velocity state (`K` = 4, planar `[x, y, vx, vy]` on
+/// the plane `z = plane_z`, or `K` = 6, `[x, y, z, vx, vy, vz]`) followed by the bias terms of
+/// every sensor, padded to the const size `N`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Registration<const K: usize, const N: usize> {
+    motion: ConstantVelocity<K>,
+    plane_z: f64,
+    slots: [Slot; N],
+    sensors: Vec<SensorSlots>,
+    tuning: Tuning,
+}
+
+/// The filter's state: the estimate (mean and the true error covariance of the consider
+/// updates) and `full_cov`, the covariance a filter that estimated every bias term from the
+/// start would have — what the data determine, the measure of observability.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RegistrationState<const N: usize> {
+    /// Mean and covariance of `[target; biases]`.
+    pub estimate: Gaussian<N>,
+    /// Covariance of the full augmented filter along the same linearisation points.
+    pub full_cov: SMatrix<f64, N, N>,
+    /// The gain projection of the updates of the current time (see
+    /// [`Registration::update`]): computed at the first one, `None` after a prediction.
+    pub projection: Option<SMatrix<f64, N, N>>,
+}
+
+/// A known object a sensor saw (a cooperative reference: a UAV reporting its own GPS position):
+/// its position, velocity and the covariance of the position (ENU, m, m/s, m²).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct KnownObject {
+    /// Position.
+    pub pos: Vector3<f64>,
+    /// Velocity.
+    pub vel: Vector3<f64>,
+    /// Covariance of `pos`.
+    pub cov: Matrix3<f64>,
+}
+
+/// What a detection is of.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Seen {
+    /// The target being estimated.
+    Target,
+    /// A known object (cooperative reference): updates the biases only.
+    Known(KnownObject),
+}
+
+/// One detection of one sensor.
+#[derive(Debug, Clone, Copy)]
+pub struct Observation<'a> {
+    /// Index of the sensor (the order [`Registration::new`] was given).
+    pub sensor: usize,
+    /// The sensor's unbiased model at its platform's position, built with
+    /// [`Geometry::spatial`](crate::measurement::Geometry::spatial) (the filter puts the target
+    /// on the plane itself); `bearing_size` needs a known target size.
+    pub model: &'a SensorModel,
+    /// Velocity of the sensor's platform (ENU, m/s), for the time offset.
+    pub platform_vel: Vector3<f64>,
+    /// The measurement.
+    pub z: &'a [f64],
+}
+
+/// The result of [`Registration::update`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Updated<const N: usize> {
+    /// The new state.
+    pub state: RegistrationState<N>,
+    /// Normalised innovation squared of the detection.
+    pub nis: f64,
+    /// Gaussian log-likelihood `ln N(ν; 0, S)` of the detection.
+    pub log_likelihood: f64,
+}
+
+impl<const K: usize, const N: usize> Registration<K, N> {
+    /// The filter for sensors `sensors` (each its number of measurement components and its bias
+    /// model, `None` for an unbiased sensor), CV acceleration spectral density `q` (m²/s³),
+    /// planar target height `plane_z` (for `K` = 4). Errors when the terms do not fit in `N`.
+    pub fn new(
+        q: f64,
+        plane_z: f64,
+        sensors: &[(usize, Option<&SensorBias>)],
+        tuning: Tuning,
+    ) -> Result<Self> {
+        const { assert!((K == 4 || K == 6) && K <= N) };
+        if !(q.is_finite() && q >= 0.0 && plane_z.is_finite()) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "registration needs q ≥ 0 and a finite plane height, got q = {q}, plane_z = {plane_z}"
+            )));
+        }
+        if !(tuning.kappa.is_finite() && tuning.kappa > 0.0) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "observability threshold κ must be > 0, got {}",
+                tuning.kappa
+            )));
+        }
+        let mut slots = [Slot::Unused; N];
+        slots[..K].fill(Slot::Kinematic);
+        let mut next = K;
+        let mut out = Vec::with_capacity(sensors.len());
+        for &(dim, bias) in sensors {
+            let mut s = SensorSlots {
+                dim,
+                offset: [None; MAX_COMPONENTS],
+                scale: [None; MAX_COMPONENTS],
+                time_offset: None,
+            };
+            if let Some(bias) = bias {
+                bias.check(dim)?;
+                for (term, prior) in bias.terms() {
+                    if next == N {
+                        return Err(EstimationError::InvalidParameter(format!(
+                            "{} bias terms do not fit in a state of {N} ({K} kinematic)",
+                            sensors
+                                .iter()
+                                .filter_map(|(_, b)| *b)
+                                .map(|b| b.terms().count())
+                                .sum::<usize>()
+                        )));
+                    }
+                    match term {
+                        Term::Offset(i) => s.offset[i] = Some(next),
+                        Term::Scale(i) => s.scale[i] = Some(next),
+                        Term::TimeOffset => s.time_offset = Some(next),
+                    }
+                    slots[next] = Slot::Bias(prior);
+                    next += 1;
+                }
+            }
+            out.push(s);
+        }
+        Ok(Self {
+            motion: ConstantVelocity::new(q),
+            plane_z,
+            slots,
+            sensors: out,
+            tuning,
+        })
+    }
+
+    /// This filter with every random-walk term drifting `factor` times faster (its drift
+    /// intensity times `factor`), the other terms as they are.
+    pub fn with_drift_factor(&self, factor: f64) -> Self {
+        let mut out = self.clone();
+        for slot in &mut out.slots {
+            if let Slot::Bias(p) = slot {
+                if let Dynamics::RandomWalk { drift } = p.dynamics {
+                    p.dynamics = Dynamics::RandomWalk {
+                        drift: drift * factor,
+                    };
+                }
+            }
+        }
+        out
+    }
+
+    /// Where each sensor's terms are, in the order of [`Registration::new`].
+    pub fn sensors(&self) -> &[SensorSlots] {
+        &self.sensors
+    }
+
+    /// The tuning.
+    pub fn tuning(&self) -> Tuning {
+        self.tuning
+    }
+
+    /// The model of the bias term at state index `i`, if it is one.
+    pub fn prior_of(&self, i: usize) -> Option<BiasPrior> {
+        match self.slots.get(i) {
+            Some(Slot::Bias(p)) => Some(*p),
+            _ => None,
+        }
+    }
+
+    /// The initial state: the target's prior `kinematic`, each bias term at its prior, the two
+    /// covariances equal.
+    pub fn initial(&self, kinematic: &Gaussian<K>) -> Result<RegistrationState<N>> {
+        let mut mean = SVector::<f64, N>::zeros();
+        let mut cov = SMatrix::<f64, N, N>::zeros();
+        mean.fixed_rows_mut::<K>(0).copy_from(&kinematic.mean);
+        cov.fixed_view_mut::<K, K>(0, 0).copy_from(&kinematic.cov);
+        for (i, slot) in self.slots.iter().enumerate().skip(K) {
+            let (m, var) = match slot {
+                Slot::Bias(p) => (p.mean, p.std * p.std),
+                Slot::Kinematic | Slot::Unused => (0.0, 1.0),
+            };
+            mean[i] = m;
+            cov[(i, i)] = var;
+        }
+        let estimate = Gaussian::new(mean, cov)?;
+        Ok(RegistrationState {
+            estimate,
+            full_cov: cov,
+            projection: None,
+        })
+    }
+
+    /// The target's part of a state.
+    pub fn kinematic(&self, state: &RegistrationState<N>) -> Gaussian<K> {
+        Gaussian {
+            mean: state.estimate.mean.fixed_rows::<K>(0).into_owned(),
+            cov: state.estimate.cov.fixed_view::<K, K>(0, 0).into_owned(),
+        }
+    }
+
+    /// Whether the bias term at state index `i` is determined by the data on its own (is
+    /// observable): `full_cov[i][i] ≤ κ² σ_prior²`.
+    pub fn determined(&self, state: &RegistrationState<N>, i: usize) -> bool {
+        match self.slots.get(i) {
+            Some(Slot::Bias(p)) => {
+                state.full_cov[(i, i)] <= self.tuning.kappa.powi(2) * p.std * p.std
+            }
+            _ => false,
+        }
+    }
+
+    /// The projection `T` of the optimal gain (`K = T K_opt`, [`consider_update`]): the target is
+    /// always estimated; of the bias terms, only the directions the data determine — the
+    /// eigenvectors of the normalised full covariance `C = D^{-1/2} P_f,bb D^{-1/2}` (`D` the
+    /// prior variances) whose eigenvalue is at most κ², so that a combination the data know
+    /// (a camera's azimuth offset with its latency, a radar's range offset with its scale) is
+    /// estimated while each term alone may not be; `T_bb = D^{1/2} V_o V_oᵀ D^{-1/2}`. Every
+    /// bias direction when the tuning does not hold; padding never.
+    fn gain_projection(&self, state: &RegistrationState<N>) -> SMatrix<f64, N, N> {
+        let mut T = SMatrix::<f64, N, N>::zeros();
+        let sd: [Option<f64>; N] = std::array::from_fn(|i| match self.slots[i] {
+            Slot::Bias(p) => Some(p.std),
+            Slot::Kinematic | Slot::Unused => None,
+        });
+        for (i, slot) in self.slots.iter().enumerate() {
+            let keep = match slot {
+                Slot::Kinematic => true,
+                Slot::Bias(_) => !self.tuning.hold,
+                Slot::Unused => false,
+            };
+            T[(i, i)] = if keep { 1.0 } else { 0.0 };
+        }
+        if !self.tuning.hold {
+            return T;
+        }
+        // Components that are not bias terms get an eigenvalue far above κ², alone.
+        const APART: f64 = 1e6;
+        let C = SMatrix::<f64, N, N>::from_fn(|i, j| match (sd[i], sd[j]) {
+            (Some(a), Some(b)) => state.full_cov[(i, j)] / (a * b),
+            _ if i == j => APART,
+            _ => 0.0,
+        });
+        let (values, vectors) = symmetric_eigen(&C);
+        let k2 = self.tuning.kappa * self.tuning.kappa;
+        let mut Vo = SMatrix::<f64, N, N>::zeros();
+        for (c, &l) in values.iter().enumerate() {
+            if l <= k2 {
+                let v = vectors.column(c);
+                Vo += v * v.transpose();
+            }
+        }
+        for i in 0..N {
+            for j in 0..N {
+                if let (Some(a), Some(b)) = (sd[i], sd[j]) {
+                    T[(i, j)] = a * Vo[(i, j)] / b;
+                }
+            }
+        }
+        T
+    }
+
+    /// Predicts both covariances and the mean `dt ≥ 0` seconds ahead: CV for the target, each
+    /// term's [`Dynamics`](super::Dynamics) for the biases.
+    pub fn predict(&self, state: &RegistrationState<N>, dt: f64) -> Result<RegistrationState<N>> {
+        if !(dt.is_finite() && dt >= 0.0) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "prediction interval must be finite and ≥ 0, got {dt}"
+            )));
+        }
+        if dt == 0.0 {
+            return Ok(*state);
+        }
+        let model = Augmented { reg: self };
+        let estimate = Extended.predict(&model, &state.estimate, dt)?;
+        let full = Gaussian {
+            mean: state.estimate.mean,
+            cov: state.full_cov,
+        };
+        let full_cov = Extended.predict(&model, &full, dt)?.cov;
+        Ok(RegistrationState {
+            estimate,
+            full_cov,
+            projection: None,
+        })
+    }
+
+    /// Updates the state with one detection of `seen` (the target, or a known object whose
+    /// detection updates only the biases — and, through their correlation, the target). The
+    /// bias directions it estimates are those determined before the first update of the time
+    /// (the gain projection is computed once per time and kept in the state until the next
+    /// prediction), so the detections of one scan are weighed alike.
+    pub fn update(
+        &self,
+        state: &RegistrationState<N>,
+        obs: &Observation<'_>,
+        seen: &Seen,
+    ) -> Result<Updated<N>> {
+        let slots = self.sensors.get(obs.sensor).ok_or_else(|| {
+            EstimationError::InvalidParameter(format!("no sensor {}", obs.sensor))
+        })?;
+        if obs.model.dim() != slots.dim || obs.z.len() != slots.dim {
+            return Err(EstimationError::InvalidParameter(format!(
+                "sensor {} has {} components, its model {} and the measurement {}",
+                obs.sensor,
+                slots.dim,
+                obs.model.dim(),
+                obs.z.len()
+            )));
+        }
+        if let SensorModel::BearingSize(b) = obs.model {
+            if !matches!(b.size(), TargetSize::Known(_)) {
+                return Err(EstimationError::InvalidParameter(
+                    "registration needs bearing_size models with a known target size".into(),
+                ));
+            }
+        }
+        ensure_finite(&obs.platform_vel, "platform velocity")?;
+        if let Seen::Known(k) = seen {
+            ensure_finite(&k.pos, "reference position")?;
+            ensure_finite(&k.vel, "reference velocity")?;
+            ensure_finite(&k.cov, "reference covariance")?;
+        }
+        obs.model.apply(Update {
+            reg: self,
+            state,
+            slots,
+            obs,
+            seen,
+        })
+    }
+
+    /// Target position and velocity (3-D) in a state vector.
+    fn target(&self, x: &SVector<f64, N>) -> (Vector3<f64>, Vector3<f64>) {
+        if K == 4 {
+            (
+                Vector3::new(x[0], x[1], self.plane_z),
+                Vector3::new(x[2], x[3], 0.0),
+            )
+        } else {
+            (
+                Vector3::new(x[0], x[1], x[2]),
+                Vector3::new(x[3], x[4], x[5]),
+            )
+        }
+    }
+
+    /// The biased measurement model at `x`: innovation `ν = z ⊖ ẑ`, Jacobian `H` (M × N) and
+    /// noise covariance `R` (see the module docs).
+    fn linearise<H: MeasurementModel<6, M>, const M: usize>(
+        &self,
+        model: &H,
+        x: &SVector<f64, N>,
+        slots: &SensorSlots,
+        obs: &Observation<'_>,
+        seen: &Seen,
+    ) -> Result<(SVector<f64, M>, SMatrix<f64, M, N>, SMatrix<f64, M, M>)> {
+        let (p, v) = match seen {
+            Seen::Target => self.target(x),
+            Seen::Known(k) => (k.pos, k.vel),
+        };
+        let delta = slots.time_offset.map_or(0.0, |i| x[i]);
+        let vrel = v - obs.platform_vel;
+        // The world at t − δ: p − δ (v − v_platform), to first order.
+        let shifted = p - vrel * delta;
+        let x6 =
+            SVector::<f64, 6>::from_column_slice(&[shifted.x, shifted.y, shifted.z, 0.0, 0.0, 0.0]);
+        let h0 = model.function(&x6);
+        let Hp: SMatrix<f64, M, 3> = model.jacobian(&x6).fixed_columns::<3>(0).into_owned();
+        // g_i = 1 + s_i
+        let g = SVector::<f64, M>::from_fn(|i, _| 1.0 + slots.scale[i].map_or(0.0, |s| x[s]));
+        let mut zhat = g.component_mul(&h0);
+        let gHp = SMatrix::<f64, M, M>::from_diagonal(&g) * Hp;
+        let mut H = SMatrix::<f64, M, N>::zeros();
+        if matches!(seen, Seen::Target) {
+            let d = K / 2;
+            for c in 0..d {
+                H.set_column(c, &gHp.column(c));
+                H.set_column(d + c, &(gHp.column(c) * -delta));
+            }
+        }
+        for i in 0..M {
+            if let Some(s) = slots.offset[i] {
+                zhat[i] += x[s];
+                H[(i, s)] = 1.0;
+            }
+            if let Some(s) = slots.scale[i] {
+                H[(i, s)] = h0[i];
+            }
+        }
+        if let Some(s) = slots.time_offset {
+            H.set_column(s, &(gHp * -vrel));
+        }
+        let mut R = model.covar();
+        if let Seen::Known(k) = seen {
+            R += gHp * k.cov * gHp.transpose();
+        }
+        let z = SVector::<f64, M>::from_column_slice(obs.z);
+        Ok((model.residual(&z, &zhat), H, R))
+    }
+}
+
+/// The visit of [`Registration::update`] with the concrete model.
+struct Update<'a, const K: usize, const N: usize> {
+    reg: &'a Registration<K, N>,
+    state: &'a RegistrationState<N>,
+    slots: &'a SensorSlots,
+    obs: &'a Observation<'a>,
+    seen: &'a Seen,
+}
+
+impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
+    type Output = Result<Updated<N>>;
+    fn with<H, const M: usize>(self, model: &H) -> Self::Output
+    where
+        H: MeasurementModel<6, M> + Locate<M>,
+    {
+        let x = &self.state.estimate.mean;
+        let (nu, Hx, R) = self
+            .reg
+            .linearise(model, x, self.slots, self.obs, self.seen)?;
+        let T = match self.state.projection {
+            Some(T) => T,
+            None => self.reg.gain_projection(self.state),
+        };
+        let post = consider_update(&self.state.estimate, nu, &Hx, &R, &T)?;
+        let full = Gaussian {
+            mean: *x,
+            cov: self.state.full_cov,
+        };
+        let full_cov = joseph_update(&full, nu, &Hx, &R)?.state.cov;
+        Ok(Updated {
+            nis: post.nis()?,
+            log_likelihood: post.log_likelihood()?,
+            state: RegistrationState {
+                estimate: post.state,
+                full_cov,
+                projection: Some(T),
+            },
+        })
+    }
+}
+
+/// The augmented transition: CV for the target, each bias term's dynamics, padding unchanged.
+struct Augmented<'a, const K: usize, const N: usize> {
+    reg: &'a Registration<K, N>,
+}
+
+impl<const K: usize, const N: usize> TransitionModel<N> for Augmented<'_, K, N> {
+    fn function(&self, x: &SVector<f64, N>, dt: f64) -> SVector<f64, N> {
+        let mut y = *x;
+        y.fixed_rows_mut::<K>(0).copy_from(
+            &self
+                .reg
+                .motion
+                .function(&x.fixed_rows::<K>(0).into_owned(), dt),
+        );
+        for (i, slot) in self.reg.slots.iter().enumerate() {
+            if let Slot::Bias(p) = slot {
+                // b − μ = φ (b − μ)
+                y[i] = p.mean + p.transition(dt).0 * (x[i] - p.mean);
+            }
+        }
+        y
+    }
+    fn jacobian(&self, x: &SVector<f64, N>, dt: f64) -> SMatrix<f64, N, N> {
+        let mut F = SMatrix::<f64, N, N>::identity();
+        F.fixed_view_mut::<K, K>(0, 0).copy_from(
+            &self
+                .reg
+                .motion
+                .jacobian(&x.fixed_rows::<K>(0).into_owned(), dt),
+        );
+        for (i, slot) in self.reg.slots.iter().enumerate() {
+            if let Slot::Bias(p) = slot {
+                F[(i, i)] = p.transition(dt).0;
+            }
+        }
+        F
+    }
+    fn covar(&self, dt: f64) -> SMatrix<f64, N, N> {
+        let mut Q = SMatrix::<f64, N, N>::zeros();
+        Q.fixed_view_mut::<K, K>(0, 0)
+            .copy_from(&TransitionModel::<K>::covar(&self.reg.motion, dt));
+        for (i, slot) in self.reg.slots.iter().enumerate() {
+            if let Slot::Bias(p) = slot {
+                Q[(i, i)] = p.transition(dt).1;
+            }
+        }
+        Q
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::measurement::{Geometry, MeasKind};
+    use approx::assert_relative_eq;
+
+    /// The analytic Jacobian of the biased model (target, offsets, scale, time offset) against
+    /// central differences of its innovation, for a radar and a camera, target and reference.
+    #[test]
+    fn jacobian_matches_central_differences() {
+        let mut radar = SensorBias::typical(MeasKind::RangeBearing);
+        radar.scale.push(Some(BiasPrior::constant(0.01)));
+        let camera = SensorBias::typical(MeasKind::AzEl);
+        let reg = Registration::<4, 16>::new(
+            0.25,
+            2.0,
+            &[(2, Some(&radar)), (2, Some(&camera))],
+            Tuning::default(),
+        )
+        .unwrap();
+        let mut x = SVector::<f64, 16>::zeros();
+        x.fixed_rows_mut::<4>(0)
+            .copy_from(&nalgebra::Vector4::new(420.0, -130.0, 9.0, -4.0));
+        for (i, v) in [30.0, 0.004, 0.002, -0.001, 0.15, 0.008, -0.006, 0.12]
+            .into_iter()
+            .enumerate()
+        {
+            x[4 + i] = v;
+        }
+        let known = Seen::Known(KnownObject {
+            pos: Vector3::new(300.0, 200.0, 120.0),
+            vel: Vector3::new(-12.0, 9.0, 0.5),
+            cov: Matrix3::identity(),
+        });
+        for (sensor, kind, at, vel) in [
+            (
+                0,
+                MeasKind::RangeBearing,
+                Vector3::new(-2000.0, -1500.0, 10.0),
+                Vector3::zeros(),
+            ),
+            (
+                1,
+                MeasKind::AzEl,
+                Vector3::new(150.0, 80.0, 120.0),
+                Vector3::new(15.0, -8.0, 0.0),
+            ),
+        ] {
+            let model =
+                SensorModel::new(kind, Geometry::spatial(), at, &[1.0, 0.01], None).unwrap();
+            let z = [1000.0, 0.3];
+            let obs = Observation {
+                sensor,
+                model: &model,
+                platform_vel: vel,
+                z: &z,
+            };
+            for seen in [Seen::Target, known] {
+                struct J<'a> {
+                    reg: &'a Registration<4, 16>,
+                    x: SVector<f64, 16>,
+                    obs: &'a Observation<'a>,
+                    seen: &'a Seen,
+                }
+                impl WithSensor<6> for J<'_> {
+                    type Output = ();
+                    fn with<H, const M: usize>(self, model: &H)
+                    where
+                        H: MeasurementModel<6, M> + Locate<M>,
+                    {
+                        let slots = &self.reg.sensors[self.obs.sensor];
+                        let nu = |x: &SVector<f64, 16>| {
+                            self.reg
+                                .linearise(model, x, slots, self.obs, self.seen)
+                                .unwrap()
+                                .0
+                        };
+                        let (_, H, _) = self
+                            .reg
+                            .linearise(model, &self.x, slots, self.obs, self.seen)
+                            .unwrap();
+                        let mut numeric = SMatrix::<f64, M, 16>::zeros();
+                        for c in 0..16 {
+                            let e = 1e-6 * (1.0 + self.x[c].abs());
+                            let (mut a, mut b) = (self.x, self.x);
+                            a[c] += e;
+                            b[c] -= e;
+                            // ν = z − ẑ, so ∂ẑ/∂x = −∂ν/∂x.
+                            numeric.set_column(c, &((nu(&b) - nu(&a)) / (2.0 * e)));
+                        }
+                        assert_relative_eq!(H, numeric, epsilon = 1e-6, max_relative = 1e-5);
+                    }
+                }
+                model.apply(J {
+                    reg: &reg,
+                    x,
+                    obs: &obs,
+                    seen: &seen,
+                });
+            }
+        }
+    }
+}
