@@ -104,16 +104,15 @@ impl Config {
 }
 
 impl From<&GuidanceConfig> for crate::guidance::GuidanceSettings {
-    /// The guidance loop's settings: `airframe` as its flight envelope, the obstacles as discs.
+    /// The guidance loop's settings: the multirotor envelope, the fixed wing's from its airspeed
+    /// band and bank limit (climbing 5 m/s), the obstacles as discs.
     fn from(g: &GuidanceConfig) -> Self {
         use harrier_core::guidance::{Limits, obstacle::Obstacle};
+        let [v_min, v_max] = g.fixed_wing_speed_m_s;
         Self {
             rate_hz: g.rate_hz,
-            limits: if g.airframe == "fixed_wing" {
-                Limits::fixed_wing()
-            } else {
-                Limits::multirotor()
-            },
+            multirotor: Limits::multirotor(),
+            fixed_wing: Limits::bank_limited(v_min, v_max, g.fixed_wing_bank_deg.to_radians(), 5.0),
             speed: g.speed_m_s,
             takeoff_height: g.takeoff_height_m,
             obstacles: g

@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use harrier_link::autopilot::VehicleStatus;
 use harrier_link::frame::{Endpoint, EndpointError};
 use harrier_link::geo::LocalFrame;
 use harrier_link::mavlink::dialects::common::{MavMessage, MavResult};
-use harrier_link::px4::VehicleStatus;
 use harrier_link::signing::Signing;
 use serde::{Deserialize, Serialize};
 use tokio::sync::oneshot;

@@ -10,11 +10,11 @@ use std::time::{Duration, Instant};
 use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::togvf::Togvf;
-use harrier_core::guidance::{Command, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_link::autopilot::{Frame, Personality, VehicleStatus};
 use harrier_link::command::set_mode;
-use harrier_link::mavlink::dialects::common::MavMessage;
-use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase};
-use harrier_link::px4::{FlightMode, VehicleStatus};
+use harrier_link::mavlink::dialects::common::{MavCmd, MavMessage};
+use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase, Steer};
 use nalgebra::Vector3;
 use tokio::sync::{broadcast, mpsc, watch};
 
@@ -214,11 +214,14 @@ impl Actor {
         }
     }
 
+    /// Sends `vehicle` to its autopilot's hold mode (PX4 Hold, ArduPilot LOITER: a fixed wing
+    /// circles where it is).
     fn hold(&self, vehicle: u8) {
         let link = self.link.clone();
+        let personality = personality_of(&self.link.vehicles.borrow(), vehicle);
         tokio::spawn(async move {
             match link
-                .command(vehicle, set_mode(vehicle, FlightMode::Hold))
+                .command(vehicle, set_mode(vehicle, personality.hold()))
                 .await
             {
                 Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent to Hold"),
@@ -255,8 +258,15 @@ impl Actor {
     }
 
     fn create(&mut self, r: &AssignmentRequest) -> Result<AssignmentView, AssignError> {
-        let plan = r.plan(&self.settings).map_err(AssignError::Invalid)?;
         let vehicles = self.link.vehicles.borrow().clone();
+        let frames: Vec<Frame> = r
+            .vehicles
+            .iter()
+            .map(|&id| personality_of(&vehicles, id).frame)
+            .collect();
+        let plan = r
+            .plan(&self.settings, &frames)
+            .map_err(AssignError::Invalid)?;
         for id in &r.vehicles {
             if !vehicles.iter().any(|s| s.view.id == *id) {
                 return Err(AssignError::NotFound(format!("no vehicle {id}")));
@@ -381,11 +391,7 @@ impl Actor {
     /// Does what a tick decided: sends the messages (counting the setpoints), sends vehicles to
     /// Hold, ends assignments, and announces the assignments whose vehicles changed state.
     fn carry_out(&mut self, d: Decisions) {
-        let setpoints = d
-            .send
-            .iter()
-            .filter(|(_, m)| matches!(m, MavMessage::SET_POSITION_TARGET_LOCAL_NED(_)))
-            .count() as u64;
+        let setpoints = d.send.iter().filter(|(_, m)| is_setpoint(m)).count() as u64;
         for (vehicle, m) in d.send {
             self.send(vehicle, m);
         }
@@ -410,6 +416,25 @@ impl Actor {
     fn publish(&self) {
         let views: Vec<AssignmentView> = self.assignments.values().map(Assignment::view).collect();
         self.watch.send_replace(Arc::new(views));
+    }
+}
+
+/// The personality of vehicle `id` from its last HEARTBEAT (a PX4 multirotor before one).
+fn personality_of(vehicles: &[VehicleSample], id: u8) -> Personality {
+    vehicles
+        .iter()
+        .find(|v| v.view.id == id)
+        .and_then(|v| v.status)
+        .map_or(Personality::PX4_MULTIROTOR, |s| s.personality)
+}
+
+/// Whether a message steers a vehicle: an offboard setpoint or GUIDED target, or ArduPlane's
+/// course command.
+fn is_setpoint(m: &MavMessage) -> bool {
+    match m {
+        MavMessage::SET_POSITION_TARGET_LOCAL_NED(_) => true,
+        MavMessage::COMMAND_INT(c) => c.command == MavCmd::MAV_CMD_GUIDED_CHANGE_HEADING,
+        _ => false,
     }
 }
 
@@ -450,8 +475,14 @@ impl<'a> Tick<'a> {
         let t_track = self.snapshot.t.unwrap_or(track.t);
         let target = predict(track, t_track);
         let law = a.law();
-        let limits = &self.settings.limits;
         let states = self.measured(&a.slots);
+        let envelope = |i: usize| -> &Limits {
+            let frame = states[i]
+                .as_ref()
+                .and_then(|(_, v)| v.status)
+                .map_or(Frame::Multirotor, |s| s.personality.frame);
+            self.settings.limits(frame)
+        };
         let ring = Ring::of(&states, &target, &a.plan);
         let formation = (a.plan.law == Law::Formation).then(|| {
             let uavs: Vec<Option<UavState>> =
@@ -461,7 +492,7 @@ impl<'a> Tick<'a> {
                 &target,
                 &a.plan,
                 t_track,
-                limits,
+                &self.settings.multirotor,
                 &self.settings.obstacles,
             )
         });
@@ -485,6 +516,7 @@ impl<'a> Tick<'a> {
                     let (p, centre) = (uav.horizontal_position(), target.position.xy());
                     slot.range_error = Some((p - centre).norm() - a.plan.radius);
                     slot.phase = Some(phase_of(p, centre));
+                    let limits = envelope(i);
                     let cmd = match formation.as_ref().and_then(|c| c[i]) {
                         Some(c) => c,
                         None => {
@@ -494,7 +526,10 @@ impl<'a> Tick<'a> {
                                 .or_hold(uav, limits)
                         }
                     };
-                    self.advance(slot, v, cmd, out);
+                    // ArduPlane holds an altitude rather than a climb rate: H over the target.
+                    let goal = target.position.z + a.plan.height;
+                    let altitude = v.view.geodetic.map(|g| g.alt_m + goal - uav.position.z);
+                    self.advance(slot, v, cmd, altitude, out);
                 }
             }
             if before != (slot.state, slot.error.clone()) {
@@ -525,25 +560,42 @@ impl<'a> Tick<'a> {
             .collect()
     }
 
-    /// Advances `slot`'s offboard sequence (arm, take off, stream setpoints, OFFBOARD) with
-    /// `cmd`; a sequence that fails leaves the vehicle `failed`, sent to Hold.
-    fn advance(&self, slot: &mut Slot, v: &VehicleSample, cmd: Command, out: &mut Decisions) {
-        let status = v.status.unwrap_or(VehicleStatus {
-            armed: false,
-            mode: None,
-            at: 0.0,
-        });
-        let takeoff_height = self.settings.takeoff_height;
+    /// Advances `slot`'s launch sequence in its autopilot's order (PX4: arm, take off, stream
+    /// setpoints, OFFBOARD; ArduPilot: GUIDED, arm, take off, targets) with `cmd` (and, for an
+    /// ArduPlane, the `altitude` AMSL to hold); a sequence that fails leaves the vehicle
+    /// `failed`, sent to its hold mode.
+    fn advance(
+        &self,
+        slot: &mut Slot,
+        v: &VehicleSample,
+        cmd: Command,
+        altitude: Option<f64>,
+        out: &mut Decisions,
+    ) {
+        let status = v.status.unwrap_or_else(VehicleStatus::unknown);
+        let takeoff_height = self.settings.takeoff_height as f32;
+        if slot
+            .sequence
+            .as_ref()
+            .is_some_and(|s| s.personality() != status.personality)
+        {
+            // Another autopilot answers under this id now: start over in its sequence.
+            slot.sequence = None;
+        }
         let seq = slot.sequence.get_or_insert_with(|| {
-            let takeoff = v.home_amsl.map(|h| (h + takeoff_height) as f32);
-            OffboardSequence::new(slot.vehicle, OffboardConfig::new(takeoff))
+            let config = OffboardConfig::new(Some(takeoff_height), v.home_amsl.map(|h| h as f32));
+            OffboardSequence::new(slot.vehicle, status.personality, config)
         });
-        match seq.next(self.t, &status, Some(cmd.velocity)) {
+        let steer = Steer {
+            velocity: cmd.velocity,
+            altitude_amsl_m: altitude,
+        };
+        match seq.next(self.t, &status, v.view.relative_alt_m, Some(steer)) {
             Ok(msgs) => {
                 out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
                 slot.state = match seq.phase() {
                     Phase::Arming => SlotState::Arming,
-                    Phase::TakingOff => SlotState::TakingOff,
+                    Phase::TakingOff | Phase::Climbing => SlotState::TakingOff,
                     Phase::Offboard => SlotState::Offboard,
                 };
                 slot.commanded = Some(cmd.velocity);

@@ -5,6 +5,7 @@
 //! name). Pure: no actor, no I/O.
 
 use harrier_core::guidance::Orbit;
+use harrier_link::autopilot::Frame;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -125,9 +126,10 @@ pub enum SlotState {
     Waiting,
     /// Its offboard sequence is arming it.
     Arming,
-    /// Its offboard sequence is taking it off.
+    /// Its offboard sequence is taking it off (ArduPilot: until it is up).
     TakingOff,
-    /// In OFFBOARD, flying the law's setpoints.
+    /// Under the ground station's control, flying the law's commands: PX4's OFFBOARD, ArduPilot's
+    /// GUIDED.
     Offboard,
     /// Its link is lost: paused, it flies the assignment again when it speaks again.
     Lost,
@@ -161,10 +163,11 @@ pub struct Plan {
 }
 
 impl AssignmentRequest {
-    /// Checks the request against the flight envelope and fills in the defaults: every value
-    /// finite and in range, or an error naming the field. (Whether the vehicles and the track
-    /// exist is the guidance loop's to say.)
-    pub fn plan(&self, settings: &GuidanceSettings) -> Result<Plan, String> {
+    /// Checks the request against the flight envelopes of its vehicles' airframes (`frames`; a
+    /// multirotor's when empty) and fills in the defaults: every value finite and in range, or
+    /// an error naming the field. (Whether the vehicles and the track exist is the guidance
+    /// loop's to say.)
+    pub fn plan(&self, settings: &GuidanceSettings, frames: &[Frame]) -> Result<Plan, String> {
         let bad = |m: String| Err(m);
         if self.vehicles.is_empty() || self.vehicles.len() > 16 {
             return bad("vehicles: give 1 to 16 system ids".into());
@@ -186,11 +189,23 @@ impl AssignmentRequest {
         let speed = self.speed_m_s.unwrap_or(settings.speed);
         let n = self.vehicles.len();
         let spacing = self.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
-        let limits = settings.limits;
+        let envelopes: Vec<&Limits> = if frames.is_empty() {
+            vec![&settings.multirotor]
+        } else {
+            frames.iter().map(|f| settings.limits(*f)).collect()
+        };
+        let v_max = envelopes
+            .iter()
+            .map(|l| l.v_max)
+            .fold(f64::INFINITY, f64::min);
+        let v_min = envelopes.iter().map(|l| l.v_min).fold(0.0, f64::max);
         if !(radius.is_finite() && radius > 0.0 && radius <= 10_000.0) {
             return bad(format!("radius_m must be in (0, 10000], got {radius}"));
         }
-        let r_min = limits.min_turn_radius(speed);
+        let r_min = envelopes
+            .iter()
+            .map(|l| l.min_turn_radius(speed.max(l.v_min)))
+            .fold(0.0, f64::max);
         if radius < r_min {
             return bad(format!(
                 "radius_m {radius} is below the vehicles' turning radius {r_min:.1} m at {speed} m/s"
@@ -199,10 +214,12 @@ impl AssignmentRequest {
         if !(height.is_finite() && height > 0.0 && height <= 5_000.0) {
             return bad(format!("height_m must be in (0, 5000], got {height}"));
         }
-        if !(speed.is_finite() && speed > 0.0 && speed <= limits.v_max) {
+        if !(speed.is_finite() && speed > 0.0 && speed <= v_max) {
+            return bad(format!("speed_m_s must be in (0, {v_max}], got {speed}"));
+        }
+        if speed < v_min {
             return bad(format!(
-                "speed_m_s must be in (0, {}], got {speed}",
-                limits.v_max
+                "speed_m_s {speed} is below the fixed wings' minimum airspeed {v_min} m/s"
             ));
         }
         if !(spacing.is_finite()
@@ -235,8 +252,8 @@ impl AssignmentRequest {
 pub struct SlotView {
     /// The vehicle.
     pub vehicle: u8,
-    /// `waiting` (no telemetry yet), `arming`, `taking_off`, `offboard`, `lost`, `failed`, `hold`
-    /// (the assignment ended).
+    /// `waiting` (no telemetry yet), `arming`, `taking_off`, `offboard` (PX4 OFFBOARD or ArduPilot
+    /// GUIDED), `lost`, `failed`, `hold` (the assignment ended).
     pub state: SlotState,
     /// Why it failed, when it did.
     pub error: Option<String>,
@@ -282,14 +299,26 @@ pub struct AssignmentView {
 pub struct GuidanceSettings {
     /// Setpoint rate (Hz).
     pub rate_hz: f64,
-    /// Flight envelope.
-    pub limits: Limits,
+    /// Flight envelope of a multirotor.
+    pub multirotor: Limits,
+    /// Flight envelope of a fixed wing (`guidance.fixed_wing_*`).
+    pub fixed_wing: Limits,
     /// Default speed (m/s).
     pub speed: f64,
     /// Takeoff height above home (m).
     pub takeoff_height: f64,
     /// Obstacles the `formation` law steers around (ENU).
     pub obstacles: Vec<Obstacle>,
+}
+
+impl GuidanceSettings {
+    /// The flight envelope of an airframe.
+    pub fn limits(&self, frame: Frame) -> &Limits {
+        match frame {
+            Frame::Multirotor => &self.multirotor,
+            Frame::FixedWing => &self.fixed_wing,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -301,6 +330,48 @@ mod tests {
 
     fn names<T: Serialize>(values: &[T]) -> serde_json::Value {
         serde_json::to_value(values).expect("names")
+    }
+
+    /// A fixed wing narrows the envelope: its minimum airspeed and its bank-limited turning
+    /// radius.
+    #[test]
+    fn a_fixed_wing_in_the_assignment_bounds_speed_and_radius() {
+        let settings = GuidanceSettings {
+            rate_hz: 20.0,
+            multirotor: Limits::multirotor(),
+            fixed_wing: Limits::bank_limited(10.0, 20.0, 45f64.to_radians(), 5.0),
+            speed: 5.0,
+            takeoff_height: 30.0,
+            obstacles: Vec::new(),
+        };
+        let req = |speed: Option<f64>, radius: f64| AssignmentRequest {
+            vehicles: vec![1, 2],
+            track: 1,
+            law: "togvf".into(),
+            radius_m: Some(radius),
+            height_m: None,
+            spacing_deg: None,
+            speed_m_s: speed,
+            orbit: None,
+        };
+        let mixed = [Frame::Multirotor, Frame::FixedWing];
+        assert!(
+            req(None, 150.0)
+                .plan(&settings, &[Frame::Multirotor; 2])
+                .is_ok()
+        );
+        let e = req(None, 150.0).plan(&settings, &mixed).expect_err("5 m/s");
+        assert!(e.contains("minimum airspeed 10"), "{e}");
+        assert!(req(Some(12.5), 150.0).plan(&settings, &mixed).is_ok());
+        // 16 m/s at 45°: a radius of 26 m.
+        let e = req(Some(16.0), 20.0)
+            .plan(&settings, &mixed)
+            .expect_err("too tight");
+        assert!(e.contains("turning radius 26.1"), "{e}");
+        let e = req(Some(18.0), 150.0)
+            .plan(&settings, &mixed)
+            .expect_err("above 15");
+        assert!(e.contains("(0, 15]"), "{e}");
     }
 
     /// The names the page (`web/`) and the Python clients read.

@@ -403,7 +403,7 @@ mod tests {
     async fn the_statuses_are_enum_components_referenced_where_they_are_sent() {
         let doc = TestApp::new().get("/api/openapi.json").await.json();
         let schemas = &doc["components"]["schemas"];
-        let enums: [(&str, &[&str]); 10] = [
+        let enums: [(&str, &[&str]); 12] = [
             ("TrackStatus", &["tentative", "confirmed"]),
             (
                 "DeleteCause",
@@ -421,6 +421,8 @@ mod tests {
                     "hold",
                 ],
             ),
+            ("VehicleAutopilot", &["px4", "ardupilot"]),
+            ("VehicleAirframe", &["multirotor", "fixed_wing"]),
             ("AssignmentState", &["active", "ended"]),
             ("Law", &["togvf", "lgvf", "formation"]),
             ("OrbitDirection", &["ccw", "cw"]),
@@ -472,6 +474,8 @@ mod tests {
         refers("ScanMessage", "kind", "MeasKind");
         refers("ScanView", "kind", "MeasKind");
         refers("VehicleLinkView", "system_status", "SystemStatus");
+        refers("VehicleLinkView", "autopilot", "VehicleAutopilot");
+        refers("VehicleLinkView", "airframe", "VehicleAirframe");
         let states = schemas["SystemStatus"]["enum"]
             .as_array()
             .expect("MAV_STATEs");
