@@ -761,6 +761,9 @@ pub(crate) fn rest(data: &[u8]) {
                 rate_hz: 20.0,
                 multirotor: harrier_core::guidance::Limits::multirotor(),
                 fixed_wing: harrier_core::guidance::Limits::bank_limited(10.0, 20.0, 0.8, 5.0),
+                frame: harrier_link::geo::LocalFrame::new(harrier_link::geo::Geodetic::new(
+                    47.0, 8.0, 400.0,
+                )),
                 speed: 10.0,
                 takeoff_height: 30.0,
                 obstacles: Vec::new(),

@@ -223,6 +223,16 @@ impl Personality {
         }
     }
 
+    /// The mode in which it follows the FOLLOW_TARGET messages it is sent: PX4 AUTO.FOLLOW_TARGET
+    /// ("Follow Me"), ArduCopter FOLLOW (AP_Follow reads FOLLOW_TARGET); ArduPlane has none.
+    pub fn follow(self) -> Option<Mode> {
+        match (self.autopilot, self.frame) {
+            (Autopilot::Px4, Frame::Multirotor) => Some(Mode::Px4(FlightMode::FollowTarget)),
+            (Autopilot::ArduPilot, Frame::Multirotor) => Some(Mode::Copter(CopterMode::Follow)),
+            (_, Frame::FixedWing) => None,
+        }
+    }
+
     /// The mode in which it flies the ground station's targets: PX4 OFFBOARD, ArduPilot GUIDED.
     pub fn guided(self) -> Mode {
         match (self.autopilot, self.frame) {

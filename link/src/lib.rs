@@ -21,6 +21,9 @@
 //! - [`offboard`]: the launch under the ground station's control (PX4: arm → takeoff →
 //!   setpoints → OFFBOARD; ArduPilot: GUIDED, arm, takeoff, targets) as a pure state machine
 //!   driven by the caller's clock and transport.
+//! - [`handoff`]: handing a target to the autopilot: PX4's DO_ORBIT, ArduPlane's guided loiter
+//!   (DO_REPOSITION with a radius), FOLLOW_TARGET with the track's covariance,
+//!   DO_SET_ROI_LOCATION for a camera.
 //! - [`frame`]: connection strings ([`frame::Endpoint`]) and MAVLink frames reassembled from
 //!   bytes with their headers and raw bytes ([`frame::StreamParser`], [`frame::parse_datagram`]).
 //! - [`signing`]: MAVLink 2 message signing ([`signing::Signer`]: sign outgoing frames, refuse
@@ -60,6 +63,7 @@ pub mod command;
 pub mod detections;
 pub mod frame;
 pub mod geo;
+pub mod handoff;
 pub mod offboard;
 pub mod px4;
 pub mod scenario_out;

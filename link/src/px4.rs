@@ -18,6 +18,8 @@ const MAIN_OFFBOARD: u32 = 6;
 const SUB_AUTO_TAKEOFF: u32 = 2;
 const SUB_AUTO_LOITER: u32 = 3;
 const SUB_AUTO_LAND: u32 = 6;
+const SUB_AUTO_FOLLOW_TARGET: u32 = 8;
+const SUB_POSCTL_ORBIT: u32 = 1;
 
 /// The PX4 flight modes Harrier uses, with their encodings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -32,16 +34,22 @@ pub enum FlightMode {
     Land,
     /// OFFBOARD: flies SET_POSITION_TARGET_LOCAL_NED setpoints.
     Offboard,
+    /// POSCTL.ORBIT: circles the centre of a MAV_CMD_DO_ORBIT.
+    Orbit,
+    /// AUTO.FOLLOW_TARGET ("Follow Me"): follows the FOLLOW_TARGET messages it receives.
+    FollowTarget,
 }
 
 impl FlightMode {
     /// Every mode Harrier uses.
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 7] = [
         Self::Position,
         Self::Hold,
         Self::Takeoff,
         Self::Land,
         Self::Offboard,
+        Self::Orbit,
+        Self::FollowTarget,
     ];
 
     /// The mode's name as QGroundControl shows it.
@@ -52,6 +60,8 @@ impl FlightMode {
             Self::Takeoff => "TAKEOFF",
             Self::Land => "LAND",
             Self::Offboard => "OFFBOARD",
+            Self::Orbit => "ORBIT",
+            Self::FollowTarget => "FOLLOW_TARGET",
         }
     }
 
@@ -63,6 +73,8 @@ impl FlightMode {
             Self::Takeoff => (MAIN_AUTO, SUB_AUTO_TAKEOFF),
             Self::Land => (MAIN_AUTO, SUB_AUTO_LAND),
             Self::Offboard => (MAIN_OFFBOARD, 0),
+            Self::Orbit => (MAIN_POSCTL, SUB_POSCTL_ORBIT),
+            Self::FollowTarget => (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET),
         }
     }
 
@@ -75,11 +87,13 @@ impl FlightMode {
     /// The mode of a PX4 (main, sub) pair, if it is one of ours.
     pub fn from_px4(main: u32, sub: u32) -> Option<Self> {
         match (main, sub) {
+            (MAIN_POSCTL, SUB_POSCTL_ORBIT) => Some(Self::Orbit),
             (MAIN_POSCTL, _) => Some(Self::Position),
             (MAIN_OFFBOARD, _) => Some(Self::Offboard),
             (MAIN_AUTO, SUB_AUTO_LOITER) => Some(Self::Hold),
             (MAIN_AUTO, SUB_AUTO_TAKEOFF) => Some(Self::Takeoff),
             (MAIN_AUTO, SUB_AUTO_LAND) => Some(Self::Land),
+            (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET) => Some(Self::FollowTarget),
             _ => None,
         }
     }

@@ -70,6 +70,8 @@ pub struct SensorSuite {
     sensors: Vec<SensorState>,
     sizes: Vec<f64>,
     plane_z: f64,
+    /// Where the vehicle's gimbal points (unit ENU), for cameras with `pointing: roi`.
+    gimbal: Option<Vector3<f64>>,
 }
 
 /// The pose of a simulated vehicle as published with its detections: ENU position and velocity,
@@ -132,7 +134,14 @@ impl SensorSuite {
             sensors,
             sizes: scenario.targets.iter().map(|t| t.size_m).collect(),
             plane_z: scenario.plane_z(),
+            gimbal: None,
         })
+    }
+
+    /// Points the vehicle's gimbal (unit ENU direction, `Vehicle::gimbal_direction`; `None`:
+    /// no region of interest) for the next scans of its `roi` cameras.
+    pub fn set_gimbal(&mut self, direction: Option<Vector3<f64>>) {
+        self.gimbal = direction.filter(|d| d.iter().all(|x| x.is_finite()));
     }
 
     /// One [`DetectionScan`] per sensor due at `t` (each scans at `k / rate_hz`; a sensor whose
@@ -172,10 +181,10 @@ impl SensorSuite {
             .iter()
             .map(|s| Vector3::new(s.state[0], s.state[1], s.state[2]))
             .collect();
-        let (sizes, plane_z) = (&self.sizes, self.plane_z);
+        let (sizes, plane_z, gimbal) = (&self.sizes, self.plane_z, self.gimbal);
         let mut out = Vec::new();
         for (s, _) in self.sensors.iter_mut().zip(due).filter(|(_, d)| *d) {
-            let (detections, sources) = s.detect(t, pose, &truths, sizes, plane_z);
+            let (detections, sources) = s.detect(t, pose, &truths, sizes, plane_z, gimbal);
             let scan = DetectionScan {
                 schema: DETECTIONS_SCHEMA.into(),
                 t,
@@ -207,7 +216,12 @@ impl SensorState {
         true
     }
 
-    fn boresight(&self, pose: &PlatformPose, truths: &[Vector3<f64>]) -> Vector3<f64> {
+    fn boresight(
+        &self,
+        pose: &PlatformPose,
+        truths: &[Vector3<f64>],
+        gimbal: Option<Vector3<f64>>,
+    ) -> Vector3<f64> {
         let nadir = -Vector3::z();
         let SensorType::Camera { pointing, .. } = &self.spec.model else {
             return nadir;
@@ -227,6 +241,7 @@ impl SensorState {
                 .map(|p| p - Vector3::from(pose.pos))
                 .and_then(|d| d.try_normalize(1e-9))
                 .unwrap_or(nadir),
+            Pointing::Roi => gimbal.unwrap_or(nadir),
         }
     }
 
@@ -285,9 +300,10 @@ impl SensorState {
         truths: &[Vector3<f64>],
         sizes: &[f64],
         plane_z: f64,
+        gimbal: Option<Vector3<f64>>,
     ) -> (Vec<Detection>, Vec<Option<usize>>) {
         let sensor = Vector3::from(pose.pos);
-        let b = self.boresight(pose, truths);
+        let b = self.boresight(pose, truths, gimbal);
         let cos_half = match &self.spec.model {
             SensorType::Camera { fov_deg, .. } => (0.5 * fov_deg.to_radians()).cos(),
             SensorType::Radar { .. } => -1.0,

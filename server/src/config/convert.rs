@@ -9,7 +9,6 @@ use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 
 use super::error::ConfigError;
 use super::file::Config;
-use super::sections::GuidanceConfig;
 
 impl Config {
     /// The MAVLink link's settings, or `None` when `mavlink.gcs` is empty. `session` names the
@@ -103,11 +102,13 @@ impl Config {
     }
 }
 
-impl From<&GuidanceConfig> for crate::guidance::GuidanceSettings {
-    /// The guidance loop's settings: the multirotor envelope, the fixed wing's from its airspeed
-    /// band and bank limit (climbing 5 m/s), the obstacles as discs.
-    fn from(g: &GuidanceConfig) -> Self {
+impl From<&Config> for crate::guidance::GuidanceSettings {
+    /// The guidance loop's settings (`[guidance]`): the multirotor envelope, the fixed wing's from
+    /// its airspeed band and bank limit (climbing 5 m/s), the obstacles as discs, and the
+    /// server's frame.
+    fn from(c: &Config) -> Self {
         use harrier_core::guidance::{Limits, obstacle::Obstacle};
+        let g = &c.guidance;
         let [v_min, v_max] = g.fixed_wing_speed_m_s;
         Self {
             rate_hz: g.rate_hz,
@@ -123,6 +124,7 @@ impl From<&GuidanceConfig> for crate::guidance::GuidanceSettings {
                     radius: o.radius_m,
                 })
                 .collect(),
+            frame: harrier_link::geo::LocalFrame::new(c.frame.origin),
         }
     }
 }

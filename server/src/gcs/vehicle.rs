@@ -190,6 +190,8 @@ pub struct VehicleLink {
     window: std::collections::VecDeque<Instant>,
     /// Its TIMESYNC exchanges.
     pub timesync: Timesync,
+    /// Its gimbal manager's component id and gimbal device id.
+    gimbal_manager: Option<(u8, u8)>,
 }
 
 impl VehicleLink {
@@ -217,7 +219,14 @@ impl VehicleLink {
             reconnects: 0,
             window: std::collections::VecDeque::new(),
             timesync: Timesync::default(),
+            gimbal_manager: None,
         }
+    }
+
+    /// Its gimbal manager (component id, gimbal device id), once a GIMBAL_MANAGER_INFORMATION
+    /// announced it.
+    pub fn gimbal_manager(&self) -> Option<(u8, u8)> {
+        self.gimbal_manager
     }
 
     /// Link state.
@@ -304,6 +313,9 @@ impl VehicleLink {
                     f64::from(a.pitch).to_degrees(),
                     f64::from(a.yaw).to_degrees(),
                 ]);
+            }
+            MavMessage::GIMBAL_MANAGER_INFORMATION(g) => {
+                self.gimbal_manager = Some((header.component_id, g.gimbal_device_id));
             }
             MavMessage::SYS_STATUS(s) => {
                 self.battery_pct =

@@ -12,7 +12,7 @@ use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::togvf::Togvf;
 use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
 use harrier_link::autopilot::{Frame, Personality, VehicleStatus};
-use harrier_link::command::set_mode;
+use harrier_link::command::{command_long, set_mode};
 use harrier_link::mavlink::dialects::common::{MavCmd, MavMessage};
 use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase, Steer};
 use nalgebra::Vector3;
@@ -20,6 +20,7 @@ use tokio::sync::{broadcast, mpsc, watch};
 
 use super::formation::FormationState;
 use super::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
+use super::handoff::{Handoff, airborne};
 use super::plan::{
     AssignmentRequest, AssignmentState, AssignmentView, GuidanceSettings, Law, Plan, SlotState,
     SlotView,
@@ -36,6 +37,7 @@ use harrier_engine::TrackView;
 struct Slot {
     vehicle: u8,
     sequence: Option<OffboardSequence>,
+    handoff: Handoff,
     state: SlotState,
     error: Option<String>,
     range_error: Option<f64>,
@@ -96,8 +98,13 @@ impl Assignment {
                 orbit: p.orbit.into(),
                 ..Lgvf::new(p.radius, p.height, p.speed)
             }),
-            // The formation's vehicles fly TOGVF when the formation has no command for one.
-            Law::Togvf | Law::Formation => Box::new(Togvf {
+            // The formation's vehicles fly TOGVF when the formation has no command for one; a
+            // hand-off flies no law (its slots never ask for one).
+            Law::Togvf
+            | Law::Formation
+            | Law::HandoffOrbit
+            | Law::HandoffFollow
+            | Law::HandoffCamera => Box::new(Togvf {
                 orbit: p.orbit.into(),
                 ..Togvf::new(p.radius, p.height, p.speed)
             }),
@@ -132,6 +139,9 @@ struct Actor {
     watch: watch::Sender<Arc<Vec<AssignmentView>>>,
     events: broadcast::Sender<AssignmentView>,
     metrics: Arc<GuidanceMetrics>,
+    /// When the tracker's snapshot last changed (wall clock): a hand-off predicts the track on
+    /// from the snapshot's time by the wall time since.
+    snapshot_at: Instant,
 }
 
 /// Starts the loop.
@@ -155,6 +165,7 @@ pub fn start(
         watch: watch_tx,
         events: events.clone(),
         metrics: Arc::clone(&metrics),
+        snapshot_at: Instant::now(),
     };
     let task = tokio::spawn(actor.run(rx, acks, stop));
     (
@@ -178,9 +189,15 @@ impl Actor {
         let period = Duration::from_secs_f64(1.0 / self.settings.rate_hz);
         let mut tick = tokio::time::interval(period);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut updates = self.snapshot.clone();
         loop {
             tokio::select! {
                 Some(r) = requests.recv() => self.on_request(r),
+                // Every update of the tracks: the camera hand-offs point at them at once.
+                changed = updates.changed() => match changed {
+                    Ok(()) => self.on_tracks(),
+                    Err(_) => break,
+                },
                 a = acks.recv() => match a {
                     Ok((vehicle, msg)) => self.on_ack(vehicle, &msg),
                     Err(broadcast::error::RecvError::Lagged(n)) => {
@@ -259,13 +276,13 @@ impl Actor {
 
     fn create(&mut self, r: &AssignmentRequest) -> Result<AssignmentView, AssignError> {
         let vehicles = self.link.vehicles.borrow().clone();
-        let frames: Vec<Frame> = r
+        let personalities: Vec<Personality> = r
             .vehicles
             .iter()
-            .map(|&id| personality_of(&vehicles, id).frame)
+            .map(|&id| personality_of(&vehicles, id))
             .collect();
         let plan = r
-            .plan(&self.settings, &frames)
+            .plan(&self.settings, &personalities)
             .map_err(AssignError::Invalid)?;
         for id in &r.vehicles {
             if !vehicles.iter().any(|s| s.view.id == *id) {
@@ -306,6 +323,7 @@ impl Actor {
                 .map(|&vehicle| Slot {
                     vehicle,
                     sequence: None,
+                    handoff: Handoff::default(),
                     state: SlotState::Waiting,
                     error: None,
                     range_error: None,
@@ -324,6 +342,7 @@ impl Actor {
         if a.ended.is_none() {
             tracing::info!(id, reason, "assignment ended");
             a.ended = Some(reason);
+            let camera = a.plan.law == Law::HandoffCamera;
             let holds: Vec<u8> = a
                 .slots
                 .iter_mut()
@@ -336,7 +355,13 @@ impl Actor {
                 .collect();
             let view = a.view();
             for v in holds {
-                self.hold(v);
+                if camera {
+                    // The camera is released; the vehicle flies on as it was.
+                    let none = command_long(v, MavCmd::MAV_CMD_DO_SET_ROI_NONE, [0.0; 7]);
+                    self.send(v, none);
+                } else {
+                    self.hold(v);
+                }
             }
             self.metrics.ended.fetch_add(1, Ordering::Relaxed);
             let _ = self.events.send(view);
@@ -376,6 +401,9 @@ impl Actor {
         let vehicles = Arc::clone(&self.link.vehicles.borrow());
         let tick = Tick {
             t: self.t(now),
+            since_snapshot: now
+                .saturating_duration_since(self.snapshot_at)
+                .as_secs_f64(),
             snapshot: &snapshot,
             vehicles: &vehicles,
             settings: &self.settings,
@@ -386,6 +414,37 @@ impl Actor {
         }
         self.carry_out(decisions);
         self.publish();
+    }
+
+    /// An update of the tracks: every camera hand-off points its vehicles at its track's new
+    /// estimate, at once.
+    fn on_tracks(&mut self) {
+        let now = Instant::now();
+        self.snapshot_at = now;
+        let t = self.t(now);
+        let snapshot = self.snapshot.borrow().clone();
+        let vehicles = Arc::clone(&self.link.vehicles.borrow());
+        let frame = self.settings.frame;
+        let mut send = Vec::new();
+        for a in self
+            .assignments
+            .values_mut()
+            .filter(|a| a.ended.is_none() && a.plan.law == Law::HandoffCamera)
+        {
+            let Some(track) = snapshot.tracks.iter().find(|k| k.id == a.track) else {
+                continue;
+            };
+            let target = predict(track, snapshot.t.unwrap_or(track.t));
+            for slot in &mut a.slots {
+                if let Some(v) = vehicles.iter().find(|v| v.view.id == slot.vehicle) {
+                    let msgs = slot.handoff.roi(t, track.t, v, &target, &frame);
+                    send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
+                }
+            }
+        }
+        for (v, m) in send {
+            self.send(v, m);
+        }
     }
 
     /// Does what a tick decided: sends the messages (counting the setpoints), sends vehicles to
@@ -442,6 +501,8 @@ fn is_setpoint(m: &MavMessage) -> bool {
 struct Tick<'a> {
     /// Now on the link's clock (s since its epoch).
     t: f64,
+    /// Wall time since the snapshot changed (s).
+    since_snapshot: f64,
     snapshot: &'a Snapshot,
     vehicles: &'a [VehicleSample],
     settings: &'a GuidanceSettings,
@@ -516,6 +577,13 @@ impl<'a> Tick<'a> {
                     let (p, centre) = (uav.horizontal_position(), target.position.xy());
                     slot.range_error = Some((p - centre).norm() - a.plan.radius);
                     slot.phase = Some(phase_of(p, centre));
+                    if a.plan.law.is_handoff() {
+                        // The autopilot flies on what it was last sent: the track predicted to
+                        // now, the tracker's time moved on by the wall time since its snapshot.
+                        let now = predict(track, t_track + self.since_snapshot);
+                        self.hand_off(slot, v, track, &now, &a.plan, out);
+                        continue;
+                    }
                     let limits = envelope(i);
                     let cmd = match formation.as_ref().and_then(|c| c[i]) {
                         Some(c) => c,
@@ -536,6 +604,27 @@ impl<'a> Tick<'a> {
                 out.changed.push(a.id);
             }
         }
+    }
+
+    /// One tick of a hand-off slot: the orbit, follow or camera messages due; `handed_off` once
+    /// in the air (the camera at once).
+    fn hand_off(
+        &self,
+        slot: &mut Slot,
+        v: &VehicleSample,
+        track: &TrackView,
+        target: &TargetEstimate,
+        plan: &Plan,
+        out: &mut Decisions,
+    ) {
+        let frame = &self.settings.frame;
+        let msgs = slot.handoff.step(self.t, v, target, track, plan, frame);
+        out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
+        slot.state = if plan.law == Law::HandoffCamera || airborne(v) {
+            SlotState::HandedOff
+        } else {
+            SlotState::Waiting
+        };
     }
 
     /// The vehicle `id`, when the link knows it.

@@ -416,6 +416,7 @@ mod tests {
                     "arming",
                     "taking_off",
                     "offboard",
+                    "handed_off",
                     "lost",
                     "failed",
                     "hold",
@@ -424,7 +425,17 @@ mod tests {
             ("VehicleAutopilot", &["px4", "ardupilot"]),
             ("VehicleAirframe", &["multirotor", "fixed_wing"]),
             ("AssignmentState", &["active", "ended"]),
-            ("Law", &["togvf", "lgvf", "formation"]),
+            (
+                "Law",
+                &[
+                    "togvf",
+                    "lgvf",
+                    "formation",
+                    "handoff_orbit",
+                    "handoff_follow",
+                    "handoff_camera",
+                ],
+            ),
             ("OrbitDirection", &["ccw", "cw"]),
             (
                 "LinkEventKind",

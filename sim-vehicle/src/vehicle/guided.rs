@@ -56,7 +56,7 @@ impl Vehicle {
     /// origin), `None` for terrain-relative (no terrain data here) and other frames. ArduPilot
     /// takes the superseded `_INT` spellings of the frames too.
     #[allow(deprecated)]
-    fn enu_height(&self, frame: MavFrame, lat: f64, lon: f64, alt: f64) -> Option<f64> {
+    pub(super) fn enu_height(&self, frame: MavFrame, lat: f64, lon: f64, alt: f64) -> Option<f64> {
         use MavFrame as F;
         let amsl = match frame {
             F::MAV_FRAME_GLOBAL | F::MAV_FRAME_GLOBAL_INT => alt,

@@ -17,12 +17,14 @@ use harrier_link::geo::{Geodetic, LocalFrame, enu_to_ned};
 use mavlink::dialects::common::MavLandedState;
 use nalgebra::Vector3;
 
+pub use handoff::GIMBAL_DEVICE_ID;
 pub use harrier_link::ardupilot::{CopterMode, PlaneMode};
 /// The PX4 flight modes the vehicle flies (harrier-link's PX4 codec).
 pub use harrier_link::px4::FlightMode;
 pub use tables::Param;
 
 mod guided;
+mod handoff;
 mod modes;
 mod params;
 mod physics;
@@ -33,6 +35,8 @@ mod telemetry;
 mod tests;
 #[cfg(test)]
 mod tests_ardupilot;
+#[cfg(test)]
+mod tests_handoff;
 
 use modes::Behaviour;
 use tables::{Stream, default_params, default_streams};
@@ -173,6 +177,22 @@ struct PlaneGuided {
     airspeed: Option<f64>,
 }
 
+/// A PX4 MAV_CMD_DO_ORBIT: its centre (ENU), radius, sense and tangential speed.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct OrbitTarget {
+    centre: Vector3<f64>,
+    radius: f64,
+    ccw: bool,
+    speed: f64,
+}
+
+/// The last FOLLOW_TARGET: the target's position and velocity (ENU).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Followed {
+    position: Vector3<f64>,
+    velocity: Vector3<f64>,
+}
+
 impl PlaneGuided {
     const NONE: Self = Self {
         radius: 0.0,
@@ -213,6 +233,15 @@ pub struct Vehicle {
     landed_since: Option<f64>,
     /// The lowest horizontal speed flown off the ground (m/s).
     slowest_airborne: Option<f64>,
+    /// The orbit of PX4's POSCTL.ORBIT.
+    orbit: Option<OrbitTarget>,
+    /// The target a follow mode follows.
+    followed: Option<Followed>,
+    /// ArduCopter FOLLOW's offset from the target, kept from when it was engaged (AP_Follow with
+    /// zero FOLL_OFS_*).
+    follow_offset: Option<Vector3<f64>>,
+    /// The gimbal's region of interest (ENU), from MAV_CMD_DO_SET_ROI_LOCATION.
+    roi: Option<Vector3<f64>>,
     params: Vec<Param>,
     streams: Vec<Stream>,
     last_advance: f64,
@@ -249,6 +278,10 @@ impl Vehicle {
             guided_speed: None,
             landed_since: None,
             slowest_airborne: None,
+            orbit: None,
+            followed: None,
+            follow_offset: None,
+            roi: None,
             params: default_params(personality, config.id),
             streams,
             last_advance: now,
@@ -350,6 +383,18 @@ impl Vehicle {
     /// with no wind a fixed wing's lowest airspeed), `None` before it flew.
     pub fn slowest_airborne_speed(&self) -> Option<f64> {
         self.slowest_airborne
+    }
+
+    /// The region of interest its gimbal points at (ENU, m), `None` without one.
+    pub fn roi(&self) -> Option<Vector3<f64>> {
+        self.roi
+    }
+
+    /// The gimbal's pointing: the unit vector (ENU) from the vehicle to its region of interest,
+    /// `None` without one (a camera slaved to the ROI then looks straight down).
+    pub fn gimbal_direction(&self) -> Option<Vector3<f64>> {
+        self.roi
+            .and_then(|r| (r - self.state.position).try_normalize(1e-9))
     }
 
     /// A fixed wing's stall speed (m/s): PX4's FW_AIRSPD_STALL; ArduPlane's AIRSPEED_MIN (it has

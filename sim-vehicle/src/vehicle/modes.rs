@@ -9,6 +9,8 @@
 //! | `Land` (descend, disarm on touchdown) | AUTO.LAND | LAND | — (RTL) |
 //! | `Rtl` | — | RTL, SMART_RTL (home at RTL_ALT, land, disarm) | RTL (home at RTL_ALTITUDE, loiter) |
 //! | `External` (the ground station's targets) | OFFBOARD | GUIDED | GUIDED |
+//! | `Orbit` (a DO_ORBIT's circle) | POSCTL.ORBIT | — | — |
+//! | `Follow` (the FOLLOW_TARGET messages' target) | AUTO.FOLLOW_TARGET | FOLLOW | — |
 //!
 //! Every other mode of the tables (AUTO without a mission, FLIP, the QuadPlane modes, …) is
 //! answered `MAV_RESULT_UNSUPPORTED`: the simulator does not fly it.
@@ -36,6 +38,10 @@ pub(super) enum Behaviour {
     Rtl,
     /// Flies the ground station's targets.
     External,
+    /// Circles the centre of a MAV_CMD_DO_ORBIT.
+    Orbit,
+    /// Follows the target of the FOLLOW_TARGET messages.
+    Follow,
 }
 
 /// The behaviour of `mode`, `None` when the simulator does not fly it.
@@ -47,6 +53,8 @@ pub(super) fn behaviour(mode: Mode) -> Option<Behaviour> {
             FlightMode::Takeoff => B::Takeoff,
             FlightMode::Land => B::Land,
             FlightMode::Offboard => B::External,
+            FlightMode::Orbit => B::Orbit,
+            FlightMode::FollowTarget => B::Follow,
         },
         Mode::Copter(m) => match m {
             CopterMode::Stabilize
@@ -58,6 +66,7 @@ pub(super) fn behaviour(mode: Mode) -> Option<Behaviour> {
             CopterMode::Guided => B::External,
             CopterMode::Rtl | CopterMode::SmartRtl => B::Rtl,
             CopterMode::Land => B::Land,
+            CopterMode::Follow => B::Follow,
             _ => return None,
         },
         Mode::Plane(m) => match m {
@@ -101,6 +110,10 @@ impl Vehicle {
                 MavResult::MAV_RESULT_DENIED
             }
             (Mode::Px4(_), Behaviour::Takeoff) if !self.armed => MavResult::MAV_RESULT_DENIED,
+            // POSCTL.ORBIT is entered by a DO_ORBIT, not by a mode switch.
+            (Mode::Px4(_), Behaviour::Orbit) if self.orbit.is_none() => {
+                MavResult::MAV_RESULT_DENIED
+            }
             _ => {
                 self.set_mode(now, mode);
                 MavResult::MAV_RESULT_ACCEPTED
@@ -137,8 +150,12 @@ impl Vehicle {
             self.taking_off = false;
         }
         match b {
-            Behaviour::Pilot | Behaviour::Hold | Behaviour::Land => {
+            Behaviour::Pilot | Behaviour::Hold | Behaviour::Land | Behaviour::Orbit => {
                 self.hold_point = if fixed_wing { p } else { self.stop_point() };
+            }
+            Behaviour::Follow => {
+                self.hold_point = self.stop_point();
+                self.follow_offset = self.followed.map(|f| p - f.position);
             }
             Behaviour::Takeoff => {
                 self.hold_point = p;

@@ -21,6 +21,10 @@ use nalgebra::Vector3;
 use super::modes::Behaviour;
 use super::{CLIMB_SPEED, GROUND_EPS, MAX_STEP, POS_GAIN, Target, Vehicle};
 
+/// Gain of a follow mode's position loop (1/s): soft, so that a moving goal does not make a
+/// turn-rate-limited multirotor circle it.
+const FOLLOW_GAIN: f64 = 0.3;
+
 /// Gain of a fixed wing's altitude hold (1/s).
 const ALT_GAIN: f64 = 0.5;
 
@@ -75,10 +79,27 @@ impl Vehicle {
     /// A fixed wing's velocity circling `centre` at its loiter radius and `speed`, holding
     /// `centre.z`.
     fn loiter(&self, centre: Vector3<f64>, speed: f64, limits: &Limits) -> Vector3<f64> {
-        let radius = self
-            .loiter_radius()
-            .max(limits.min_turn_radius(speed) * 1.2);
-        let sense = if self.loiter_ccw() { 1.0 } else { -1.0 };
+        self.circle(
+            centre,
+            self.loiter_radius(),
+            self.loiter_ccw(),
+            speed,
+            limits,
+        )
+    }
+
+    /// The velocity circling `centre` at `radius` (no tighter than the turn the limits allow),
+    /// counter-clockwise when `ccw`, at `speed`, holding `centre.z`.
+    fn circle(
+        &self,
+        centre: Vector3<f64>,
+        radius: f64,
+        ccw: bool,
+        speed: f64,
+        limits: &Limits,
+    ) -> Vector3<f64> {
+        let radius = radius.max(limits.min_turn_radius(speed) * 1.2);
+        let sense = if ccw { 1.0 } else { -1.0 };
         let d = self.state.horizontal_position() - centre.xy();
         let dir = Lgvf::new(radius, 0.0, speed).direction(d, sense);
         let vz = bounded((centre.z - self.state.position.z) * ALT_GAIN, limits.vz_max);
@@ -111,6 +132,16 @@ impl Vehicle {
             }
             Behaviour::Rtl => self.rtl_command(&limits),
             Behaviour::External => self.external_command(&mut limits),
+            Behaviour::Orbit => match self.orbit {
+                Some(o) => self.circle(o.centre, o.radius, o.ccw, o.speed, &limits),
+                None => self.hold_command(self.hold_point, &limits),
+            },
+            Behaviour::Follow => match self.follow_goal() {
+                Some((goal, v)) if limits.can_hover() => {
+                    v + (goal - self.state.position) * FOLLOW_GAIN
+                }
+                _ => self.hold_command(self.hold_point, &limits),
+            },
         };
         (cmd, limits)
     }

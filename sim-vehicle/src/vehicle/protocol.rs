@@ -1,7 +1,8 @@
 //! The MAVLink protocol a vehicle answers: commands (COMMAND_LONG and COMMAND_INT, each with a
 //! COMMAND_ACK: arm, takeoff, land, RTL, loiter, mode, message intervals and requests, and
-//! ArduPilot's guided commands), SET_MODE, parameters, data-stream requests, the mission
-//! protocol's list request (no mission), and the ground station's targets.
+//! ArduPilot's guided commands, a target handed over: DO_ORBIT, DO_SET_ROI_LOCATION), SET_MODE,
+//! FOLLOW_TARGET, parameters, data-stream requests, the mission protocol's list request (no
+//! mission), and the ground station's targets.
 
 use harrier_link::ardupilot::CopterMode;
 use harrier_link::autopilot::{Autopilot, Mode};
@@ -118,6 +119,10 @@ impl Vehicle {
                     target_component: 0,
                 })]
             }
+            MavMessage::FOLLOW_TARGET(f) => {
+                self.follow_target(f);
+                Vec::new()
+            }
             MavMessage::SET_POSITION_TARGET_LOCAL_NED(s)
                 if Self::for_us(s.target_system, s.target_component, id) =>
             {
@@ -178,6 +183,9 @@ impl Vehicle {
                 }
             }
             MavCmd::MAV_CMD_DO_REPOSITION if ardupilot => self.reposition(now, c),
+            MavCmd::MAV_CMD_DO_ORBIT if !ardupilot => self.do_orbit(now, c),
+            MavCmd::MAV_CMD_DO_SET_ROI_LOCATION => self.set_roi(c),
+            MavCmd::MAV_CMD_DO_SET_ROI_NONE => self.clear_roi(),
             MavCmd::MAV_CMD_DO_CHANGE_SPEED if ardupilot => self.change_speed(c),
             MavCmd::MAV_CMD_GUIDED_CHANGE_HEADING
             | MavCmd::MAV_CMD_GUIDED_CHANGE_SPEED

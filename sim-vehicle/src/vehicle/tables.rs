@@ -7,7 +7,8 @@
 //! own integer and float types, sent as C-cast floats): SYSID_THISMAV, ARMING_CHECK,
 //! DISARM_DELAY, WPNAV_SPEED (cm/s), RTL_ALT (cm) … for ArduCopter; AIRSPEED_MIN,
 //! AIRSPEED_CRUISE, AIRSPEED_MAX, ROLL_LIMIT_DEG, WP_LOITER_RAD, TKOFF_ALT, RTL_ALTITUDE …
-//! for ArduPlane; FW_AIRSPD_MIN/TRIM/MAX/STALL, FW_R_LIM, NAV_LOITER_RAD for a PX4 fixed wing.
+//! for ArduPlane; FW_AIRSPD_MIN/TRIM/MAX/STALL, FW_R_LIM, NAV_LOITER_RAD for a PX4 fixed wing;
+//! FLW_TGT_DST, FLW_TGT_HT (AUTO.FOLLOW_TARGET) for a PX4 multirotor.
 
 use harrier_link::autopilot::{Autopilot, Frame, Personality};
 use mavlink::MessageData;
@@ -66,6 +67,13 @@ pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
                 real("COM_OF_LOSS_T", 0.5, 0.1, 60.0),
                 real("MPC_LAND_SPEED", 0.7, 0.1, 5.0),
             ];
+            if frame == Frame::Multirotor {
+                // AUTO.FOLLOW_TARGET's distance behind and height above the target.
+                p.extend([
+                    real("FLW_TGT_DST", 8.0, 1.0, 100.0),
+                    real("FLW_TGT_HT", 8.0, 8.0, 100.0),
+                ]);
+            }
             if frame == Frame::FixedWing {
                 p.extend([
                     real("FW_AIRSPD_STALL", 7.0, 0.5, 40.0),

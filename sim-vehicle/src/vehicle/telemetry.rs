@@ -1,6 +1,7 @@
 //! Telemetry: the streamed messages, their intervals (SET_MESSAGE_INTERVAL, and ArduPilot's
 //! REQUEST_DATA_STREAM) and the current value of any message the vehicle can send
-//! (REQUEST_MESSAGE).
+//! (REQUEST_MESSAGE; also GIMBAL_MANAGER_INFORMATION: the autopilot is the gimbal manager of
+//! its camera's gimbal).
 
 use harrier_link::autopilot::{Autopilot, ardupilot_base_mode};
 use harrier_link::geo::enu_to_ned;
@@ -8,14 +9,15 @@ use harrier_link::px4::base_mode;
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, AUTOPILOT_VERSION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA,
-    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA,
-    LOCAL_POSITION_NED_DATA, MavBatteryFunction, MavBatteryType, MavMessage, MavProtocolCapability,
-    MavResult, MavState, MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA, VFR_HUD_DATA,
+    GIMBAL_MANAGER_INFORMATION_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
+    GimbalManagerCapFlags, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
+    MavBatteryFunction, MavBatteryType, MavMessage, MavProtocolCapability, MavResult, MavState,
+    MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
-use super::Vehicle;
 use super::modes::Behaviour;
 use super::tables::data_stream;
+use super::{GIMBAL_DEVICE_ID, Vehicle};
 
 impl Vehicle {
     pub(super) fn set_message_interval(
@@ -124,6 +126,23 @@ impl Vehicle {
                 },
                 mavlink_version: 3,
             }),
+            GIMBAL_MANAGER_INFORMATION_DATA::ID => {
+                use GimbalManagerCapFlags as F;
+                MavMessage::GIMBAL_MANAGER_INFORMATION(GIMBAL_MANAGER_INFORMATION_DATA {
+                    time_boot_ms: self.time_boot_ms(),
+                    cap_flags: F::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_LOCK
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_CAN_POINT_LOCATION_GLOBAL,
+                    roll_min: 0.0,
+                    roll_max: 0.0,
+                    pitch_min: -std::f32::consts::FRAC_PI_2,
+                    pitch_max: 0.0,
+                    yaw_min: -std::f32::consts::PI,
+                    yaw_max: std::f32::consts::PI,
+                    gimbal_device_id: GIMBAL_DEVICE_ID,
+                })
+            }
             VFR_HUD_DATA::ID => {
                 let speed = self.state.horizontal_velocity().norm() as f32;
                 MavMessage::VFR_HUD(VFR_HUD_DATA {

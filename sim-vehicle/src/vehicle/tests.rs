@@ -280,7 +280,7 @@ fn parameters_list_read_set() {
             target_component: 1,
         }),
     );
-    assert_eq!(list.len(), 3);
+    assert_eq!(list.len(), 5);
     let read = |v: &mut Vehicle, name: &str| {
         v.handle(
             0.0,

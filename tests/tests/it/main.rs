@@ -32,6 +32,7 @@ mod field_foxglove;
 mod field_tak;
 mod fuzz_regressions;
 mod guidance;
+mod handoff;
 mod http_limits;
 mod live_server;
 mod mavlink_gcs;
