@@ -245,8 +245,8 @@ def test_a_vehicle_command_shows_its_ack(session):
 def test_assign_from_the_page_then_end_it(session):
     """Assign UAVs 1 and 2 to a track from the form: refused with a wrong token (401 shown, nothing
     created), created with the right one (visible through REST, its state and its vehicles' states
-    on the page, its standoff circle on the map), then ended from the page (REST says `ended`); then a formation and a camera hand-off from the
-    form."""
+    on the page, its standoff circle on the map), then ended from the page (REST says `ended`);
+    then a formation and a camera hand-off from the form."""
     page, console = session
     page.wait_for_selector("#assign-panel:not([hidden])", timeout=5_000)
     page.wait_for_selector('#assign-vehicles input[value="2"]', timeout=10_000)
