@@ -26,7 +26,8 @@ fn vehicle(p: Personality) -> Vehicle {
     Vehicle::new(VehicleConfig::new(1).with_personality(p), 0.0)
 }
 
-fn ack_of(replies: &[MavMessage]) -> MavResult {
+/// The result of the COMMAND_ACK a command was answered with (shared with `tests_handoff`).
+pub(super) fn ack_of(replies: &[MavMessage]) -> MavResult {
     match replies.first() {
         Some(MavMessage::COMMAND_ACK(a)) => a.result,
         other => panic!("no COMMAND_ACK: {other:?}"),
@@ -45,7 +46,9 @@ fn takeoff(v: &mut Vehicle, t: f64, height: f32) -> MavResult {
     ack_of(&v.handle(t, &harrier_link::command::takeoff_relative(1, height)))
 }
 
-fn run(v: &mut Vehicle, from: f64, to: f64, mut each: impl FnMut(&mut Vehicle, f64)) {
+/// Advances `v` from `from` to `to` in 50 ms steps, calling `each` after every step (shared with
+/// `tests_handoff`).
+pub(super) fn run(v: &mut Vehicle, from: f64, to: f64, mut each: impl FnMut(&mut Vehicle, f64)) {
     let mut t = from;
     while t < to {
         t += 0.05;

@@ -1,27 +1,12 @@
 //! Unit tests of a target handed to the autopilot: PX4's DO_ORBIT, FOLLOW_TARGET in PX4's
 //! AUTO.FOLLOW_TARGET and ArduCopter's FOLLOW, the ROI and the gimbal manager.
 
+use super::tests_ardupilot::{ack_of, run};
 use super::*;
 use harrier_link::command::{arm, command_long, set_mode, takeoff};
 use harrier_link::handoff::{follow_target, orbit, roi};
 use mavlink::MessageData;
 use mavlink::dialects::common::{GIMBAL_MANAGER_INFORMATION_DATA, MavCmd, MavMessage, MavResult};
-
-fn ack_of(replies: &[MavMessage]) -> MavResult {
-    match replies.first() {
-        Some(MavMessage::COMMAND_ACK(a)) => a.result,
-        other => panic!("no COMMAND_ACK: {other:?}"),
-    }
-}
-
-fn run(v: &mut Vehicle, from: f64, to: f64, mut each: impl FnMut(&mut Vehicle, f64)) {
-    let mut t = from;
-    while t < to {
-        t += 0.05;
-        v.advance(t);
-        each(v, t);
-    }
-}
 
 /// A PX4 multirotor hovering 20 m up.
 fn px4_up() -> Vehicle {
