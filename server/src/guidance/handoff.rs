@@ -51,7 +51,7 @@ pub(super) struct Handoff {
     last_mode_request: Option<f64>,
     gimbal_asked: bool,
     /// The time of the track estimate last pointed at (the tracker's clock).
-    pub(super) last_roi_t: Option<f64>,
+    last_roi_t: Option<f64>,
 }
 
 /// Whether the vehicle is in the air (height above home known and above [`AIRBORNE_M`]).
