@@ -13,6 +13,7 @@
 use std::net::SocketAddr;
 use std::path::PathBuf;
 
+use harrier_link::autopilot::{Frame, Personality};
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldError, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::{ScenarioError, SensorType, SimScenario, TargetMotion};
@@ -34,9 +35,16 @@ pub struct DemoArgs {
     /// Seed of the simulated world and of every sensor's noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Number of simulated UAVs (MAVLink system ids 1…N), spread along the road.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..))]
+    /// Number of simulated UAVs (MAVLink system ids 1…N), PX4 multirotors.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..), conflicts_with = "fleet")]
     pub vehicles: u8,
+    /// The simulated UAVs by autopilot and airframe, one per entry (system ids 1…N, in order):
+    /// px4-mc, ardupilot-mc (ArduCopter), px4-fw, ardupilot-fw (ArduPlane), e.g.
+    /// `--fleet px4-mc,ardupilot-mc,px4-fw,ardupilot-fw`. With a fixed wing in the fleet the
+    /// assigned car crawls at 1.5 m/s and the standoff's relative speed is 12.5 m/s, the band in
+    /// which a 15 m/s multirotor and a 10 m/s-minimum fixed wing share one ring.
+    #[arg(long, value_delimiter = ',', value_parser = parse_personality, conflicts_with = "vehicles")]
+    pub fleet: Vec<Personality>,
     /// Record the session into this SQLite file (created if missing; `harrier sessions` reads
     /// it).
     #[arg(long, value_name = "SQLITE")]
@@ -119,6 +127,12 @@ fn parse_cot_encoding(s: &str) -> Result<CotEncoding, String> {
     }
 }
 
+/// A `--fleet` entry.
+fn parse_personality(s: &str) -> Result<Personality, String> {
+    Personality::from_label(s)
+        .ok_or_else(|| format!("{s:?}: expected px4-mc, ardupilot-mc, px4-fw or ardupilot-fw"))
+}
+
 /// `X,Y,R` of `--obstacle`.
 pub(crate) fn parse_obstacle(s: &str) -> Result<ObstacleConfig, String> {
     let v: Vec<f64> = s
@@ -163,6 +177,7 @@ impl Default for DemoConfig {
             speedup: 1.0,
             seed: 1,
             vehicles: 3,
+            fleet: Vec::new(),
             record: None,
             estimator: "cimm".into(),
             gcs: "udpin:127.0.0.1:14550".into(),
@@ -215,12 +230,19 @@ pub enum DemoError {
 const CAMERA_RANGE_M: f64 = 2_500.0;
 /// Speed of the first car (m/s).
 const FIRST_CAR_SPEED: f64 = 5.0;
+/// Speed of the first car with fixed wings in the fleet (m/s).
+const MIXED_FLEET_CAR_SPEED: f64 = 1.5;
 /// Where the second car starts on the road (m of arc length) and its speed (m/s).
 const SECOND_CAR: (f64, f64) = (1_800.0, 7.0);
 
-/// The demo's world: the `cimm-road` preset with a second, slower car ahead of the first on the
+/// The demo's world: the `cimm-road` preset with a second, faster car ahead of the first on the
 /// same road, and one camera slaved to each car (geolocated `position`, 10 m, 1 Hz).
 pub fn scenario() -> Result<SimScenario, ScenarioError> {
+    scenario_with_car(FIRST_CAR_SPEED)
+}
+
+/// [`scenario`] with the first car at `first_car_speed` m/s.
+fn scenario_with_car(first_car_speed: f64) -> Result<SimScenario, ScenarioError> {
     let mut s = SimScenario::load("cimm-road")?;
     s.name = "demo".into();
     s.description = "harrier demo: two cars on the cimm-road road, UAVs on station along it, \
@@ -229,7 +251,7 @@ pub fn scenario() -> Result<SimScenario, ScenarioError> {
     // The first car slower than the preset's 10 m/s: the multirotors (15 m/s at most) keep
     // their standoff circle around it with speed to spare for the phase spacing.
     if let TargetMotion::Road { speed_mps, .. } = &mut s.targets[0].motion {
-        *speed_mps = FIRST_CAR_SPEED;
+        *speed_mps = first_car_speed;
     }
     let mut second = s.targets[0].clone();
     second.id = "tgt2".into();
@@ -358,9 +380,24 @@ pub fn server_config(config: &DemoConfig, scenario: &SimScenario) -> Config {
             ..SigningConfig::default()
         };
     }
-    // Multirotors around a 7–10 m/s car: a relative speed that leaves room under their 15 m/s.
-    server_config.guidance.speed_m_s = DEMO_SPEED_M_S;
+    // Multirotors around a 5 m/s car: a relative speed that leaves room under their 15 m/s; with
+    // fixed wings, 12.5 m/s around a 1.5 m/s car (11–14 m/s over the ground).
+    server_config.guidance.speed_m_s = car_and_standoff_speeds(config).1;
     server_config
+}
+
+/// The first car's speed and the standoff speed (m/s): slower around a slower car when the
+/// fleet has fixed wings.
+fn car_and_standoff_speeds(config: &DemoConfig) -> (f64, f64) {
+    if config
+        .personalities()
+        .iter()
+        .any(|p| p.frame == Frame::FixedWing)
+    {
+        (MIXED_FLEET_CAR_SPEED, MIXED_FLEET_SPEED_M_S)
+    } else {
+        (FIRST_CAR_SPEED, DEMO_SPEED_M_S)
+    }
 }
 
 /// Starts the live service and the simulated world; returns once the API accepts requests and
@@ -375,7 +412,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     if config.vehicles == 0 {
         return Err(DemoError::Invalid("--vehicles must be ≥ 1".into()));
     }
-    let scenario = scenario()?;
+    if config.personalities().len() > 255 {
+        return Err(DemoError::Invalid("--fleet: at most 255 vehicles".into()));
+    }
+    let scenario = scenario_with_car(car_and_standoff_speeds(config).0)?;
     let server_endpoint = free_loopback_endpoint()?;
     let sim_endpoint = free_loopback_endpoint()?;
 
@@ -418,7 +458,10 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         truth_hz: 10.0,
         clock: Default::default(),
     });
-    world_config.vehicles = (1..=config.vehicles).map(WorldVehicle::grounded).collect();
+    world_config.vehicles = (1..=255)
+        .zip(&fleet)
+        .map(|(id, p)| WorldVehicle::grounded(id).with_personality(*p))
+        .collect();
     world_config.zenoh.connect = vec![server_endpoint.clone()];
     world_config.zenoh.listen = vec![sim_endpoint.clone()];
     world_config.gcs = Some(gcs);
@@ -435,7 +478,8 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         }
     };
     tracing::info!(
-        vehicles = config.vehicles,
+        vehicles = fleet.len(),
+        fleet = %fleet.iter().map(|p| p.label()).collect::<Vec<_>>().join(","),
         speedup = config.speedup,
         seed = config.seed,
         "simulated world started"
@@ -445,7 +489,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
             server.guidance().cloned(),
             server.link().cloned(),
             server.snapshot(),
-            config.vehicles,
+            fleet.len() as u8,
             config.radius,
             config.height,
         ))
@@ -460,6 +504,19 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
 
 /// Relative speed of the demo's standoff law (m/s).
 const DEMO_SPEED_M_S: f64 = 5.0;
+/// The same with fixed wings in the fleet (m/s).
+const MIXED_FLEET_SPEED_M_S: f64 = 12.5;
+
+impl DemoConfig {
+    /// The fleet: `--fleet`, else `--vehicles` PX4 multirotors.
+    pub fn personalities(&self) -> Vec<Personality> {
+        if self.fleet.is_empty() {
+            vec![Personality::PX4_MULTIROTOR; usize::from(self.vehicles)]
+        } else {
+            self.fleet.clone()
+        }
+    }
+}
 
 /// Waits until every UAV is heard on the GCS link (on the ground at home) and a track is
 /// confirmed, then assigns all
@@ -574,9 +631,23 @@ pub fn run(args: &DemoArgs) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use harrier_link::autopilot::Autopilot;
 
     /// `--cot` takes what `cot.destinations` takes (not TLS, which needs files), and says why
     /// not; `--cot-encoding` xml or protobuf.
+    #[test]
+    fn fleet_entries_name_an_autopilot_and_an_airframe() {
+        let p = parse_personality("ardupilot-fw").expect("ArduPlane");
+        assert_eq!(p, Personality::new(Autopilot::ArduPilot, Frame::FixedWing));
+        let e = parse_personality("px4-vtol").expect_err("no VTOL");
+        assert!(
+            e.contains("px4-mc, ardupilot-mc, px4-fw or ardupilot-fw"),
+            "{e}"
+        );
+        let d = DemoConfig::default();
+        assert_eq!(d.personalities(), vec![Personality::PX4_MULTIROTOR; 3]);
+    }
+
     #[test]
     fn cot_options_check_their_values() {
         for good in [

@@ -23,11 +23,12 @@ use harrier_core::tracker::format::{MultiScenario, parse_multi_truth};
 use harrier_core::tracker::{
     Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
 };
+use harrier_link::ardupilot::TargetMask;
+use harrier_link::autopilot::{Personality, VehicleStatus};
 use harrier_link::command::Setpoint;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::frame::{Frame, StreamParser, parse_datagram};
 use harrier_link::geo::LocalFrame;
-use harrier_link::px4::{FlightMode, VehicleStatus};
 use harrier_sim::mavlink::dialects::common::{
     HEARTBEAT_DATA, MavMessage, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
@@ -378,20 +379,28 @@ fn deliver(v: &mut Vehicle, now: f64, msg: &MavMessage) {
     check_vehicle(v);
 }
 
-/// One vehicle (`Vehicle::new(VehicleConfig::new(1), 0)`) driven by a program in the input:
+/// One vehicle (`Vehicle::new(VehicleConfig::new(1), 0)`, of the personality the first byte's two
+/// low bits name: airframe, then PX4 or ArduPilot) driven by a program in the input:
 /// physics ticks, messages decoded from payload bytes (v1 and v2), raw bytes through the TCP
 /// link's `StreamParser`, and messages re-framed with a checksum through the parser in pieces.
 /// The vehicle's state stays finite and above ground; replies and telemetry can be framed.
 pub(crate) fn vehicle(data: &[u8]) {
     let mut b = Bytes { data };
-    let airframe = if b.u8() & 1 == 0 {
+    let kind = b.u8();
+    let airframe = if kind & 1 == 0 {
         harrier_sim::vehicle::Airframe::Multirotor
     } else {
         harrier_sim::vehicle::Airframe::FixedWing
     };
+    let autopilot = if kind & 2 == 0 {
+        harrier_link::autopilot::Autopilot::Px4
+    } else {
+        harrier_link::autopilot::Autopilot::ArduPilot
+    };
     let mut v = Vehicle::new(
         VehicleConfig {
             airframe,
+            autopilot,
             ..VehicleConfig::new(1)
         },
         0.0,
@@ -586,9 +595,9 @@ pub(crate) fn sim_scenario(data: &[u8]) {
 // ---------------------------------------------------------------------------------------------
 // 4. harrier-link's MAVLink decoders.
 
-/// `Setpoint::from_message`, `FlightMode::from_set_mode_params` / `from_custom_mode` and
-/// `VehicleStatus::from_heartbeat` on fuzzed fields; a decoded setpoint or mode encodes back to
-/// itself.
+/// `Setpoint::from_message`, ArduPilot's `TargetMask::of`, every personality's
+/// `requested_mode` / `decode` and `VehicleStatus::from_heartbeat` on fuzzed fields; a decoded
+/// setpoint or mode encodes back to itself.
 pub(crate) fn link(data: &[u8]) {
     let mut b = Bytes { data };
     while !b.is_empty() {
@@ -599,6 +608,7 @@ pub(crate) fn link(data: &[u8]) {
                 else {
                     continue;
                 };
+                let _ = TargetMask::of(s.type_mask);
                 if let Some(sp) = Setpoint::from_message(&s) {
                     let (Setpoint::Position(v) | Setpoint::Velocity(v)) = sp;
                     assert!(v.iter().all(|x| x.is_finite()));
@@ -610,16 +620,18 @@ pub(crate) fn link(data: &[u8]) {
             }
             1 => {
                 let (p1, p2, p3) = (b.f32(), b.f32(), b.f32());
-                if let Ok(mode) = FlightMode::from_set_mode_params(p1, p2, p3) {
-                    let [q1, q2, q3] = mode.set_mode_params();
-                    assert_eq!(FlightMode::from_set_mode_params(q1, q2, q3), Ok(mode));
-                }
-                let custom = p1.to_bits();
-                if let Some(mode) = FlightMode::from_custom_mode(custom) {
-                    assert_eq!(
-                        FlightMode::from_custom_mode(mode.px4_custom_mode()),
-                        Some(mode)
-                    );
+                let personalities = ["px4-mc", "px4-fw", "ardupilot-mc", "ardupilot-fw"]
+                    .into_iter()
+                    .filter_map(Personality::from_label);
+                for p in personalities {
+                    if let Ok(mode) = p.requested_mode(p1, p2, p3) {
+                        let [q1, q2, q3] = mode.set_mode_params();
+                        assert_eq!(p.requested_mode(q1, q2, q3), Ok(mode));
+                    }
+                    if let Some(mode) = p.decode(p1.to_bits()) {
+                        assert_eq!(p.decode(mode.custom_mode()), Some(mode));
+                        assert_eq!(p.mode_named(mode.name()), Some(mode));
+                    }
                 }
             }
             _ => {
@@ -728,8 +740,9 @@ fn assert_no_null_numbers(
 
 /// The JSON bodies of the mutating routes through the functions their handlers call:
 /// `POST /assignments` (`AssignmentRequest::plan`: an accepted plan is finite and inside the
-/// envelope), `POST /vehicles/{id}/commands` (`CommandRequest::message`: an accepted command
-/// frames and parses back to itself) and `PUT /estimator` (the estimator built from the name and
+/// envelope), `POST /vehicles/{id}/commands` (`CommandRequest::messages`, for every autopilot
+/// and airframe: an accepted command frames and parses back to itself) and `PUT /estimator` (the
+/// estimator built from the name and
 /// parameters, as the tracker does, then run on a scan: finite tracks or an error).
 pub(crate) fn rest(data: &[u8]) {
     use harrier_server::guidance::{AssignmentRequest, GuidanceSettings};
@@ -746,12 +759,16 @@ pub(crate) fn rest(data: &[u8]) {
             };
             let settings = GuidanceSettings {
                 rate_hz: 20.0,
-                limits: harrier_core::guidance::Limits::multirotor(),
+                multirotor: harrier_core::guidance::Limits::multirotor(),
+                fixed_wing: harrier_core::guidance::Limits::bank_limited(10.0, 20.0, 0.8, 5.0),
+                frame: harrier_link::geo::LocalFrame::new(harrier_link::geo::Geodetic::new(
+                    47.0, 8.0, 400.0,
+                )),
                 speed: 10.0,
                 takeoff_height: 30.0,
                 obstacles: Vec::new(),
             };
-            if let Ok(p) = r.plan(&settings) {
+            if let Ok(p) = r.plan(&settings, &[]) {
                 assert!(
                     p.radius.is_finite()
                         && p.radius > 0.0
@@ -759,7 +776,9 @@ pub(crate) fn rest(data: &[u8]) {
                         && p.height > 0.0,
                     "{p:?}"
                 );
-                assert!(p.speed.is_finite() && p.speed > 0.0 && p.speed <= settings.limits.v_max);
+                assert!(
+                    p.speed.is_finite() && p.speed > 0.0 && p.speed <= settings.multirotor.v_max
+                );
                 assert!(p.spacing.is_finite() && p.spacing > 0.0);
                 assert!(!r.vehicles.is_empty() && !r.vehicles.contains(&0));
             }
@@ -768,8 +787,14 @@ pub(crate) fn rest(data: &[u8]) {
             let Ok(r) = serde_json::from_slice::<CommandRequest>(body) else {
                 return;
             };
-            for home in [None, Some(488.0)] {
-                if let Ok(m) = r.message(7, home) {
+            let personalities = ["px4-mc", "px4-fw", "ardupilot-mc", "ardupilot-fw"]
+                .into_iter()
+                .filter_map(harrier_link::autopilot::Personality::from_label);
+            for (home, p) in personalities.flat_map(|p| [(None, p), (Some(488.0), p)]) {
+                let Ok((first, then)) = r.messages(7, home, p) else {
+                    continue;
+                };
+                for m in std::iter::once(first).chain(then) {
                     let bytes = frame(&m, MavlinkVersion::V2, 0);
                     let parsed = parse_datagram(&bytes);
                     assert_eq!((parsed.frames.len(), parsed.malformed), (1, 0));

@@ -1,19 +1,22 @@
-//! MAVLink messages a ground station sends a PX4 vehicle: `COMMAND_LONG` builders (arm, disarm,
-//! takeoff, land, mode switch) and offboard setpoints (`SET_POSITION_TARGET_LOCAL_NED` in
-//! `MAV_FRAME_LOCAL_NED`, velocity or position, with the type masks PX4 expects), encoded and
-//! decoded here so the simulator reads exactly what the ground station writes.
+//! MAVLink messages a ground station sends a vehicle: `COMMAND_LONG` builders (arm, disarm,
+//! takeoff, land, mode switch in the vehicle's own encoding), ArduPlane's guided heading, speed
+//! and altitude commands (`COMMAND_INT`), and offboard setpoints (`SET_POSITION_TARGET_LOCAL_NED`
+//! in `MAV_FRAME_LOCAL_NED`, velocity or position, with the type masks PX4 expects and ArduCopter
+//! reads the same way), encoded and decoded here so the simulator reads exactly what the ground
+//! station writes.
 //!
 //! Setpoints are given in ENU, Harrier's frame; the conversion to MAVLink's NED happens here
 //! through [`crate::geo`].
 
 use mavlink::dialects::common::{
-    COMMAND_LONG_DATA, MavCmd, MavFrame, MavMessage, PositionTargetTypemask,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
+    COMMAND_INT_DATA, COMMAND_LONG_DATA, HeadingType, MavCmd, MavFrame, MavMessage,
+    PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA, SpeedType,
 };
 use nalgebra::Vector3;
 
+use crate::autopilot::Mode;
 use crate::geo::{enu_to_ned, ned_to_enu};
-use crate::px4::{COMPONENT_ID, FlightMode};
+use crate::px4::COMPONENT_ID;
 
 /// `param2` of a disarm that PX4 honours in the air.
 pub const FORCE_DISARM: f32 = 21196.0;
@@ -62,13 +65,91 @@ pub fn takeoff(target: u8, amsl_m: Option<f32>) -> MavMessage {
     command_long(target, MavCmd::MAV_CMD_NAV_TAKEOFF, p)
 }
 
+/// Take off to `height_m` above home: ArduCopter's NAV_TAKEOFF, whose param7 is relative
+/// (`GCS_MAVLINK_Copter::mav_frame_for_command_long`: `MAV_FRAME_GLOBAL_RELATIVE_ALT`); it
+/// must be armed in GUIDED.
+pub fn takeoff_relative(target: u8, height_m: f32) -> MavMessage {
+    command_long(
+        target,
+        MavCmd::MAV_CMD_NAV_TAKEOFF,
+        [0.0, 0.0, 0.0, f32::NAN, 0.0, 0.0, height_m],
+    )
+}
+
+/// A COMMAND_INT to the autopilot of vehicle `target`: params 1–4, then `x`, `y` (degE7 for a
+/// global frame) and `z`.
+pub fn command_int(
+    target: u8,
+    command: MavCmd,
+    frame: MavFrame,
+    p: [f32; 4],
+    xyz: (i32, i32, f32),
+) -> MavMessage {
+    MavMessage::COMMAND_INT(COMMAND_INT_DATA {
+        param1: p[0],
+        param2: p[1],
+        param3: p[2],
+        param4: p[3],
+        x: xyz.0,
+        y: xyz.1,
+        z: xyz.2,
+        command,
+        target_system: target,
+        target_component: COMPONENT_ID,
+        frame,
+        current: 0,
+        autocontinue: 0,
+    })
+}
+
+/// ArduPlane in GUIDED: fly the course over ground `course_deg` (clockwise from north, `[0,
+/// 360)`), turning with at most `accel_m_s2` of lateral acceleration (its bank limit is
+/// `atan(accel / g)`, at most ROLL_LIMIT_DEG). `MAV_CMD_GUIDED_CHANGE_HEADING`,
+/// `HEADING_TYPE_COURSE_OVER_GROUND` ("Plane Commands in Guided Mode").
+pub fn guided_heading(target: u8, course_deg: f32, accel_m_s2: f32) -> MavMessage {
+    let p1 = HeadingType::HEADING_TYPE_COURSE_OVER_GROUND as u8;
+    command_int(
+        target,
+        MavCmd::MAV_CMD_GUIDED_CHANGE_HEADING,
+        MavFrame::MAV_FRAME_GLOBAL,
+        [f32::from(p1), course_deg, accel_m_s2, 0.0],
+        (0, 0, 0.0),
+    )
+}
+
+/// ArduPlane in GUIDED: fly at `airspeed_m_s` (refused outside AIRSPEED_MIN…AIRSPEED_MAX).
+/// `MAV_CMD_GUIDED_CHANGE_SPEED`, `SPEED_TYPE_AIRSPEED`, taking effect at once.
+pub fn guided_speed(target: u8, airspeed_m_s: f32) -> MavMessage {
+    let p1 = SpeedType::SPEED_TYPE_AIRSPEED as u8;
+    command_int(
+        target,
+        MavCmd::MAV_CMD_GUIDED_CHANGE_SPEED,
+        MavFrame::MAV_FRAME_GLOBAL,
+        [f32::from(p1), airspeed_m_s, 0.0, 0.0],
+        (0, 0, 0.0),
+    )
+}
+
+/// ArduPlane in GUIDED: climb or descend to `amsl_m` (altitude above mean sea level,
+/// `MAV_FRAME_GLOBAL`) at `rate_m_s` (0: as fast as it can). `MAV_CMD_GUIDED_CHANGE_ALTITUDE`.
+pub fn guided_altitude(target: u8, amsl_m: f32, rate_m_s: f32) -> MavMessage {
+    command_int(
+        target,
+        MavCmd::MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+        MavFrame::MAV_FRAME_GLOBAL,
+        [0.0, 0.0, rate_m_s, 0.0],
+        (0, 0, amsl_m),
+    )
+}
+
 /// Land where the vehicle is.
 pub fn land(target: u8) -> MavMessage {
     command_long(target, MavCmd::MAV_CMD_NAV_LAND, [f32::NAN; 7])
 }
 
-/// Switch to `mode` (`MAV_CMD_DO_SET_MODE` with the PX4 encoding).
-pub fn set_mode(target: u8, mode: FlightMode) -> MavMessage {
+/// Switch to `mode` (`MAV_CMD_DO_SET_MODE` in the vehicle's encoding: PX4 main and sub mode, or
+/// ArduPilot's mode number).
+pub fn set_mode(target: u8, mode: Mode) -> MavMessage {
     let [p1, p2, p3] = mode.set_mode_params();
     command_long(
         target,
@@ -209,8 +290,10 @@ mod tests {
     }
 
     #[test]
-    fn commands_carry_px4_parameters() {
-        let MavMessage::COMMAND_LONG(c) = set_mode(2, FlightMode::Offboard) else {
+    fn commands_carry_the_autopilots_parameters() {
+        use crate::ardupilot::CopterMode;
+        use crate::px4::FlightMode;
+        let MavMessage::COMMAND_LONG(c) = set_mode(2, Mode::Px4(FlightMode::Offboard)) else {
             panic!("not a command");
         };
         assert_eq!(c.command, MavCmd::MAV_CMD_DO_SET_MODE);
@@ -224,5 +307,42 @@ mod tests {
             panic!("not a command");
         };
         assert_eq!([c.param1, c.param2], [0.0, FORCE_DISARM]);
+        let MavMessage::COMMAND_LONG(c) = set_mode(2, Mode::Copter(CopterMode::Guided)) else {
+            panic!("not a command");
+        };
+        assert_eq!([c.param1, c.param2, c.param3], [1.0, 4.0, 0.0]);
+        let MavMessage::COMMAND_LONG(c) = takeoff_relative(2, 30.0) else {
+            panic!("not a command");
+        };
+        assert_eq!((c.command, c.param7), (MavCmd::MAV_CMD_NAV_TAKEOFF, 30.0));
+        for (m, command, p1, p2, z) in [
+            (
+                guided_heading(2, 90.0, 3.0),
+                MavCmd::MAV_CMD_GUIDED_CHANGE_HEADING,
+                0.0,
+                90.0,
+                0.0,
+            ),
+            (
+                guided_speed(2, 14.0),
+                MavCmd::MAV_CMD_GUIDED_CHANGE_SPEED,
+                0.0,
+                14.0,
+                0.0,
+            ),
+            (
+                guided_altitude(2, 600.0, 2.0),
+                MavCmd::MAV_CMD_GUIDED_CHANGE_ALTITUDE,
+                0.0,
+                0.0,
+                600.0,
+            ),
+        ] {
+            let MavMessage::COMMAND_INT(c) = m else {
+                panic!("not a COMMAND_INT");
+            };
+            assert_eq!((c.command, c.param1, c.param2, c.z), (command, p1, p2, z));
+            assert_eq!(c.frame, MavFrame::MAV_FRAME_GLOBAL);
+        }
     }
 }

@@ -1,11 +1,27 @@
-//! The offboard launch sequence of a PX4 vehicle as a pure state machine: arm → take off →
-//! stream velocity setpoints → switch to OFFBOARD (PX4 refuses the switch until setpoints
-//! arrive) → keep streaming, and ask for OFFBOARD again whenever the vehicle is seen out of it.
+//! The launch of a vehicle under the ground station's control as a pure state machine, in the
+//! sequence its autopilot documents:
 //!
-//! No sockets and no clock inside: the caller passes its time and what it knows of the vehicle
-//! ([`VehicleStatus`], from HEARTBEATs) to [`OffboardSequence::next`], sends what comes back, and
-//! feeds the vehicle's replies (COMMAND_ACKs) to [`OffboardSequence::handle`]. Commands wait for
-//! their acknowledgement and are re-sent (with `confirmation` + 1) after
+//! - **PX4** (multirotor and fixed wing): arm → take off (`NAV_TAKEOFF`, param7 AMSL) → stream
+//!   velocity setpoints → switch to OFFBOARD (PX4 refuses the switch until setpoints arrive) →
+//!   keep streaming, and ask for OFFBOARD again whenever the vehicle is seen out of it. A
+//!   multirotor is switched at once (its setpoints lift it off); a fixed wing only once its
+//!   takeoff has climbed (OFFBOARD would end the launch on the ground).
+//! - **ArduCopter**: GUIDED → arm → take off (`NAV_TAKEOFF`, param7 the height above home;
+//!   "must be armed in GUIDED", Copter Commands in Guided Mode) → wait until it is up (a target
+//!   sent during the takeoff would replace it) → stream velocity targets
+//!   (SET_POSITION_TARGET_LOCAL_NED, the same type mask), GUIDED again whenever seen out of it.
+//! - **ArduPlane**: arm → TAKEOFF mode (it climbs to TKOFF_ALT, then loiters; a plain fixed
+//!   wing takes off no other way, NAV_TAKEOFF being for QuadPlanes) → once up, GUIDED →
+//!   steer with `MAV_CMD_GUIDED_CHANGE_HEADING` (course over ground), `_SPEED` (airspeed) and
+//!   `_ALTITUDE` (ArduPlane reads only the altitude of a SET_POSITION_TARGET_*: "Plane Commands
+//!   in Guided Mode", `GCS_MAVLINK_Plane::handle_set_position_target_global_int`), at most every
+//!   [`OffboardConfig::plane_interval_s`].
+//!
+//! No sockets and no clock inside: the caller passes its time, what it knows of the vehicle
+//! ([`VehicleStatus`], from HEARTBEATs, and its height above home) and where to fly
+//! ([`Steer`]) to [`OffboardSequence::next`], sends what comes back, and feeds the vehicle's
+//! replies (COMMAND_ACKs) to [`OffboardSequence::handle`]. Commands wait for their
+//! acknowledgement and are re-sent (with `confirmation` + 1) after
 //! [`OffboardConfig::ack_timeout_s`]. A caller whose link answers at once (the simulator's
 //! `record`) may call `next` again at the same time after feeding the replies: each command is
 //! sent once per acknowledgement and at most one setpoint per distinct time, so the whole launch
@@ -14,43 +30,93 @@
 use mavlink::dialects::common::{MavCmd, MavMessage, MavResult};
 use nalgebra::Vector3;
 
-use crate::command::{Setpoint, arm, set_mode, takeoff};
-use crate::px4::{FlightMode, VehicleStatus};
+use crate::ardupilot::PlaneMode;
+use crate::autopilot::{Autopilot, Frame, Mode, Personality, VehicleStatus};
+use crate::command::{
+    Setpoint, arm, guided_altitude, guided_heading, guided_speed, set_mode, takeoff,
+    takeoff_relative,
+};
+
+/// Takeoff height above home (m) an ArduCopter is sent to when none is given (PX4's
+/// MIS_TAKEOFF_ALT default; ArduCopter's NAV_TAKEOFF has no default of its own).
+pub const DEFAULT_TAKEOFF_HEIGHT_M: f32 = 2.5;
 
 /// Settings of an [`OffboardSequence`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OffboardConfig {
-    /// Takeoff altitude AMSL (m, NAV_TAKEOFF param7); `None`: the vehicle's `MIS_TAKEOFF_ALT`.
-    pub takeoff_amsl_m: Option<f32>,
-    /// Setpoints sent before OFFBOARD is requested (at least 1).
+    /// Takeoff height above home (m); `None`: the vehicle's own (PX4 `MIS_TAKEOFF_ALT`,
+    /// ArduPlane `TKOFF_ALT`; ArduCopter [`DEFAULT_TAKEOFF_HEIGHT_M`]). An ArduPlane is switched
+    /// to GUIDED once at 90 % of it: keep it at or below its TKOFF_ALT (50 m by default).
+    pub takeoff_height_m: Option<f32>,
+    /// Home altitude AMSL (m), for PX4's NAV_TAKEOFF (param7 is AMSL); unknown: the vehicle's
+    /// MIS_TAKEOFF_ALT.
+    pub home_amsl_m: Option<f32>,
+    /// Setpoints sent before OFFBOARD is requested (at least 1; PX4).
     pub setpoints_before_switch: u32,
     /// Time without a COMMAND_ACK after which a command is sent again (s, the caller's clock).
     pub ack_timeout_s: f64,
     /// Sends of one command before the sequence gives up.
     pub max_attempts: u32,
+    /// Shortest time between two ArduPlane steering updates (s).
+    pub plane_interval_s: f64,
+    /// Largest lateral acceleration an ArduPlane turns with (m/s²; its bank angle is
+    /// `atan(a / g)`, within ROLL_LIMIT_DEG).
+    pub plane_lateral_accel_m_s2: f32,
 }
 
 impl OffboardConfig {
-    /// Takeoff to `takeoff_amsl_m`, OFFBOARD after the first setpoint, 1 s acknowledgement
-    /// timeout, 3 attempts per command.
-    pub fn new(takeoff_amsl_m: Option<f32>) -> Self {
+    /// Takeoff to `takeoff_height_m` above a home at `home_amsl_m`, OFFBOARD after the first
+    /// setpoint, 1 s acknowledgement timeout, 3 attempts per command, ArduPlane steered at 4 Hz
+    /// with up to 1 g (45° of bank).
+    pub fn new(takeoff_height_m: Option<f32>, home_amsl_m: Option<f32>) -> Self {
         Self {
-            takeoff_amsl_m,
+            takeoff_height_m,
+            home_amsl_m,
             setpoints_before_switch: 1,
             ack_timeout_s: 1.0,
             max_attempts: 3,
+            plane_interval_s: 0.25,
+            plane_lateral_accel_m_s2: 9.81,
         }
+    }
+}
+
+/// Where to fly, once airborne.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Steer {
+    /// Velocity (ENU, m/s). PX4 and ArduCopter fly it; an ArduPlane its horizontal course and
+    /// speed.
+    pub velocity: Vector3<f64>,
+    /// Altitude AMSL (m) an ArduPlane holds (it takes no vertical speed); `None`: its own.
+    pub altitude_amsl_m: Option<f64>,
+}
+
+impl Steer {
+    /// Fly `velocity`, no altitude goal.
+    pub fn velocity(velocity: Vector3<f64>) -> Self {
+        Self {
+            velocity,
+            altitude_amsl_m: None,
+        }
+    }
+
+    fn is_finite(&self) -> bool {
+        self.velocity.iter().all(|x| x.is_finite())
+            && self.altitude_amsl_m.is_none_or(f64::is_finite)
     }
 }
 
 /// Where the sequence is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Phase {
-    /// Waiting for the arm command's acknowledgement (skipped if the vehicle is already armed).
+    /// Switching to GUIDED (ArduCopter) and arming (skipped if the vehicle is already flying).
     Arming,
-    /// Waiting for the takeoff command's acknowledgement.
+    /// Waiting for the takeoff command's (or ArduPlane's TAKEOFF mode's) acknowledgement.
     TakingOff,
-    /// Streaming setpoints; OFFBOARD requested whenever the vehicle is seen out of it.
+    /// ArduPilot, and a PX4 fixed wing: climbing, waiting to be up before the first target.
+    Climbing,
+    /// Streaming setpoints (PX4 OFFBOARD) or targets (ArduPilot GUIDED); the mode requested
+    /// whenever the vehicle is seen out of it.
     Offboard,
 }
 
@@ -88,26 +154,31 @@ struct Pending {
 #[derive(Debug, Clone, PartialEq)]
 pub struct OffboardSequence {
     target: u8,
+    personality: Personality,
     config: OffboardConfig,
     phase: Phase,
     pending: Option<Pending>,
     setpoints: u32,
     last_setpoint_at: Option<f64>,
-    /// When the last OFFBOARD request was acknowledged: a status older than that predates it.
+    /// When the last mode request was acknowledged: a status older than that predates it.
     switched_at: Option<f64>,
+    /// ArduCopter: GUIDED was acknowledged before arming.
+    guided_before_arming: bool,
 }
 
 impl OffboardSequence {
-    /// The sequence for vehicle (system id) `target`, not started.
-    pub fn new(target: u8, config: OffboardConfig) -> Self {
+    /// The sequence for vehicle (system id) `target` of `personality`, not started.
+    pub fn new(target: u8, personality: Personality, config: OffboardConfig) -> Self {
         Self {
             target,
+            personality,
             config,
             phase: Phase::Arming,
             pending: None,
             setpoints: 0,
             last_setpoint_at: None,
             switched_at: None,
+            guided_before_arming: false,
         }
     }
 
@@ -116,63 +187,164 @@ impl OffboardSequence {
         self.target
     }
 
+    /// The personality it flies it as.
+    pub fn personality(&self) -> Personality {
+        self.personality
+    }
+
     /// Where the sequence is.
     pub fn phase(&self) -> Phase {
         self.phase
     }
 
-    /// The messages to send at `now`, given the vehicle's `status` and the velocity (ENU, m/s) to
-    /// fly once airborne (`None` or non-finite: no setpoint, and no OFFBOARD request).
+    fn takeoff_height(&self) -> f32 {
+        self.config
+            .takeoff_height_m
+            .unwrap_or(DEFAULT_TAKEOFF_HEIGHT_M)
+    }
+
+    /// The messages to send at `now`, given the vehicle's `status`, its height above home
+    /// (`None`: unknown) and where to fly once airborne (`None` or non-finite: nothing sent
+    /// beyond the launch, and no mode request).
     pub fn next(
         &mut self,
         now: f64,
         status: &VehicleStatus,
-        velocity: Option<Vector3<f64>>,
+        height_m: Option<f64>,
+        steer: Option<Steer>,
     ) -> Result<Vec<MavMessage>, OffboardError> {
         let mut out = Vec::new();
-        if let Some(p) = &mut self.pending {
-            if now - p.sent_at >= self.config.ack_timeout_s {
-                if p.attempts >= self.config.max_attempts {
-                    return Err(OffboardError::NoAck {
-                        command: p.command,
-                        attempts: p.attempts,
-                    });
-                }
-                if let MavMessage::COMMAND_LONG(c) = &mut p.message {
-                    c.confirmation = c.confirmation.saturating_add(1);
-                }
-                p.attempts += 1;
-                p.sent_at = now;
-                out.push(p.message.clone());
-            }
-        }
+        self.resend(now, &mut out)?;
         let idle = self.pending.is_none();
+        let ardupilot = self.personality.autopilot == Autopilot::ArduPilot;
+        let airborne = height_m.is_none_or(|h| h > 1.0);
+        let px4_multirotor = self.personality == Personality::PX4_MULTIROTOR;
         match self.phase {
-            Phase::Arming if idle && status.armed => self.phase = Phase::Offboard,
-            Phase::Arming if idle => self.send(now, arm(self.target), &mut out),
+            Phase::Arming if idle && status.armed && (px4_multirotor || airborne) => {
+                self.phase = Phase::Offboard;
+            }
+            Phase::Arming if idle => self.arm_step(now, status, &mut out),
             Phase::TakingOff if idle => {
-                let m = takeoff(self.target, self.config.takeoff_amsl_m);
+                let m = match (self.personality.autopilot, self.personality.frame) {
+                    (Autopilot::Px4, _) => {
+                        let amsl = self
+                            .config
+                            .home_amsl_m
+                            .zip(self.config.takeoff_height_m)
+                            .map(|(home, h)| home + h);
+                        takeoff(self.target, amsl)
+                    }
+                    (Autopilot::ArduPilot, Frame::Multirotor) => {
+                        takeoff_relative(self.target, self.takeoff_height())
+                    }
+                    (Autopilot::ArduPilot, Frame::FixedWing) => {
+                        set_mode(self.target, Mode::Plane(PlaneMode::Takeoff))
+                    }
+                };
                 self.send(now, m, &mut out);
+            }
+            Phase::Climbing => {
+                let goal = self.config.takeoff_height_m.map_or(
+                    if ardupilot && self.personality.frame == Frame::FixedWing {
+                        // ArduPlane's TKOFF_ALT default.
+                        50.0
+                    } else {
+                        // ArduCopter's takeoff default, PX4's MIS_TAKEOFF_ALT default.
+                        f64::from(DEFAULT_TAKEOFF_HEIGHT_M)
+                    },
+                    f64::from,
+                );
+                if height_m.is_some_and(|h| h >= 0.9 * goal) {
+                    self.phase = Phase::Offboard;
+                }
             }
             _ => {}
         }
         if self.phase != Phase::Offboard {
             return Ok(out);
         }
-        let Some(v) = velocity.filter(|v| v.iter().all(|x| x.is_finite())) else {
+        let Some(steer) = steer.filter(Steer::is_finite) else {
             return Ok(out);
         };
-        if self.last_setpoint_at != Some(now) {
-            out.push(Setpoint::Velocity(v).to_message(self.target));
-            self.setpoints = self.setpoints.saturating_add(1);
-            self.last_setpoint_at = Some(now);
+        let guided = self.personality.guided();
+        let in_guided = status.mode == Some(guided);
+        match (self.personality.autopilot, self.personality.frame) {
+            (_, Frame::Multirotor) | (Autopilot::Px4, Frame::FixedWing) => {
+                if self.last_setpoint_at != Some(now) {
+                    out.push(Setpoint::Velocity(steer.velocity).to_message(self.target));
+                    self.setpoints = self.setpoints.saturating_add(1);
+                    self.last_setpoint_at = Some(now);
+                }
+            }
+            (Autopilot::ArduPilot, Frame::FixedWing) => {
+                let due = self
+                    .last_setpoint_at
+                    .is_none_or(|t| now - t >= self.config.plane_interval_s);
+                if in_guided && due {
+                    out.extend(self.plane_steering(&steer));
+                    self.setpoints = self.setpoints.saturating_add(1);
+                    self.last_setpoint_at = Some(now);
+                }
+            }
         }
-        let out_of_offboard = status.mode != Some(FlightMode::Offboard)
-            && self.switched_at.is_none_or(|t| status.at > t);
-        if idle && out_of_offboard && self.setpoints >= self.config.setpoints_before_switch.max(1) {
-            self.send(now, set_mode(self.target, FlightMode::Offboard), &mut out);
+        let out_of_mode = !in_guided && self.switched_at.is_none_or(|t| status.at > t);
+        let ready = ardupilot || self.setpoints >= self.config.setpoints_before_switch.max(1);
+        if self.pending.is_none() && out_of_mode && ready {
+            self.send(now, set_mode(self.target, guided), &mut out);
         }
         Ok(out)
+    }
+
+    /// Re-sends the pending command once its acknowledgement is late; gives up after the last
+    /// attempt.
+    fn resend(&mut self, now: f64, out: &mut Vec<MavMessage>) -> Result<(), OffboardError> {
+        let Some(p) = &mut self.pending else {
+            return Ok(());
+        };
+        if now - p.sent_at < self.config.ack_timeout_s {
+            return Ok(());
+        }
+        if p.attempts >= self.config.max_attempts {
+            return Err(OffboardError::NoAck {
+                command: p.command,
+                attempts: p.attempts,
+            });
+        }
+        if let MavMessage::COMMAND_LONG(c) = &mut p.message {
+            c.confirmation = c.confirmation.saturating_add(1);
+        }
+        p.attempts += 1;
+        p.sent_at = now;
+        out.push(p.message.clone());
+        Ok(())
+    }
+
+    /// The arming phase's next command: ArduCopter switches to GUIDED first (it takes off only
+    /// there), then every autopilot arms.
+    fn arm_step(&mut self, now: f64, status: &VehicleStatus, out: &mut Vec<MavMessage>) {
+        let copter = self.personality == Personality::new(Autopilot::ArduPilot, Frame::Multirotor);
+        let guided = self.personality.guided();
+        if copter && !self.guided_before_arming && status.mode != Some(guided) {
+            self.send(now, set_mode(self.target, guided), out);
+        } else {
+            self.send(now, arm(self.target), out);
+        }
+    }
+
+    /// ArduPlane's steering commands for `steer`: course and airspeed from the horizontal
+    /// velocity, the altitude goal when there is one.
+    fn plane_steering(&self, steer: &Steer) -> Vec<MavMessage> {
+        let v = steer.velocity;
+        // Course over ground, clockwise from north: ENU east is x, north y.
+        let course = v.x.atan2(v.y).to_degrees().rem_euclid(360.0) as f32;
+        let mut out = vec![
+            guided_heading(self.target, course, self.config.plane_lateral_accel_m_s2),
+            guided_speed(self.target, v.xy().norm() as f32),
+        ];
+        if let Some(alt) = steer.altitude_amsl_m {
+            out.push(guided_altitude(self.target, alt as f32, 0.0));
+        }
+        out
     }
 
     /// Takes a message from the vehicle: a COMMAND_ACK of the pending command advances the
@@ -195,9 +367,12 @@ impl OffboardSequence {
                 });
             }
         }
-        match p.command {
-            MavCmd::MAV_CMD_COMPONENT_ARM_DISARM => self.phase = Phase::TakingOff,
-            MavCmd::MAV_CMD_NAV_TAKEOFF => self.phase = Phase::Offboard,
+        let switch_at_once = self.personality == Personality::PX4_MULTIROTOR;
+        match (self.phase, p.command) {
+            (Phase::Arming, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM) => self.phase = Phase::TakingOff,
+            (Phase::Arming, _) => self.guided_before_arming = true,
+            (Phase::TakingOff, _) if switch_at_once => self.phase = Phase::Offboard,
+            (Phase::TakingOff, _) => self.phase = Phase::Climbing,
             _ => self.switched_at = Some(now),
         }
         self.pending = None;
@@ -219,132 +394,4 @@ impl OffboardSequence {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use mavlink::dialects::common::COMMAND_ACK_DATA;
-
-    fn ack(command: MavCmd, result: MavResult) -> MavMessage {
-        MavMessage::COMMAND_ACK(COMMAND_ACK_DATA { command, result })
-    }
-
-    fn commands(out: &[MavMessage]) -> Vec<MavCmd> {
-        out.iter()
-            .filter_map(|m| match m {
-                MavMessage::COMMAND_LONG(c) => Some(c.command),
-                _ => None,
-            })
-            .collect()
-    }
-
-    fn setpoints(out: &[MavMessage]) -> usize {
-        out.iter()
-            .filter(|m| matches!(m, MavMessage::SET_POSITION_TARGET_LOCAL_NED(_)))
-            .count()
-    }
-
-    fn status(armed: bool, mode: FlightMode, at: f64) -> VehicleStatus {
-        VehicleStatus {
-            armed,
-            mode: Some(mode),
-            at,
-        }
-    }
-
-    const V: Option<Vector3<f64>> = Some(Vector3::new(1.0, 2.0, 0.0));
-
-    /// Over a slow link: one command per acknowledgement, setpoints before the switch, the
-    /// switch repeated only when a status newer than its acknowledgement shows another mode.
-    #[test]
-    fn launch_waits_for_each_acknowledgement() {
-        use MavCmd::*;
-        let mut s = OffboardSequence::new(1, OffboardConfig::new(Some(500.0)));
-        let hold = status(false, FlightMode::Hold, 0.0);
-        let out = s.next(0.0, &hold, V).expect("next");
-        assert_eq!(commands(&out), [MAV_CMD_COMPONENT_ARM_DISARM]);
-        assert_eq!(setpoints(&out), 0);
-        // Nothing new until the acknowledgement.
-        assert!(s.next(0.1, &hold, V).expect("next").is_empty());
-        s.handle(
-            0.2,
-            &ack(MAV_CMD_COMPONENT_ARM_DISARM, MavResult::MAV_RESULT_ACCEPTED),
-        )
-        .expect("ack");
-        let out = s
-            .next(0.2, &status(true, FlightMode::Hold, 0.2), V)
-            .expect("next");
-        assert_eq!(commands(&out), [MAV_CMD_NAV_TAKEOFF]);
-        s.handle(
-            0.3,
-            &ack(MAV_CMD_NAV_TAKEOFF, MavResult::MAV_RESULT_ACCEPTED),
-        )
-        .expect("ack");
-        assert_eq!(s.phase(), Phase::Offboard);
-        let climbing = status(true, FlightMode::Takeoff, 0.3);
-        let out = s.next(0.4, &climbing, V).expect("next");
-        assert_eq!(commands(&out), [MAV_CMD_DO_SET_MODE]);
-        assert_eq!(setpoints(&out), 1);
-        // One setpoint per time, not per call.
-        assert!(s.next(0.4, &climbing, V).expect("next").is_empty());
-        s.handle(
-            0.5,
-            &ack(MAV_CMD_DO_SET_MODE, MavResult::MAV_RESULT_ACCEPTED),
-        )
-        .expect("ack");
-        // A heartbeat from before the switch does not trigger another request…
-        let out = s.next(0.6, &climbing, V).expect("next");
-        assert_eq!((commands(&out).len(), setpoints(&out)), (0, 1));
-        // …a later one still out of OFFBOARD does; no velocity, no setpoint and no request.
-        let fell_back = status(true, FlightMode::Hold, 0.7);
-        assert!(s.next(0.8, &fell_back, None).expect("next").is_empty());
-        let out = s.next(0.9, &fell_back, V).expect("next");
-        assert_eq!(commands(&out), [MAV_CMD_DO_SET_MODE]);
-    }
-
-    #[test]
-    fn unanswered_commands_are_retried_then_given_up() {
-        let mut s = OffboardSequence::new(4, OffboardConfig::new(None));
-        let st = status(false, FlightMode::Hold, 0.0);
-        let first = s.next(0.0, &st, V).expect("next");
-        let again = s.next(1.0, &st, V).expect("next");
-        let (MavMessage::COMMAND_LONG(a), MavMessage::COMMAND_LONG(b)) = (&first[0], &again[0])
-        else {
-            panic!("{first:?} {again:?}");
-        };
-        assert_eq!((a.confirmation, b.confirmation), (0, 1));
-        assert_eq!(s.next(2.0, &st, V).expect("next").len(), 1);
-        let e = s.next(3.0, &st, V).expect_err("gives up");
-        assert_eq!(
-            e,
-            OffboardError::NoAck {
-                command: MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                attempts: 3
-            }
-        );
-    }
-
-    #[test]
-    fn refusals_stop_the_sequence_and_armed_vehicles_skip_the_launch() {
-        let mut s = OffboardSequence::new(1, OffboardConfig::new(None));
-        s.next(0.0, &status(false, FlightMode::Hold, 0.0), V)
-            .expect("next");
-        let e = s.handle(
-            0.0,
-            &ack(
-                MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
-                MavResult::MAV_RESULT_DENIED,
-            ),
-        );
-        assert!(e.is_err_and(|e| e.to_string().contains("MAV_RESULT_DENIED")));
-        // An acknowledgement of some other command is not ours.
-        let mut s = OffboardSequence::new(1, OffboardConfig::new(None));
-        let flying = status(true, FlightMode::Hold, 0.0);
-        let out = s.next(0.0, &flying, V).expect("next");
-        assert_eq!(commands(&out), [MavCmd::MAV_CMD_DO_SET_MODE]);
-        s.handle(
-            0.0,
-            &ack(MavCmd::MAV_CMD_NAV_LAND, MavResult::MAV_RESULT_DENIED),
-        )
-        .expect("not ours");
-        assert_eq!(s.phase(), Phase::Offboard);
-    }
-}
+mod tests;

@@ -4,8 +4,9 @@
 //!
 //! [`FlightMode`] lists the modes Harrier flies (and its simulator implements); both directions
 //! of the encoding live here, so the vehicle side and the ground-station side cannot disagree.
+//! What a HEARTBEAT says, whichever the autopilot, is [`crate::autopilot::VehicleStatus`].
 
-use mavlink::dialects::common::{HEARTBEAT_DATA, MavModeFlag};
+use mavlink::dialects::common::MavModeFlag;
 
 /// MAVLink component id of a PX4 autopilot (`MAV_COMP_ID_AUTOPILOT1`).
 pub const COMPONENT_ID: u8 = 1;
@@ -17,6 +18,8 @@ const MAIN_OFFBOARD: u32 = 6;
 const SUB_AUTO_TAKEOFF: u32 = 2;
 const SUB_AUTO_LOITER: u32 = 3;
 const SUB_AUTO_LAND: u32 = 6;
+const SUB_AUTO_FOLLOW_TARGET: u32 = 8;
+const SUB_POSCTL_ORBIT: u32 = 1;
 
 /// The PX4 flight modes Harrier uses, with their encodings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -31,9 +34,37 @@ pub enum FlightMode {
     Land,
     /// OFFBOARD: flies SET_POSITION_TARGET_LOCAL_NED setpoints.
     Offboard,
+    /// POSCTL.ORBIT: circles the centre of a MAV_CMD_DO_ORBIT.
+    Orbit,
+    /// AUTO.FOLLOW_TARGET ("Follow Me"): follows the FOLLOW_TARGET messages it receives.
+    FollowTarget,
 }
 
 impl FlightMode {
+    /// Every mode Harrier uses.
+    pub const ALL: [Self; 7] = [
+        Self::Position,
+        Self::Hold,
+        Self::Takeoff,
+        Self::Land,
+        Self::Offboard,
+        Self::Orbit,
+        Self::FollowTarget,
+    ];
+
+    /// The mode's name as QGroundControl shows it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Position => "POSCTL",
+            Self::Hold => "HOLD",
+            Self::Takeoff => "TAKEOFF",
+            Self::Land => "LAND",
+            Self::Offboard => "OFFBOARD",
+            Self::Orbit => "ORBIT",
+            Self::FollowTarget => "FOLLOW_TARGET",
+        }
+    }
+
     /// PX4 (main mode, sub-mode).
     pub fn px4_main_sub(self) -> (u32, u32) {
         match self {
@@ -42,6 +73,8 @@ impl FlightMode {
             Self::Takeoff => (MAIN_AUTO, SUB_AUTO_TAKEOFF),
             Self::Land => (MAIN_AUTO, SUB_AUTO_LAND),
             Self::Offboard => (MAIN_OFFBOARD, 0),
+            Self::Orbit => (MAIN_POSCTL, SUB_POSCTL_ORBIT),
+            Self::FollowTarget => (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET),
         }
     }
 
@@ -54,11 +87,13 @@ impl FlightMode {
     /// The mode of a PX4 (main, sub) pair, if it is one of ours.
     pub fn from_px4(main: u32, sub: u32) -> Option<Self> {
         match (main, sub) {
+            (MAIN_POSCTL, SUB_POSCTL_ORBIT) => Some(Self::Orbit),
             (MAIN_POSCTL, _) => Some(Self::Position),
             (MAIN_OFFBOARD, _) => Some(Self::Offboard),
             (MAIN_AUTO, SUB_AUTO_LOITER) => Some(Self::Hold),
             (MAIN_AUTO, SUB_AUTO_TAKEOFF) => Some(Self::Takeoff),
             (MAIN_AUTO, SUB_AUTO_LAND) => Some(Self::Land),
+            (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET) => Some(Self::FollowTarget),
             _ => None,
         }
     }
@@ -74,32 +109,6 @@ impl FlightMode {
         let base = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits();
         [f32::from(base), main as f32, sub as f32]
     }
-
-    /// The mode `MAV_CMD_DO_SET_MODE` param1–3 ask for.
-    pub fn from_set_mode_params(p1: f32, p2: f32, p3: f32) -> Result<Self, SetModeError> {
-        let byte = |x: f32| (0.0..=255.0).contains(&x) && x.fract() == 0.0;
-        if !(byte(p1) && byte(p2) && byte(p3)) {
-            return Err(SetModeError::Malformed);
-        }
-        if p1 as u8 & MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits() == 0 {
-            return Err(SetModeError::NotCustom);
-        }
-        Self::from_px4(p2 as u32, p3 as u32).ok_or(SetModeError::Unknown)
-    }
-}
-
-/// Why `MAV_CMD_DO_SET_MODE` parameters name none of our modes.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
-pub enum SetModeError {
-    /// A parameter is not an integer in 0–255.
-    #[error("mode parameters must be integers in 0-255")]
-    Malformed,
-    /// The base mode does not enable custom (PX4) modes.
-    #[error("base mode without MAV_MODE_FLAG_CUSTOM_MODE_ENABLED")]
-    NotCustom,
-    /// A PX4 mode Harrier does not use (MISSION, ACRO, …).
-    #[error("unsupported PX4 mode")]
-    Unknown,
 }
 
 /// HEARTBEAT `base_mode` of a PX4 vehicle: custom mode enabled, plus `SAFETY_ARMED` if armed.
@@ -111,90 +120,21 @@ pub fn base_mode(armed: bool) -> MavModeFlag {
     base
 }
 
-/// What a ground station knows of a vehicle from its HEARTBEAT, and when it learnt it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct VehicleStatus {
-    /// Motors armed.
-    pub armed: bool,
-    /// The flight mode, `None` when it is not one of [`FlightMode`]'s.
-    pub mode: Option<FlightMode>,
-    /// When the status was observed (s, the observer's clock).
-    pub at: f64,
-}
-
-impl VehicleStatus {
-    /// The status a HEARTBEAT received at `at` reports.
-    pub fn from_heartbeat(hb: &HEARTBEAT_DATA, at: f64) -> Self {
-        let custom = hb
-            .base_mode
-            .contains(MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED);
-        Self {
-            armed: hb
-                .base_mode
-                .contains(MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED),
-            mode: custom
-                .then(|| FlightMode::from_custom_mode(hb.custom_mode))
-                .flatten(),
-            at,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    const ALL: [FlightMode; 5] = [
-        FlightMode::Position,
-        FlightMode::Hold,
-        FlightMode::Takeoff,
-        FlightMode::Land,
-        FlightMode::Offboard,
-    ];
-
     #[test]
     fn custom_mode_encoding_round_trips() {
-        for m in ALL {
+        for m in FlightMode::ALL {
             let c = m.px4_custom_mode();
             assert_eq!(FlightMode::from_px4((c >> 16) & 0xFF, c >> 24), Some(m));
             assert_eq!(FlightMode::from_custom_mode(c), Some(m));
-            let [p1, p2, p3] = m.set_mode_params();
-            assert_eq!(FlightMode::from_set_mode_params(p1, p2, p3), Ok(m));
         }
         // pymavlink's px4_map: LOITER = main 4, sub 3; OFFBOARD = main 6.
         assert_eq!(FlightMode::Hold.px4_custom_mode(), (4 << 16) | (3 << 24));
         assert_eq!(FlightMode::Offboard.px4_custom_mode(), 6 << 16);
         assert_eq!(FlightMode::Offboard.set_mode_params(), [1.0, 6.0, 0.0]);
         assert_eq!(FlightMode::from_px4(4, 4), None); // MISSION
-    }
-
-    #[test]
-    fn set_mode_parameters_are_checked() {
-        use SetModeError as E;
-        let p = FlightMode::from_set_mode_params;
-        assert_eq!(p(1.0, 4.0, 4.0), Err(E::Unknown));
-        assert_eq!(p(0.0, 4.0, 3.0), Err(E::NotCustom));
-        assert_eq!(p(1.0, 4.5, 3.0), Err(E::Malformed));
-        assert_eq!(p(f32::NAN, 4.0, 3.0), Err(E::Malformed));
-        assert_eq!(p(1.0, 256.0, 0.0), Err(E::Malformed));
-    }
-
-    #[test]
-    fn heartbeats_decode_to_a_status() {
-        for (armed, m) in [(true, FlightMode::Offboard), (false, FlightMode::Hold)] {
-            let hb = HEARTBEAT_DATA {
-                custom_mode: m.px4_custom_mode(),
-                base_mode: base_mode(armed),
-                ..HEARTBEAT_DATA::DEFAULT
-            };
-            let s = VehicleStatus::from_heartbeat(&hb, 2.5);
-            assert_eq!((s.armed, s.mode, s.at), (armed, Some(m), 2.5));
-        }
-        // Without the custom-mode flag, custom_mode means nothing.
-        let hb = HEARTBEAT_DATA {
-            custom_mode: FlightMode::Offboard.px4_custom_mode(),
-            ..HEARTBEAT_DATA::DEFAULT
-        };
-        assert_eq!(VehicleStatus::from_heartbeat(&hb, 0.0).mode, None);
     }
 }

@@ -56,7 +56,7 @@ impl Control {
                 stop.clone(),
             )));
         }
-        let settings = guidance::GuidanceSettings::from(&config.guidance);
+        let settings = guidance::GuidanceSettings::from(config);
         let (guidance, task) =
             guidance::start(settings, link.clone(), snapshot.clone(), stop.clone());
         tasks.push(task);

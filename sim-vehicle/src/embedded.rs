@@ -10,11 +10,14 @@
 //!   ground station (`udpout:`, as PX4 sends to UDP 14550) and takes its commands.
 //! - The live sensor loop ([`crate::sensor_loop`]) scans every vehicle from its real pose and
 //!   publishes detections and truth on a session opened from [`WorldConfig::zenoh`].
+//! - Each vehicle has its own personality (PX4 or ArduPilot, multirotor or fixed wing,
+//!   [`WorldVehicle::personality`]).
 //! - A vehicle given a station is launched like a client would do it, through its MAVLink
-//!   protocol (harrier-link's [`OffboardSequence`]: arm, takeoff, OFFBOARD velocity setpoints
-//!   towards the station), and switched to Hold once there, so it hovers on station (a fixed wing
-//!   circles it) and takes commands from any client afterwards. A vehicle without a station
-//!   stays on the ground at the origin.
+//!   protocol (harrier-link's [`OffboardSequence`] in its autopilot's sequence: PX4 arm,
+//!   takeoff, OFFBOARD velocity setpoints towards the station; ArduPilot GUIDED, arm, takeoff,
+//!   targets), and switched to its hold mode once there (PX4 Hold, ArduPilot LOITER), so it
+//!   hovers on station (a fixed wing circles it) and takes commands from any client afterwards.
+//!   A vehicle without a station stays on the ground at the origin.
 //!
 //! ```no_run
 //! use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
@@ -41,16 +44,16 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
+use harrier_link::autopilot::{Autopilot, Frame, Personality, VehicleStatus};
 use harrier_link::command::set_mode;
-use harrier_link::offboard::{OffboardConfig, OffboardSequence};
-use harrier_link::px4::{FlightMode, VehicleStatus};
+use harrier_link::offboard::{OffboardConfig, OffboardSequence, Steer};
 use mavlink::dialects::common::{MavMessage, MavResult};
 use nalgebra::Vector3;
 
 use crate::bus::{Bus, BusConfig, BusCounters, BusError};
 use crate::net::{LinkConfig, LinkError, Signing, SimHandle, spawn};
 use crate::sensor_loop::{SensorLoopConfig, SensorLoopError, SensorLoopHandle};
-use crate::vehicle::{Airframe, Vehicle, VehicleConfig};
+use crate::vehicle::{Vehicle, VehicleConfig};
 use crate::worker::Worker;
 
 /// One vehicle of a [`SimWorld`].
@@ -61,18 +64,31 @@ pub struct WorldVehicle {
     /// Where to fly after the start: ENU position (m) relative to the scenario's origin, `z` the
     /// height above the ground; `None`: stay on the ground at the origin.
     pub station: Option<[f64; 3]>,
+    /// The autopilot and airframe it behaves as.
+    pub personality: Personality,
 }
 
 impl WorldVehicle {
-    /// Vehicle `id`, on the ground at the origin.
+    /// Vehicle `id`, a PX4 multirotor on the ground at the origin.
     pub fn grounded(id: u8) -> Self {
-        Self { id, station: None }
-    }
-    /// Vehicle `id`, flown to `station` (ENU, m).
-    pub fn at(id: u8, station: [f64; 3]) -> Self {
         Self {
             id,
+            station: None,
+            personality: Personality::PX4_MULTIROTOR,
+        }
+    }
+    /// Vehicle `id`, a PX4 multirotor flown to `station` (ENU, m).
+    pub fn at(id: u8, station: [f64; 3]) -> Self {
+        Self {
             station: Some(station),
+            ..Self::grounded(id)
+        }
+    }
+    /// This vehicle as another personality.
+    pub fn with_personality(self, personality: Personality) -> Self {
+        Self {
+            personality,
+            ..self
         }
     }
 }
@@ -84,8 +100,6 @@ pub struct WorldConfig {
     pub vehicles: Vec<WorldVehicle>,
     /// World, sensors, seed, speed-up (also the vehicles') and truth rate.
     pub sensor_loop: SensorLoopConfig,
-    /// Airframe of every vehicle.
-    pub airframe: Airframe,
     /// Address the vehicles' MAVLink (UDP) links bind, each on a free port.
     pub mavlink_ip: IpAddr,
     /// The Zenoh session detections and truth are published on.
@@ -98,13 +112,12 @@ pub struct WorldConfig {
 }
 
 impl WorldConfig {
-    /// No vehicles, multirotors, MAVLink on loopback, a default Zenoh peer session (no
-    /// endpoints: set `zenoh.listen` or `zenoh.connect`).
+    /// No vehicles, MAVLink on loopback, a default Zenoh peer session (no endpoints: set
+    /// `zenoh.listen` or `zenoh.connect`).
     pub fn new(sensor_loop: SensorLoopConfig) -> Self {
         Self {
             vehicles: Vec::new(),
             sensor_loop,
-            airframe: Airframe::Multirotor,
             mavlink_ip: IpAddr::V4(Ipv4Addr::LOCALHOST),
             zenoh: BusConfig::default(),
             gcs: None,
@@ -175,11 +188,12 @@ impl SimWorld {
             .map(|v| {
                 let vc = VehicleConfig {
                     id: v.id,
-                    airframe: config.airframe,
                     origin: config.sensor_loop.scenario.origin,
                     speedup: config.sensor_loop.speedup,
                     clock: config.sensor_loop.clock,
-                };
+                    ..VehicleConfig::new(v.id)
+                }
+                .with_personality(v.personality);
                 let mut endpoints =
                     vec![format!("udpin:{}", SocketAddr::new(config.mavlink_ip, 0))];
                 endpoints.extend(config.gcs.map(|g| format!("udpout:{g}")));
@@ -201,11 +215,22 @@ impl SimWorld {
             .iter()
             .zip(&vehicles)
             .filter_map(|(v, h)| {
-                v.station.map(|s| Pilot {
-                    vehicle: h.shared(),
-                    station: Vector3::from(s),
-                    sequence: OffboardSequence::new(v.id, OffboardConfig::new(None)),
-                    state: PilotState::Launching,
+                v.station.map(|s| {
+                    // ArduPilot: take off straight to the station's height (a fixed wing to its
+                    // TKOFF_ALT); PX4 to its MIS_TAKEOFF_ALT, then up with the setpoints.
+                    let height = (v.personality.autopilot == Autopilot::ArduPilot
+                        && v.personality.frame == Frame::Multirotor)
+                        .then_some(s[2] as f32);
+                    Pilot {
+                        vehicle: h.shared(),
+                        station: Vector3::from(s),
+                        sequence: OffboardSequence::new(
+                            v.id,
+                            v.personality,
+                            OffboardConfig::new(height, None),
+                        ),
+                        state: PilotState::Launching,
+                    }
                 })
             })
             .collect();
@@ -297,7 +322,8 @@ const IDLE_TICK: Duration = Duration::from_millis(200);
 const STATION_GAIN: f64 = 0.5;
 /// Largest horizontal and vertical speed commanded (m/s).
 const MAX_SPEED: [f64; 2] = [12.0, 4.0];
-/// On station: within this distance (m) and below this speed (m/s).
+/// On station: within this distance (m) and below this speed (m/s); a fixed wing within its
+/// loiter radius of it horizontally and this distance vertically.
 const ARRIVED: [f64; 2] = [3.0, 1.0];
 
 #[derive(Debug, Clone, PartialEq)]
@@ -317,7 +343,7 @@ struct Pilot {
 
 impl Pilot {
     /// One step at vehicle wall time `now`: the sequence's messages delivered to the vehicle and
-    /// its replies fed back; Hold requested once on station.
+    /// its replies fed back; its hold mode requested once on station.
     fn fly(&mut self, now: f64) {
         if self.state != PilotState::Launching {
             return;
@@ -325,9 +351,15 @@ impl Pilot {
         let mut v = self.vehicle.lock().unwrap_or_else(PoisonError::into_inner);
         let s = v.state();
         let err = self.station - s.position;
-        if err.norm() < ARRIVED[0] && s.velocity.norm() < ARRIVED[1] {
+        let arrived = if v.limits().can_hover() {
+            err.norm() < ARRIVED[0] && s.velocity.norm() < ARRIVED[1]
+        } else {
+            err.xy().norm() < 100.0 && err.z.abs() < ARRIVED[0]
+        };
+        if arrived {
             let id = v.id();
-            let accepted = v.handle(now, &set_mode(id, FlightMode::Hold)).iter().any(|r| {
+            let hold = v.personality().hold();
+            let accepted = v.handle(now, &set_mode(id, hold)).iter().any(|r| {
                 matches!(r, MavMessage::COMMAND_ACK(a) if a.result == MavResult::MAV_RESULT_ACCEPTED)
             });
             self.state = if accepted {
@@ -349,10 +381,16 @@ impl Pilot {
         for _ in 0..4 {
             let status = VehicleStatus {
                 armed: v.armed(),
+                personality: v.personality(),
                 mode: Some(v.mode()),
                 at: now,
             };
-            let out = match self.sequence.next(now, &status, Some(cmd)) {
+            let steer = Steer {
+                velocity: cmd,
+                altitude_amsl_m: Some(v.config().origin.alt_m + self.station.z),
+            };
+            let height = Some(v.state().position.z);
+            let out = match self.sequence.next(now, &status, height, Some(steer)) {
                 Ok(out) => out,
                 Err(e) => {
                     eprintln!("harrier-sim: vehicle {}: launch failed: {e}", v.id());
@@ -409,41 +447,70 @@ mod tests {
         }
     }
 
-    /// Real threads and sockets: vehicles launched to their stations get there and hold, one
-    /// stays on the ground, each answers on its own UDP address.
+    /// Real threads and sockets: vehicles of every personality launched to their stations get
+    /// there and hold (the fixed wings circling them), one stays on the ground, each answers on
+    /// its own UDP address.
     #[test]
     fn vehicles_fly_to_their_stations_and_hold() {
-        let mut c = WorldConfig::new(sensor_loop(20.0));
-        c.vehicles = vec![
-            WorldVehicle::at(1, [30.0, -20.0, 40.0]),
-            WorldVehicle::at(2, [-30.0, 10.0, 60.0]),
-            WorldVehicle::grounded(3),
+        use harrier_link::autopilot::Autopilot;
+        let p = |a, f| Personality::new(a, f);
+        let stations = [
+            ([30.0, -20.0, 40.0], Personality::PX4_MULTIROTOR),
+            (
+                [-30.0, 10.0, 60.0],
+                p(Autopilot::ArduPilot, Frame::Multirotor),
+            ),
+            ([300.0, 200.0, 80.0], p(Autopilot::Px4, Frame::FixedWing)),
+            (
+                [-300.0, 200.0, 80.0],
+                p(Autopilot::ArduPilot, Frame::FixedWing),
+            ),
         ];
+        let mut c = WorldConfig::new(sensor_loop(20.0));
+        c.vehicles = stations
+            .iter()
+            .zip(1..)
+            .map(|((s, p), id)| WorldVehicle::at(id, *s).with_personality(*p))
+            .collect();
+        c.vehicles.push(WorldVehicle::grounded(5));
         let world = SimWorld::start(&c).expect("start");
         let addrs = world.mavlink_addrs();
-        assert_eq!(addrs.iter().map(|a| a.0).collect::<Vec<_>>(), [1, 2, 3]);
+        assert_eq!(
+            addrs.iter().map(|a| a.0).collect::<Vec<_>>(),
+            [1, 2, 3, 4, 5]
+        );
         assert!(
             addrs
                 .iter()
                 .all(|a| a.1.ip().is_loopback() && a.1.port() != 0)
         );
-        let deadline = Instant::now() + Duration::from_secs(30);
+        let deadline = Instant::now() + Duration::from_secs(60);
         while !world.on_station() {
-            assert!(Instant::now() < deadline, "not on station within 30 s");
+            assert!(Instant::now() < deadline, "not on station within 60 s");
             std::thread::sleep(Duration::from_millis(20));
         }
-        for (h, station) in world
-            .vehicles()
-            .iter()
-            .zip([[30.0, -20.0, 40.0], [-30.0, 10.0, 60.0]])
-        {
+        for (h, (station, personality)) in world.vehicles().iter().zip(stations) {
             let v = h.vehicle();
-            assert_eq!(v.mode(), FlightMode::Hold);
-            let d = (v.state().position - Vector3::from(station)).norm();
-            assert!(d < 5.0, "vehicle {} is {d} m from its station", v.id());
+            assert_eq!(v.personality(), personality);
+            assert_eq!(v.mode(), v.personality().hold());
+            let d = v.state().position - Vector3::from(station);
+            if personality.frame == Frame::Multirotor {
+                assert!(
+                    d.norm() < 5.0,
+                    "vehicle {} is {d} m from its station",
+                    v.id()
+                );
+            } else {
+                assert!(
+                    d.xy().norm() < 150.0 && d.z.abs() < 5.0 && v.state().velocity.norm() > 9.0,
+                    "fixed wing {} off its station: {d}, {:?}",
+                    v.id(),
+                    v.state()
+                );
+            }
         }
-        let v3 = world.vehicles()[2].vehicle().state();
-        assert_eq!(v3.position, Vector3::zeros());
+        let v5 = world.vehicles()[4].vehicle().state();
+        assert_eq!(v5.position, Vector3::zeros());
         world.stop();
     }
 }

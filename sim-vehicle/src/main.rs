@@ -4,6 +4,8 @@
 //! harrier-sim                        # vehicle 1: GCS udpout:127.0.0.1:14550, API udpin:0.0.0.0:14540
 //! harrier-sim --count 3              # vehicles 1-3, API ports 14540-14542
 //! harrier-sim --airframe fixed-wing --gcs none --api udpin:127.0.0.1:14600
+//! harrier-sim --autopilot ardupilot --api tcpin:127.0.0.1:5760      # an ArduCopter for MAVProxy
+//! harrier-sim --autopilot ardupilot --airframe fixed-wing          # an ArduPlane
 //! harrier-sim --zenoh-mode client --zenoh-connect tls/router.example:7447 \
 //!     --zenoh-tls-root-ca ca.pem --zenoh-tls-cert uav1.pem --zenoh-tls-key uav1.key  # docs/deploy.md
 //! harrier-sim --signing-key-file key.hex        # MAVLink 2 signing, signed frames only
@@ -13,6 +15,7 @@
 use std::process::ExitCode;
 
 use clap::{Parser, ValueEnum};
+use harrier_link::autopilot::Autopilot;
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_link::geo::Geodetic;
 use harrier_link::signing::{Signing, SigningKey, SigningMode};
@@ -24,8 +27,19 @@ use harrier_sim::vehicle::{Airframe, ClockSkew, VehicleConfig};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum AirframeArg {
+    /// Hovers (MAV_TYPE_QUADROTOR; ArduCopter under --autopilot ardupilot).
     Multirotor,
+    /// Minimum airspeed, bank-limited turns, loiters (MAV_TYPE_FIXED_WING; ArduPlane).
     FixedWing,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+enum AutopilotArg {
+    /// PX4: MAV_AUTOPILOT_PX4, PX4's modes (main/sub custom mode), OFFBOARD.
+    Px4,
+    /// ArduPilot: MAV_AUTOPILOT_ARDUPILOTMEGA, ArduCopter's or ArduPlane's mode numbers,
+    /// GUIDED, its parameters and commands (docs/autopilots.md).
+    Ardupilot,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -54,7 +68,7 @@ impl From<ZenohModeArg> for Mode {
     }
 }
 
-/// Simulated UAVs speaking MAVLink 2 with PX4 conventions (sysid = vehicle id, compid 1).
+/// Simulated UAVs speaking MAVLink 2 as PX4 or ArduPilot (sysid = vehicle id, compid 1).
 #[derive(Debug, Parser)]
 #[command(version, about)]
 struct Args {
@@ -70,6 +84,9 @@ struct Args {
     /// Airframe.
     #[arg(long, value_enum, default_value_t = AirframeArg::Multirotor)]
     airframe: AirframeArg,
+    /// The autopilot the vehicles behave as (HEARTBEAT, modes, commands, parameters).
+    #[arg(long, value_enum, default_value_t = AutopilotArg::Px4)]
+    autopilot: AutopilotArg,
     /// GCS link, shared by all vehicles' telemetry (`none` to disable).
     #[arg(long, default_value = "udpout:127.0.0.1:14550")]
     gcs: String,
@@ -258,6 +275,10 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<SensorLoopHandle>), String
             airframe: match args.airframe {
                 AirframeArg::Multirotor => Airframe::Multirotor,
                 AirframeArg::FixedWing => Airframe::FixedWing,
+            },
+            autopilot: match args.autopilot {
+                AutopilotArg::Px4 => Autopilot::Px4,
+                AutopilotArg::Ardupilot => Autopilot::ArduPilot,
             },
             origin,
             speedup: args.speedup,

@@ -22,10 +22,10 @@ use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::{Limits, StandoffLaw, TargetEstimate, UavState};
 use harrier_core::measurement::{Geometry, MeasKind};
 use harrier_core::scenario as fmt;
+use harrier_link::autopilot::VehicleStatus;
 use harrier_link::detections::scan_in_frame;
 use harrier_link::geo::LocalFrame;
-use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence};
-use harrier_link::px4::VehicleStatus;
+use harrier_link::offboard::{OffboardConfig, OffboardError, OffboardSequence, Steer};
 use harrier_link::scenario_out;
 use nalgebra::{Vector2, Vector3};
 use rand::{Rng, SeedableRng};
@@ -165,10 +165,16 @@ impl Pilot {
         loop {
             let status = VehicleStatus {
                 armed: self.vehicle.armed(),
+                personality: self.vehicle.personality(),
                 mode: Some(self.vehicle.mode()),
                 at: now,
             };
-            let out = self.sequence.next(now, &status, cmd).map_err(refused)?;
+            let height = Some(self.vehicle.state().position.z);
+            let steer = cmd.map(Steer::velocity);
+            let out = self
+                .sequence
+                .next(now, &status, height, steer)
+                .map_err(refused)?;
             if out.is_empty() {
                 return Ok(());
             }
@@ -178,6 +184,28 @@ impl Pilot {
                 }
             }
         }
+    }
+}
+
+/// The fixed wing of the \[CIMM\] cases (harrier-core's `Limits::fixed_wing`: 12–35 m/s, about
+/// 0.3 rad/s at 25 m/s), set through the vehicle's PX4 parameters as a user would: airspeed
+/// 12–35 m/s, trim 25 m/s, a 40° bank limit.
+fn configure_cimm_fixed_wing(v: &mut Vehicle) {
+    use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA};
+    for (name, value) in [
+        ("FW_AIRSPD_MAX", 35.0),
+        ("FW_AIRSPD_MIN", 12.0),
+        ("FW_AIRSPD_TRIM", 25.0),
+        ("FW_R_LIM", 40.0),
+    ] {
+        let set = MavMessage::PARAM_SET(PARAM_SET_DATA {
+            param_value: value,
+            target_system: v.id(),
+            target_component: 1,
+            param_id: name.into(),
+            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+        });
+        v.handle(0.0, &set);
     }
 }
 
@@ -294,18 +322,20 @@ pub fn record(
     for k in 0..cfg.count {
         let id = k + 1;
         let config = VehicleConfig {
-            id,
             airframe,
             origin,
-            speedup: 1.0,
-            clock: Default::default(),
+            ..VehicleConfig::new(id)
         };
-        let takeoff_amsl = origin.alt_m as f32 + TAKEOFF_HEIGHT_M;
+        let mut vehicle = Vehicle::new(config, 0.0);
+        if airframe == Airframe::FixedWing {
+            configure_cimm_fixed_wing(&mut vehicle);
+        }
+        let takeoff = OffboardConfig::new(Some(TAKEOFF_HEIGHT_M), Some(origin.alt_m as f32));
         pilots.push(Pilot {
-            vehicle: Vehicle::new(config, 0.0),
+            limits: vehicle.limits(),
+            sequence: OffboardSequence::new(id, vehicle.personality(), takeoff),
+            vehicle,
             launch_at: f64::from(k) * LAUNCH_STAGGER_S,
-            sequence: OffboardSequence::new(id, OffboardConfig::new(Some(takeoff_amsl))),
-            limits: airframe.limits(),
         });
         suites.push(SensorSuite::new(scenario, cfg.seed, id)?);
     }

@@ -114,7 +114,11 @@ pub fn spawn(
         let t = start.elapsed().as_secs_f64() * speedup;
         world.advance(t);
         for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
-            let pose = platform_pose(&v.lock().unwrap_or_else(PoisonError::into_inner));
+            let (pose, gimbal) = {
+                let v = v.lock().unwrap_or_else(PoisonError::into_inner);
+                (platform_pose(&v), v.gimbal_direction())
+            };
+            suite.set_gimbal(gimbal);
             for mut scan in suite.scan(t, *id, &pose, origin, &world) {
                 scan.time_unix = Some(skew.read(start_unix, t));
                 bus.publish_scan(&scan);

@@ -246,7 +246,8 @@ def test_a_vehicle_command_shows_its_ack(session):
 def test_assign_from_the_page_then_end_it(session):
     """Assign UAVs 1 and 2 to a track from the form: refused with a wrong token (401 shown, nothing
     created), created with the right one (visible through REST, its state and its vehicles' states
-    on the page, its standoff circle on the map), then ended from the page (REST says `ended`)."""
+    on the page, its standoff circle on the map), then ended from the page (REST says `ended`);
+    then a formation and a camera hand-off from the form."""
     page, console = session
     page.wait_for_selector("#assign-panel:not([hidden])", timeout=5_000)
     page.wait_for_selector('#assign-vehicles input[value="2"]', timeout=10_000)
@@ -347,6 +348,24 @@ def test_assign_from_the_page_then_end_it(session):
     page.click(f"{fcard} button[data-action=end]")
     page.wait_for_selector(f"{fcard}[data-state=ended]", timeout=10_000)
     wait_for(page, lambda s: s["map"].get("links", 0) == 0, 5.0, "the formation's links gone")
+
+    # A hand-off from the form: UAV 1's camera pointed at the track by its autopilot (the law's
+    # option added by panels.js); the vehicle is `handed_off` on the page.
+    for v in ("2", "3"):
+        page.uncheck(f'#assign-vehicles input[value="{v}"]')
+    page.check('#assign-vehicles input[value="1"]')
+    page.select_option("#assign-track", str(track))
+    page.select_option("#assign-law", "handoff_camera")
+    page.click("#assign-submit")
+    page.wait_for_selector("#assign-result[data-state=ok]", timeout=10_000)
+    hid = page.evaluate("() => window.harrier.lastAssignment")
+    h = next(x for x in rest_assignments() if x["id"] == hid)
+    assert h["law"] == "handoff_camera" and [s["vehicle"] for s in h["vehicles"]] == [1], h
+    hcard = f'#assignments [data-assignment="{hid}"]'
+    page.wait_for_selector(f'{hcard} .slot[data-vehicle="1"][data-state=handed_off]', timeout=10_000)
+    print(f"hand-off #{hid}: UAV 1's camera handed the track, shown handed_off", flush=True)
+    page.click(f"{hcard} button[data-action=end]")
+    page.wait_for_selector(f"{hcard}[data-state=ended]", timeout=10_000)
     # Chromium logs every refused request (the 401s, 422 and 409 these tests provoked) as a
     # console error; anything else is the page's.
     provoked = "Failed to load resource: the server responded with a status of "

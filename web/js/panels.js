@@ -525,3 +525,23 @@ export class ServicePanel {
     });
   }
 }
+
+// --- hand-off laws in the assign form -------------------------------------------------------------
+
+/** The hand-off kinds (`Law` on the API): the track handed to each vehicle's autopilot. */
+const HANDOFF_LAWS = [
+  ["handoff_orbit", "hand-off: orbit (DO_ORBIT / loiter)"],
+  ["handoff_follow", "hand-off: follow (FOLLOW_TARGET)"],
+  ["handoff_camera", "hand-off: point camera (ROI)"],
+];
+
+/** Adds the hand-off kinds to the assign form's law list (once; the form is in index.html). */
+export function addHandoffLaws(select) {
+  if (!select) return;
+  for (const [value, text] of HANDOFF_LAWS) {
+    if ([...select.options].some((o) => o.value === value)) continue;
+    select.append(el("option", { value, text }));
+  }
+}
+
+addHandoffLaws(document.getElementById("assign-law"));

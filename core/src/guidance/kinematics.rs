@@ -3,17 +3,26 @@
 //!
 //! ```text
 //! ẋ = V cos ψ,  ẏ = V sin ψ,  ż = v_z          (ψ from the x axis)
-//! |ψ̇| ≤ ω_max  (minimum turning radius r_min = V / ω_max),  v_min ≤ V ≤ v_max,  |V̇| ≤ a_h
+//! |ψ̇| ≤ min(ω_max, g·tan φ_max / V)  (r_min = V / that),  v_min ≤ V ≤ v_max,  |V̇| ≤ a_h
 //! |v_z| ≤ v_z,max,  |v̇_z| ≤ a_z,max
 //! ```
+//!
+//! The second turn-rate bound is a fixed wing's coordinated turn at its bank-angle limit φ_max
+//! (the lift's horizontal part g·tan φ is the centripetal acceleration V·ψ̇: Beard & McLain,
+//! *Small Unmanned Aircraft*, eq. 9.14); [`Limits::bank_max`] ≥ π/2 leaves it out.
 //!
 //! A [`Command`] is a desired velocity vector; [`step`] moves the state towards it for `dt` seconds
 //! while enforcing every limit, so any command — including a non-finite one, which is replaced by
 //! [`hold`] — yields a feasible trajectory.
 
+use std::f64::consts::FRAC_PI_2;
+
 use nalgebra::{Vector2, Vector3};
 
 use super::geometry::{angle_between, clampf, perp, rotate};
+
+/// Standard gravity (m/s²).
+pub const GRAVITY: f64 = 9.80665;
 
 /// A commanded velocity (ENU, m/s). The kinematics enforce the limits; laws already respect the
 /// speed bounds where they can.
@@ -76,6 +85,10 @@ pub struct Limits {
     pub v_min: f64,
     /// Maximum turn rate of the horizontal velocity (rad/s).
     pub turn_rate_max: f64,
+    /// Maximum bank angle of a coordinated turn (rad): the turn rate at speed V is also at most
+    /// `g·tan(bank_max)/V`. π/2 or more: no such bound (a multirotor, or a profile given by its
+    /// turn rate alone).
+    pub bank_max: f64,
     /// Maximum rate of change of horizontal speed (m/s²).
     pub accel_max: f64,
     /// Maximum vertical speed, climb and descent (m/s).
@@ -96,6 +109,7 @@ impl Limits {
             v_max: 35.0,
             v_min: 12.0,
             turn_rate_max: 0.3,
+            bank_max: FRAC_PI_2,
             accel_max: 3.0,
             vz_max: 5.0,
             az_max: 1.0,
@@ -108,21 +122,51 @@ impl Limits {
             v_max: 15.0,
             v_min: 0.0,
             turn_rate_max: 1.0,
+            bank_max: FRAC_PI_2,
             accel_max: 4.0,
             vz_max: 5.0,
             az_max: 2.0,
             pivot_speed: 0.5,
         }
     }
+    /// A fixed wing as an autopilot flies it: airspeed `v_min`–`v_max` (no wind: the ground
+    /// speed), turns bounded by the bank limit `bank_max` (rad; rate g·tan φ/V, 1 rad/s at most),
+    /// 2 m/s² along track, climb and sink `vz_max`, 1 m/s² vertically. ArduPlane's
+    /// AIRSPEED_MIN/MAX and ROLL_LIMIT_DEG, PX4's FW_AIRSPD_MIN/MAX and FW_R_LIM.
+    pub fn bank_limited(v_min: f64, v_max: f64, bank_max: f64, vz_max: f64) -> Self {
+        Self {
+            v_max,
+            v_min,
+            turn_rate_max: 1.0,
+            bank_max,
+            accel_max: 2.0,
+            vz_max,
+            az_max: 1.0,
+            pivot_speed: 0.0,
+        }
+    }
+    /// Largest turn rate at horizontal speed `v` (rad/s): `min(ω_max, g·tan φ_max / v)`.
+    #[inline]
+    pub fn turn_rate_at(&self, v: f64) -> f64 {
+        let omega = self.turn_rate_max.max(0.0);
+        // No bank limit at π/2 or more (or NaN).
+        let banked = self.bank_max < FRAC_PI_2;
+        if !banked || v.abs() < 1e-9 {
+            return omega;
+        }
+        let bank = GRAVITY * self.bank_max.max(0.0).tan() / v.abs();
+        if bank < omega { bank } else { omega }
+    }
     /// Whether the vehicle can stop in the air (`v_min == 0`).
     #[inline]
     pub fn can_hover(&self) -> bool {
         self.v_min <= 0.0
     }
-    /// Minimum turning radius `V / ω_max` at horizontal speed `v` (m).
+    /// Minimum turning radius at horizontal speed `v` (m): `V / ω` with ω the turn-rate bound
+    /// of [`Self::turn_rate_at`] (`V²/(g tan φ_max)` when the bank limit governs).
     #[inline]
     pub fn min_turn_radius(&self, v: f64) -> f64 {
-        v.abs() / self.turn_rate_max.max(1e-9)
+        v.abs() / self.turn_rate_at(v).max(1e-9)
     }
     /// Altitude band, above the goal height, at which a maximum-rate descent must start braking
     /// with the maximum deceleration: `v_z,max² / (2 a_z,max)` (\[CIMM\] §4.1; 12.5 m for 5 m/s and
@@ -199,7 +243,7 @@ pub fn step(state: &UavState, cmd: &Command, limits: &Limits, dt: f64) -> UavSta
     let u_new = if limits.can_hover() && s < limits.pivot_speed {
         ud
     } else {
-        let dpsi = limits.turn_rate_max * dt;
+        let dpsi = limits.turn_rate_at(s) * dt;
         rotate(u, clampf(angle_between(u, ud), -dpsi, dpsi))
     };
     let vh = u_new * s_new;
@@ -234,7 +278,7 @@ mod tests {
         assert!((next.velocity.z - prev.velocity.z).abs() <= l.az_max * dt + tol);
         if s0 >= l.v_min.max(l.pivot_speed) && s0 > 1e-6 {
             let turn = angle_between(prev.horizontal_velocity(), next.horizontal_velocity()).abs();
-            assert!(turn <= l.turn_rate_max * dt + 1e-9, "turn {turn}");
+            assert!(turn <= l.turn_rate_at(s0) * dt + 1e-9, "turn {turn}");
             assert!((s1 - s0).abs() <= l.accel_max * dt + tol);
         }
     }
@@ -248,9 +292,13 @@ mod tests {
         fn limits_hold_for_any_command(
             vx in -40.0..40.0f64, vy in -40.0..40.0f64, vz in -5.0..5.0f64,
             cx in finite_or_nan(), cy in finite_or_nan(), cz in finite_or_nan(),
-            hover in any::<bool>(), dt in 0.01..1.0f64,
+            kind in 0..3u8, dt in 0.01..1.0f64,
         ) {
-            let l = if hover { Limits::multirotor() } else { Limits::fixed_wing() };
+            let l = match kind {
+                0 => Limits::multirotor(),
+                1 => Limits::fixed_wing(),
+                _ => Limits::bank_limited(9.0, 22.0, 45f64.to_radians(), 5.0),
+            };
             // Start from a feasible state.
             let v = Vector2::new(vx, vy);
             let s = v.norm().clamp(l.v_min.max(1.0), l.v_max);
@@ -272,6 +320,32 @@ mod tests {
             0.1,
         );
         assert!(n.position.x.is_nan());
+    }
+
+    /// A 45° bank at 15 m/s turns at g/15 rad/s, a radius of V²/g ≈ 22.9 m; the [CIMM] profile
+    /// keeps its 0.3 rad/s.
+    #[test]
+    fn bank_limit_bounds_the_turn_rate() {
+        let l = Limits::bank_limited(9.0, 22.0, 45f64.to_radians(), 5.0);
+        assert!((l.turn_rate_at(15.0) - GRAVITY / 15.0).abs() < 1e-9);
+        assert!((l.min_turn_radius(15.0) - 225.0 / GRAVITY).abs() < 1e-6);
+        // Slower than g·tan φ / ω_max the structural limit of 1 rad/s governs.
+        assert_eq!(l.turn_rate_at(5.0), 1.0);
+        assert_eq!(Limits::fixed_wing().turn_rate_at(25.0), 0.3);
+        assert_eq!(Limits::multirotor().turn_rate_at(0.0), 1.0);
+        // Flying a full-left command for 10 s at 15 m/s turns by at most g/15·10 rad.
+        let mut s = UavState::new(Vector3::zeros(), Vector3::new(15.0, 0.0, 0.0));
+        let cmd = Command::new(Vector2::new(0.0, 15.0), 0.0);
+        let mut turned = 0.0;
+        for _ in 0..100 {
+            let n = step(&s, &cmd, &l, 0.1);
+            turned += angle_between(s.horizontal_velocity(), n.horizontal_velocity());
+            s = n;
+        }
+        assert!(
+            turned <= GRAVITY / 15.0 * 10.0 + 1e-9 && turned > 1.5,
+            "{turned}"
+        );
     }
 
     #[test]

@@ -98,7 +98,12 @@ impl StandoffLaw for Lgvf {
             speed += speed_correction(theta, s, nb, &self.gains, self.radius);
         }
         let speed = clampf(speed, limits.v_min, limits.v_max);
-        let vh = add_target_velocity(self.direction(d, s) * speed, t.velocity.xy(), limits.v_max);
+        let vh = add_target_velocity(
+            self.direction(d, s) * speed,
+            t.velocity.xy(),
+            limits.v_min,
+            limits.v_max,
+        );
         let e = uav.position.z - t.position.z - self.height;
         let vz = clampf(-self.kz * e, -limits.vz_max, limits.vz_max) + t.velocity.z;
         Command::new(vh, vz).or_hold(uav, limits)

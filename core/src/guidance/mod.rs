@@ -102,13 +102,33 @@ pub(crate) fn valid_inputs<'a>(
 /// `|α v_rel + v_t| ≤ v_max` and returns `α v_rel + v_t` (\[CIMM\] §4.2/§4.3: "the horizontal speed
 /// in the relative frame is `α v₀`"). If even `α = 0` violates the bound the target is faster than
 /// the UAV and the result is `v_t` clipped to `v_max`.
+///
+/// A vehicle that cannot hover flies no slower than `v_min` over the ground (no wind): when
+/// `|v_rel + v_t| < v_min` the relative velocity is stretched instead, by the smallest `α ≥ 1`
+/// with `|α v_rel + v_t| = v_min`, so the vehicle keeps its course relative to the target (the
+/// guidance vector field's direction) at the speed it can fly, rather than the kinematics
+/// speeding it up along the commanded ground course, off the field.
 pub(crate) fn add_target_velocity(
     v_rel: Vector2<f64>,
     v_t: Vector2<f64>,
+    v_min: f64,
     v_max: f64,
 ) -> Vector2<f64> {
     let full = v_rel + v_t;
-    if full.norm() <= v_max {
+    let n = full.norm();
+    if n < v_min && v_rel.norm_squared() > 0.0 {
+        // |α a + b|² = v_min² → the larger root, ≥ 1 since |a + b| < v_min.
+        let a2 = v_rel.norm_squared();
+        let ab = v_rel.dot(&v_t);
+        let c = v_t.norm_squared() - v_min * v_min;
+        let alpha = (-ab + (ab * ab - a2 * c).max(0.0).sqrt()) / a2;
+        return if alpha.is_finite() {
+            v_rel * alpha.max(1.0) + v_t
+        } else {
+            full
+        };
+    }
+    if n <= v_max {
         return full;
     }
     // |α a + b|² = v²  →  α²|a|² + 2α a·b + |b|² − v² = 0, the larger root.
@@ -147,12 +167,32 @@ mod tests {
 
     #[test]
     fn add_target_velocity_respects_vmax() {
-        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(10.0, 0.0), 30.0);
+        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(10.0, 0.0), 0.0, 30.0);
         assert!((v.norm() - 30.0).abs() < 1e-9);
-        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(-10.0, 0.0), 30.0);
+        let v = add_target_velocity(Vector2::new(25.0, 0.0), Vector2::new(-10.0, 0.0), 0.0, 30.0);
         assert!((v.x - 15.0).abs() < 1e-12);
-        let v = add_target_velocity(Vector2::new(5.0, 0.0), Vector2::new(0.0, 50.0), 30.0);
+        let v = add_target_velocity(Vector2::new(5.0, 0.0), Vector2::new(0.0, 50.0), 0.0, 30.0);
         assert!(v.norm() <= 30.0 + 1e-9);
+    }
+
+    /// A fixed wing orbiting against the target's motion: 12 m/s relative west, the target 5 m/s
+    /// east, 7 m/s over the ground is below its 10 m/s floor: the relative velocity is stretched
+    /// to 15 m/s west, so it still flies west (the field's way) at 10 m/s.
+    #[test]
+    fn add_target_velocity_respects_the_speed_floor() {
+        let v = add_target_velocity(Vector2::new(-12.0, 0.0), Vector2::new(5.0, 0.0), 10.0, 22.0);
+        assert!((v - Vector2::new(-10.0, 0.0)).norm() < 1e-9, "{v}");
+        // Across the target's motion the direction relative to it is kept.
+        let v = add_target_velocity(Vector2::new(0.0, 6.0), Vector2::new(5.0, 0.0), 10.0, 22.0);
+        assert!(
+            (v.norm() - 10.0).abs() < 1e-9 && v.x == 5.0 && v.y > 6.0,
+            "{v}"
+        );
+        // A multirotor (v_min 0) is left alone, and no relative velocity stays none.
+        let v = add_target_velocity(Vector2::new(-5.0, 0.0), Vector2::new(5.0, 0.0), 0.0, 15.0);
+        assert_eq!(v, Vector2::zeros());
+        let v = add_target_velocity(Vector2::zeros(), Vector2::new(5.0, 0.0), 10.0, 15.0);
+        assert_eq!(v, Vector2::new(5.0, 0.0));
     }
 
     /// Nonsense limits or gains must not panic (no `f64::clamp` on caller-supplied bounds).
@@ -162,6 +202,7 @@ mod tests {
             v_max: f64::NAN,
             v_min: 40.0,
             turn_rate_max: -1.0,
+            bank_max: f64::NAN,
             accel_max: f64::NAN,
             vz_max: -5.0,
             az_max: f64::INFINITY,

@@ -170,7 +170,7 @@ impl StandoffLaw for Togvf {
         let speed = clampf(speed, limits.v_min, limits.v_max);
         let r_min = limits.min_turn_radius(speed) * self.turn_margin;
         let dir = self.direction(d, s, r_min);
-        let vh = add_target_velocity(dir * speed, vt, limits.v_max);
+        let vh = add_target_velocity(dir * speed, vt, limits.v_min, limits.v_max);
         let e = uav.position.z - t.position.z - self.height;
         Command::new(vh, Self::vertical_speed(e, limits) + t.velocity.z).or_hold(uav, limits)
     }

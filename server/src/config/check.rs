@@ -138,10 +138,20 @@ impl Config {
                 g.rate_hz
             ));
         }
-        if !matches!(g.airframe.as_str(), "multirotor" | "fixed_wing") {
+        let [v_min, v_max] = g.fixed_wing_speed_m_s;
+        if !(v_min.is_finite() && v_max.is_finite() && v_min > 0.0 && v_min < v_max) {
             return bad(format!(
-                "guidance.airframe must be multirotor or fixed_wing, got {:?}",
-                g.airframe
+                "guidance.fixed_wing_speed_m_s must be [min, max] with 0 < min < max, got {:?}",
+                g.fixed_wing_speed_m_s
+            ));
+        }
+        if !(g.fixed_wing_bank_deg.is_finite()
+            && g.fixed_wing_bank_deg > 0.0
+            && g.fixed_wing_bank_deg < 90.0)
+        {
+            return bad(format!(
+                "guidance.fixed_wing_bank_deg must be in (0, 90), got {}",
+                g.fixed_wing_bank_deg
             ));
         }
         if !(g.speed_m_s.is_finite() && g.speed_m_s > 0.0) {

@@ -9,7 +9,6 @@ use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 
 use super::error::ConfigError;
 use super::file::Config;
-use super::sections::GuidanceConfig;
 
 impl Config {
     /// The MAVLink link's settings, or `None` when `mavlink.gcs` is empty. `session` names the
@@ -103,17 +102,18 @@ impl Config {
     }
 }
 
-impl From<&GuidanceConfig> for crate::guidance::GuidanceSettings {
-    /// The guidance loop's settings: `airframe` as its flight envelope, the obstacles as discs.
-    fn from(g: &GuidanceConfig) -> Self {
+impl From<&Config> for crate::guidance::GuidanceSettings {
+    /// The guidance loop's settings (`[guidance]`): the multirotor envelope, the fixed wing's from
+    /// its airspeed band and bank limit (climbing 5 m/s), the obstacles as discs, and the
+    /// server's frame.
+    fn from(c: &Config) -> Self {
         use harrier_core::guidance::{Limits, obstacle::Obstacle};
+        let g = &c.guidance;
+        let [v_min, v_max] = g.fixed_wing_speed_m_s;
         Self {
             rate_hz: g.rate_hz,
-            limits: if g.airframe == "fixed_wing" {
-                Limits::fixed_wing()
-            } else {
-                Limits::multirotor()
-            },
+            multirotor: Limits::multirotor(),
+            fixed_wing: Limits::bank_limited(v_min, v_max, g.fixed_wing_bank_deg.to_radians(), 5.0),
             speed: g.speed_m_s,
             takeoff_height: g.takeoff_height_m,
             obstacles: g
@@ -124,6 +124,7 @@ impl From<&GuidanceConfig> for crate::guidance::GuidanceSettings {
                     radius: o.radius_m,
                 })
                 .collect(),
+            frame: harrier_link::geo::LocalFrame::new(c.frame.origin),
         }
     }
 }

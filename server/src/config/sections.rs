@@ -154,8 +154,11 @@ impl MavlinkConfig {
 pub struct GuidanceConfig {
     /// Rate (Hz) at which assigned vehicles get a setpoint.
     pub rate_hz: f64,
-    /// Flight envelope of the vehicles: `multirotor` or `fixed_wing`.
-    pub airframe: String,
+    /// A fixed wing's (MAV_TYPE_FIXED_WING's) airspeed band `[min, max]` (m/s): the laws keep it
+    /// above the minimum (its stall margin) and below the maximum.
+    pub fixed_wing_speed_m_s: [f64; 2],
+    /// A fixed wing's bank-angle limit (degrees): its turn rate at speed V is g·tan(φ)/V.
+    pub fixed_wing_bank_deg: f64,
     /// Cruise speed (m/s) of the laws (their v₀).
     pub speed_m_s: f64,
     /// Takeoff height above home (m) of a vehicle assigned on the ground.
@@ -180,7 +183,8 @@ impl Default for GuidanceConfig {
     fn default() -> Self {
         Self {
             rate_hz: 20.0,
-            airframe: "multirotor".into(),
+            fixed_wing_speed_m_s: [10.0, 20.0],
+            fixed_wing_bank_deg: 45.0,
             speed_m_s: 10.0,
             takeoff_height_m: 30.0,
             obstacles: Vec::new(),

@@ -587,6 +587,7 @@ impl Actor {
                 view: v.view(&self.config.frame, now),
                 status: v.status(),
                 home_amsl: v.home_amsl(),
+                gimbal_manager: v.gimbal_manager(),
             })
             .collect();
         self.watch.send_replace(Arc::new(samples));

@@ -28,7 +28,7 @@ pub struct GcsLink {
     pub gcs_endpoints: usize,
     /// Counters.
     pub metrics: Arc<LinkMetrics>,
-    /// Zero of the link's clock (the `at` of [`VehicleStatus`](harrier_link::px4::VehicleStatus)).
+    /// Zero of the link's clock (the `at` of [`VehicleStatus`](harrier_link::autopilot::VehicleStatus)).
     pub epoch: Instant,
 }
 

@@ -5,10 +5,10 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use harrier_link::autopilot::VehicleStatus;
 use harrier_link::frame::{Endpoint, EndpointError};
 use harrier_link::geo::LocalFrame;
 use harrier_link::mavlink::dialects::common::{MavMessage, MavResult};
-use harrier_link::px4::VehicleStatus;
 use harrier_link::signing::Signing;
 use serde::{Deserialize, Serialize};
 use tokio::sync::oneshot;
@@ -246,6 +246,9 @@ pub struct VehicleSample {
     pub status: Option<VehicleStatus>,
     /// Home altitude AMSL (m), once known.
     pub home_amsl: Option<f64>,
+    /// Its gimbal manager, once it announced one (GIMBAL_MANAGER_INFORMATION): the manager's
+    /// component id and the gimbal device it manages.
+    pub gimbal_manager: Option<(u8, u8)>,
 }
 
 /// Rate of the vehicles watch and of the timeout checks.

@@ -1,5 +1,6 @@
-//! What the ground station knows of one vehicle from its MAVLink telemetry: PX4 mode and armed
-//! state (HEARTBEAT), position and velocity (GLOBAL_POSITION_INT, in the server's ENU frame),
+//! What the ground station knows of one vehicle from its MAVLink telemetry: its autopilot and
+//! airframe, flight mode in that autopilot's table and armed state (HEARTBEAT: PX4, ArduCopter,
+//! ArduPlane), position and velocity (GLOBAL_POSITION_INT, in the server's ENU frame),
 //! attitude (ATTITUDE), battery (SYS_STATUS), and the link's quality: message rate over the last
 //! second and frames lost, from the gaps in the sender's MAVLink sequence numbers.
 
@@ -7,10 +8,10 @@ use std::collections::HashMap;
 use std::time::Instant;
 
 use harrier_core::detection::GeoPoint;
+use harrier_link::autopilot::{Autopilot, Frame, VehicleStatus};
 use harrier_link::geo::{Geodetic, LocalFrame, ned_to_enu};
 use harrier_link::mavlink::MavHeader;
 use harrier_link::mavlink::dialects::common::{MavMessage, MavModeFlag, MavState};
-use harrier_link::px4::{FlightMode, VehicleStatus};
 use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -68,19 +69,41 @@ impl From<MavState> for SystemStatus {
     }
 }
 
-/// The PX4 mode name of a HEARTBEAT, as QGroundControl shows it.
-pub fn mode_name(mode: Option<FlightMode>, custom_mode: u32) -> String {
-    match mode {
-        Some(FlightMode::Position) => "POSCTL".into(),
-        Some(FlightMode::Hold) => "HOLD".into(),
-        Some(FlightMode::Takeoff) => "TAKEOFF".into(),
-        Some(FlightMode::Land) => "LAND".into(),
-        Some(FlightMode::Offboard) => "OFFBOARD".into(),
-        None => format!(
-            "PX4 main {} sub {}",
-            (custom_mode >> 16) & 0xFF,
-            custom_mode >> 24
-        ),
+/// A vehicle's autopilot, as its HEARTBEAT's `autopilot` field says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum VehicleAutopilot {
+    /// PX4 (`MAV_AUTOPILOT_PX4`, and any other autopilot: decoded as PX4).
+    Px4,
+    /// ArduPilot (`MAV_AUTOPILOT_ARDUPILOTMEGA`): ArduCopter or ArduPlane.
+    Ardupilot,
+}
+
+impl From<Autopilot> for VehicleAutopilot {
+    fn from(a: Autopilot) -> Self {
+        match a {
+            Autopilot::Px4 => Self::Px4,
+            Autopilot::ArduPilot => Self::Ardupilot,
+        }
+    }
+}
+
+/// A vehicle's airframe, as its HEARTBEAT's MAV_TYPE says.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum VehicleAirframe {
+    /// Hovers (a rotorcraft MAV_TYPE).
+    Multirotor,
+    /// Cannot hover (`MAV_TYPE_FIXED_WING`): minimum airspeed, bank-limited turns.
+    FixedWing,
+}
+
+impl From<Frame> for VehicleAirframe {
+    fn from(f: Frame) -> Self {
+        match f {
+            Frame::Multirotor => Self::Multirotor,
+            Frame::FixedWing => Self::FixedWing,
+        }
     }
 }
 
@@ -93,8 +116,13 @@ pub struct VehicleLinkView {
     pub state: LinkState,
     /// Where its frames come from (`udp:ADDR` or `tcp#N`).
     pub address: String,
-    /// PX4 mode (`HOLD`, `OFFBOARD`, `TAKEOFF`, `LAND`, `POSCTL`, or main/sub numbers), once a
-    /// HEARTBEAT was heard.
+    /// Its autopilot, once a HEARTBEAT was heard.
+    pub autopilot: Option<VehicleAutopilot>,
+    /// Its airframe, once a HEARTBEAT was heard.
+    pub airframe: Option<VehicleAirframe>,
+    /// Flight mode in its autopilot's table, once a HEARTBEAT was heard: PX4's `HOLD`,
+    /// `OFFBOARD`, `TAKEOFF`, `LAND`, `POSCTL` (else `PX4 main M sub S`), ArduCopter's and
+    /// ArduPlane's names as MAVProxy prints them (`GUIDED`, `LOITER`, `RTL`, …; else `Mode(N)`).
     pub mode: Option<String>,
     /// Motors armed.
     pub armed: bool,
@@ -162,6 +190,8 @@ pub struct VehicleLink {
     window: std::collections::VecDeque<Instant>,
     /// Its TIMESYNC exchanges.
     pub timesync: Timesync,
+    /// Its gimbal manager's component id and gimbal device id.
+    gimbal_manager: Option<(u8, u8)>,
 }
 
 impl VehicleLink {
@@ -189,7 +219,14 @@ impl VehicleLink {
             reconnects: 0,
             window: std::collections::VecDeque::new(),
             timesync: Timesync::default(),
+            gimbal_manager: None,
         }
+    }
+
+    /// Its gimbal manager (component id, gimbal device id), once a GIMBAL_MANAGER_INFORMATION
+    /// announced it.
+    pub fn gimbal_manager(&self) -> Option<(u8, u8)> {
+        self.gimbal_manager
     }
 
     /// Link state.
@@ -197,9 +234,14 @@ impl VehicleLink {
         self.state
     }
 
-    /// The PX4 mode name of the last HEARTBEAT, once one was heard.
+    /// The mode name of the last HEARTBEAT, once one was heard: the autopilot's own
+    /// (QGroundControl's for PX4, MAVProxy's for ArduPilot), or `PX4 main M sub S` / `Mode(N)`
+    /// for a mode its table lacks.
     pub fn mode(&self) -> Option<String> {
-        self.status.map(|s| mode_name(s.mode, self.custom_mode))
+        self.status.map(|s| match s.mode {
+            Some(m) => m.name().to_owned(),
+            None => s.personality.unknown_mode_name(self.custom_mode),
+        })
     }
 
     /// Mode and armed state from the last HEARTBEAT (`at` in seconds since the link started).
@@ -272,6 +314,9 @@ impl VehicleLink {
                     f64::from(a.yaw).to_degrees(),
                 ]);
             }
+            MavMessage::GIMBAL_MANAGER_INFORMATION(g) => {
+                self.gimbal_manager = Some((header.component_id, g.gimbal_device_id));
+            }
             MavMessage::SYS_STATUS(s) => {
                 self.battery_pct =
                     (s.battery_remaining >= 0).then(|| f64::from(s.battery_remaining));
@@ -320,6 +365,8 @@ impl VehicleLink {
             id: self.id,
             state: self.state,
             address: self.peer.to_string(),
+            autopilot: self.status.map(|s| s.personality.autopilot.into()),
+            airframe: self.status.map(|s| s.personality.frame.into()),
             mode: self.mode(),
             armed: self.status.is_some_and(|s| s.armed),
             system_status: self.system_status,
@@ -369,7 +416,7 @@ mod tests {
         let peer = (0, Peer::Udp(SocketAddr::from(([127, 0, 0, 1], 9))));
         let mut v = VehicleLink::new(1, 0, peer.1, t0);
         let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-            custom_mode: FlightMode::Offboard.px4_custom_mode(),
+            custom_mode: harrier_link::px4::FlightMode::Offboard.px4_custom_mode(),
             base_mode: harrier_link::px4::base_mode(true),
             ..HEARTBEAT_DATA::DEFAULT
         });
@@ -398,6 +445,7 @@ mod tests {
         assert_eq!((view.received, view.lost_frames), (3, 3));
         assert!((view.loss_pct - 50.0).abs() < 1e-9);
         assert_eq!(view.mode.as_deref(), Some("OFFBOARD"));
+        assert_eq!(view.autopilot, Some(VehicleAutopilot::Px4));
         assert!(view.armed);
         assert_eq!(view.system_status, Some(SystemStatus::MavStateUninit));
         let p = view.position.expect("position");
@@ -413,6 +461,72 @@ mod tests {
         assert!(v.on_frame(&header(6), &hb, peer, t0 + Duration::from_secs(5), 5.0));
         assert_eq!(v.state(), LinkState::Connected);
         assert_eq!(v.view(&frame, t0 + Duration::from_secs(5)).reconnects, 1);
+    }
+
+    /// ArduCopter's and ArduPlane's HEARTBEATs: the same number names another mode by MAV_TYPE;
+    /// a number outside the table shows as pymavlink shows it.
+    #[test]
+    fn ardupilot_modes_are_named_by_airframe() {
+        use harrier_link::autopilot::ardupilot_base_mode;
+        use harrier_link::mavlink::dialects::common::{MavAutopilot, MavType};
+        let t0 = Instant::now();
+        let peer = (0, Peer::Udp(SocketAddr::from(([127, 0, 0, 1], 9))));
+        let mut v = VehicleLink::new(2, 0, peer.1, t0);
+        let frame = LocalFrame::new(Geodetic {
+            lat_deg: 47.0,
+            lon_deg: 8.0,
+            alt_m: 400.0,
+        });
+        for (mavtype, custom, name, airframe) in [
+            (
+                MavType::MAV_TYPE_QUADROTOR,
+                4,
+                "GUIDED",
+                VehicleAirframe::Multirotor,
+            ),
+            (
+                MavType::MAV_TYPE_QUADROTOR,
+                5,
+                "LOITER",
+                VehicleAirframe::Multirotor,
+            ),
+            (
+                MavType::MAV_TYPE_FIXED_WING,
+                4,
+                "ACRO",
+                VehicleAirframe::FixedWing,
+            ),
+            (
+                MavType::MAV_TYPE_FIXED_WING,
+                15,
+                "GUIDED",
+                VehicleAirframe::FixedWing,
+            ),
+            (
+                MavType::MAV_TYPE_QUADROTOR,
+                12,
+                "Mode(12)",
+                VehicleAirframe::Multirotor,
+            ),
+        ] {
+            let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+                custom_mode: custom,
+                mavtype,
+                autopilot: MavAutopilot::MAV_AUTOPILOT_ARDUPILOTMEGA,
+                base_mode: ardupilot_base_mode(true, true),
+                ..HEARTBEAT_DATA::DEFAULT
+            });
+            v.on_frame(&header(0), &hb, peer, t0, 0.0);
+            let view = v.view(&frame, t0);
+            assert_eq!(view.mode.as_deref(), Some(name));
+            assert_eq!(view.autopilot, Some(VehicleAutopilot::Ardupilot));
+            assert_eq!(view.airframe, Some(airframe));
+            assert!(view.armed);
+        }
+        assert_eq!(
+            serde_json::to_value([VehicleAirframe::FixedWing]).ok(),
+            Some(serde_json::json!(["fixed_wing"]))
+        );
     }
 
     /// `system_status` is sent by the MAV_STATE's name, as when it was a string.

@@ -10,16 +10,17 @@ use std::time::{Duration, Instant};
 use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::togvf::Togvf;
-use harrier_core::guidance::{Command, Orbit, StandoffLaw, TargetEstimate, UavState};
-use harrier_link::command::set_mode;
-use harrier_link::mavlink::dialects::common::MavMessage;
-use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase};
-use harrier_link::px4::{FlightMode, VehicleStatus};
+use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
+use harrier_link::autopilot::{Frame, Personality, VehicleStatus};
+use harrier_link::command::{command_long, set_mode};
+use harrier_link::mavlink::dialects::common::{MavCmd, MavMessage};
+use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase, Steer};
 use nalgebra::Vector3;
 use tokio::sync::{broadcast, mpsc, watch};
 
 use super::formation::FormationState;
 use super::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
+use super::handoff::{Handoff, airborne};
 use super::plan::{
     AssignmentRequest, AssignmentState, AssignmentView, GuidanceSettings, Law, Plan, SlotState,
     SlotView,
@@ -36,6 +37,7 @@ use harrier_engine::TrackView;
 struct Slot {
     vehicle: u8,
     sequence: Option<OffboardSequence>,
+    handoff: Handoff,
     state: SlotState,
     error: Option<String>,
     range_error: Option<f64>,
@@ -96,8 +98,13 @@ impl Assignment {
                 orbit: p.orbit.into(),
                 ..Lgvf::new(p.radius, p.height, p.speed)
             }),
-            // The formation's vehicles fly TOGVF when the formation has no command for one.
-            Law::Togvf | Law::Formation => Box::new(Togvf {
+            // The formation's vehicles fly TOGVF when the formation has no command for one; a
+            // hand-off flies no law (its slots never ask for one).
+            Law::Togvf
+            | Law::Formation
+            | Law::HandoffOrbit
+            | Law::HandoffFollow
+            | Law::HandoffCamera => Box::new(Togvf {
                 orbit: p.orbit.into(),
                 ..Togvf::new(p.radius, p.height, p.speed)
             }),
@@ -132,6 +139,9 @@ struct Actor {
     watch: watch::Sender<Arc<Vec<AssignmentView>>>,
     events: broadcast::Sender<AssignmentView>,
     metrics: Arc<GuidanceMetrics>,
+    /// When the tracker's snapshot last changed (wall clock): a hand-off predicts the track on
+    /// from the snapshot's time by the wall time since.
+    snapshot_at: Instant,
 }
 
 /// Starts the loop.
@@ -155,6 +165,7 @@ pub fn start(
         watch: watch_tx,
         events: events.clone(),
         metrics: Arc::clone(&metrics),
+        snapshot_at: Instant::now(),
     };
     let task = tokio::spawn(actor.run(rx, acks, stop));
     (
@@ -178,9 +189,15 @@ impl Actor {
         let period = Duration::from_secs_f64(1.0 / self.settings.rate_hz);
         let mut tick = tokio::time::interval(period);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut updates = self.snapshot.clone();
         loop {
             tokio::select! {
                 Some(r) = requests.recv() => self.on_request(r),
+                // Every update of the tracks: the camera hand-offs point at them at once.
+                changed = updates.changed() => match changed {
+                    Ok(()) => self.on_tracks(),
+                    Err(_) => break,
+                },
                 a = acks.recv() => match a {
                     Ok((vehicle, msg)) => self.on_ack(vehicle, &msg),
                     Err(broadcast::error::RecvError::Lagged(n)) => {
@@ -214,11 +231,14 @@ impl Actor {
         }
     }
 
+    /// Sends `vehicle` to its autopilot's hold mode (PX4 Hold, ArduPilot LOITER: a fixed wing
+    /// circles where it is).
     fn hold(&self, vehicle: u8) {
         let link = self.link.clone();
+        let personality = personality_of(&self.link.vehicles.borrow(), vehicle);
         tokio::spawn(async move {
             match link
-                .command(vehicle, set_mode(vehicle, FlightMode::Hold))
+                .command(vehicle, set_mode(vehicle, personality.hold()))
                 .await
             {
                 Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent to Hold"),
@@ -255,8 +275,15 @@ impl Actor {
     }
 
     fn create(&mut self, r: &AssignmentRequest) -> Result<AssignmentView, AssignError> {
-        let plan = r.plan(&self.settings).map_err(AssignError::Invalid)?;
         let vehicles = self.link.vehicles.borrow().clone();
+        let personalities: Vec<Personality> = r
+            .vehicles
+            .iter()
+            .map(|&id| personality_of(&vehicles, id))
+            .collect();
+        let plan = r
+            .plan(&self.settings, &personalities)
+            .map_err(AssignError::Invalid)?;
         for id in &r.vehicles {
             if !vehicles.iter().any(|s| s.view.id == *id) {
                 return Err(AssignError::NotFound(format!("no vehicle {id}")));
@@ -296,6 +323,7 @@ impl Actor {
                 .map(|&vehicle| Slot {
                     vehicle,
                     sequence: None,
+                    handoff: Handoff::default(),
                     state: SlotState::Waiting,
                     error: None,
                     range_error: None,
@@ -314,6 +342,7 @@ impl Actor {
         if a.ended.is_none() {
             tracing::info!(id, reason, "assignment ended");
             a.ended = Some(reason);
+            let camera = a.plan.law == Law::HandoffCamera;
             let holds: Vec<u8> = a
                 .slots
                 .iter_mut()
@@ -326,7 +355,13 @@ impl Actor {
                 .collect();
             let view = a.view();
             for v in holds {
-                self.hold(v);
+                if camera {
+                    // The camera is released; the vehicle flies on as it was.
+                    let none = command_long(v, MavCmd::MAV_CMD_DO_SET_ROI_NONE, [0.0; 7]);
+                    self.send(v, none);
+                } else {
+                    self.hold(v);
+                }
             }
             self.metrics.ended.fetch_add(1, Ordering::Relaxed);
             let _ = self.events.send(view);
@@ -366,6 +401,9 @@ impl Actor {
         let vehicles = Arc::clone(&self.link.vehicles.borrow());
         let tick = Tick {
             t: self.t(now),
+            since_snapshot: now
+                .saturating_duration_since(self.snapshot_at)
+                .as_secs_f64(),
             snapshot: &snapshot,
             vehicles: &vehicles,
             settings: &self.settings,
@@ -378,14 +416,41 @@ impl Actor {
         self.publish();
     }
 
+    /// An update of the tracks: every camera hand-off points its vehicles at its track's new
+    /// estimate, at once.
+    fn on_tracks(&mut self) {
+        let now = Instant::now();
+        self.snapshot_at = now;
+        let t = self.t(now);
+        let snapshot = self.snapshot.borrow().clone();
+        let vehicles = Arc::clone(&self.link.vehicles.borrow());
+        let frame = self.settings.frame;
+        let mut send = Vec::new();
+        for a in self
+            .assignments
+            .values_mut()
+            .filter(|a| a.ended.is_none() && a.plan.law == Law::HandoffCamera)
+        {
+            let Some(track) = snapshot.tracks.iter().find(|k| k.id == a.track) else {
+                continue;
+            };
+            let target = predict(track, snapshot.t.unwrap_or(track.t));
+            for slot in &mut a.slots {
+                if let Some(v) = vehicles.iter().find(|v| v.view.id == slot.vehicle) {
+                    let msgs = slot.handoff.roi(t, track.t, v, &target, &frame);
+                    send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
+                }
+            }
+        }
+        for (v, m) in send {
+            self.send(v, m);
+        }
+    }
+
     /// Does what a tick decided: sends the messages (counting the setpoints), sends vehicles to
     /// Hold, ends assignments, and announces the assignments whose vehicles changed state.
     fn carry_out(&mut self, d: Decisions) {
-        let setpoints = d
-            .send
-            .iter()
-            .filter(|(_, m)| matches!(m, MavMessage::SET_POSITION_TARGET_LOCAL_NED(_)))
-            .count() as u64;
+        let setpoints = d.send.iter().filter(|(_, m)| is_setpoint(m)).count() as u64;
         for (vehicle, m) in d.send {
             self.send(vehicle, m);
         }
@@ -413,10 +478,31 @@ impl Actor {
     }
 }
 
+/// The personality of vehicle `id` from its last HEARTBEAT (a PX4 multirotor before one).
+fn personality_of(vehicles: &[VehicleSample], id: u8) -> Personality {
+    vehicles
+        .iter()
+        .find(|v| v.view.id == id)
+        .and_then(|v| v.status)
+        .map_or(Personality::PX4_MULTIROTOR, |s| s.personality)
+}
+
+/// Whether a message steers a vehicle: an offboard setpoint or GUIDED target, or ArduPlane's
+/// course command.
+fn is_setpoint(m: &MavMessage) -> bool {
+    match m {
+        MavMessage::SET_POSITION_TARGET_LOCAL_NED(_) => true,
+        MavMessage::COMMAND_INT(c) => c.command == MavCmd::MAV_CMD_GUIDED_CHANGE_HEADING,
+        _ => false,
+    }
+}
+
 /// What a tick reads: the link's clock, the tracker's snapshot, the vehicles and the settings.
 struct Tick<'a> {
     /// Now on the link's clock (s since its epoch).
     t: f64,
+    /// Wall time since the snapshot changed (s).
+    since_snapshot: f64,
     snapshot: &'a Snapshot,
     vehicles: &'a [VehicleSample],
     settings: &'a GuidanceSettings,
@@ -450,8 +536,14 @@ impl<'a> Tick<'a> {
         let t_track = self.snapshot.t.unwrap_or(track.t);
         let target = predict(track, t_track);
         let law = a.law();
-        let limits = &self.settings.limits;
         let states = self.measured(&a.slots);
+        let envelope = |i: usize| -> &Limits {
+            let frame = states[i]
+                .as_ref()
+                .and_then(|(_, v)| v.status)
+                .map_or(Frame::Multirotor, |s| s.personality.frame);
+            self.settings.limits(frame)
+        };
         let ring = Ring::of(&states, &target, &a.plan);
         let formation = (a.plan.law == Law::Formation).then(|| {
             let uavs: Vec<Option<UavState>> =
@@ -461,7 +553,7 @@ impl<'a> Tick<'a> {
                 &target,
                 &a.plan,
                 t_track,
-                limits,
+                &self.settings.multirotor,
                 &self.settings.obstacles,
             )
         });
@@ -485,6 +577,14 @@ impl<'a> Tick<'a> {
                     let (p, centre) = (uav.horizontal_position(), target.position.xy());
                     slot.range_error = Some((p - centre).norm() - a.plan.radius);
                     slot.phase = Some(phase_of(p, centre));
+                    if a.plan.law.is_handoff() {
+                        // The autopilot flies on what it was last sent: the track predicted to
+                        // now, the tracker's time moved on by the wall time since its snapshot.
+                        let now = predict(track, t_track + self.since_snapshot);
+                        self.hand_off(slot, v, track, &now, &a.plan, out);
+                        continue;
+                    }
+                    let limits = envelope(i);
                     let cmd = match formation.as_ref().and_then(|c| c[i]) {
                         Some(c) => c,
                         None => {
@@ -494,13 +594,37 @@ impl<'a> Tick<'a> {
                                 .or_hold(uav, limits)
                         }
                     };
-                    self.advance(slot, v, cmd, out);
+                    // ArduPlane holds an altitude rather than a climb rate: H over the target.
+                    let goal = target.position.z + a.plan.height;
+                    let altitude = v.view.geodetic.map(|g| g.alt_m + goal - uav.position.z);
+                    self.advance(slot, v, cmd, altitude, out);
                 }
             }
             if before != (slot.state, slot.error.clone()) {
                 out.changed.push(a.id);
             }
         }
+    }
+
+    /// One tick of a hand-off slot: the orbit, follow or camera messages due; `handed_off` once
+    /// in the air (the camera at once).
+    fn hand_off(
+        &self,
+        slot: &mut Slot,
+        v: &VehicleSample,
+        track: &TrackView,
+        target: &TargetEstimate,
+        plan: &Plan,
+        out: &mut Decisions,
+    ) {
+        let frame = &self.settings.frame;
+        let msgs = slot.handoff.step(self.t, v, target, track, plan, frame);
+        out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
+        slot.state = if plan.law == Law::HandoffCamera || airborne(v) {
+            SlotState::HandedOff
+        } else {
+            SlotState::Waiting
+        };
     }
 
     /// The vehicle `id`, when the link knows it.
@@ -525,25 +649,42 @@ impl<'a> Tick<'a> {
             .collect()
     }
 
-    /// Advances `slot`'s offboard sequence (arm, take off, stream setpoints, OFFBOARD) with
-    /// `cmd`; a sequence that fails leaves the vehicle `failed`, sent to Hold.
-    fn advance(&self, slot: &mut Slot, v: &VehicleSample, cmd: Command, out: &mut Decisions) {
-        let status = v.status.unwrap_or(VehicleStatus {
-            armed: false,
-            mode: None,
-            at: 0.0,
-        });
-        let takeoff_height = self.settings.takeoff_height;
+    /// Advances `slot`'s launch sequence in its autopilot's order (PX4: arm, take off, stream
+    /// setpoints, OFFBOARD; ArduPilot: GUIDED, arm, take off, targets) with `cmd` (and, for an
+    /// ArduPlane, the `altitude` AMSL to hold); a sequence that fails leaves the vehicle
+    /// `failed`, sent to its hold mode.
+    fn advance(
+        &self,
+        slot: &mut Slot,
+        v: &VehicleSample,
+        cmd: Command,
+        altitude: Option<f64>,
+        out: &mut Decisions,
+    ) {
+        let status = v.status.unwrap_or_else(VehicleStatus::unknown);
+        let takeoff_height = self.settings.takeoff_height as f32;
+        if slot
+            .sequence
+            .as_ref()
+            .is_some_and(|s| s.personality() != status.personality)
+        {
+            // Another autopilot answers under this id now: start over in its sequence.
+            slot.sequence = None;
+        }
         let seq = slot.sequence.get_or_insert_with(|| {
-            let takeoff = v.home_amsl.map(|h| (h + takeoff_height) as f32);
-            OffboardSequence::new(slot.vehicle, OffboardConfig::new(takeoff))
+            let config = OffboardConfig::new(Some(takeoff_height), v.home_amsl.map(|h| h as f32));
+            OffboardSequence::new(slot.vehicle, status.personality, config)
         });
-        match seq.next(self.t, &status, Some(cmd.velocity)) {
+        let steer = Steer {
+            velocity: cmd.velocity,
+            altitude_amsl_m: altitude,
+        };
+        match seq.next(self.t, &status, v.view.relative_alt_m, Some(steer)) {
             Ok(msgs) => {
                 out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
                 slot.state = match seq.phase() {
                     Phase::Arming => SlotState::Arming,
-                    Phase::TakingOff => SlotState::TakingOff,
+                    Phase::TakingOff | Phase::Climbing => SlotState::TakingOff,
                     Phase::Offboard => SlotState::Offboard,
                 };
                 slot.commanded = Some(cmd.velocity);

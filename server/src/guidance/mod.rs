@@ -33,6 +33,7 @@
 mod actor;
 mod formation;
 mod handle;
+mod handoff;
 pub mod plan;
 
 pub use self::actor::start;

@@ -5,6 +5,8 @@
 //! name). Pure: no actor, no I/O.
 
 use harrier_core::guidance::Orbit;
+use harrier_link::autopilot::{Autopilot, Frame, Personality};
+use harrier_link::geo::LocalFrame;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
@@ -20,7 +22,8 @@ pub struct AssignmentRequest {
     pub vehicles: Vec<u8>,
     /// The track to follow (a live track id).
     pub track: u64,
-    /// `togvf`, `lgvf` or `formation` (the `Law` schema; another name is refused with 422).
+    /// `togvf`, `lgvf`, `formation`, or a hand-off: `handoff_orbit`, `handoff_follow`,
+    /// `handoff_camera` (the `Law` schema; another name is refused with 422).
     #[schema(value_type = Law)]
     pub law: String,
     /// Standoff radius R (m).
@@ -54,19 +57,50 @@ pub enum Law {
     /// The \[BOT\] formation: the track leads, the vehicles hold the line-of-sight ranges of a
     /// shape around it, steered around the obstacles.
     Formation,
+    /// Hand-off: the autopilot orbits the predicted track itself (PX4's MAV_CMD_DO_ORBIT,
+    /// ArduPlane's guided loiter at R), re-centred twice a second. ArduCopter has no orbit
+    /// command (refused).
+    HandoffOrbit,
+    /// Hand-off: the autopilot follows the track from FOLLOW_TARGET messages (position, velocity,
+    /// covariance) at 10 Hz in its follow mode (PX4 AUTO.FOLLOW_TARGET, ArduCopter FOLLOW; a fixed
+    /// wing is refused).
+    HandoffFollow,
+    /// Hand-off: the vehicle's camera is pointed at the track (MAV_CMD_DO_SET_ROI_LOCATION, to
+    /// its gimbal manager when it announces one) at every update of the track; the vehicle
+    /// flies on as it was.
+    HandoffCamera,
 }
 
 impl Law {
     /// Every law.
-    pub const ALL: [Self; 3] = [Self::Togvf, Self::Lgvf, Self::Formation];
+    pub const ALL: [Self; 6] = [
+        Self::Togvf,
+        Self::Lgvf,
+        Self::Formation,
+        Self::HandoffOrbit,
+        Self::HandoffFollow,
+        Self::HandoffCamera,
+    ];
 
-    /// The name on the wire (`togvf`, `lgvf`, `formation`).
+    /// The name on the wire (`togvf`, `lgvf`, `formation`, `handoff_orbit`, `handoff_follow`,
+    /// `handoff_camera`).
     pub fn as_str(self) -> &'static str {
         match self {
             Self::Togvf => "togvf",
             Self::Lgvf => "lgvf",
             Self::Formation => "formation",
+            Self::HandoffOrbit => "handoff_orbit",
+            Self::HandoffFollow => "handoff_follow",
+            Self::HandoffCamera => "handoff_camera",
         }
+    }
+
+    /// Whether the target is handed to the autopilot rather than flown by the guidance.
+    pub fn is_handoff(self) -> bool {
+        matches!(
+            self,
+            Self::HandoffOrbit | Self::HandoffFollow | Self::HandoffCamera
+        )
     }
 
     /// The law named `name`, if any.
@@ -125,10 +159,14 @@ pub enum SlotState {
     Waiting,
     /// Its offboard sequence is arming it.
     Arming,
-    /// Its offboard sequence is taking it off.
+    /// Its offboard sequence is taking it off (ArduPilot: until it is up).
     TakingOff,
-    /// In OFFBOARD, flying the law's setpoints.
+    /// Under the ground station's control, flying the law's commands: PX4's OFFBOARD, ArduPilot's
+    /// GUIDED.
     Offboard,
+    /// The target is handed to its autopilot: it orbits it, follows it or points its camera at
+    /// it itself, from the messages the guidance sends (a hand-off law).
+    HandedOff,
     /// Its link is lost: paused, it flies the assignment again when it speaks again.
     Lost,
     /// Its offboard sequence failed (a refused or unacknowledged command, `error` says which):
@@ -161,10 +199,15 @@ pub struct Plan {
 }
 
 impl AssignmentRequest {
-    /// Checks the request against the flight envelope and fills in the defaults: every value
-    /// finite and in range, or an error naming the field. (Whether the vehicles and the track
-    /// exist is the guidance loop's to say.)
-    pub fn plan(&self, settings: &GuidanceSettings) -> Result<Plan, String> {
+    /// Checks the request against its vehicles' personalities (`personalities`: the flight
+    /// envelopes of their airframes, a multirotor's when empty, and what their autopilots can be
+    /// handed) and fills in the defaults: every value finite and in range, or an error naming the
+    /// field. (Whether the vehicles and the track exist is the guidance loop's to say.)
+    pub fn plan(
+        &self,
+        settings: &GuidanceSettings,
+        personalities: &[Personality],
+    ) -> Result<Plan, String> {
         let bad = |m: String| Err(m);
         if self.vehicles.is_empty() || self.vehicles.len() > 16 {
             return bad("vehicles: give 1 to 16 system ids".into());
@@ -177,20 +220,50 @@ impl AssignmentRequest {
         }
         let Some(law) = Law::parse(&self.law) else {
             return bad(format!(
-                "law {:?}: expected togvf, lgvf or formation",
+                "law {:?}: expected togvf, lgvf, formation, handoff_orbit, handoff_follow or \
+                 handoff_camera",
                 self.law
             ));
         };
+        for p in personalities {
+            let refused = match law {
+                Law::HandoffOrbit
+                    if p.autopilot == Autopilot::ArduPilot && p.frame == Frame::Multirotor =>
+                {
+                    Some("ArduCopter 4.x has no orbit command (DO_ORBIT is not in its GUIDED)")
+                }
+                Law::HandoffFollow if p.follow().is_none() => {
+                    Some("a fixed wing has no follow mode")
+                }
+                _ => None,
+            };
+            if let Some(why) = refused {
+                return bad(format!("law {}: {why} ({})", law.as_str(), p.label()));
+            }
+        }
+        let frames: Vec<Frame> = personalities.iter().map(|p| p.frame).collect();
         let radius = self.radius_m.unwrap_or(DEFAULT_RADIUS_M);
         let height = self.height_m.unwrap_or(DEFAULT_HEIGHT_M);
         let speed = self.speed_m_s.unwrap_or(settings.speed);
         let n = self.vehicles.len();
         let spacing = self.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
-        let limits = settings.limits;
+        let envelopes: Vec<&Limits> = if frames.is_empty() {
+            vec![&settings.multirotor]
+        } else {
+            frames.iter().map(|f| settings.limits(*f)).collect()
+        };
+        let v_max = envelopes
+            .iter()
+            .map(|l| l.v_max)
+            .fold(f64::INFINITY, f64::min);
+        let v_min = envelopes.iter().map(|l| l.v_min).fold(0.0, f64::max);
         if !(radius.is_finite() && radius > 0.0 && radius <= 10_000.0) {
             return bad(format!("radius_m must be in (0, 10000], got {radius}"));
         }
-        let r_min = limits.min_turn_radius(speed);
+        let r_min = envelopes
+            .iter()
+            .map(|l| l.min_turn_radius(speed.max(l.v_min)))
+            .fold(0.0, f64::max);
         if radius < r_min {
             return bad(format!(
                 "radius_m {radius} is below the vehicles' turning radius {r_min:.1} m at {speed} m/s"
@@ -199,10 +272,12 @@ impl AssignmentRequest {
         if !(height.is_finite() && height > 0.0 && height <= 5_000.0) {
             return bad(format!("height_m must be in (0, 5000], got {height}"));
         }
-        if !(speed.is_finite() && speed > 0.0 && speed <= limits.v_max) {
+        if !(speed.is_finite() && speed > 0.0 && speed <= v_max) {
+            return bad(format!("speed_m_s must be in (0, {v_max}], got {speed}"));
+        }
+        if speed < v_min {
             return bad(format!(
-                "speed_m_s must be in (0, {}], got {speed}",
-                limits.v_max
+                "speed_m_s {speed} is below the fixed wings' minimum airspeed {v_min} m/s"
             ));
         }
         if !(spacing.is_finite()
@@ -235,8 +310,9 @@ impl AssignmentRequest {
 pub struct SlotView {
     /// The vehicle.
     pub vehicle: u8,
-    /// `waiting` (no telemetry yet), `arming`, `taking_off`, `offboard`, `lost`, `failed`, `hold`
-    /// (the assignment ended).
+    /// `waiting` (no telemetry yet; a hand-off: on the ground), `arming`, `taking_off`,
+    /// `offboard` (PX4 OFFBOARD or ArduPilot GUIDED), `handed_off`, `lost`, `failed`, `hold` (the
+    /// assignment ended).
     pub state: SlotState,
     /// Why it failed, when it did.
     pub error: Option<String>,
@@ -282,14 +358,28 @@ pub struct AssignmentView {
 pub struct GuidanceSettings {
     /// Setpoint rate (Hz).
     pub rate_hz: f64,
-    /// Flight envelope.
-    pub limits: Limits,
+    /// Flight envelope of a multirotor.
+    pub multirotor: Limits,
+    /// Flight envelope of a fixed wing (`guidance.fixed_wing_*`).
+    pub fixed_wing: Limits,
     /// Default speed (m/s).
     pub speed: f64,
     /// Takeoff height above home (m).
     pub takeoff_height: f64,
     /// Obstacles the `formation` law steers around (ENU).
     pub obstacles: Vec<Obstacle>,
+    /// The server's ENU frame (a hand-off's points go out in WGS-84).
+    pub frame: LocalFrame,
+}
+
+impl GuidanceSettings {
+    /// The flight envelope of an airframe.
+    pub fn limits(&self, frame: Frame) -> &Limits {
+        match frame {
+            Frame::Multirotor => &self.multirotor,
+            Frame::FixedWing => &self.fixed_wing,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -303,6 +393,60 @@ mod tests {
         serde_json::to_value(values).expect("names")
     }
 
+    /// A fixed wing narrows the envelope: its minimum airspeed and its bank-limited turning
+    /// radius.
+    #[test]
+    fn a_fixed_wing_in_the_assignment_bounds_speed_and_radius() {
+        let settings = GuidanceSettings {
+            rate_hz: 20.0,
+            multirotor: Limits::multirotor(),
+            fixed_wing: Limits::bank_limited(10.0, 20.0, 45f64.to_radians(), 5.0),
+            speed: 5.0,
+            takeoff_height: 30.0,
+            obstacles: Vec::new(),
+            frame: LocalFrame::new(harrier_link::geo::Geodetic::new(47.0, 8.0, 400.0)),
+        };
+        let req = |speed: Option<f64>, radius: f64| AssignmentRequest {
+            vehicles: vec![1, 2],
+            track: 1,
+            law: "togvf".into(),
+            radius_m: Some(radius),
+            height_m: None,
+            spacing_deg: None,
+            speed_m_s: speed,
+            orbit: None,
+        };
+        let p = |l: &str| Personality::from_label(l).expect("label");
+        let mixed = [p("px4-mc"), p("ardupilot-fw")];
+        assert!(req(None, 150.0).plan(&settings, &[p("px4-mc"); 2]).is_ok());
+        let e = req(None, 150.0).plan(&settings, &mixed).expect_err("5 m/s");
+        assert!(e.contains("minimum airspeed 10"), "{e}");
+        assert!(req(Some(12.5), 150.0).plan(&settings, &mixed).is_ok());
+        // 16 m/s at 45°: a radius of 26 m.
+        let e = req(Some(16.0), 20.0)
+            .plan(&settings, &mixed)
+            .expect_err("too tight");
+        assert!(e.contains("turning radius 26.1"), "{e}");
+        let e = req(Some(18.0), 150.0)
+            .plan(&settings, &mixed)
+            .expect_err("above 15");
+        assert!(e.contains("(0, 15]"), "{e}");
+        // What an autopilot cannot be handed.
+        let handoff = |law: &str, who: &[Personality]| {
+            AssignmentRequest {
+                law: law.into(),
+                ..req(Some(12.0), 150.0)
+            }
+            .plan(&settings, who)
+        };
+        let e = handoff("handoff_orbit", &[p("ardupilot-mc")]).expect_err("no Copter orbit");
+        assert!(e.contains("ArduCopter 4.x has no orbit command"), "{e}");
+        let e = handoff("handoff_follow", &[p("px4-fw")]).expect_err("no FW follow");
+        assert!(e.contains("no follow mode"), "{e}");
+        assert!(handoff("handoff_orbit", &[p("px4-mc"), p("ardupilot-fw")]).is_ok());
+        assert!(handoff("handoff_camera", &mixed).is_ok());
+    }
+
     /// The names the page (`web/`) and the Python clients read.
     #[test]
     fn the_states_and_laws_are_sent_by_their_former_names() {
@@ -312,6 +456,7 @@ mod tests {
             S::Arming,
             S::TakingOff,
             S::Offboard,
+            S::HandedOff,
             S::Lost,
             S::Failed,
             S::Hold,
@@ -323,6 +468,7 @@ mod tests {
                 "arming",
                 "taking_off",
                 "offboard",
+                "handed_off",
                 "lost",
                 "failed",
                 "hold"
@@ -330,7 +476,17 @@ mod tests {
         );
         let states = [AssignmentState::Active, AssignmentState::Ended];
         assert_eq!(names(&states), json!(["active", "ended"]));
-        assert_eq!(names(&Law::ALL), json!(["togvf", "lgvf", "formation"]));
+        assert_eq!(
+            names(&Law::ALL),
+            json!([
+                "togvf",
+                "lgvf",
+                "formation",
+                "handoff_orbit",
+                "handoff_follow",
+                "handoff_camera"
+            ])
+        );
         for law in Law::ALL {
             assert_eq!(Law::parse(law.as_str()), Some(law));
             assert_eq!(json!(law.as_str()), json!(law));

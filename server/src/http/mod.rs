@@ -414,7 +414,7 @@ mod tests {
     async fn the_statuses_are_enum_components_referenced_where_they_are_sent() {
         let doc = TestApp::new().get("/api/openapi.json").await.json();
         let schemas = &doc["components"]["schemas"];
-        let enums: [(&str, &[&str]); 10] = [
+        let enums: [(&str, &[&str]); 12] = [
             ("TrackStatus", &["tentative", "confirmed"]),
             (
                 "DeleteCause",
@@ -427,13 +427,26 @@ mod tests {
                     "arming",
                     "taking_off",
                     "offboard",
+                    "handed_off",
                     "lost",
                     "failed",
                     "hold",
                 ],
             ),
+            ("VehicleAutopilot", &["px4", "ardupilot"]),
+            ("VehicleAirframe", &["multirotor", "fixed_wing"]),
             ("AssignmentState", &["active", "ended"]),
-            ("Law", &["togvf", "lgvf", "formation"]),
+            (
+                "Law",
+                &[
+                    "togvf",
+                    "lgvf",
+                    "formation",
+                    "handoff_orbit",
+                    "handoff_follow",
+                    "handoff_camera",
+                ],
+            ),
             ("OrbitDirection", &["ccw", "cw"]),
             (
                 "LinkEventKind",
@@ -483,6 +496,8 @@ mod tests {
         refers("ScanMessage", "kind", "MeasKind");
         refers("ScanView", "kind", "MeasKind");
         refers("VehicleLinkView", "system_status", "SystemStatus");
+        refers("VehicleLinkView", "autopilot", "VehicleAutopilot");
+        refers("VehicleLinkView", "airframe", "VehicleAirframe");
         let states = schemas["SystemStatus"]["enum"]
             .as_array()
             .expect("MAV_STATEs");

@@ -8,8 +8,11 @@ use axum::extract::State;
 use axum::http::StatusCode;
 use axum::routing::{get, post};
 use axum::{Json, Router};
-use harrier_link::command::{arm, disarm, land, set_mode, takeoff};
+use harrier_link::ardupilot::PlaneMode;
+use harrier_link::autopilot::{Autopilot, Frame, Mode, Personality};
+use harrier_link::command::{arm, disarm, land, set_mode, takeoff, takeoff_relative};
 use harrier_link::mavlink::dialects::common::MavMessage;
+use harrier_link::offboard::DEFAULT_TAKEOFF_HEIGHT_M;
 use harrier_link::px4::FlightMode;
 use serde::{Deserialize, Serialize};
 use utoipa::{OpenApi, ToSchema};
@@ -126,13 +129,19 @@ async fn vehicle(
 #[derive(Debug, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct CommandRequest {
-    /// `arm`, `disarm`, `takeoff`, `land`, `hold` or `set_mode`.
+    /// `arm`, `disarm`, `takeoff`, `land`, `hold` or `set_mode`, each in the vehicle's autopilot's
+    /// terms (docs/autopilots.md): `hold` is PX4 Hold, ArduPilot LOITER; `land` is PX4 and
+    /// ArduCopter LAND, ArduPlane RTL; `takeoff` is PX4's NAV_TAKEOFF, ArduCopter's GUIDED then
+    /// NAV_TAKEOFF (as MAVSDK does), ArduPlane's TAKEOFF mode.
     #[schema(pattern = "^(arm|disarm|takeoff|land|hold|set_mode)$")]
     pub command: String,
-    /// `takeoff`: height above home (m); default: the vehicle's own takeoff altitude.
+    /// `takeoff`: height above home (m); default: the vehicle's own (PX4 MIS_TAKEOFF_ALT,
+    /// ArduPlane TKOFF_ALT, which it always climbs to; ArduCopter 2.5 m).
     #[serde(default)]
     pub altitude_m: Option<f64>,
-    /// `set_mode`: `hold`, `position`, `offboard`, `takeoff` or `land`.
+    /// `set_mode`: `hold`, `position`, `offboard` (or `guided`: PX4 OFFBOARD, ArduPilot GUIDED),
+    /// `takeoff` or `land`, or a mode of the vehicle's own table by its name (`CIRCLE`, `RTL`,
+    /// `BRAKE`, …).
     #[serde(default)]
     pub mode: Option<String>,
     /// `disarm`: force it in flight.
@@ -141,52 +150,82 @@ pub struct CommandRequest {
 }
 
 impl CommandRequest {
-    /// The COMMAND_LONG for vehicle `id` (`home`: its home altitude AMSL, when known), or an
+    /// The COMMAND_LONG for vehicle `id` of `personality` (`home`: its home altitude AMSL, when
+    /// known), and the one to send once it is accepted (ArduCopter's takeoff after GUIDED), or an
     /// error naming the bad field.
-    pub fn message(&self, id: u8, home: Option<f64>) -> Result<MavMessage, String> {
-        Ok(match self.command.as_str() {
-            "arm" => arm(id),
-            "disarm" => disarm(id, self.force.unwrap_or(false)),
-            "land" => land(id),
-            "hold" => set_mode(id, FlightMode::Hold),
+    pub fn messages(
+        &self,
+        id: u8,
+        home: Option<f64>,
+        personality: Personality,
+    ) -> Result<(MavMessage, Option<MavMessage>), String> {
+        let (autopilot, frame) = (personality.autopilot, personality.frame);
+        let one = |m: MavMessage| Ok((m, None));
+        match self.command.as_str() {
+            "arm" => one(arm(id)),
+            "disarm" => one(disarm(id, self.force.unwrap_or(false))),
+            "land" if frame == Frame::FixedWing && autopilot == Autopilot::ArduPilot => {
+                one(set_mode(id, personality.land()))
+            }
+            "land" => one(land(id)),
+            "hold" => one(set_mode(id, personality.hold())),
             "takeoff" => {
-                let amsl = match (self.altitude_m, home) {
-                    (None, _) => None,
-                    (Some(h), Some(home)) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
-                        Some((home + h) as f32)
-                    }
-                    (Some(h), None) if h.is_finite() && h > 0.0 && h <= 10_000.0 => {
-                        return Err(format!(
-                            "vehicle {id}: home altitude unknown yet (no GLOBAL_POSITION_INT); omit altitude_m"
-                        ));
-                    }
-                    (Some(h), _) => {
-                        return Err(format!("altitude_m must be in (0, 10000], got {h}"));
-                    }
+                let height = match self.altitude_m {
+                    None => None,
+                    Some(h) if h.is_finite() && h > 0.0 && h <= 10_000.0 => Some(h),
+                    Some(h) => return Err(format!("altitude_m must be in (0, 10000], got {h}")),
                 };
-                takeoff(id, amsl)
+                match (autopilot, frame) {
+                    (Autopilot::Px4, _) => {
+                        let amsl = match (height, home) {
+                            (None, _) => None,
+                            (Some(h), Some(home)) => Some((home + h) as f32),
+                            (Some(_), None) => {
+                                return Err(format!(
+                                    "vehicle {id}: home altitude unknown yet (no GLOBAL_POSITION_INT); omit altitude_m"
+                                ));
+                            }
+                        };
+                        one(takeoff(id, amsl))
+                    }
+                    (Autopilot::ArduPilot, Frame::Multirotor) => {
+                        let h = height.map_or(DEFAULT_TAKEOFF_HEIGHT_M, |h| h as f32);
+                        Ok((
+                            set_mode(id, personality.guided()),
+                            Some(takeoff_relative(id, h)),
+                        ))
+                    }
+                    (Autopilot::ArduPilot, Frame::FixedWing) => {
+                        one(set_mode(id, Mode::Plane(PlaneMode::Takeoff)))
+                    }
+                }
             }
             "set_mode" => {
-                let mode = match self.mode.as_deref() {
-                    Some("hold") => FlightMode::Hold,
-                    Some("position") => FlightMode::Position,
-                    Some("offboard") => FlightMode::Offboard,
-                    Some("takeoff") => FlightMode::Takeoff,
-                    Some("land") => FlightMode::Land,
-                    m => {
-                        return Err(format!(
-                            "mode {m:?}: expected hold, position, offboard, takeoff or land"
-                        ));
+                let name = self.mode.as_deref().unwrap_or("");
+                let mode = match (name, autopilot, frame) {
+                    ("hold", ..) => Some(personality.hold()),
+                    ("offboard" | "guided", ..) => Some(personality.guided()),
+                    ("land", ..) => Some(personality.land()),
+                    ("position", Autopilot::Px4, _) => Some(Mode::Px4(FlightMode::Position)),
+                    ("takeoff", Autopilot::Px4, _) => Some(Mode::Px4(FlightMode::Takeoff)),
+                    ("takeoff", Autopilot::ArduPilot, Frame::FixedWing) => {
+                        Some(Mode::Plane(PlaneMode::Takeoff))
                     }
+                    (name, ..) => personality.mode_named(name),
                 };
-                set_mode(id, mode)
+                match mode {
+                    Some(m) => one(set_mode(id, m)),
+                    None => Err(format!(
+                        "mode {:?}: expected hold, position, offboard, guided, takeoff, land or one of this {} vehicle's modes",
+                        self.mode,
+                        personality.label()
+                    )),
+                }
             }
-            c => {
-                return Err(format!(
-                    "command {c:?}: expected arm, disarm, takeoff, land, hold or set_mode"
-                ));
-            }
-        })
+            c => Err(format!(
+                "command {c:?}: expected arm, disarm, takeoff, land, hold or set_mode"
+            )),
+        }
     }
 }
 
@@ -216,19 +255,28 @@ async fn command(
         .link
         .as_ref()
         .ok_or_else(|| ApiError::unavailable("no_link", "no MAVLink link: set mavlink.gcs"))?;
-    let home = link
+    let (home, personality) = link
         .vehicles
         .borrow()
         .iter()
         .find(|v| v.view.id == id)
-        .and_then(|v| v.home_amsl);
-    let message = req
-        .message(id, home)
-        .map_err(|message| ApiError::Unprocessable {
-            reason: "invalid",
-            message,
-        })?;
-    let outcome = link.command(id, message).await?;
+        .map_or((None, Personality::PX4_MULTIROTOR), |v| {
+            (
+                v.home_amsl,
+                v.status
+                    .map_or(Personality::PX4_MULTIROTOR, |s| s.personality),
+            )
+        });
+    let (first, then) =
+        req.messages(id, home, personality)
+            .map_err(|message| ApiError::Unprocessable {
+                reason: "invalid",
+                message,
+            })?;
+    let mut outcome = link.command(id, first).await?;
+    if let Some(next) = then.filter(|_| outcome.ok) {
+        outcome = link.command(id, next).await?;
+    }
     if let Some(r) = &r.recorder {
         r.record(Record::Vehicle {
             time_unix: unix_now(),
@@ -250,6 +298,7 @@ mod tests {
     use axum::http::{Method, StatusCode};
 
     use super::super::testing::TestApp;
+    use super::*;
     use crate::gcs::{CommandOutcome, CommandResult, Request};
 
     #[tokio::test]
@@ -321,6 +370,77 @@ mod tests {
         assert_eq!(r.status, StatusCode::GATEWAY_TIMEOUT);
         assert_eq!(r.json()["result"], "timeout");
         assert_eq!(app.refused_total(), 0);
+    }
+
+    /// Each command in the vehicle's autopilot's terms: hold is LOITER to ArduPilot, land RTL to
+    /// an ArduPlane, takeoff GUIDED then NAV_TAKEOFF (above home) to an ArduCopter and TAKEOFF
+    /// mode to an ArduPlane; `set_mode` takes the vehicle's own mode names.
+    #[test]
+    fn commands_follow_the_vehicles_autopilot() {
+        use harrier_link::mavlink::dialects::common::MavCmd;
+        let req = |command: &str, mode: Option<&str>, altitude_m: Option<f64>| CommandRequest {
+            command: command.into(),
+            altitude_m,
+            mode: mode.map(Into::into),
+            force: None,
+        };
+        let long = |m: &MavMessage| match m {
+            MavMessage::COMMAND_LONG(c) => (c.command, c.param2, c.param7),
+            other => panic!("{other:?}"),
+        };
+        let p = |l: &str| Personality::from_label(l).expect("label");
+        let (copter, plane, px4) = (p("ardupilot-mc"), p("ardupilot-fw"), p("px4-mc"));
+        let set_mode = MavCmd::MAV_CMD_DO_SET_MODE;
+        for (r, personality, first, then) in [
+            (req("hold", None, None), copter, (set_mode, 5.0), None),
+            (req("hold", None, None), plane, (set_mode, 12.0), None),
+            (req("hold", None, None), px4, (set_mode, 4.0), None),
+            (req("land", None, None), plane, (set_mode, 11.0), None),
+            (
+                req("land", None, None),
+                copter,
+                (MavCmd::MAV_CMD_NAV_LAND, f32::NAN),
+                None,
+            ),
+            (
+                req("takeoff", None, Some(20.0)),
+                copter,
+                (set_mode, 4.0),
+                Some((MavCmd::MAV_CMD_NAV_TAKEOFF, 20.0)),
+            ),
+            (req("takeoff", None, None), plane, (set_mode, 13.0), None),
+            (
+                req("set_mode", Some("guided"), None),
+                plane,
+                (set_mode, 15.0),
+                None,
+            ),
+            (
+                req("set_mode", Some("offboard"), None),
+                px4,
+                (set_mode, 6.0),
+                None,
+            ),
+            (
+                req("set_mode", Some("BRAKE"), None),
+                copter,
+                (set_mode, 17.0),
+                None,
+            ),
+        ] {
+            let (m, next) = r.messages(3, Some(488.0), personality).expect("a command");
+            let (c, p2, _) = long(&m);
+            assert_eq!(c, first.0, "{r:?} {personality:?}");
+            assert!(
+                p2 == first.1 || (p2.is_nan() && first.1.is_nan()),
+                "{r:?}: {p2}"
+            );
+            assert_eq!(next.as_ref().map(|n| (long(n).0, long(n).2)), then, "{r:?}");
+        }
+        let e = req("set_mode", Some("BRAKE"), None)
+            .messages(3, None, plane)
+            .expect_err("no BRAKE on a plane");
+        assert!(e.contains("ardupilot-fw"), "{e}");
     }
 
     #[tokio::test]

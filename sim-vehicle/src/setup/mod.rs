@@ -235,6 +235,9 @@ pub enum Pointing {
         /// Index into [`SimScenario::targets`].
         target: usize,
     },
+    /// Pointed by the vehicle's gimbal manager at the region of interest the ground station set
+    /// (MAV_CMD_DO_SET_ROI_LOCATION: `Vehicle::gimbal_direction`); straight down without one.
+    Roi,
 }
 
 /// Radar measurement bias, \[ICDKF\] eq. (9): `z_i = (1 + s_i) h_i + o_i + v_i`, i = range, azimuth.

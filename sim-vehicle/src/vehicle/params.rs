@@ -1,4 +1,8 @@
-//! The vehicle's parameters (PARAM_REQUEST_LIST / _READ / PARAM_SET, all REAL32).
+//! The vehicle's parameters (PARAM_REQUEST_LIST / _READ / PARAM_SET → PARAM_VALUE).
+//!
+//! PX4's are all REAL32. ArduPilot's have their own types, sent "C-cast": the value as a float
+//! whatever the type (ArduPilot declares MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST); a
+//! PARAM_SET of an integer parameter is rounded to it.
 
 use mavlink::dialects::common::{MavMessage, MavParamType, PARAM_SET_DATA, PARAM_VALUE_DATA};
 
@@ -12,7 +16,7 @@ impl Vehicle {
             param_count: self.params.len() as u16,
             param_index: index as u16,
             param_id: p.name.into(),
-            param_type: MavParamType::MAV_PARAM_TYPE_REAL32,
+            param_type: p.kind,
         })
     }
 
@@ -23,12 +27,17 @@ impl Vehicle {
             return Vec::new();
         };
         let q = &mut self.params[i];
-        if p.param_value.is_finite() && (q.min..=q.max).contains(&p.param_value) {
-            q.value = p.param_value;
+        let value = if q.kind == MavParamType::MAV_PARAM_TYPE_REAL32 {
+            p.param_value
+        } else {
+            p.param_value.round()
+        };
+        if value.is_finite() && (q.min..=q.max).contains(&value) {
+            q.value = value;
         } else {
             self.counters.rejected_params += 1;
         }
-        // PX4 answers with the value in force, changed or not.
+        // PX4 and ArduPilot answer with the value in force, changed or not.
         vec![self.param_value(i)]
     }
 }

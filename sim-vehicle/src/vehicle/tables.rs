@@ -1,13 +1,24 @@
-//! The vehicle's tables, data without behaviour: its parameters ([`Param`], the defaults) and
-//! its telemetry streams ([`Stream`], [`STREAMS`] and their default intervals).
+//! The vehicle's tables, data without behaviour: its parameters ([`Param`], the defaults of
+//! each personality) and its telemetry streams ([`Stream`], [`STREAMS`] and their default
+//! intervals, ArduPilot's data-stream groups).
+//!
+//! The parameters are the ones clients read and the simulation flies by, with the real
+//! autopilots' names, types and defaults: PX4's (REAL32, sent bytewise) and ArduPilot's (their
+//! own integer and float types, sent as C-cast floats): SYSID_THISMAV, ARMING_CHECK,
+//! DISARM_DELAY, WPNAV_SPEED (cm/s), RTL_ALT (cm) … for ArduCopter; AIRSPEED_MIN,
+//! AIRSPEED_CRUISE, AIRSPEED_MAX, ROLL_LIMIT_DEG, WP_LOITER_RAD, TKOFF_ALT, RTL_ALTITUDE …
+//! for ArduPlane; FW_AIRSPD_MIN/TRIM/MAX/STALL, FW_R_LIM, NAV_LOITER_RAD for a PX4 fixed wing;
+//! FLW_TGT_DST, FLW_TGT_HT (AUTO.FOLLOW_TARGET) for a PX4 multirotor.
 
+use harrier_link::autopilot::{Autopilot, Frame, Personality};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
-    GPS_RAW_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, SYS_STATUS_DATA,
+    GPS_RAW_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavParamType,
+    SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
-/// A tunable parameter (all REAL32).
+/// A tunable parameter.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Param {
     /// Name (at most 16 characters).
@@ -18,30 +29,92 @@ pub struct Param {
     pub min: f32,
     /// Largest accepted value.
     pub max: f32,
+    /// Its type on the wire.
+    pub kind: MavParamType,
 }
 
-/// The parameters a vehicle starts with.
-pub(super) fn default_params() -> Vec<Param> {
-    vec![
-        Param {
-            name: "MIS_TAKEOFF_ALT",
-            value: 2.5,
-            min: 0.5,
-            max: 500.0,
-        },
-        Param {
-            name: "COM_OF_LOSS_T",
-            value: 0.5,
-            min: 0.1,
-            max: 60.0,
-        },
-        Param {
-            name: "MPC_LAND_SPEED",
-            value: 0.7,
-            min: 0.1,
-            max: 5.0,
-        },
-    ]
+const fn real(name: &'static str, value: f32, min: f32, max: f32) -> Param {
+    Param {
+        name,
+        value,
+        min,
+        max,
+        kind: MavParamType::MAV_PARAM_TYPE_REAL32,
+    }
+}
+
+const fn int(name: &'static str, kind: MavParamType, value: f32, min: f32, max: f32) -> Param {
+    Param {
+        name,
+        value,
+        min,
+        max,
+        kind,
+    }
+}
+
+const I8: MavParamType = MavParamType::MAV_PARAM_TYPE_INT8;
+const I16: MavParamType = MavParamType::MAV_PARAM_TYPE_INT16;
+const I32: MavParamType = MavParamType::MAV_PARAM_TYPE_INT32;
+
+/// The parameters a vehicle of `personality` with system id `id` starts with.
+pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
+    let id = f32::from(id);
+    match (personality.autopilot, personality.frame) {
+        (Autopilot::Px4, frame) => {
+            let mut p = vec![
+                real("MIS_TAKEOFF_ALT", 2.5, 0.5, 500.0),
+                real("COM_OF_LOSS_T", 0.5, 0.1, 60.0),
+                real("MPC_LAND_SPEED", 0.7, 0.1, 5.0),
+            ];
+            if frame == Frame::Multirotor {
+                // AUTO.FOLLOW_TARGET's distance behind and height above the target.
+                p.extend([
+                    real("FLW_TGT_DST", 8.0, 1.0, 100.0),
+                    real("FLW_TGT_HT", 8.0, 8.0, 100.0),
+                ]);
+            }
+            if frame == Frame::FixedWing {
+                p.extend([
+                    real("FW_AIRSPD_STALL", 7.0, 0.5, 40.0),
+                    real("FW_AIRSPD_MIN", 10.0, 0.5, 40.0),
+                    real("FW_AIRSPD_TRIM", 15.0, 0.5, 40.0),
+                    real("FW_AIRSPD_MAX", 20.0, 0.5, 40.0),
+                    real("FW_R_LIM", 50.0, 35.0, 65.0),
+                    real("FW_T_CLMB_MAX", 5.0, 1.0, 15.0),
+                    real("NAV_LOITER_RAD", 80.0, 25.0, 1000.0),
+                ]);
+            }
+            p
+        }
+        (Autopilot::ArduPilot, Frame::Multirotor) => vec![
+            int("SYSID_THISMAV", I16, id, 1.0, 255.0),
+            int("SYSID_MYGCS", I16, 255.0, 1.0, 255.0),
+            int("FRAME_CLASS", I8, 1.0, 0.0, 15.0),
+            int("ARMING_CHECK", I32, 1.0, 0.0, 1_048_575.0),
+            int("DISARM_DELAY", I8, 10.0, 0.0, 127.0),
+            real("WPNAV_SPEED", 1000.0, 10.0, 2000.0),
+            real("WPNAV_SPEED_UP", 250.0, 10.0, 1000.0),
+            real("WPNAV_SPEED_DN", 150.0, 10.0, 500.0),
+            int("LAND_SPEED", I16, 50.0, 30.0, 200.0),
+            int("RTL_ALT", I32, 1500.0, 200.0, 300_000.0),
+            real("PILOT_TKOFF_ALT", 0.0, 0.0, 1000.0),
+            real("GUID_TIMEOUT", 3.0, 0.1, 5.0),
+        ],
+        (Autopilot::ArduPilot, Frame::FixedWing) => vec![
+            int("SYSID_THISMAV", I16, id, 1.0, 255.0),
+            int("SYSID_MYGCS", I16, 255.0, 1.0, 255.0),
+            int("ARMING_CHECK", I32, 1.0, 0.0, 1_048_575.0),
+            int("AIRSPEED_MIN", I16, 9.0, 5.0, 100.0),
+            real("AIRSPEED_CRUISE", 15.0, 5.0, 100.0),
+            int("AIRSPEED_MAX", I16, 22.0, 5.0, 100.0),
+            real("ROLL_LIMIT_DEG", 45.0, 0.0, 90.0),
+            int("WP_LOITER_RAD", I16, 60.0, -32767.0, 32767.0),
+            int("TKOFF_ALT", I16, 50.0, 0.0, 300.0),
+            real("RTL_ALTITUDE", 100.0, -1.0, 5000.0),
+            real("TECS_CLMB_MAX", 5.0, 0.1, 20.0),
+        ],
+    }
 }
 
 /// Telemetry streams and their default intervals (s).
@@ -57,6 +130,42 @@ pub(super) const STREAMS: [(u32, f64); 9] = [
     (ATTITUDE_DATA::ID, 0.1),
 ];
 
+/// ArduPilot's extra stream: VFR_HUD (its SRn_EXTRA2 group), 4 Hz.
+const ARDUPILOT_STREAMS: [(u32, f64); 1] = [(VFR_HUD_DATA::ID, 0.25)];
+
+/// The messages of an ArduPilot data stream (REQUEST_DATA_STREAM `req_stream_id`,
+/// `MAV_DATA_STREAM`, GCS_Common's `STREAM_*` groups) among those the simulator sends; 0 is
+/// every stream but the HEARTBEAT.
+pub(super) fn data_stream(id: u8) -> &'static [u32] {
+    match id {
+        0 => &[
+            SYS_STATUS_DATA::ID,
+            EXTENDED_SYS_STATE_DATA::ID,
+            BATTERY_STATUS_DATA::ID,
+            GPS_RAW_INT_DATA::ID,
+            GLOBAL_POSITION_INT_DATA::ID,
+            LOCAL_POSITION_NED_DATA::ID,
+            ATTITUDE_DATA::ID,
+            VFR_HUD_DATA::ID,
+        ],
+        // EXTENDED_STATUS
+        2 => &[
+            SYS_STATUS_DATA::ID,
+            GPS_RAW_INT_DATA::ID,
+            EXTENDED_SYS_STATE_DATA::ID,
+        ],
+        // POSITION
+        6 => &[GLOBAL_POSITION_INT_DATA::ID, LOCAL_POSITION_NED_DATA::ID],
+        // EXTRA1
+        10 => &[ATTITUDE_DATA::ID],
+        // EXTRA2
+        11 => &[VFR_HUD_DATA::ID],
+        // EXTRA3
+        12 => &[BATTERY_STATUS_DATA::ID],
+        _ => &[],
+    }
+}
+
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Stream {
     /// Message id.
@@ -69,10 +178,15 @@ pub(super) struct Stream {
     pub(super) next_due: f64,
 }
 
-/// The streams at their default intervals, all due at wall time `now`.
-pub(super) fn default_streams(now: f64) -> Vec<Stream> {
+/// The streams of `personality` at their default intervals, all due at wall time `now`.
+pub(super) fn default_streams(personality: Personality, now: f64) -> Vec<Stream> {
+    let extra: &[(u32, f64)] = match personality.autopilot {
+        Autopilot::Px4 => &[],
+        Autopilot::ArduPilot => &ARDUPILOT_STREAMS,
+    };
     STREAMS
         .iter()
+        .chain(extra)
         .map(|&(id, dt)| Stream {
             id,
             default_interval: dt,

@@ -1,17 +1,23 @@
-//! Telemetry: the streamed messages, their intervals (SET_MESSAGE_INTERVAL) and the current
-//! value of any message the vehicle can send (REQUEST_MESSAGE).
+//! Telemetry: the streamed messages, their intervals (SET_MESSAGE_INTERVAL, and ArduPilot's
+//! REQUEST_DATA_STREAM) and the current value of any message the vehicle can send
+//! (REQUEST_MESSAGE; also GIMBAL_MANAGER_INFORMATION: the autopilot is the gimbal manager of
+//! its camera's gimbal).
 
+use harrier_link::autopilot::{Autopilot, ardupilot_base_mode};
 use harrier_link::geo::enu_to_ned;
 use harrier_link::px4::base_mode;
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, AUTOPILOT_VERSION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA,
-    GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA,
-    LOCAL_POSITION_NED_DATA, MavAutopilot, MavBatteryFunction, MavBatteryType, MavMessage,
-    MavProtocolCapability, MavResult, MavState, MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA,
+    GIMBAL_MANAGER_INFORMATION_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
+    GimbalManagerCapFlags, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
+    MavBatteryFunction, MavBatteryType, MavMessage, MavProtocolCapability, MavResult, MavState,
+    MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
-use super::Vehicle;
+use super::modes::Behaviour;
+use super::tables::data_stream;
+use super::{GIMBAL_DEVICE_ID, Vehicle};
 
 impl Vehicle {
     pub(super) fn set_message_interval(
@@ -37,6 +43,26 @@ impl Vehicle {
         };
         s.next_due = now;
         MavResult::MAV_RESULT_ACCEPTED
+    }
+
+    /// ArduPilot's REQUEST_DATA_STREAM: the messages of stream `req_stream_id` at
+    /// `req_message_rate` Hz, or off (`start_stop` 0, or rate 0). PX4 does not implement it.
+    #[allow(deprecated)]
+    pub(super) fn request_data_stream(
+        &mut self,
+        now: f64,
+        r: &mavlink::dialects::common::REQUEST_DATA_STREAM_DATA,
+    ) {
+        if self.personality.autopilot != Autopilot::ArduPilot {
+            return;
+        }
+        let interval = (r.start_stop != 0 && r.req_message_rate > 0)
+            .then(|| 1.0 / f64::from(r.req_message_rate));
+        let ids = data_stream(r.req_stream_id as u8);
+        for s in self.streams.iter_mut().filter(|s| ids.contains(&s.id)) {
+            s.interval = interval;
+            s.next_due = now;
+        }
     }
 
     /// Stream interval of a message id (s), `None` when disabled or not streamed.
@@ -79,17 +105,55 @@ impl Vehicle {
         let hdg_cdeg = (self.yaw.to_degrees().rem_euclid(360.0) * 100.0) as u16 % 36000;
         Some(match id {
             HEARTBEAT_DATA::ID => MavMessage::HEARTBEAT(HEARTBEAT_DATA {
-                custom_mode: self.mode.px4_custom_mode(),
-                mavtype: self.config.airframe.mav_type(),
-                autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
-                base_mode: base_mode(self.armed),
-                system_status: if self.armed {
+                custom_mode: self.mode.custom_mode(),
+                mavtype: self.personality.frame.mav_type(),
+                autopilot: self.personality.mav_autopilot(),
+                base_mode: match self.personality.autopilot {
+                    Autopilot::Px4 => base_mode(self.armed),
+                    Autopilot::ArduPilot => {
+                        let position_control = !matches!(self.behaviour(), Behaviour::Pilot);
+                        ardupilot_base_mode(self.armed, position_control)
+                    }
+                },
+                system_status: if match self.personality.autopilot {
+                    Autopilot::Px4 => self.armed,
+                    // ArduPilot: STANDBY while landed (`land_complete`), armed or not.
+                    Autopilot::ArduPilot => self.armed && (self.taking_off || !self.on_ground()),
+                } {
                     MavState::MAV_STATE_ACTIVE
                 } else {
                     MavState::MAV_STATE_STANDBY
                 },
                 mavlink_version: 3,
             }),
+            GIMBAL_MANAGER_INFORMATION_DATA::ID => {
+                use GimbalManagerCapFlags as F;
+                MavMessage::GIMBAL_MANAGER_INFORMATION(GIMBAL_MANAGER_INFORMATION_DATA {
+                    time_boot_ms: self.time_boot_ms(),
+                    cap_flags: F::GIMBAL_MANAGER_CAP_FLAGS_HAS_PITCH_AXIS
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_AXIS
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_HAS_YAW_LOCK
+                        | F::GIMBAL_MANAGER_CAP_FLAGS_CAN_POINT_LOCATION_GLOBAL,
+                    roll_min: 0.0,
+                    roll_max: 0.0,
+                    pitch_min: -std::f32::consts::FRAC_PI_2,
+                    pitch_max: 0.0,
+                    yaw_min: -std::f32::consts::PI,
+                    yaw_max: std::f32::consts::PI,
+                    gimbal_device_id: GIMBAL_DEVICE_ID,
+                })
+            }
+            VFR_HUD_DATA::ID => {
+                let speed = self.state.horizontal_velocity().norm() as f32;
+                MavMessage::VFR_HUD(VFR_HUD_DATA {
+                    airspeed: speed,
+                    groundspeed: speed,
+                    alt: g.alt_m as f32,
+                    climb: self.state.velocity.z as f32,
+                    heading: (hdg_cdeg / 100) as i16,
+                    throttle: if self.armed { 50 } else { 0 },
+                })
+            }
             GLOBAL_POSITION_INT_DATA::ID => {
                 MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
                     time_boot_ms: self.time_boot_ms(),
@@ -204,12 +268,14 @@ impl Vehicle {
                 })
             }
             AUTOPILOT_VERSION_DATA::ID => MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
-                capabilities: MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_MAVLINK2
-                    | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE
-                    | MavProtocolCapability::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED,
+                capabilities: self.capabilities(),
                 uid: u64::from(self.config.id),
-                // PX4 encoding: major.minor.patch.type (0xFF = release).
-                flight_sw_version: (1 << 24) | (15 << 16) | 0xFF,
+                // major << 24 | minor << 16 | patch << 8 | type (0xFF: official release): PX4
+                // 1.15.0, ArduCopter 4.5.7, ArduPlane 4.5.7.
+                flight_sw_version: match self.personality.autopilot {
+                    Autopilot::Px4 => (1 << 24) | (15 << 16) | 0xFF,
+                    Autopilot::ArduPilot => (4 << 24) | (5 << 16) | (7 << 8) | 0xFF,
+                },
                 middleware_sw_version: 0,
                 os_sw_version: 0,
                 board_version: 0,
@@ -221,6 +287,25 @@ impl Vehicle {
             }),
             _ => return None,
         })
+    }
+
+    /// AUTOPILOT_VERSION's capabilities: PX4 encodes parameters bytewise, ArduPilot C-cast
+    /// and takes COMMAND_INT and SET_POSITION_TARGET_GLOBAL_INT (`GCS_MAVLINK_Copter::
+    /// capabilities`).
+    fn capabilities(&self) -> MavProtocolCapability {
+        use MavProtocolCapability as C;
+        let common = C::MAV_PROTOCOL_CAPABILITY_MAVLINK2
+            | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED;
+        match self.personality.autopilot {
+            Autopilot::Px4 => common | C::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
+            Autopilot::ArduPilot => {
+                common
+                    | C::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
+                    | C::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+                    | C::MAV_PROTOCOL_CAPABILITY_MISSION_INT
+                    | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
+            }
+        }
     }
 
     fn battery_percent(&self) -> i8 {

@@ -1,4 +1,5 @@
-//! Unit tests of the vehicle: commands, modes, offboard timeout, parameters, intervals.
+//! Unit tests of the PX4 vehicle: commands, modes, offboard timeout, parameters, intervals
+//! (ArduPilot's in `tests_ardupilot.rs`).
 
 use super::tables::STREAMS;
 use super::*;
@@ -7,8 +8,8 @@ use mavlink::MessageData;
 use mavlink::dialects::common::{
     AUTOPILOT_VERSION_DATA, GLOBAL_POSITION_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA,
     LOCAL_POSITION_NED_DATA, MavCmd, MavFrame, MavMessage, MavModeFlag, MavParamType, MavResult,
-    PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA, PositionTargetTypemask,
-    SET_POSITION_TARGET_LOCAL_NED_DATA,
+    MavType, PARAM_REQUEST_LIST_DATA, PARAM_REQUEST_READ_DATA, PARAM_SET_DATA,
+    PositionTargetTypemask, SET_POSITION_TARGET_LOCAL_NED_DATA,
 };
 
 fn cmd(command: MavCmd, p: [f32; 7]) -> MavMessage {
@@ -70,7 +71,7 @@ fn airborne(airframe: Airframe) -> Vehicle {
         ),
     );
     assert_eq!(ack_of(&r), MavResult::MAV_RESULT_ACCEPTED);
-    assert_eq!(v.mode(), FlightMode::Takeoff);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Takeoff));
     run(&mut v, 0.0, 10.0);
     v
 }
@@ -78,7 +79,7 @@ fn airborne(airframe: Airframe) -> Vehicle {
 #[test]
 fn arm_takeoff_to_mis_takeoff_alt_then_hold() {
     let v = airborne(Airframe::Multirotor);
-    assert_eq!(v.mode(), FlightMode::Hold);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Hold));
     assert!((v.state().position.z - 2.5).abs() < 0.2, "{:?}", v.state());
     assert_eq!(v.landed_state(), MavLandedState::MAV_LANDED_STATE_IN_AIR);
 }
@@ -140,7 +141,7 @@ fn do_set_mode_follows_px4_modes() {
         ),
     );
     assert_eq!(ack_of(&r), MavResult::MAV_RESULT_ACCEPTED);
-    assert_eq!(v.mode(), FlightMode::Position);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Position));
     let hb = v.message(HEARTBEAT_DATA::ID);
     let Some(MavMessage::HEARTBEAT(hb)) = hb else {
         panic!()
@@ -163,7 +164,7 @@ fn do_set_mode_follows_px4_modes() {
         &cmd(MavCmd::MAV_CMD_DO_SET_MODE, [0.0, 4.0, 3.0, 0., 0., 0., 0.]),
     );
     assert_eq!(ack_of(&r), MavResult::MAV_RESULT_UNSUPPORTED);
-    assert_eq!(v.mode(), FlightMode::Position);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Position));
     // Land: descends, touches down, disarms.
     let r = v.handle(
         10.0,
@@ -191,14 +192,14 @@ fn offboard_needs_setpoints_and_times_out_to_hold() {
         ack_of(&v.handle(10.0, &offboard)),
         MavResult::MAV_RESULT_DENIED
     );
-    assert_eq!(v.mode(), FlightMode::Hold);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Hold));
     // Stream 2 m/s north.
     v.handle(10.0, &velocity_sp(2.0, 0.0, 0.0));
     assert_eq!(
         ack_of(&v.handle(10.1, &offboard)),
         MavResult::MAV_RESULT_ACCEPTED
     );
-    assert_eq!(v.mode(), FlightMode::Offboard);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Offboard));
     let x0 = v.state().position;
     let mut t = 10.1;
     while t < 15.0 {
@@ -211,9 +212,9 @@ fn offboard_needs_setpoints_and_times_out_to_hold() {
     v.handle(15.2, &velocity_sp(f32::NAN, 0.0, 0.0));
     assert_eq!(v.counters().rejected_setpoints, 1);
     v.advance(15.45);
-    assert_eq!(v.mode(), FlightMode::Offboard);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Offboard));
     v.advance(15.7);
-    assert_eq!(v.mode(), FlightMode::Hold);
+    assert_eq!(v.mode(), Mode::Px4(FlightMode::Hold));
     // Hold brakes to a stop.
     let p0 = v.state().position;
     run(&mut v, 15.7, 19.7);
@@ -258,7 +259,9 @@ fn fixed_wing_keeps_flying_in_hold() {
     let mut v = airborne(Airframe::FixedWing);
     run(&mut v, 10.0, 60.0);
     let s = v.state();
-    assert!(s.horizontal_velocity().norm() >= 12.0 - 1e-9);
+    // FW_AIRSPD_MIN, above FW_AIRSPD_STALL.
+    assert!(s.horizontal_velocity().norm() >= 10.0 - 1e-9);
+    assert_eq!(v.stall_speed(), Some(7.0));
     assert!(s.horizontal_position().norm() < 200.0, "{s:?}");
     assert!((s.position.z - 2.5).abs() < 1.0);
     let Some(MavMessage::HEARTBEAT(hb)) = v.message(HEARTBEAT_DATA::ID) else {
@@ -277,7 +280,7 @@ fn parameters_list_read_set() {
             target_component: 1,
         }),
     );
-    assert_eq!(list.len(), 3);
+    assert_eq!(list.len(), 5);
     let read = |v: &mut Vehicle, name: &str| {
         v.handle(
             0.0,

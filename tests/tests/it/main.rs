@@ -20,6 +20,7 @@
 //! A new test file goes here as a module (`mod name;` below), not as a new `tests/*.rs` binary.
 
 mod api_clients;
+mod autopilots;
 mod bearings;
 mod cimm;
 mod clock;
@@ -31,6 +32,7 @@ mod field_foxglove;
 mod field_tak;
 mod fuzz_regressions;
 mod guidance;
+mod handoff;
 mod http_limits;
 mod live_server;
 mod mavlink_gcs;

@@ -163,3 +163,112 @@ fn mavproxy_logs_and_forwards_the_simulated_vehicle_over_tcp() {
     assert_eq!(c.malformed, 0, "{c:?}");
     assert_eq!(c.refused_commands, 0, "{c:?}");
 }
+
+/// MAVProxy, ArduPilot's own ground station, on an ArduCopter-personality vehicle: it names the
+/// modes from the HEARTBEAT (`Mode STABILIZE`, its prompt), and its own commands typed on its
+/// console — `mode GUIDED`, `arm throttle`, `takeoff 10` — switch the vehicle to GUIDED, arm it
+/// and take it off to 10 m above home. MAVProxy reads its commands from a pipe here (no
+/// `--daemon`), each written once the previous one took effect.
+#[test]
+fn mavproxy_switches_an_ardu_copter_to_guided_arms_and_takes_it_off() {
+    use harrier_link::autopilot::{Autopilot, Frame, Mode, Personality};
+    use harrier_sim::vehicle::CopterMode;
+    use std::io::Write as _;
+
+    require_python_module("MAVProxy", "MAVProxy==1.8.75");
+    let copter = Personality::new(Autopilot::ArduPilot, Frame::Multirotor);
+    let sim = spawn(
+        VehicleConfig::new(1).with_personality(copter),
+        &LinkConfig {
+            endpoints: vec!["tcpin:127.0.0.1:0".to_owned()],
+            signing: None,
+        },
+    )
+    .expect("start the vehicle");
+    let api_port = sim.local_addrs()[0].expect("API link listening").port();
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let tlog = dir.path().join("flight.tlog");
+    let console = std::fs::File::create(dir.path().join("mavproxy.out")).expect("console log");
+    let mut child = Command::new("python3")
+        .args(["-m", "MAVProxy.mavproxy"])
+        .arg(format!("--master=tcp:127.0.0.1:{api_port}"))
+        .arg(format!("--logfile={}", tlog.display()))
+        .arg(format!("--state-basedir={}", dir.path().display()))
+        .current_dir(dir.path())
+        .stdin(Stdio::piped())
+        .stdout(console.try_clone().expect("console log"))
+        .stderr(console)
+        .process_group(0)
+        .spawn()
+        .expect("run MAVProxy");
+    let console_text =
+        || std::fs::read_to_string(dir.path().join("mavproxy.out")).unwrap_or_default();
+    let mut stdin = child.stdin.take().expect("MAVProxy's stdin");
+    let wait_for = |what: &str, done: &dyn Fn(&str) -> bool, child: &mut std::process::Child| {
+        let deadline = Instant::now() + Duration::from_secs(40);
+        loop {
+            if let Some(status) = child.try_wait().expect("poll MAVProxy") {
+                panic!(
+                    "MAVProxy exited ({status}) waiting for {what}:\n{}",
+                    console_text()
+                );
+            }
+            if done(&console_text()) {
+                return;
+            }
+            if Instant::now() > deadline {
+                kill_group(child);
+                panic!("no {what} within 40 s:\n{}", console_text());
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    // MAVProxy names the mode of the first HEARTBEAT with ArduCopter's table.
+    wait_for(
+        "the STABILIZE mode",
+        &|c| c.contains("Mode STABILIZE"),
+        &mut child,
+    );
+    writeln!(stdin, "mode GUIDED").expect("type mode GUIDED");
+    wait_for(
+        "GUIDED",
+        &|c| c.contains("Mode GUIDED") && sim.vehicle().mode() == Mode::Copter(CopterMode::Guided),
+        &mut child,
+    );
+    writeln!(stdin, "arm throttle").expect("type arm throttle");
+    wait_for(
+        "arming",
+        &|c| c.contains("ARMED") && sim.vehicle().armed(),
+        &mut child,
+    );
+    writeln!(stdin, "takeoff 10").expect("type takeoff 10");
+    wait_for(
+        "the climb to 10 m",
+        &|_| (sim.vehicle().state().position.z - 10.0).abs() < 0.3,
+        &mut child,
+    );
+    let still_running = child.try_wait().expect("poll MAVProxy").is_none();
+    kill_group(&mut child);
+    assert!(still_running, "MAVProxy crashed:\n{}", console_text());
+
+    // The acknowledgements MAVProxy logged: GUIDED, arm and takeoff all accepted.
+    let logged = read_tlog(&std::fs::read(&tlog).unwrap_or_default());
+    for command in [
+        MavCmd::MAV_CMD_DO_SET_MODE,
+        MavCmd::MAV_CMD_COMPONENT_ARM_DISARM,
+        MavCmd::MAV_CMD_NAV_TAKEOFF,
+    ] {
+        assert!(
+            logged.iter().any(|(_, sysid, m)| *sysid == 1
+                && matches!(m, MavMessage::COMMAND_ACK(a)
+                    if a.command == command && a.result == MavResult::MAV_RESULT_ACCEPTED)),
+            "no accepted {command:?} in the tlog"
+        );
+    }
+    let v = sim.vehicle();
+    assert_eq!(v.mode(), Mode::Copter(CopterMode::Guided));
+    assert!(v.armed());
+    let c = v.counters();
+    assert_eq!(c.malformed, 0, "{c:?}");
+    assert_eq!(c.refused_commands, 0, "{c:?}");
+}

@@ -51,7 +51,10 @@ fn pymavlink_flies_the_simulated_vehicle() {
     {
         let v = sim.vehicle();
         assert!(!v.armed());
-        assert_eq!(v.mode(), FlightMode::Hold);
+        assert_eq!(
+            v.mode(),
+            harrier_link::autopilot::Mode::Px4(FlightMode::Hold)
+        );
         assert!(v.state().position.y > 8.0, "{:?}", v.state()); // flew north (ENU y)
         assert_eq!(v.param("MIS_TAKEOFF_ALT"), Some(4.0));
         assert_eq!(v.counters().rejected_params, 1);

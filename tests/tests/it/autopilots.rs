@@ -1,0 +1,216 @@
+//! Every autopilot on one assignment: `harrier demo --fleet px4-mc,ardupilot-mc,px4-fw,
+//! ardupilot-fw` in-process, its four simulated UAVs (a PX4 and an ArduCopter multirotor, a PX4
+//! and an ArduPlane fixed wing) assigned by the demo to the slow car's track. The ground station
+//! recognises each from its HEARTBEAT and flies each through its autopilot's sequence (PX4: arm,
+//! takeoff, setpoints, OFFBOARD; ArduCopter: GUIDED, arm, takeoff, targets; ArduPlane: arm,
+//! TAKEOFF, GUIDED, course/airspeed/altitude). Measured from the vehicles' own telemetry against
+//! the simulator's truth, once the ring has formed (every vehicle in OFFBOARD or GUIDED within
+//! 5 % (multirotor) or 10 % (fixed wing) of R, every gap within 20° of 90°, for 2 s): |r − R| RMS
+//! ≤ 5 % of R for the multirotors and ≤ 10 % for the fixed wings, the phase-spacing error RMS ≤
+//! 15°, and, from the simulator's own physics over the whole flight, no fixed wing ever below its
+//! stall speed. The window is `HARRIER_FLEET_SECONDS` wall seconds (20 in CI, at
+//! 5× speed-up: 100 s of flight); BENCHMARKS.md has a long run.
+
+use std::net::SocketAddr;
+use std::time::{Duration, Instant};
+
+use harrier_cli::demo::{self, DemoConfig};
+use harrier_link::autopilot::Personality;
+use serde_json::Value;
+
+use harrier_tests::{http_get_json, runtime, within};
+
+/// Standoff radius (m).
+const R: f64 = 150.0;
+
+/// `GET path` as JSON, off the runtime's threads.
+async fn get_json(addr: SocketAddr, path: &str) -> Value {
+    let path = path.to_owned();
+    tokio::task::spawn_blocking(move || http_get_json(addr, &path).1)
+        .await
+        .expect("GET")
+}
+
+/// Horizontal distance and phase (rad) of `p` around `c`.
+fn polar(p: &Value, c: &Value) -> (f64, f64) {
+    let f = |v: &Value, i: usize| v[i].as_f64().expect("coordinate");
+    let (dx, dy) = (f(p, 0) - f(c, 0), f(p, 1) - f(c, 1));
+    (dx.hypot(dy), dy.atan2(dx))
+}
+
+/// The phase-spacing errors of a ring (degrees): each gap to the next vehicle along the ring
+/// minus 360°/n.
+fn spacing_errors(uavs: &[Uav]) -> Vec<f64> {
+    let mut phases: Vec<f64> = uavs.iter().map(|u| u.phase).collect();
+    phases.sort_by(f64::total_cmp);
+    let n = phases.len();
+    (0..n)
+        .map(|i| {
+            let gap = (phases[(i + 1) % n] - phases[i]).rem_euclid(std::f64::consts::TAU);
+            (gap - std::f64::consts::TAU / n as f64).to_degrees()
+        })
+        .collect()
+}
+
+/// One vehicle at one sample: distance to the car, phase, mode, airframe.
+#[derive(Debug, Clone)]
+struct Uav {
+    r: f64,
+    phase: f64,
+    mode: String,
+    fixed_wing: bool,
+}
+
+/// The assignment, the car its track follows (the truth target nearest the estimate) and every
+/// vehicle's place around it.
+async fn sample(addr: SocketAddr) -> Option<(Value, Vec<Uav>)> {
+    let a = get_json(addr, "/api/v1/assignments").await["assignments"]
+        .get(0)?
+        .clone();
+    let k = get_json(addr, &format!("/api/v1/tracks/{}", a["track"])).await;
+    let truth = get_json(addr, "/api/v1/truth").await;
+    let vehicles = get_json(addr, "/api/v1/vehicles").await;
+    let est = k.get("state")?.clone();
+    let car = truth["targets"].as_array()?.iter().min_by(|x, y| {
+        polar(&x["position"], &est)
+            .0
+            .total_cmp(&polar(&y["position"], &est).0)
+    })?["position"]
+        .clone();
+    let uavs = vehicles["vehicles"]
+        .as_array()?
+        .iter()
+        .filter_map(|v| {
+            let l = &v["link"];
+            let (r, phase) = polar(l.get("position")?, &car);
+            Some(Uav {
+                r,
+                phase,
+                mode: l["mode"].as_str()?.to_owned(),
+                fixed_wing: l["airframe"] == "fixed_wing",
+            })
+        })
+        .collect();
+    Some((a, uavs))
+}
+
+/// The four personalities fly one standoff ring (see the module documentation).
+#[test]
+fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
+    let fleet: Vec<Personality> = ["px4-mc", "ardupilot-mc", "px4-fw", "ardupilot-fw"]
+        .into_iter()
+        .filter_map(Personality::from_label)
+        .collect();
+    let window_s: u64 = std::env::var("HARRIER_FLEET_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(20);
+    runtime().block_on(within(240 + window_s, "the mixed fleet", async {
+        let config = DemoConfig {
+            speedup: 5.0,
+            seed: 3,
+            radius: R,
+            fleet: fleet.clone(),
+            ..DemoConfig::ephemeral(SocketAddr::from(([127, 0, 0, 1], 0)))
+        };
+        let demo = within(30, "start the demo", demo::start(&config))
+            .await
+            .expect("start the demo");
+        let addr = demo.server().local_addr();
+        let started = Instant::now();
+        let guided = |m: &str| m == "OFFBOARD" || m == "GUIDED";
+        let mut settled = 0;
+        while settled < 8 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            let tolerance = |u: &Uav| if u.fixed_wing { 0.1 } else { 0.05 } * R;
+            settled = match sample(addr).await {
+                Some((a, uavs))
+                    if a["state"] == "active"
+                        && uavs.len() == 4
+                        && uavs
+                            .iter()
+                            .all(|u| guided(&u.mode) && (u.r - R).abs() < tolerance(u))
+                        && spacing_errors(&uavs).iter().all(|e| e.abs() < 20.0) =>
+                {
+                    settled + 1
+                }
+                _ => 0,
+            };
+            assert!(
+                started.elapsed() < Duration::from_secs(200),
+                "the fleet did not settle on the ring: {:?}",
+                sample(addr).await
+            );
+        }
+        eprintln!(
+            "fleet: on the ring (|r - R| within 5 % / 10 %, every gap within 20°) after {:.1} s \
+             ({:.0} s of flight)",
+            started.elapsed().as_secs_f64(),
+            started.elapsed().as_secs_f64() * 5.0
+        );
+        // Each recognised by its HEARTBEAT, in the order of the fleet.
+        let vehicles = get_json(addr, "/api/v1/vehicles").await;
+        let seen: Vec<String> = vehicles["vehicles"]
+            .as_array()
+            .expect("vehicles")
+            .iter()
+            .map(|v| format!("{}-{}", v["link"]["autopilot"], v["link"]["airframe"]))
+            .collect();
+        assert_eq!(
+            seen,
+            [
+                r#""px4"-"multirotor""#,
+                r#""ardupilot"-"multirotor""#,
+                r#""px4"-"fixed_wing""#,
+                r#""ardupilot"-"fixed_wing""#
+            ]
+        );
+        let (mut mc2, mut fw2, mut spacing2) = (0.0, 0.0, 0.0);
+        let (mut n_mc, mut n_fw, mut n) = (0usize, 0usize, 0usize);
+        for _ in 0..window_s * 4 {
+            tokio::time::sleep(Duration::from_millis(250)).await;
+            let Some((_, uavs)) = sample(addr).await else {
+                continue;
+            };
+            assert!(uavs.iter().all(|u| guided(&u.mode)), "{uavs:?}");
+            for u in &uavs {
+                if u.fixed_wing {
+                    fw2 += (u.r - R).powi(2);
+                    n_fw += 1;
+                } else {
+                    mc2 += (u.r - R).powi(2);
+                    n_mc += 1;
+                }
+            }
+            for e in spacing_errors(&uavs) {
+                spacing2 += e * e;
+                n += 1;
+            }
+        }
+        let mc_rms = (mc2 / n_mc as f64).sqrt();
+        let fw_rms = (fw2 / n_fw as f64).sqrt();
+        let spacing_rms = (spacing2 / n as f64).sqrt();
+        // The simulator's physics, every step of the whole flight.
+        let mut slowest = Vec::new();
+        for h in demo.world().vehicles() {
+            let v = h.vehicle();
+            if let Some(stall) = v.stall_speed() {
+                let low = v.slowest_airborne_speed().expect("it flew");
+                slowest.push((v.personality().label(), low, stall));
+            }
+        }
+        eprintln!(
+            "fleet: |r - R| RMS multirotors {mc_rms:.2} m, fixed wings {fw_rms:.2} m (R = {R} m), \
+             spacing error RMS {spacing_rms:.1}°, {n} samples over {window_s} s; slowest fixed \
+             wings (label, m/s, stall m/s): {slowest:?}"
+        );
+        assert!(mc_rms <= 0.05 * R, "multirotors |r - R| RMS {mc_rms} m");
+        assert!(fw_rms <= 0.10 * R, "fixed wings |r - R| RMS {fw_rms} m");
+        assert!(spacing_rms <= 15.0, "spacing error RMS {spacing_rms}°");
+        assert_eq!(slowest.len(), 2);
+        for (label, low, stall) in slowest {
+            assert!(low >= stall, "{label} flew {low} m/s, stall {stall} m/s");
+        }
+        demo.stop().await;
+    }));
+}
