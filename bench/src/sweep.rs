@@ -99,14 +99,16 @@ pub fn sweep_lines(reports: &[Report]) -> Vec<String> {
         return out;
     };
     let s = &first.setup;
+    // The first runs may have fewer vehicles than --assign.
+    let assign = reports.iter().map(|r| r.setup.assign).max().unwrap_or(0);
     out.push(format!(
         "harrier bench --sweep: {} Hz × {} detections per vehicle{}{}; {} s measured per run; server {}",
         s.rate_hz,
         s.detections,
         s.mavlink_telemetry_hz
             .map_or(String::new(), |hz| format!(", MAVLink telemetry at {hz} Hz")),
-        if s.assign > 0 {
-            format!(", {} assigned", s.assign)
+        if assign > 0 {
+            format!(", up to {assign} assigned")
         } else {
             String::new()
         },
