@@ -151,9 +151,7 @@ impl Link {
         match (&mut self.transport, to) {
             (Transport::Udp { socket, .. }, Peer::Udp(addr)) => {
                 // UDP is lossy by nature: a failed send (no listener yet) is not an error.
-                if socket.send_to(&frame, addr).is_ok() {
-                    self.sent += 1;
-                }
+                self.sent += u64::from(socket.send_to(&frame, addr).is_ok());
             }
             (Transport::TcpIn { clients, .. }, Peer::Tcp(id)) => {
                 clients.retain_mut(|c| {
