@@ -75,7 +75,14 @@ def main():
     ap.add_argument("--warmup", type=float, default=3.0)
     ap.add_argument("--baseline", action="store_true",
                     help="send straight to the client socket (no Harrier): the Python sides' own latency")
+    ap.add_argument("--client-id", type=int, default=200,
+                    help="the router client's MAVLink system id (not a vehicle's: with --vehicles 254 use 255, "
+                         "the id QGroundControl uses beside the server's own)")
     a = ap.parse_args()
+    if not 1 <= a.vehicles <= 254:
+        sys.exit("mavlink_load: --vehicles must be 1..254 (255 is the ground station's own system id)")
+    if 1 <= a.client_id <= a.vehicles:
+        sys.exit(f"mavlink_load: --client-id {a.client_id} is a vehicle's id (1..{a.vehicles})")
 
     gcs, router, zport = free_port(), free_port(), free_port(socket.SOCK_STREAM)
     server = subprocess.Popen(
@@ -101,7 +108,7 @@ def main():
     client = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     client.bind(("127.0.0.1", 0))
     client.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 8 << 20)
-    cmav = mavlink2.MAVLink(None, srcSystem=200, srcComponent=191)
+    cmav = mavlink2.MAVLink(None, srcSystem=a.client_id, srcComponent=191)
     client.sendto(cmav.heartbeat_encode(6, 8, 0, 0, 0).pack(cmav), ("127.0.0.1", router))
     sent_at = {}
     latencies = []

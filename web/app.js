@@ -8,7 +8,7 @@ import { MapPane } from "./js/mappane.js";
 import { SceneView } from "./js/scene3d.js";
 import { Store } from "./js/store.js";
 import { SeriesPanel, ServicePanel, StandoffPanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
-import { fmt } from "./js/util.js";
+import { cssSize, fmt } from "./js/util.js";
 
 const $ = (id) => document.getElementById(id);
 const store = new Store();
@@ -536,7 +536,7 @@ function frame(now) {
   store.prune(now);
   map.draw(now);
   scene.update(now, layers);
-  if (scene.canvas.clientWidth && scene.render(now)) renders += 1;
+  if (cssSize(scene.canvas)[0] && scene.render(now)) renders += 1;
   frameWork.push(performance.now() - t0);
   frames += 1;
   if (now - fpsSince >= 1000) {

@@ -1,7 +1,9 @@
 //! The command line of `harrier bench` ([`BenchArgs`]), its checks, and the in-process
 //! server's configuration it gives.
 
+use std::fmt::Write as _;
 use std::net::SocketAddr;
+use std::path::PathBuf;
 
 use harrier_server::config::Config;
 
@@ -90,7 +92,44 @@ pub struct BenchArgs {
     /// (ms), no more drops and no larger lag until the end.
     #[arg(long, default_value_t = 250.0)]
     pub recovered_lag_ms: f64,
+    /// Every vehicle also flies: a PX4-like harrier-sim vehicle on its own UDP socket (all of
+    /// them on a few threads of this process) sends its telemetry to the server's GCS link and
+    /// answers its commands. The run counts the frames sent and received, the time until every
+    /// vehicle is connected, and the vehicles that hear the ground station's HEARTBEAT.
+    #[arg(long)]
+    pub mavlink: bool,
+    /// With --mavlink: rate (Hz) of GLOBAL_POSITION_INT, LOCAL_POSITION_NED and ATTITUDE (the
+    /// other streams keep PX4's 0.5–5 Hz).
+    #[arg(long, default_value_t = 10.0)]
+    pub telemetry_hz: f64,
+    /// With --mavlink and --url: the server's GCS link (UDP), HOST:PORT.
+    #[arg(long, requires = "url")]
+    pub gcs: Option<SocketAddr>,
+    /// With --mavlink: once the warm-up is over, assign this many vehicles (the first ones) to
+    /// the confirmed tracks (TOGVF, spread over the tracks, at most 16 a track), and report the
+    /// guidance loop's lateness (with --url, give --token).
+    #[arg(long, default_value_t = 0)]
+    pub assign: usize,
+    /// Record the session into this SQLite file (and the raw MAVLink beside it,
+    /// FILE-session-N.tlog): the recorder's load too.
+    #[arg(long, value_name = "FILE")]
+    pub record: Option<PathBuf>,
+    /// Run the server as a child process (`harrier serve`) instead of in this process, so that
+    /// its CPU and memory are measured apart from the load's.
+    #[arg(long)]
+    pub server_process: bool,
+    /// With --server-process: the `harrier` binary that serves (default: this one), e.g. an
+    /// older build to compare.
+    #[arg(long, value_name = "PATH", requires = "server_process")]
+    pub server_bin: Option<PathBuf>,
+    /// One run per vehicle count, e.g. 10,50,100,255 (each with a fresh server), then a table
+    /// of how each figure grows with the number of vehicles; --vehicles is ignored.
+    #[arg(long, value_delimiter = ',', value_name = "N,N,…")]
+    pub sweep: Vec<u8>,
 }
+
+/// The highest vehicle id with `--mavlink`: 255 is the ground station's own system id.
+const MAX_MAVLINK_ID: u16 = 254;
 
 impl BenchArgs {
     /// Checks what clap cannot.
@@ -156,12 +195,61 @@ impl BenchArgs {
                 self.estimator.is_none()
                     && self.reorder_window_s.is_none()
                     && self.queue.is_none()
-                    && self.ws_queue.is_none(),
-                "--estimator, --reorder-window-s, --queue and --ws-queue configure the \
-                 in-process server; with --url, configure the server you run",
+                    && self.ws_queue.is_none()
+                    && self.record.is_none()
+                    && !self.server_process,
+                "--estimator, --reorder-window-s, --queue, --ws-queue, --record and \
+                 --server-process configure the server this tool starts; with --url, configure \
+                 the server you run",
+            )?;
+            bad(
+                !self.mavlink || self.gcs.is_some(),
+                "--mavlink with --url needs --gcs HOST:PORT, the server's GCS link (UDP)",
             )?;
         }
+        bad(
+            self.telemetry_hz.is_finite() && self.telemetry_hz > 0.0 && self.telemetry_hz <= 1000.0,
+            "--telemetry-hz must be in (0, 1000]",
+        )?;
+        bad(
+            self.assign == 0 || self.mavlink,
+            "--assign needs --mavlink (the guidance flies vehicles over MAVLink)",
+        )?;
+        bad(
+            !self.sweep.is_empty() || self.assign <= usize::from(self.vehicles),
+            "--assign must be at most --vehicles",
+        )?;
+        bad(
+            self.sweep
+                .iter()
+                .all(|&n| n >= 1 && u16::from(self.first_vehicle) + u16::from(n) - 1 <= 255),
+            "every --sweep count must be ≥ 1, and --first-vehicle + count - 1 ≤ 255",
+        )?;
+        // The ground station has a MAVLink system id too (255 by default): a vehicle with it
+        // would never be heard.
+        let last = |n: u8| u16::from(self.first_vehicle) + u16::from(n) - 1;
+        bad(
+            !self.mavlink
+                || std::iter::once(self.vehicles)
+                    .chain(self.sweep.iter().copied())
+                    .all(|n| last(n) <= MAX_MAVLINK_ID),
+            "with --mavlink, --first-vehicle + count - 1 must be ≤ 254 (255 is the ground \
+             station's own MAVLink system id)",
+        )?;
         Ok(())
+    }
+
+    /// The runs a sweep makes: these arguments with `--vehicles` set to each count, no sweep.
+    pub(super) fn sweep_runs(&self) -> Vec<Self> {
+        self.sweep
+            .iter()
+            .map(|&n| Self {
+                vehicles: n,
+                assign: self.assign.min(usize::from(n)),
+                sweep: Vec::new(),
+                ..self.clone()
+            })
+            .collect()
     }
 
     /// The vehicles' MAVLink ids.
@@ -171,28 +259,47 @@ impl BenchArgs {
             .collect()
     }
 
-    /// The in-process server's configuration, its Zenoh session listening on `endpoint`.
-    pub(super) fn server_config(&self, endpoint: String) -> Config {
-        let mut c = Config::default();
-        c.mavlink.gcs.clear();
-        c.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
-        c.zenoh.listen = vec![endpoint];
-        c.zenoh.connect = Vec::new();
-        if let Some(e) = &self.estimator {
-            c.tracker.estimator.clone_from(e);
-        }
-        if let Some(w) = self.reorder_window_s {
-            c.tracker.reorder_window_s = w;
-        }
-        if let Some(q) = self.queue {
-            c.tracker.queue = q;
-        }
-        if let Some(q) = self.ws_queue {
-            c.api.ws_queue = q;
-        }
+    /// The configuration (TOML) of the server this tool starts: its API on a free loopback
+    /// port with `token`, its Zenoh session listening on `zenoh`, its GCS link on `gcs` (none:
+    /// no MAVLink), no router endpoint, and the options given.
+    pub(super) fn server_toml(&self, zenoh: &str, gcs: Option<SocketAddr>, token: &str) -> String {
+        let q = |s: &str| format!("{s:?}");
         // Every client of the run at once, and room for its own requests (/metrics, /tracks).
         let clients = self.ws_clients + self.rest_connections + 16;
-        c.api.max_connections = c.api.max_connections.max(clients);
-        c
+        let max_connections = Config::default().api.max_connections.max(clients);
+        let mut t = String::new();
+        let _ = writeln!(t, "[api]\nlisten = \"127.0.0.1:0\"\ntoken = {}", q(token));
+        let _ = writeln!(t, "max_connections = {max_connections}");
+        if let Some(n) = self.ws_queue {
+            let _ = writeln!(t, "ws_queue = {n}");
+        }
+        let _ = writeln!(t, "[zenoh]\nlisten = [{}]\nconnect = []", q(zenoh));
+        let _ = writeln!(t, "[tracker]");
+        if let Some(e) = &self.estimator {
+            let _ = writeln!(t, "estimator = {}", q(e));
+        }
+        if let Some(w) = self.reorder_window_s {
+            let _ = writeln!(t, "reorder_window_s = {w:?}");
+        }
+        if let Some(n) = self.queue {
+            let _ = writeln!(t, "queue = {n}");
+        }
+        let gcs = gcs.map_or(String::new(), |a| q(&format!("udpin:{a}")));
+        let _ = writeln!(t, "[mavlink]\ngcs = [{gcs}]\nrouter = []");
+        if let Some(path) = &self.record {
+            let _ = writeln!(t, "[recorder]\npath = {}", q(&path.display().to_string()));
+        }
+        t
+    }
+
+    /// The in-process server's configuration ([`Self::server_toml`]).
+    pub(super) fn server_config(
+        &self,
+        zenoh: &str,
+        gcs: Option<SocketAddr>,
+        token: &str,
+    ) -> anyhow::Result<Config> {
+        let text = self.server_toml(zenoh, gcs, token);
+        Ok(Config::parse(&text, "the bench's server configuration")?)
     }
 }

@@ -6,15 +6,20 @@
 //! harrier bench --rest-connections 32 --rest-duration-s 10 --duration-s 10 --ws-clients 0
 //! harrier bench --url http://127.0.0.1:8080 --zenoh-connect tcp/127.0.0.1:7447 --server-pid 4242
 //! harrier bench --duration-s 30 --overload-factor 10 --overload-s 60 --recovery-s 30 --ws-clients 0
+//! harrier bench --server-process --vehicles 255 --rate-hz 10 --mavlink --assign 50 --duration-s 600
+//! harrier bench --server-process --sweep 10,50,100,255 --rate-hz 10 --mavlink --assign 50
 //! ```
 //!
 //! By default the service runs in this process ([`harrier_server::start`], API on a free loopback
-//! port, Zenoh listening on another) on a tokio runtime of its own; `--url` and
-//! `--zenoh-connect` attach to one running elsewhere instead. Everything goes through real
-//! sockets either way:
+//! port, Zenoh listening on another) on a tokio runtime of its own; `--server-process` runs it as
+//! a child process (`harrier serve`, `child`) with the same configuration, so that its CPU and
+//! memory are its own; `--url` and `--zenoh-connect` attach to one running elsewhere instead.
+//! Everything goes through real sockets either way:
 //!
 //! - simulated vehicles publish `DetectionScan`s on their Zenoh keys from a session of their own
-//!   (`publish`);
+//!   (`publish`); with `--mavlink` each also flies as a PX4-like harrier-sim vehicle sending its
+//!   telemetry to the server's GCS link over UDP (`fleet`), and `--assign` hands some of them to
+//!   the guidance;
 //! - WebSocket clients follow `/api/v1/ws`, check that `seq` has no gap and measure publication
 //!   → receipt latency (`ws`);
 //! - keep-alive HTTP/1 connections load a REST route (`rest`);
@@ -28,14 +33,18 @@
 //! steady state is followed by an overload (every vehicle at `--overload-factor` × its rate) and
 //! a nominal phase again, both sampled each second: drops by reason, tracker lag, resident
 //! memory, and when the service recovered (lag back under `--recovered-lag-ms`, no more drops). Progress goes to stderr
-//! every `--progress-s`; the summary to stdout, as a table or (`--json`) as JSON.
+//! every `--progress-s`; the summary to stdout, as a table or (`--json`) as JSON. `--sweep
+//! 10,50,100,255` makes one run per vehicle count and prints how each figure grows.
 //!
-//! The code follows a run: `args` (the command line and the in-process server's
-//! configuration), `load` (what loads the server: publishers, WebSocket clients, REST, and the
-//! probe of its counters), `phases` (warm-up, steady state, overload, drain), `report` (the
-//! figures and the summary), over `publish`, `ws`, `rest` and `stats`.
+//! The code follows a run: `args` (the command line and the configuration of the server it
+//! starts), `load` (what loads the server: publishers, vehicles, WebSocket clients, REST, and
+//! the probe of its counters), `phases` (warm-up, steady state, overload, drain), `report` (the
+//! figures and the summary), `sweep` (runs by vehicle count), over `publish`, `fleet`, `ws`,
+//! `rest`, `stats` and `child`.
 
 mod args;
+mod child;
+mod fleet;
 mod load;
 mod outcome;
 mod phases;
@@ -43,6 +52,7 @@ mod publish;
 mod report;
 mod rest;
 mod stats;
+mod sweep;
 mod target;
 #[cfg(test)]
 mod tests;
@@ -54,30 +64,56 @@ pub use self::args::BenchArgs;
 use self::phases::drive;
 pub use self::publish::Phase;
 pub use self::report::{
-    OverloadReport, PhaseReport, PublishReport, Report, RssReport, ServerReport, Setup,
-    summary_lines,
+    GuidanceReport, MavlinkReport, OverloadReport, PhaseReport, PublishReport, Report, RssReport,
+    ServerReport, Setup, summary_lines,
 };
 use self::rest::Api;
 pub use self::rest::RestReport;
-pub use self::stats::{Counters, CpuUse, Machine, Percentiles, ServerLatency};
-use self::target::{Target, free_loopback_endpoint};
+pub use self::stats::{Counters, CpuUse, LinkCounters, Machine, Percentiles, ServerLatency};
+pub use self::sweep::sweep_lines;
+use self::target::{Target, free_loopback_endpoint, free_loopback_udp};
 pub use self::ws::WsReport;
 
-/// Runs the load test and prints its figures.
+/// Runs the load test (or the sweep) and prints its figures.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
-    let report = measure(args)?;
-    let text = if args.json {
-        serde_json::to_string_pretty(&report)?
+    let text = if args.sweep.is_empty() {
+        let report = measure(args)?;
+        if args.json {
+            serde_json::to_string_pretty(&report)?
+        } else {
+            summary_lines(&report).join("\n")
+        }
     } else {
-        summary_lines(&report).join("\n")
+        args.check()?;
+        let mut reports = Vec::new();
+        for run in args.sweep_runs() {
+            eprintln!("harrier bench: sweep: {} vehicles", run.vehicles);
+            let r = measure(&run)?;
+            eprintln!("{}", summary_lines(&r).join("\n"));
+            reports.push(r);
+        }
+        if args.json {
+            serde_json::to_string_pretty(&reports)?
+        } else {
+            sweep_lines(&reports).join("\n")
+        }
     };
     use std::io::Write as _;
     let _ = writeln!(std::io::stdout().lock(), "{text}");
     Ok(())
 }
 
-/// Runs the load test: starts the in-process server (or attaches to `--url`), loads it, and
-/// returns the figures.
+/// A random API token for a server this tool starts.
+fn token() -> String {
+    use rand::Rng as _;
+    let mut rng = rand::rng();
+    (0..32)
+        .map(|_| char::from_digit(rng.random_range(0..16), 16).unwrap_or('0'))
+        .collect()
+}
+
+/// Runs the load test: starts the server (in this process, or as a child with
+/// `--server-process`; or attaches to `--url`), loads it, and returns the figures.
 pub fn measure(args: &BenchArgs) -> anyhow::Result<Report> {
     args.check()?;
     let machine = Machine::now();
@@ -86,24 +122,53 @@ pub fn measure(args: &BenchArgs) -> anyhow::Result<Report> {
         .thread_name("bench-load")
         .build()?;
     let Some(url) = &args.url else {
+        let endpoint = free_loopback_endpoint()?;
+        let gcs = if args.mavlink {
+            Some(free_loopback_udp()?)
+        } else {
+            None
+        };
+        let token = token();
+        let target = |addr, rss_pid, in_process| Target {
+            api: Api {
+                addr,
+                token: Some(token.clone()),
+            },
+            zenoh: vec![endpoint.clone()],
+            url: format!("http://{addr}"),
+            rss_pid,
+            in_process,
+            configured: true,
+            gcs,
+        };
+        if args.server_process {
+            let bin = match &args.server_bin {
+                Some(b) => b.clone(),
+                None => std::env::current_exe().context("the harrier binary")?,
+            };
+            let server =
+                child::ServerProcess::start(&bin, &args.server_toml(&endpoint, gcs, &token))?;
+            let report = load.block_on(drive(
+                args,
+                &target(server.addr, Some(server.pid()), false),
+                machine,
+            ));
+            server.stop();
+            return report;
+        }
         let server_rt = tokio::runtime::Builder::new_multi_thread()
             .enable_all()
             .thread_name("bench-server")
             .build()?;
-        let endpoint = free_loopback_endpoint()?;
-        let config = args.server_config(endpoint.clone());
+        let config = args.server_config(&endpoint, gcs, &token)?;
         let server = server_rt
             .block_on(harrier_server::start(&config))
             .context("starting the in-process server")?;
-        let addr = server.local_addr();
-        let target = Target {
-            api: Api { addr, token: None },
-            zenoh: vec![endpoint],
-            url: format!("http://{addr}"),
-            rss_pid: None,
-            in_process: true,
-        };
-        let report = load.block_on(drive(args, &target, machine));
+        let report = load.block_on(drive(
+            args,
+            &target(server.local_addr(), None, true),
+            machine,
+        ));
         server_rt.block_on(server.shutdown());
         return report;
     };
@@ -126,6 +191,8 @@ pub fn measure(args: &BenchArgs) -> anyhow::Result<Report> {
         url: url.clone(),
         rss_pid: args.server_pid,
         in_process: false,
+        configured: false,
+        gcs: args.gcs,
     };
     load.block_on(drive(args, &target, machine))
 }

@@ -22,6 +22,8 @@ pub(super) struct Steady {
     pub(super) rss_start: Option<u64>,
     pub(super) rss_end: Option<u64>,
     pub(super) cpu: Option<CpuUse>,
+    /// Bytes the WebSocket clients received in it: all, and the `vehicles` messages.
+    pub(super) ws_bytes: (u64, u64),
 }
 
 /// One progress sample of the steady state.
@@ -37,6 +39,8 @@ pub(super) struct Progress {
     pub(super) ws_scans: u64,
     /// REST requests answered 200.
     pub(super) rest_ok: u64,
+    /// Bytes the WebSocket clients received: all, and the `vehicles` messages.
+    pub(super) ws_bytes: (u64, u64),
     /// CPU time so far.
     pub(super) cpu: Option<CpuSample>,
 }
@@ -54,4 +58,20 @@ pub(super) struct Drained {
     pub(super) drained: bool,
     pub(super) websocket: Option<WsReport>,
     pub(super) rest: Option<RestReport>,
+    /// The vehicles' MAVLink (`--mavlink`).
+    pub(super) link: Option<LinkOutcome>,
+}
+
+/// What the vehicles' MAVLink side ended with.
+pub(super) struct LinkOutcome {
+    /// Frames the vehicles sent in all.
+    pub(super) frames_sent: u64,
+    /// Vehicles that heard the ground station's HEARTBEAT.
+    pub(super) hearing_gcs: usize,
+    /// Seconds until the server heard every vehicle.
+    pub(super) connect_s: Option<f64>,
+    /// The assignments' vehicles by slot state at the end (`orbiting`, `taking_off`, …).
+    pub(super) slots: std::collections::BTreeMap<String, usize>,
+    /// Assignments made.
+    pub(super) assignments: usize,
 }

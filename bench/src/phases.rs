@@ -9,7 +9,7 @@ use tokio::time::Instant;
 
 use super::args::BenchArgs;
 use super::load::{Load, Probe, lag_s};
-use super::outcome::{Drained, Progress, Steady};
+use super::outcome::{Drained, LinkOutcome, Progress, Steady};
 use super::report::{OverloadReport, Report, Sample, overload_report, report};
 use super::rest::RestLoad;
 use super::stats::{Counters, CpuSample, Machine, load_1m, rss_kib};
@@ -31,7 +31,7 @@ pub(super) async fn drive(
         ids: args.vehicle_ids(),
     };
     let base = probe.counters().await?;
-    let mut load = Load::start(args, target).await?;
+    let mut load = Load::start(args, target, &probe).await?;
     let steady = steady_state(args, target, &probe, &mut load, &base).await?;
     let overload = if args.overload_s > 0.0 {
         Some(overload(args, target, &probe, &load, &base, steady.rss_end).await?)
@@ -58,6 +58,7 @@ async fn steady_state(
     let cpu_start = CpuSample::now(target.rss_pid);
     let c0 = probe.counters().await?;
     let published0 = load.publishers.scans();
+    let ws_bytes0 = load.ws_bytes();
     if let Some(c) = &load.clients {
         c.stats().record(true);
     }
@@ -77,6 +78,7 @@ async fn steady_state(
         published: published0,
         ws_scans: load.ws_scans(),
         rest_ok: 0,
+        ws_bytes: ws_bytes0,
         cpu: cpu_start,
     };
     loop {
@@ -91,6 +93,7 @@ async fn steady_state(
             published: load.publishers.scans(),
             ws_scans: load.ws_scans(),
             rest_ok: rest_load.ok(),
+            ws_bytes: load.ws_bytes(),
             cpu: CpuSample::now(target.rss_pid),
         };
         eprintln!(
@@ -111,7 +114,12 @@ async fn steady_state(
     if let Some(c) = &load.clients {
         c.stats().record(false);
     }
+    let ws_bytes = (
+        last.ws_bytes.0.saturating_sub(ws_bytes0.0),
+        last.ws_bytes.1.saturating_sub(ws_bytes0.1),
+    );
     Ok(Steady {
+        ws_bytes,
         c0,
         published0,
         last,
@@ -137,11 +145,23 @@ fn progress_line(
     let rate = |a: u64, b: u64| a.saturating_sub(b) as f64 / dt;
     let ws = load.clients.as_ref().map_or(String::new(), |cl| {
         format!(
-            "  ws {:.0} msg/s p99 {:.1} ms",
+            "  ws {:.0} msg/s {:.0} kB/s p99 {:.1} ms",
             rate(now.ws_scans, last.ws_scans),
+            rate(now.ws_bytes.0, last.ws_bytes.0) / 1e3,
             cl.stats().latency().p99
         )
     });
+    let (m, m_last) = (&now.counters.mavlink, &last.counters.mavlink);
+    let mav = if load.fleet.is_some() {
+        format!(
+            "  mavlink {:.0} frames/s, {} connected, {} lost",
+            rate(m.frames_received, m_last.frames_received),
+            m.connected,
+            m.frames_lost.saturating_sub(base.mavlink.frames_lost),
+        )
+    } else {
+        String::new()
+    };
     let cpu = last.cpu.zip(now.cpu).map_or(String::new(), |(a, b)| {
         let u = a.until(&b);
         format!(
@@ -160,7 +180,7 @@ fn progress_line(
     let (c, c_last) = (&now.counters, &last.counters);
     format!(
         "published {:.0} scans/s  processed {:.0} scans/s {:.0} det/s  lag {:.1} ms  \
-         dropped {}{ws}{rest}{cpu}{rss}",
+         dropped {}{ws}{mav}{rest}{cpu}{rss}",
         rate(now.published, last.published),
         rate(c.ingested, c_last.ingested),
         rate(c.detections, c_last.detections),
@@ -239,11 +259,17 @@ async fn overload(
 async fn drain(probe: &Probe<'_>, load: Load, base: &Counters) -> anyhow::Result<Drained> {
     let (published, failed) = load.publishers.stop().await;
     let publish_s = load.started.elapsed().as_secs_f64();
+    let hearing_gcs = load
+        .fleet
+        .as_ref()
+        .map_or(0, super::fleet::Fleet::hearing_gcs);
+    let frames_sent = load.fleet.map(super::fleet::Fleet::stop);
     let drain_start = Instant::now();
     let (totals, drained) = loop {
         let c = probe.counters().await?.since(base);
         let settled = c.ingested + c.dropped_total() >= c.received;
-        if settled && c.received >= published {
+        let frames_in = frames_sent.is_none_or(|n| c.mavlink.frames_received >= n);
+        if settled && c.received >= published && frames_in {
             break (c, true);
         }
         // Payloads lost on the way never arrive: settled and still for a second is the end.
@@ -270,7 +296,18 @@ async fn drain(probe: &Probe<'_>, load: Load, base: &Counters) -> anyhow::Result
         Some(t) => Some(t.await.context("the REST load")?),
         None => None,
     };
+    let link = match frames_sent {
+        Some(frames_sent) => Some(LinkOutcome {
+            frames_sent,
+            hearing_gcs,
+            connect_s: load.connect_s,
+            slots: slot_states(probe, &load.assignments).await?,
+            assignments: load.assignments.len(),
+        }),
+        None => None,
+    };
     Ok(Drained {
+        link,
         published,
         failed,
         publish_s,
@@ -279,4 +316,30 @@ async fn drain(probe: &Probe<'_>, load: Load, base: &Counters) -> anyhow::Result
         websocket,
         rest,
     })
+}
+
+/// The vehicles of the run's assignments by slot state (`GET /api/v1/assignments`).
+async fn slot_states(
+    probe: &Probe<'_>,
+    made: &[(u64, Vec<u8>)],
+) -> anyhow::Result<std::collections::BTreeMap<String, usize>> {
+    let mut states = std::collections::BTreeMap::new();
+    if made.is_empty() {
+        return Ok(states);
+    }
+    let body = probe.api.get("/api/v1/assignments").await?;
+    let v: serde_json::Value = serde_json::from_str(&body).context("GET /api/v1/assignments")?;
+    let ours = |a: &&serde_json::Value| {
+        a["id"]
+            .as_u64()
+            .is_some_and(|id| made.iter().any(|(m, _)| *m == id))
+    };
+    let all = v["assignments"].as_array().cloned().unwrap_or_default();
+    for a in all.iter().filter(ours) {
+        for s in a["vehicles"].as_array().into_iter().flatten() {
+            let state = s["state"].as_str().unwrap_or("unknown").to_string();
+            *states.entry(state).or_default() += 1;
+        }
+    }
+    Ok(states)
 }

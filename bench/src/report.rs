@@ -41,6 +41,57 @@ pub struct Setup {
     pub duration_s: f64,
     /// Lag (ms) below which the service counts as recovered after an overload.
     pub recovered_lag_ms: f64,
+    /// Whether the vehicles flew over MAVLink, at which telemetry rate (Hz).
+    pub mavlink_telemetry_hz: Option<f64>,
+    /// Vehicles assigned to tracks.
+    pub assign: usize,
+    /// The session recording of the server this tool started, if any.
+    pub record: Option<String>,
+}
+
+/// The vehicles' MAVLink (`--mavlink`).
+#[derive(Debug, Clone, Serialize)]
+pub struct MavlinkReport {
+    /// Seconds from the vehicles' start until the server heard every one (`None`: not
+    /// within 30 s).
+    pub connect_s: Option<f64>,
+    /// Frames the vehicles sent.
+    pub frames_sent: u64,
+    /// Frames the server's GCS link received.
+    pub frames_received: u64,
+    /// Sent but not received (UDP: dropped by a full socket buffer).
+    pub frames_lost: u64,
+    /// Frames missing from the vehicles' MAVLink 2 sequence numbers, as the server counted.
+    pub sequence_gaps: u64,
+    /// Frames per second the server received over the steady state.
+    pub frames_per_s: f64,
+    /// Vehicles marked lost by the server (silent for its `mavlink.lost_after_s`).
+    pub links_lost: u64,
+    /// Vehicles that heard the ground station's HEARTBEAT.
+    pub hearing_gcs: usize,
+    /// The guidance of the assigned vehicles (`--assign`).
+    pub guidance: Option<GuidanceReport>,
+}
+
+/// The guidance loop over the steady state (`--assign`).
+#[derive(Debug, Clone, Serialize)]
+pub struct GuidanceReport {
+    /// Vehicles assigned.
+    pub vehicles: usize,
+    /// Assignments made.
+    pub assignments: usize,
+    /// Their vehicles by slot state at the end (`orbiting`, `taking_off`, …).
+    pub slots: std::collections::BTreeMap<String, usize>,
+    /// Loop iterations.
+    pub ticks: u64,
+    /// Share of ticks that started at most 1 ms late.
+    pub within_1ms: Option<f64>,
+    /// At most 5 ms late.
+    pub within_5ms: Option<f64>,
+    /// The latest a tick started since the server started (ms).
+    pub late_max_ms: f64,
+    /// Setpoints sent per second.
+    pub setpoints_per_s: f64,
 }
 
 /// What the vehicles published.
@@ -156,6 +207,8 @@ pub struct Report {
     pub cpu: Option<CpuUse>,
     /// The overload and the recovery after it (`--overload-s`).
     pub overload: Option<OverloadReport>,
+    /// The vehicles' MAVLink (`--mavlink`).
+    pub mavlink: Option<MavlinkReport>,
 }
 
 /// The report of a run from what its phases measured.
@@ -170,7 +223,38 @@ pub(super) fn report(
     let steady_counts = steady.last.counters.since(&steady.c0);
     let rss_known = target.in_process || target.rss_pid.is_some();
     let (rss_start, rss_end) = (steady.rss_start, steady.rss_end);
+    let mut websocket = d.websocket;
+    if let Some(w) = &mut websocket {
+        let per_client = steady.seconds * w.clients.max(1) as f64;
+        w.bytes_per_s = steady.ws_bytes.0 as f64 / per_client;
+        w.vehicles_bytes_per_s = steady.ws_bytes.1 as f64 / per_client;
+    }
+    let mavlink = d.link.as_ref().map(|l| {
+        let m = &d.totals.mavlink;
+        let s = &steady_counts.mavlink;
+        MavlinkReport {
+            connect_s: l.connect_s,
+            frames_sent: l.frames_sent,
+            frames_received: m.frames_received,
+            frames_lost: l.frames_sent.saturating_sub(m.frames_received),
+            sequence_gaps: m.frames_lost,
+            frames_per_s: s.frames_received as f64 / steady.seconds,
+            links_lost: m.link_lost,
+            hearing_gcs: l.hearing_gcs,
+            guidance: (args.assign > 0).then(|| GuidanceReport {
+                vehicles: args.assign,
+                assignments: l.assignments,
+                slots: l.slots.clone(),
+                ticks: s.guidance_ticks,
+                within_1ms: s.ticks_within(0.001),
+                within_5ms: s.ticks_within(0.005),
+                late_max_ms: m.tick_late_max_s * 1e3,
+                setpoints_per_s: s.setpoints as f64 / steady.seconds,
+            }),
+        }
+    });
     Report {
+        mavlink,
         setup: setup(args, target),
         machine,
         publish: PublishReport {
@@ -191,7 +275,7 @@ pub(super) fn report(
             drained: d.drained,
             latency: steady_counts.server_latency(),
         },
-        websocket: d.websocket,
+        websocket,
         rest: d.rest,
         rss: RssReport {
             scope: match (target.in_process, target.rss_pid) {
@@ -215,24 +299,27 @@ pub(super) fn report(
 fn setup(args: &BenchArgs, target: &Target) -> Setup {
     let defaults = Config::default();
     Setup {
-        server: if target.in_process {
-            "in-process".into()
-        } else {
-            target.url.clone()
+        server: match (target.in_process, target.configured, target.rss_pid) {
+            (true, _, _) => "in-process".into(),
+            (false, true, Some(pid)) => format!("child process {pid}"),
+            _ => target.url.clone(),
         },
         estimator: target
-            .in_process
+            .configured
             .then(|| args.estimator.clone().unwrap_or_else(|| "ekf".into())),
-        reorder_window_s: target.in_process.then(|| {
+        reorder_window_s: target.configured.then(|| {
             args.reorder_window_s
                 .unwrap_or(defaults.tracker.reorder_window_s)
         }),
         queue: target
-            .in_process
+            .configured
             .then(|| args.queue.unwrap_or(defaults.tracker.queue)),
         ws_queue: target
-            .in_process
+            .configured
             .then(|| args.ws_queue.unwrap_or(defaults.api.ws_queue)),
+        mavlink_telemetry_hz: args.mavlink.then_some(args.telemetry_hz),
+        assign: args.assign,
+        record: args.record.as_ref().map(|p| p.display().to_string()),
         vehicles: args.vehicles,
         rate_hz: args.rate_hz,
         phase: args.phase,
@@ -326,9 +413,13 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
     let s = &r.setup;
     let mut out = Vec::new();
     let server = match (&s.estimator, s.reorder_window_s, s.queue, s.ws_queue) {
-        (Some(e), Some(w), Some(q), Some(wq)) => {
-            format!("in-process server: {e}, reorder window {w} s, queue {q}, ws_queue {wq}")
-        }
+        (Some(e), Some(w), Some(q), Some(wq)) => format!(
+            "{} server: {e}, reorder window {w} s, queue {q}, ws_queue {wq}{}",
+            s.server,
+            s.record
+                .as_ref()
+                .map_or(String::new(), |r| format!(", recording to {r}"))
+        ),
         _ => format!("server {}", s.server),
     };
     out.push(format!(
@@ -389,10 +480,45 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
             l.count
         ));
     }
+    if let Some(m) = &r.mavlink {
+        out.push(format!(
+            "mavlink      {} vehicles at {} Hz: all connected {}; {} frames sent, {} received ({:.0}/s), lost {}, sequence gaps {}; links lost {}; {} hear the ground station",
+            s.vehicles,
+            s.mavlink_telemetry_hz.unwrap_or(0.0),
+            m.connect_s.map_or("NOT within 30 s".to_string(), |t| format!("after {t:.2} s")),
+            m.frames_sent,
+            m.frames_received,
+            m.frames_per_s,
+            m.frames_lost,
+            m.sequence_gaps,
+            m.links_lost,
+            m.hearing_gcs
+        ));
+        if let Some(g) = &m.guidance {
+            let pct =
+                |x: Option<f64>| x.map_or("–".to_string(), |x| format!("{:.1} %", 100.0 * x));
+            out.push(format!(
+                "guidance     {} vehicles in {} assignments ({}); {} ticks: {} within 1 ms, {} within 5 ms late, latest {:.2} ms; {:.0} setpoints/s",
+                g.vehicles,
+                g.assignments,
+                g.slots
+                    .iter()
+                    .map(|(k, n)| format!("{n} {k}"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                g.ticks,
+                pct(g.within_1ms),
+                pct(g.within_5ms),
+                g.late_max_ms,
+                g.setpoints_per_s
+            ));
+        }
+    }
     if let Some(w) = &r.websocket {
         out.push(format!(
-            "websocket    {} clients: {} scan messages of {} expected; missing {}, resyncs {}, out of order {}, errors {}",
-            w.clients, w.scan_messages, w.expected, w.missing, w.resyncs, w.out_of_order, w.errors
+            "websocket    {} clients: {} scan messages of {} expected; missing {}, resyncs {}, out of order {}, errors {}; {:.1} kB/s per client ({:.1} kB/s of it `vehicles`)",
+            w.clients, w.scan_messages, w.expected, w.missing, w.resyncs, w.out_of_order, w.errors,
+            w.bytes_per_s / 1e3, w.vehicles_bytes_per_s / 1e3
         ));
         out.push(format!(
             "latency      {}  (publication → WebSocket receipt)",
@@ -408,7 +534,7 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
     }
     if let Some(c) = &r.cpu {
         out.push(format!(
-            "cpu          {:.2} cores measured ({}), machine {:.2}, others {:.2} (steady state)",
+            "cpu          {:.2} cores measured ({}){}, machine {:.2}, others {:.2} (steady state)",
             c.measured_cores,
             match (
                 r.setup.server == "in-process",
@@ -418,6 +544,8 @@ pub fn summary_lines(r: &Report) -> Vec<String> {
                 (false, true) => "this process and the server's",
                 (false, false) => "this process only",
             },
+            c.server_cores
+                .map_or(String::new(), |s| format!(", the server alone {s:.3}")),
             c.machine_cores,
             c.others_cores
         ));

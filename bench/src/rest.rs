@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use http_body_util::{BodyExt as _, Empty};
+use http_body_util::{BodyExt as _, Empty, Full};
 use hyper::body::Bytes;
 use hyper::client::conn::http1::SendRequest;
 use hyper_util::rt::TokioIo;
@@ -38,7 +38,12 @@ impl Api {
     }
 
     /// A keep-alive connection.
-    async fn connect(&self) -> anyhow::Result<SendRequest<Empty<Bytes>>> {
+    async fn connect<B>(&self) -> anyhow::Result<SendRequest<B>>
+    where
+        B: hyper::body::Body + Send + 'static,
+        B::Data: Send,
+        B::Error: Into<Box<dyn std::error::Error + Send + Sync>>,
+    {
         let stream = tokio::net::TcpStream::connect(self.addr)
             .await
             .with_context(|| format!("cannot connect to the API at {}", self.addr))?;
@@ -62,6 +67,34 @@ impl Api {
         tokio::time::timeout(REQUEST_TIMEOUT, fetch)
             .await
             .with_context(|| format!("GET {path}: no answer within {REQUEST_TIMEOUT:?}"))?
+    }
+
+    /// `POST path` with a JSON `body` on a fresh connection: the body of a 2xx answer, else an
+    /// error.
+    pub(super) async fn post(
+        &self,
+        path: &str,
+        body: &serde_json::Value,
+    ) -> anyhow::Result<String> {
+        let fetch = async {
+            let mut sender = self.connect().await?;
+            let mut r = hyper::Request::post(path)
+                .header(hyper::header::HOST, self.addr.to_string())
+                .header(hyper::header::CONTENT_TYPE, "application/json");
+            if let Some(t) = &self.token {
+                r = r.header(hyper::header::AUTHORIZATION, format!("Bearer {t}"));
+            }
+            let request = r.body(Full::new(Bytes::from(body.to_string())))?;
+            let res = sender.send_request(request).await?;
+            let status = res.status();
+            let text = res.into_body().collect().await?.to_bytes();
+            let text = String::from_utf8_lossy(&text).into_owned();
+            anyhow::ensure!(status.is_success(), "POST {path}: {status}: {text}");
+            Ok(text)
+        };
+        tokio::time::timeout(REQUEST_TIMEOUT, fetch)
+            .await
+            .with_context(|| format!("POST {path}: no answer within {REQUEST_TIMEOUT:?}"))?
     }
 }
 

@@ -192,6 +192,8 @@ pub(super) struct CpuSample {
     machine_busy: u64,
     /// Ticks.
     processes: u64,
+    /// Ticks of the other process alone (`pid`), if one.
+    server: Option<u64>,
 }
 
 /// CPU time (ns) the whole machine has been busy: the root cgroup's precise usage (cgroup v1
@@ -246,6 +248,9 @@ pub struct CpuUse {
     /// Everything else on the machine: other processes (other users' work disturbs the
     /// figures) and kernel work not charged to a process.
     pub others_cores: f64,
+    /// The server's process alone, when it is another process (`--server-process`,
+    /// `--server-pid`).
+    pub server_cores: Option<f64>,
 }
 
 impl CpuSample {
@@ -253,13 +258,14 @@ impl CpuSample {
     pub(super) fn now(pid: Option<u32>) -> Option<Self> {
         let mine = process_ticks(None)?;
         let theirs = match pid {
-            Some(p) => process_ticks(Some(p))?,
-            None => 0,
+            Some(p) => Some(process_ticks(Some(p))?),
+            None => None,
         };
         Some(Self {
             at: std::time::Instant::now(),
             machine_busy: machine_busy_ns()?,
-            processes: mine + theirs,
+            processes: mine + theirs.unwrap_or(0),
+            server: theirs,
         })
     }
 
@@ -272,6 +278,10 @@ impl CpuSample {
             measured_cores: measured,
             machine_cores: machine,
             others_cores: (machine - measured).max(0.0),
+            server_cores: self
+                .server
+                .zip(later.server)
+                .map(|(a, b)| b.saturating_sub(a) as f64 / USER_HZ / dt),
         }
     }
 }
@@ -309,6 +319,91 @@ pub struct Counters {
     /// Its sum (s).
     #[serde(skip)]
     pub latency_sum: f64,
+    /// The MAVLink link and the guidance (`--mavlink`).
+    pub mavlink: LinkCounters,
+}
+
+/// The server's counters of its MAVLink GCS link and its guidance loop.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LinkCounters {
+    /// Frames the GCS link received (every vehicle: `harrier_mavlink_frames_received_total`).
+    pub frames_received: u64,
+    /// Frames of the vehicles missing from their MAVLink 2 sequence numbers.
+    pub frames_lost: u64,
+    /// Vehicles heard now (`harrier_vehicle_connected` 1).
+    pub connected: u64,
+    /// Vehicles marked lost (every vehicle, silent for `mavlink.lost_after_s`).
+    pub link_lost: u64,
+    /// Guidance loop iterations.
+    pub guidance_ticks: u64,
+    /// Velocity setpoints the guidance sent.
+    pub setpoints: u64,
+    /// How late the guidance ticks started: cumulative counts by upper bound (s), ascending.
+    #[serde(skip)]
+    pub tick_late_buckets: Vec<(f64, u64)>,
+    /// The latest a tick started since the server started (s).
+    pub tick_late_max_s: f64,
+}
+
+impl LinkCounters {
+    /// Takes one sample line's figure if it is one of these (`ours`: the run's vehicles).
+    fn take(&mut self, name: &str, labels: &BTreeMap<&str, &str>, value: f64, ours: bool) {
+        let n = value as u64;
+        match name {
+            "harrier_mavlink_frames_received_total" => self.frames_received = n,
+            "harrier_mavlink_vehicle_lost_total" => self.link_lost = n,
+            "harrier_guidance_ticks_total" => self.guidance_ticks = n,
+            "harrier_guidance_setpoints_total" => self.setpoints = n,
+            "harrier_guidance_tick_late_max_seconds" => self.tick_late_max_s = value,
+            "harrier_guidance_tick_late_seconds_bucket" => {
+                if let Some(le) = labels.get("le").and_then(|b| b.parse::<f64>().ok()) {
+                    self.tick_late_buckets.push((le, n));
+                }
+            }
+            "harrier_vehicle_frames_lost_total" if ours => self.frames_lost += n,
+            "harrier_vehicle_connected" if ours => self.connected += n,
+            _ => {}
+        }
+    }
+
+    fn since(&self, base: &Self) -> Self {
+        Self {
+            frames_received: self.frames_received.saturating_sub(base.frames_received),
+            frames_lost: self.frames_lost.saturating_sub(base.frames_lost),
+            connected: self.connected,
+            link_lost: self.link_lost.saturating_sub(base.link_lost),
+            guidance_ticks: self.guidance_ticks.saturating_sub(base.guidance_ticks),
+            setpoints: self.setpoints.saturating_sub(base.setpoints),
+            tick_late_buckets: buckets_since(&self.tick_late_buckets, &base.tick_late_buckets),
+            tick_late_max_s: self.tick_late_max_s,
+        }
+    }
+
+    /// The share of guidance ticks (since the base these counters were taken from) that
+    /// started at most `le` s late, `le` one of the histogram's bounds; `None` without ticks.
+    pub fn ticks_within(&self, le: f64) -> Option<f64> {
+        let all = self
+            .tick_late_buckets
+            .iter()
+            .find(|(b, _)| b.is_infinite())?
+            .1;
+        let within = self
+            .tick_late_buckets
+            .iter()
+            .find(|(b, _)| (*b - le).abs() < 1e-12)?
+            .1;
+        (all > 0).then(|| within as f64 / all as f64)
+    }
+}
+
+/// Cumulative histogram counts since `base` (bucket by bucket).
+fn buckets_since(now: &[(f64, u64)], base: &[(f64, u64)]) -> Vec<(f64, u64)> {
+    now.iter()
+        .map(|&(le, n)| {
+            let before = base.iter().find(|(b, _)| *b == le).map_or(0, |(_, m)| *m);
+            (le, n.saturating_sub(before))
+        })
+        .collect()
 }
 
 /// The server's own latency (payload arrival → scan processed) over part of a run.
@@ -373,7 +468,9 @@ impl Counters {
                 c.latency_sum = value;
                 continue;
             }
-            if !labels.get("vehicle").is_some_and(|v| ours(v)) {
+            let mine = labels.get("vehicle").is_some_and(|v| ours(v));
+            c.mavlink.take(name, &labels, value, mine);
+            if !mine {
                 continue;
             }
             let n = value as u64;
@@ -414,19 +511,9 @@ impl Counters {
             seq_lost: self.seq_lost.saturating_sub(base.seq_lost),
             ws_dropped: self.ws_dropped.saturating_sub(base.ws_dropped),
             last_scan_t: self.last_scan_t,
-            latency_buckets: self
-                .latency_buckets
-                .iter()
-                .map(|&(le, n)| {
-                    let before = base
-                        .latency_buckets
-                        .iter()
-                        .find(|(b, _)| *b == le)
-                        .map_or(0, |(_, m)| *m);
-                    (le, n.saturating_sub(before))
-                })
-                .collect(),
+            latency_buckets: buckets_since(&self.latency_buckets, &base.latency_buckets),
             latency_sum: self.latency_sum - base.latency_sum,
+            mavlink: self.mavlink.since(&base.mavlink),
         }
     }
 
@@ -498,7 +585,17 @@ mod tests {
             harrier_scan_latency_seconds_bucket{le=\"0.001\"} 90\n\
             harrier_scan_latency_seconds_bucket{le=\"0.01\"} 99\n\
             harrier_scan_latency_seconds_bucket{le=\"+Inf\"} 100\n\
-            harrier_scan_latency_seconds_sum 0.25\n";
+            harrier_scan_latency_seconds_sum 0.25\n\
+            harrier_mavlink_frames_received_total 400\n\
+            harrier_vehicle_connected{vehicle=\"1\"} 1\n\
+            harrier_vehicle_connected{vehicle=\"2\"} 0\n\
+            harrier_vehicle_connected{vehicle=\"9\"} 1\n\
+            harrier_vehicle_frames_lost_total{vehicle=\"2\"} 3\n\
+            harrier_vehicle_frames_lost_total{vehicle=\"9\"} 5\n\
+            harrier_guidance_tick_late_seconds_bucket{le=\"0.001\"} 80\n\
+            harrier_guidance_tick_late_seconds_bucket{le=\"0.005\"} 99\n\
+            harrier_guidance_tick_late_seconds_bucket{le=\"+Inf\"} 100\n\
+            harrier_guidance_tick_late_max_seconds 0.0071\n";
         let c = Counters::parse(text, &|v| v == "1" || v == "2");
         assert_eq!((c.received, c.ingested, c.seq_lost), (15, 9, 1));
         assert_eq!(c.dropped_total(), 2);
@@ -517,5 +614,14 @@ mod tests {
         );
         assert_eq!(l.p999_le_ms, None);
         assert!((l.mean_ms - 2.5).abs() < 1e-9, "{l:?}");
+        let m = &c.mavlink;
+        assert_eq!((m.frames_received, m.connected, m.frames_lost), (400, 1, 3));
+        assert_eq!(m.ticks_within(0.005), Some(0.99));
+        assert_eq!(m.tick_late_max_s, 0.0071);
+        let mut base = c.clone();
+        base.mavlink.tick_late_buckets = vec![(0.001, 40), (0.005, 49), (f64::INFINITY, 50)];
+        base.mavlink.frames_received = 100;
+        let d = c.since(&base).mavlink;
+        assert_eq!((d.frames_received, d.ticks_within(0.001)), (300, Some(0.8)));
     }
 }

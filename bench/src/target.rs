@@ -1,4 +1,7 @@
-//! The server a run loads ([`Target`]) and a free loopback endpoint for its Zenoh session.
+//! The server a run loads ([`Target`]) and free loopback ports for its Zenoh session and its
+//! GCS link.
+
+use std::net::SocketAddr;
 
 use anyhow::Context as _;
 
@@ -11,6 +14,13 @@ pub(super) fn free_loopback_endpoint() -> anyhow::Result<String> {
         .context("no free loopback port for a Zenoh endpoint")?
         .port();
     Ok(format!("tcp/127.0.0.1:{port}"))
+}
+
+/// A loopback UDP address that is free now (the GCS link of a server this tool starts).
+pub(super) fn free_loopback_udp() -> anyhow::Result<SocketAddr> {
+    std::net::UdpSocket::bind("127.0.0.1:0")
+        .and_then(|s| s.local_addr())
+        .context("no free loopback UDP port for the GCS link")
 }
 
 /// The server a run loads.
@@ -26,4 +36,9 @@ pub(super) struct Target {
     pub(super) rss_pid: Option<u32>,
     /// Whether it runs in this process.
     pub(super) in_process: bool,
+    /// Whether this tool configured it (in this process or as its child): the run's server
+    /// options apply.
+    pub(super) configured: bool,
+    /// Its GCS link (UDP), when the vehicles fly (`--mavlink`).
+    pub(super) gcs: Option<SocketAddr>,
 }

@@ -24,6 +24,8 @@ const CONNECT_TIMEOUT: Duration = Duration::from_secs(30);
 struct Header {
     #[serde(rename = "type")]
     kind: String,
+    /// `scan` and `snapshot` messages only.
+    #[serde(default)]
     seq: u64,
     t: Option<f64>,
     #[serde(default)]
@@ -47,6 +49,10 @@ pub(super) struct WsStats {
     latency: Histogram,
     /// Whether latencies are recorded now (the steady state).
     recording: AtomicBool,
+    /// Bytes of every text message received, over every client.
+    bytes: AtomicU64,
+    /// Bytes of the `vehicles` messages among them.
+    vehicle_bytes: AtomicU64,
 }
 
 impl WsStats {
@@ -61,6 +67,10 @@ impl WsStats {
     /// The latency percentiles so far (ms).
     pub(super) fn latency(&self) -> Percentiles {
         self.latency.percentiles()
+    }
+    /// Bytes received so far, over every client: all messages, and the `vehicles` ones.
+    pub(super) fn bytes(&self) -> (u64, u64) {
+        (self.bytes.load(Relaxed), self.vehicle_bytes.load(Relaxed))
     }
 }
 
@@ -85,6 +95,10 @@ pub struct WsReport {
     pub errors: u64,
     /// Scan publication (`time_unix`) → receipt by a client, steady state only (ms).
     pub latency_ms: Percentiles,
+    /// Bytes per second one client received over the steady state (every message type).
+    pub bytes_per_s: f64,
+    /// Of which the `vehicles` messages (10 Hz, every vehicle).
+    pub vehicles_bytes_per_s: f64,
 }
 
 /// One client's progress.
@@ -192,6 +206,9 @@ impl Clients {
             out_of_order: s.out_of_order.load(Relaxed),
             errors: s.errors.load(Relaxed),
             latency_ms: s.latency.percentiles(),
+            // Filled in by the report, from the steady state's samples.
+            bytes_per_s: 0.0,
+            vehicles_bytes_per_s: 0.0,
         }
     }
 }
@@ -228,6 +245,7 @@ async fn read(
                 return;
             }
         };
+        stats.bytes.fetch_add(text.len() as u64, Relaxed);
         let Ok(h) = serde_json::from_str::<Header>(text.as_str()) else {
             stats.errors.fetch_add(1, Relaxed);
             continue;
@@ -246,6 +264,10 @@ async fn read(
                     stats.latency.record_s(received - t);
                 }
             }
+            "vehicles" => {
+                stats.vehicle_bytes.fetch_add(text.len() as u64, Relaxed);
+            }
+            "vehicle_event" | "assignment" => {}
             "snapshot" => {
                 stats.resyncs.fetch_add(1, Relaxed);
                 // The scans between the last one seen and the snapshot never came (the server's

@@ -328,6 +328,7 @@ fn api_state(
         control: http::Control {
             link: control.link.clone(),
             guidance: control.guidance.clone(),
+            vehicles_message: Arc::default(),
         },
         recording: recording.clone(),
         service,

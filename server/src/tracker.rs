@@ -73,8 +73,9 @@ pub struct Snapshot {
     pub seq: u64,
     /// Every live track, in id order.
     pub tracks: Arc<Vec<TrackView>>,
-    /// Every vehicle seen, by label.
-    pub vehicles: Arc<Vec<VehicleView>>,
+    /// Every vehicle seen, by label. Each view is shared with the snapshots before it that it
+    /// did not change: a scan copies one vehicle's view, not the swarm's.
+    pub vehicles: Arc<Vec<Arc<VehicleView>>>,
     /// The estimator running.
     pub estimator: Arc<TrackFilterState>,
 }
@@ -196,7 +197,7 @@ pub struct TrackerActor {
     /// Newest scan time of each source (`vehicle/sensor`).
     sources: HashMap<String, f64>,
     seq: u64,
-    vehicles: BTreeMap<String, VehicleView>,
+    vehicles: BTreeMap<String, Arc<VehicleView>>,
     recent: Arc<Recent>,
     snapshot: watch::Sender<Arc<Snapshot>>,
     events: broadcast::Sender<Arc<ScanEvents>>,
@@ -333,17 +334,18 @@ impl TrackerActor {
             tracks.len(),
         );
         self.seq += 1;
-        let v = self
-            .vehicles
-            .entry(s.vehicle.clone())
-            .or_insert_with(|| VehicleView {
+        let v = self.vehicles.entry(s.vehicle.clone()).or_insert_with(|| {
+            Arc::new(VehicleView {
                 vehicle: s.vehicle.clone(),
                 last_t: s.scan.t,
                 scans: 0,
                 sensors: Vec::new(),
                 position: s.platform,
                 geodetic: s.geodetic,
-            });
+            })
+        });
+        // The last snapshot holds this view too: only it is copied.
+        let v = Arc::make_mut(v);
         v.last_t = s.scan.t;
         v.scans += 1;
         v.position = s.platform;
@@ -435,7 +437,8 @@ impl TrackerActor {
             t,
             seq: self.seq,
             tracks,
-            vehicles: Arc::new(self.vehicles.values().cloned().collect()),
+            // One reference per vehicle: no view is copied here.
+            vehicles: Arc::new(self.vehicles.values().map(Arc::clone).collect()),
             estimator: Arc::clone(&self.estimator),
         }));
     }

@@ -504,46 +504,40 @@ def test_the_page_reconnects_after_a_server_restart_without_a_reload(session):
     assert page.get_attribute("body", "data-ws-state") == "open"
 
 
-STRESS = """() => {
-  // 20 synthetic confirmed tracks and 7 more UAVs (10 in all), moving at 10 Hz, straight into the
-  // page's store: what the page draws at that load, whatever the demo has.
+def stress(tracks, uavs):
+    """A snippet that moves `tracks` synthetic confirmed tracks and `uavs` more UAVs at 10 Hz,
+    straight into the page's store: what the page draws at that load, whatever the demo has. The
+    UAVs are spread over a grid (a swarm's homes) and each circles its own point."""
+    return """() => {
+  clearInterval(window.__stress);
   const s = window.harrier.store;
   s.onConfirmed = null;
   let n = 0;
   window.__stress = setInterval(() => {
     n++;
     const t = (s.t || 0) + 0.001 * n;
-    for (let i = 0; i < 20; i++) {
+    for (let i = 0; i < %d; i++) {
       const id = 100000 + i, a = n * 0.01 + i;
-      s.upsertTrack({id, status: "confirmed", t, state: [2500 + 400 * Math.cos(a) + i * 40,
-        1500 + 400 * Math.sin(a), 0, 5, 5, 0], cov: [[25, 5, 0, 0], [5, 16, 0, 0], [0, 0, 1, 0],
-        [0, 0, 0, 1]], cov_dims: [0, 1, 3, 4], updated: true, age: n, last_update: t,
-        mode_probabilities: [0.7, 0.2, 0.1]}, true);
+      s.upsertTrack({id, status: "confirmed", t, state: [2500 + 400 * Math.cos(a) + (i %% 20) * 40,
+        1500 + 400 * Math.sin(a) + Math.floor(i / 20) * 60, 0, 5, 5, 0], cov: [[25, 5, 0, 0],
+        [5, 16, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]], cov_dims: [0, 1, 3, 4], updated: true, age: n,
+        last_update: t, mode_probabilities: [0.7, 0.2, 0.1]}, true);
     }
-    for (let j = 0; j < 7; j++) {
+    for (let j = 0; j < %d; j++) {
       const v = s.vehicleFor("S" + j);
-      s.moveVehicle(v, [2000 + j * 200 + 150 * Math.cos(n * 0.03 + j),
-        1200 + 150 * Math.sin(n * 0.03 + j), 250], t + n * 0.1);
+      const x = 1500 + (j %% 16) * 150, y = 800 + Math.floor(j / 16) * 150;
+      s.moveVehicle(v, [x + 50 * Math.cos(n * 0.03 + j), y + 50 * Math.sin(n * 0.03 + j), 250],
+        t + n * 0.1);
     }
     s.version++;
   }, 100);
-}"""
+}""" % (tracks, uavs)
 
 
-def test_the_page_stays_smooth_with_20_tracks_and_10_uavs(session):
-    """With 20 tracks and 10 UAVs moving (the same tab: one page renders at a time): the page's
-    own work per frame (map, 3-D scene updates and WebGL calls, panels) leaves room for ≥ 30 fps,
-    and its frame rate stays above MIN_FPS. Headless Chromium rasterises WebGL in software
-    (SwiftShader) on the same CPU, so the frame rate also depends on the machine's load; the 3-D
-    view lowers its resolution and update rate to keep the page smooth."""
-    page, _ = session
-    wait_for(page, drawn, 30.0, "the demo drawn")
-    page.uncheck("[data-layer=bound]")  # no detail requests for the synthetic tracks
-    page.evaluate(STRESS)
-    wait_for(page, lambda s: s["map"]["tracks"] >= 20 and s["scene"]["uavs"] >= 10, 10.0, "the load drawn")
-    time.sleep(3.0)  # let the 3-D view adapt
-    # The median of 1-s rates over a 5-s window; up to three windows, since the CPU is shared
-    # with whatever else runs (a page that cannot keep up never reaches it).
+def measure_smoothness(page):
+    """The page's frame rate and own work per frame: the medians of 1-s rates over a 5-s window;
+    up to three windows, since the CPU is shared with whatever else runs (a page that cannot keep
+    up never reaches ≥ 30 fps and ≤ MAX_FRAME_MS). The best of the windows: (fps, ms, all)."""
     windows = []
     for _ in range(3):
         samples = []
@@ -555,16 +549,60 @@ def test_the_page_stays_smooth_with_20_tracks_and_10_uavs(session):
         windows.append((fps_median, work_median))
         if fps_median >= 30 and work_median <= MAX_FRAME_MS:
             break
-    state = hook(page)
-    scene = page.evaluate("() => [window.harrier.sceneFps, window.harrier.sceneQuality]")
     fps = max(w[0] for w in windows)
     work = min(w[1] for w in windows)
+    return fps, work, ", ".join(f"{a:.0f} fps {b:.1f} ms" for a, b in windows)
+
+
+def stress_and_measure(page, tracks, uavs, name):
+    """Starts `stress(tracks, uavs)` once the demo is drawn, waits until the page draws all of it
+    (and every UAV in 3-D), lets the 3-D view adapt, then measures (`measure_smoothness`), prints
+    and takes a screenshot `name`.png: (fps, own work ms, the page's state)."""
+    wait_for(page, drawn, 30.0, "the demo drawn")
+    page.uncheck("[data-layer=bound]")  # no detail requests for the synthetic tracks
+    # The demo's own UAVs, beside the synthetic ones ("S…") an earlier stress test left.
+    real = page.evaluate(
+        "() => [...window.harrier.store.vehicles.values()].filter(v => !String(v.label).startsWith('S')).length"
+    )
+    page.evaluate(stress(tracks, uavs - real))
+    wait_for(page, lambda s: s["map"]["tracks"] >= tracks and s["map"]["uavs"] >= uavs
+             and s["scene"]["uavs"] >= uavs, 15.0, "the load drawn")
+    time.sleep(3.0)  # let the 3-D view adapt
+    fps, work, windows = measure_smoothness(page)
+    state = hook(page)
+    scene = page.evaluate("() => [window.harrier.sceneFps, window.harrier.sceneQuality]")
     print(
-        f"stress: {state['map']['tracks']} tracks, {state['map']['uavs']} UAVs drawn; page {fps:.1f} fps,"
-        f" own work {work:.1f} ms/frame (p90) (windows: {', '.join(f'{a:.0f} fps {b:.1f} ms' for a, b in windows)});"
-        f" 3-D renders/s {scene[0]:.1f}, {scene[1]}",
+        f"{name}: {state['map']['tracks']} tracks, {state['map']['uavs']} UAVs drawn (3-D"
+        f" {state['scene']['uavs']}); page {fps:.1f} fps, own work {work:.1f} ms/frame (p90)"
+        f" (windows: {windows}); 3-D renders/s {scene[0]:.1f}, {scene[1]}",
         flush=True,
     )
-    page.screenshot(path=str(SHOTS / "stress.png"))
+    page.screenshot(path=str(SHOTS / f"{name}.png"))
+    return fps, work, state
+
+
+def test_the_page_stays_smooth_with_20_tracks_and_10_uavs(session):
+    """With 20 tracks and 10 UAVs moving (the same tab: one page renders at a time): the page's
+    own work per frame (map, 3-D scene updates and WebGL calls, panels) leaves room for ≥ 30 fps,
+    and its frame rate stays above MIN_FPS. Headless Chromium rasterises WebGL in software
+    (SwiftShader) on the same CPU, so the frame rate also depends on the machine's load; the 3-D
+    view lowers its resolution and update rate to keep the page smooth."""
+    page, _ = session
+    fps, work, _ = stress_and_measure(page, 20, 10, "stress")
     assert work <= MAX_FRAME_MS, f"the page works {work:.1f} ms per frame with 20 tracks and 10 UAVs"
     assert fps >= MIN_FPS, f"the page draws at {fps:.1f} fps with 20 tracks and 10 UAVs"
+
+
+def test_the_page_stays_smooth_with_100_tracks_and_a_swarm_of_255_uavs(session):
+    """A swarm (issue 24): 100 tracks and 255 UAVs moving at 10 Hz. Every one is drawn on the map
+    and in the 3-D view and the page logs no error. Its frame rate and own work per frame are
+    measured and printed, not asserted: on 2 shared cores it draws 4–12 fps (26–44 ms of own work
+    per frame), short of the ≥ 30 fps target (BENCHMARKS "The page with a swarm")."""
+    page, console = session
+    errors_before = len(console.errors)  # earlier tests provoke some on purpose
+    fps, _, state = stress_and_measure(page, 100, 255, "swarm")
+    page.evaluate("() => clearInterval(window.__stress)")
+    assert console.errors[errors_before:] == [], "console errors:\n" + "\n".join(console.errors)
+    assert state["map"]["tracks"] >= 100 and state["map"]["uavs"] >= 255, state["map"]
+    assert state["scene"]["uavs"] >= 255, state["scene"]
+    assert fps > 0, "the page stopped drawing"

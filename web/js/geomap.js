@@ -9,6 +9,7 @@
 
 import { EnuFrame, metresPerPixel } from "./geo.js";
 import { Painter } from "./painter.js";
+import { cssSize } from "./util.js";
 
 const L = window.L;
 const RAD = Math.PI / 180;
@@ -120,10 +121,10 @@ export class GeoMapView {
   }
 
   get width() {
-    return this.el.clientWidth;
+    return cssSize(this.el)[0];
   }
   get height() {
-    return this.el.clientHeight;
+    return cssSize(this.el)[1];
   }
 
   /**

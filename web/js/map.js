@@ -4,7 +4,7 @@
 // follows a track. The geographic map (geomap.js) is the other choice.
 
 import { Painter } from "./painter.js";
-import { fmtDist, niceStep } from "./util.js";
+import { cssSize, fmtDist, niceStep } from "./util.js";
 
 const BG = "#0c1219";
 
@@ -85,10 +85,10 @@ export class MapView {
   }
 
   get width() {
-    return this.canvas.clientWidth;
+    return cssSize(this.canvas)[0];
   }
   get height() {
-    return this.canvas.clientHeight;
+    return cssSize(this.canvas)[1];
   }
 
   toScreen(x, y) {
@@ -113,8 +113,8 @@ export class MapView {
 
   resize() {
     const dpr = window.devicePixelRatio || 1;
-    const w = Math.round(this.canvas.clientWidth * dpr);
-    const h = Math.round(this.canvas.clientHeight * dpr);
+    const w = Math.round(this.width * dpr);
+    const h = Math.round(this.height * dpr);
     if (this.canvas.width !== w || this.canvas.height !== h) {
       this.canvas.width = w;
       this.canvas.height = h;
@@ -127,7 +127,7 @@ export class MapView {
   }
 
   draw(now) {
-    if (!this.canvas.clientWidth || !this.canvas.clientHeight) return;
+    if (!this.width || !this.height) return;
     this.resize();
     const s = this.store;
     if (!this.userMoved && this.follow == null && (this.stats.frames % 30 === 0 || !this.fitted)) {

@@ -1,7 +1,7 @@
 // The side panels: vehicles (with commands), tracks, assignments, estimator, time series and
 // service counters. DOM nodes are keyed and updated in place (inputs keep their focus and value).
 
-import { colorFor, fmt, fmtDist } from "./util.js";
+import { colorFor, cssSize, fmt, fmtDist } from "./util.js";
 
 /** `el("div", {class: "x"}, child…)`. */
 export function el(tag, attrs = {}, ...children) {
@@ -336,8 +336,7 @@ const STANDOFF_SPAN_S = 120;
  */
 function clearedCanvas(c) {
   const dpr = window.devicePixelRatio || 1;
-  const w = c.clientWidth;
-  const h = c.clientHeight;
+  const [w, h] = cssSize(c);
   if (!w || !h) return null;
   if (c.width !== Math.round(w * dpr)) c.width = Math.round(w * dpr);
   if (c.height !== Math.round(h * dpr)) c.height = Math.round(h * dpr);

@@ -7,7 +7,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "../vendor/three/OrbitControls.js";
 import { Store } from "./store.js";
-import { colorHex, detectionPoint, detectionRay } from "./util.js";
+import { colorHex, cssSize, detectionPoint, detectionRay } from "./util.js";
 
 /** Half-thickness (m) of the disc drawn for a planar track's 95 % ellipse. */
 const DISC_HALF_M = 2.8;
@@ -465,8 +465,7 @@ export class SceneView {
   /** Renders when the camera moved or (at most DATA_FPS times a second) the data changed. */
   render(now = performance.now()) {
     if (!this.renderer) return false;
-    const w = this.canvas.clientWidth;
-    const h = this.canvas.clientHeight;
+    const [w, h] = cssSize(this.canvas);
     if (!w || !h) return;
     const dpr = Math.round(Math.min(window.devicePixelRatio || 1, 2) * this.quality * 20) / 20;
     const size = this.renderer.getSize(new THREE.Vector2());

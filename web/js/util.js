@@ -71,3 +71,24 @@ export function detectionRay(kind, z, platform, planeZ = 0, maxRange = 3000) {
   if (dir[2] < -1e-6) len = Math.min(maxRange * 3, (platform[2] - planeZ) / -dir[2]);
   return [platform, [platform[0] + len * dir[0], platform[1] + len * dir[1], platform[2] + len * dir[2]]];
 }
+
+/** The CSS size of each element drawn into, kept by a ResizeObserver ([width, height], px). */
+const canvasSizes = new WeakMap();
+const sizeWatch = new ResizeObserver((entries) => {
+  for (const e of entries) canvasSizes.set(e.target, [e.contentRect.width, e.contentRect.height]);
+});
+
+/**
+ * The CSS size [width, height] of element `c` without a layout: reading `clientWidth` after the
+ * panels changed the page forces one, on every frame; with a swarm's lists (255 vehicles, 100
+ * tracks) that cost more than the drawing (BENCHMARKS "The page with a swarm").
+ */
+export function cssSize(c) {
+  let s = canvasSizes.get(c);
+  if (!s) {
+    s = [c.clientWidth, c.clientHeight];
+    canvasSizes.set(c, s);
+    sizeWatch.observe(c);
+  }
+  return s;
+}

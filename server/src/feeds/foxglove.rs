@@ -141,7 +141,7 @@ pub(super) async fn start(
                 }
             }
             if vehicle_fixes.has_sinks() || tf.has_sinks() {
-                let poses: Vec<_> = snap.vehicles.iter().map(pose).collect();
+                let poses: Vec<_> = snap.vehicles.iter().map(|v| pose(v)).collect();
                 if vehicle_fixes.has_sinks() {
                     for fix in poses.iter().filter_map(|v| vehicle_fix(v, stamp)) {
                         vehicle_fixes.log(&fix);

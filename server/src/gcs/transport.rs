@@ -3,7 +3,10 @@
 //! [`Outbound`] bytes.
 //!
 //! - `udpin` binds and answers whoever sent a valid frame (at most [`MAX_UDP_PEERS`], oldest
-//!   forgotten first); `udpout` sends to its address from an ephemeral port.
+//!   forgotten first: a swarm of 255 vehicles, each from its own port, all fit and all get the
+//!   ground station's HEARTBEAT); `udpout` sends to its address from an ephemeral port. A UDP
+//!   socket's receive buffer is raised to [`UDP_RECV_BUFFER`] (within the system's
+//!   `net.core.rmem_max`), so that a busy moment of the server does not drop a swarm's frames.
 //! - `tcpin` accepts any number of clients; `tcpout` connects and reconnects every
 //!   [`TCP_RETRY`] while the server is away. Each connection has a bounded send queue: a client
 //!   that does not read loses frames (counted), it never slows the link.
@@ -13,7 +16,7 @@
 //! sees it ([`screen`]): a refused frame goes no further than the [`Inbound::rejected`] count,
 //! and a UDP sender of refused frames only does not become a peer (it gets no telemetry).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet, VecDeque};
 use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::sync::Arc;
@@ -26,8 +29,13 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::{TcpListener, TcpStream, UdpSocket};
 use tokio::sync::{mpsc, watch};
 
-/// Most UDP peers an `udpin` endpoint answers.
-pub const MAX_UDP_PEERS: usize = 64;
+/// Most UDP peers an `udpin` endpoint answers: every MAVLink system id (255) four times over
+/// (a vehicle heard from several addresses, router clients).
+pub const MAX_UDP_PEERS: usize = 1024;
+/// Receive buffer asked for every UDP endpoint (bytes; the kernel caps it at
+/// `net.core.rmem_max`): at 10 000 frames/s (255 vehicles × 40) the default 208 KiB holds about
+/// 20 ms of them, 4 MiB about half a second.
+pub const UDP_RECV_BUFFER: usize = 4 << 20;
 /// Pause between two connection attempts of a `tcpout` endpoint.
 pub const TCP_RETRY: Duration = Duration::from_secs(1);
 /// Frames queued for one TCP connection before further ones are dropped.
@@ -97,6 +105,35 @@ pub fn screen(signer: Option<&Signer>, parsed: &mut Parsed) -> Vec<Rejected> {
     rejected
 }
 
+/// The peers of an `udpin` endpoint, oldest first, with a set beside the order so that each
+/// datagram's check is O(1) whatever their number.
+#[derive(Debug, Default)]
+struct UdpPeers {
+    order: VecDeque<SocketAddr>,
+    known: HashSet<SocketAddr>,
+}
+
+impl UdpPeers {
+    /// Adds `from` unless known; the oldest is forgotten beyond [`MAX_UDP_PEERS`].
+    fn add(&mut self, from: SocketAddr) {
+        if self.known.insert(from) {
+            self.order.push_back(from);
+            if self.order.len() > MAX_UDP_PEERS
+                && let Some(old) = self.order.pop_front()
+            {
+                self.known.remove(&old);
+            }
+        }
+    }
+}
+
+/// Asks for a [`UDP_RECV_BUFFER`] receive buffer (a smaller one stays if refused).
+fn widen_recv_buffer(socket: &UdpSocket) {
+    if let Err(e) = socket2::SockRef::from(socket).set_recv_buffer_size(UDP_RECV_BUFFER) {
+        tracing::debug!("udp endpoint: receive buffer not widened: {e}");
+    }
+}
+
 /// Bytes to send on an endpoint.
 #[derive(Debug, Clone)]
 pub enum Outbound {
@@ -149,6 +186,7 @@ pub async fn open(
     let bound = match endpoint {
         Endpoint::UdpIn(addr) => {
             let socket = UdpSocket::bind(addr).await?;
+            widen_recv_buffer(&socket);
             let bound = Endpoint::UdpIn(socket.local_addr()?);
             let c = Arc::clone(&counters);
             tokio::spawn(udp(input, socket, None, rx, stop, c));
@@ -161,6 +199,7 @@ pub async fn open(
                 SocketAddr::from((Ipv6Addr::UNSPECIFIED, 0))
             };
             let socket = UdpSocket::bind(any).await?;
+            widen_recv_buffer(&socket);
             let c = Arc::clone(&counters);
             tokio::spawn(udp(input, socket, Some(remote), rx, stop, c));
             endpoint
@@ -222,7 +261,10 @@ async fn udp(
     mut stop: watch::Receiver<bool>,
     counters: Arc<EndpointCounters>,
 ) {
-    let mut peers: Vec<SocketAddr> = remote.into_iter().collect();
+    let mut peers = UdpPeers::default();
+    if let Some(r) = remote {
+        peers.add(r);
+    }
     let mut buf = vec![0u8; 65_536];
     let send = |to: SocketAddr, bytes: &[u8]| match socket.try_send_to(bytes, to) {
         Ok(_) => counters.sent.fetch_add(1, Ordering::Relaxed),
@@ -243,11 +285,8 @@ async fn udp(
                 let mut parsed = parse_datagram(&buf[..n]);
                 let rejected = screen(input.signer.as_deref(), &mut parsed);
                 // Only a sender of accepted frames becomes a peer.
-                if remote.is_none() && !parsed.frames.is_empty() && !peers.contains(&from) {
-                    if peers.len() >= MAX_UDP_PEERS {
-                        peers.remove(0);
-                    }
-                    peers.push(from);
+                if remote.is_none() && !parsed.frames.is_empty() {
+                    peers.add(from);
                 }
                 let msg = Inbound {
                     endpoint: input.index,
@@ -264,7 +303,7 @@ async fn udp(
                 Some(Outbound::To(Peer::Udp(to), bytes)) => { send(to, &bytes); }
                 Some(Outbound::To(Peer::Tcp(_), _)) => {}
                 Some(Outbound::All(bytes)) => {
-                    for &to in &peers {
+                    for &to in &peers.order {
                         send(to, &bytes);
                     }
                 }
@@ -417,4 +456,91 @@ async fn tcp_out(
 /// Resolves once `stop` turns true (or its sender is gone).
 pub async fn stopped(stop: &mut watch::Receiver<bool>) {
     let _ = stop.wait_for(|s| *s).await;
+}
+
+#[cfg(test)]
+mod tests {
+    use harrier_link::mavlink::MavHeader;
+    use harrier_link::mavlink::dialects::common::{
+        HEARTBEAT_DATA, MavAutopilot, MavMessage, MavModeFlag, MavState, MavType,
+    };
+
+    use super::*;
+
+    fn heartbeat(system_id: u8, mavtype: MavType) -> Vec<u8> {
+        let header = MavHeader {
+            system_id: system_id.into(),
+            component_id: 1,
+            sequence: 0,
+        };
+        let hb = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+            custom_mode: 0,
+            mavtype,
+            autopilot: MavAutopilot::MAV_AUTOPILOT_PX4,
+            base_mode: MavModeFlag::empty(),
+            system_status: MavState::MAV_STATE_ACTIVE,
+            mavlink_version: 3,
+        });
+        harrier_link::frame::encode(header, &hb).expect("encode")
+    }
+
+    /// A swarm of 255 vehicles, each from its own port, on one `udpin` endpoint: every one is a
+    /// peer, so every one gets what goes to all (the ground station's HEARTBEAT).
+    #[tokio::test]
+    async fn every_vehicle_of_a_swarm_gets_what_goes_to_all() {
+        let (inbound, mut rx) = mpsc::channel(1024);
+        let (_stop_tx, stop) = watch::channel(false);
+        let any = Endpoint::UdpIn(SocketAddr::from((Ipv4Addr::LOCALHOST, 0)));
+        let h = open(0, any, inbound, stop, None).await.expect("open");
+        let Endpoint::UdpIn(addr) = h.endpoint else {
+            panic!("bound as {:?}", h.endpoint);
+        };
+        let mut vehicles = Vec::new();
+        for id in 1..=255u8 {
+            let s = UdpSocket::bind((Ipv4Addr::LOCALHOST, 0))
+                .await
+                .expect("bind");
+            s.send_to(&heartbeat(id, MavType::MAV_TYPE_QUADROTOR), addr)
+                .await
+                .expect("send");
+            vehicles.push(s);
+        }
+        let wait = Duration::from_secs(10);
+        for _ in 0..255 {
+            let i = tokio::time::timeout(wait, rx.recv())
+                .await
+                .expect("every frame in time")
+                .expect("open");
+            assert_eq!(i.parsed.frames.len(), 1);
+        }
+        let gcs: Arc<[u8]> = heartbeat(255, MavType::MAV_TYPE_GCS).into();
+        h.tx.send(Outbound::All(Arc::clone(&gcs)))
+            .await
+            .expect("queued");
+        let mut buf = [0u8; 512];
+        for (k, s) in vehicles.iter().enumerate() {
+            let n = tokio::time::timeout(wait, s.recv(&mut buf))
+                .await
+                .unwrap_or_else(|_| panic!("vehicle {} got nothing", k + 1))
+                .expect("recv");
+            assert_eq!(&buf[..n], &gcs[..]);
+        }
+        assert_eq!(h.counters.sent.load(Ordering::Relaxed), 255);
+    }
+
+    #[test]
+    fn the_oldest_peer_is_forgotten_beyond_the_limit() {
+        let mut p = UdpPeers::default();
+        let addr = |k: usize| SocketAddr::from((Ipv4Addr::LOCALHOST, 1000 + k as u16));
+        for k in 0..=MAX_UDP_PEERS {
+            p.add(addr(k));
+            p.add(addr(k)); // known: no change
+        }
+        assert_eq!(
+            (p.order.len(), p.known.len()),
+            (MAX_UDP_PEERS, MAX_UDP_PEERS)
+        );
+        assert!(!p.known.contains(&addr(0)));
+        assert_eq!(p.order.front(), Some(&addr(1)));
+    }
 }

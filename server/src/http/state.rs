@@ -61,6 +61,8 @@ pub struct Control {
     pub link: Option<GcsLink>,
     /// The guidance loop, when the link runs.
     pub guidance: Option<Guidance>,
+    /// The WebSocket `vehicles` message, built once for every client of a period.
+    pub vehicles_message: Arc<super::ws::SharedMessage>,
 }
 
 /// The session recording.

@@ -67,7 +67,7 @@ pub(super) fn vehicle_entries(
         };
         out.entry(id)
             .or_insert_with(|| VehicleEntry::new(id))
-            .detections = Some(d.clone());
+            .detections = Some((**d).clone());
     }
     for (label, estimate) in metrics.clocks() {
         let Ok(id) = label.parse::<u8>() else {

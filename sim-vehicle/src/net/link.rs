@@ -53,6 +53,8 @@ pub struct Link {
     next_conn: u64,
     /// Signs what is sent and checks what is received (shared by the vehicle's links).
     signer: Option<Arc<Signer>>,
+    /// Frames handed to the transport without an error (a UDP datagram per peer, a TCP write).
+    sent: u64,
 }
 
 /// Most peers a udpin link remembers (the oldest is forgotten first).
@@ -108,6 +110,7 @@ impl Link {
             sequence: 0,
             next_conn: 0,
             signer,
+            sent: 0,
         })
     }
 
@@ -118,6 +121,12 @@ impl Link {
             Transport::TcpIn { listener, .. } => listener.local_addr().ok(),
             Transport::TcpOut { .. } => None,
         }
+    }
+
+    /// Frames sent so far: UDP datagrams the socket accepted (one per peer) and frames queued
+    /// on a TCP connection. A load tool compares it with what the receiver counted.
+    pub fn frames_sent(&self) -> u64 {
+        self.sent
     }
 
     /// Serialises a message as the vehicle's next MAVLink 2 frame on this link (signed when the
@@ -142,16 +151,26 @@ impl Link {
         match (&mut self.transport, to) {
             (Transport::Udp { socket, .. }, Peer::Udp(addr)) => {
                 // UDP is lossy by nature: a failed send (no listener yet) is not an error.
-                let _ = socket.send_to(&frame, addr);
+                self.sent += u64::from(socket.send_to(&frame, addr).is_ok());
             }
             (Transport::TcpIn { clients, .. }, Peer::Tcp(id)) => {
-                clients.retain_mut(|c| c.id != id || c.send(&frame));
+                clients.retain_mut(|c| {
+                    if c.id != id {
+                        return true;
+                    }
+                    let ok = c.send(&frame);
+                    self.sent += u64::from(ok);
+                    ok
+                });
             }
             (Transport::TcpOut { conn, retry_at, .. }, Peer::Tcp(id)) => {
-                let broken = conn.as_mut().is_some_and(|c| c.id == id && !c.send(&frame));
-                if broken {
-                    *conn = None;
-                    *retry_at = Instant::now() + TCP_RETRY;
+                match conn.as_mut().filter(|c| c.id == id).map(|c| c.send(&frame)) {
+                    Some(true) => self.sent += 1,
+                    Some(false) => {
+                        *conn = None;
+                        *retry_at = Instant::now() + TCP_RETRY;
+                    }
+                    None => {}
                 }
             }
             _ => {}
@@ -165,16 +184,25 @@ impl Link {
         match &mut self.transport {
             Transport::Udp { socket, peers } => {
                 for to in peers.iter() {
-                    let _ = socket.send_to(&frame, to);
+                    if socket.send_to(&frame, to).is_ok() {
+                        self.sent += 1;
+                    }
                 }
             }
-            Transport::TcpIn { clients, .. } => clients.retain_mut(|c| c.send(&frame)),
-            Transport::TcpOut { conn, retry_at, .. } => {
-                if conn.as_mut().is_some_and(|c| !c.send(&frame)) {
+            Transport::TcpIn { clients, .. } => clients.retain_mut(|c| {
+                let ok = c.send(&frame);
+                self.sent += u64::from(ok);
+                ok
+            }),
+            Transport::TcpOut { conn, retry_at, .. } => match conn.as_mut().map(|c| c.send(&frame))
+            {
+                Some(true) => self.sent += 1,
+                Some(false) => {
                     *conn = None;
                     *retry_at = Instant::now() + TCP_RETRY;
                 }
-            }
+                None => {}
+            },
         }
     }
 

@@ -23,9 +23,11 @@
 //!
 //! Split by concern: [`Link`] (its transports, sending and polling) is in `link.rs`, a TCP
 //! connection's buffers in `tcp.rs`, the vehicle's thread ([`spawn`], [`SimHandle`]) in `run.rs`
-//! and one tick of it (messages to the vehicle, TIMESYNC answered, telemetry out) in `tick.rs`.
+//! and one tick of it (messages to the vehicle, TIMESYNC answered, telemetry out) in `tick.rs`;
+//! many vehicles on a few threads ([`spawn_fleet`], a swarm's load) in `fleet.rs`.
 
 mod config;
+mod fleet;
 mod link;
 mod received;
 mod run;
@@ -35,6 +37,7 @@ mod tests;
 mod tick;
 
 pub use config::{LinkConfig, LinkError};
+pub use fleet::{FleetCounters, FleetHandle, spawn_fleet};
 pub use harrier_link::frame::{Endpoint, EndpointError, StreamParser};
 pub use harrier_link::signing::{Rejection, Rejections, Signer, Signing};
 pub use link::{Link, TCP_RETRY};

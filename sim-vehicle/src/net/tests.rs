@@ -404,3 +404,90 @@ fn sign_mode_vehicle_accepts_unsigned_commands_and_signs_its_replies() {
     assert_eq!((c.unsigned, c.bad_signature, c.replay), (0, 1, 0));
     sim.stop();
 }
+
+/// Five vehicles on two fleet threads, sending to one ground-station socket: each is heard with
+/// its own system id, each answers a command sent to its own address, each counts the ground
+/// station's HEARTBEAT, and the frames they count as sent are the frames that arrived.
+#[test]
+fn a_fleet_runs_many_vehicles_on_few_threads() {
+    use mavlink::dialects::common::{HEARTBEAT_DATA, MavAutopilot, MavModeFlag, MavState, MavType};
+    use std::sync::atomic::Ordering;
+    let gcs = UdpSocket::bind("127.0.0.1:0").expect("bind");
+    gcs.set_read_timeout(Some(Duration::from_millis(100)))
+        .expect("timeout");
+    let to_gcs = format!("udpout:{}", gcs.local_addr().expect("addr"));
+    let fleet = spawn_fleet(
+        (1..=5)
+            .map(|id| {
+                let links = LinkConfig {
+                    endpoints: vec![to_gcs.clone()],
+                    signing: None,
+                };
+                (VehicleConfig::new(id), links)
+            })
+            .collect(),
+        2,
+        Duration::from_millis(10),
+    )
+    .expect("fleet");
+    assert_eq!(fleet.len(), 5);
+    // Every vehicle heard, from its own address.
+    let mut from = std::collections::BTreeMap::new();
+    let mut received = 0u64;
+    let mut buf = [0u8; 2048];
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while from.len() < 5 {
+        assert!(Instant::now() < deadline, "heard only {from:?}");
+        if let Ok((n, addr)) = gcs.recv_from(&mut buf) {
+            for f in parse_datagram(&buf[..n]).frames {
+                received += 1;
+                from.insert(f.header.system_id, addr);
+            }
+        }
+    }
+    let heartbeat = MavMessage::HEARTBEAT(HEARTBEAT_DATA {
+        custom_mode: 0,
+        mavtype: MavType::MAV_TYPE_GCS,
+        autopilot: MavAutopilot::MAV_AUTOPILOT_INVALID,
+        base_mode: MavModeFlag::empty(),
+        system_status: MavState::MAV_STATE_ACTIVE,
+        mavlink_version: 3,
+    });
+    for (&id, addr) in &from {
+        let mut arm = command(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, 1.0, 0.0);
+        if let MavMessage::COMMAND_LONG(c) = &mut arm {
+            c.target_system = u8::try_from(id).expect("a system id");
+        }
+        gcs.send_to(&gcs_frame(&heartbeat, 0), addr).expect("send");
+        gcs.send_to(&gcs_frame(&arm, 1), addr).expect("send");
+    }
+    let mut acked = std::collections::BTreeSet::new();
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while acked.len() < 5 {
+        assert!(Instant::now() < deadline, "acknowledged only {acked:?}");
+        if let Ok((n, _)) = gcs.recv_from(&mut buf) {
+            for f in parse_datagram(&buf[..n]).frames {
+                received += 1;
+                if is_ack(&f.message, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM) {
+                    acked.insert(f.header.system_id);
+                }
+            }
+        }
+    }
+    for i in 0..5 {
+        assert!(fleet.vehicle(i).armed(), "vehicle {} not armed", i + 1);
+        assert_eq!(
+            fleet.counters(i).gcs_heartbeats.load(Ordering::Relaxed),
+            1,
+            "vehicle {}",
+            i + 1
+        );
+    }
+    // Stopped, every frame sent has arrived (loopback loses nothing at this rate).
+    let sent = fleet.stop();
+    while let Ok((n, _)) = gcs.recv_from(&mut buf) {
+        received += parse_datagram(&buf[..n]).frames.len() as u64;
+    }
+    assert!(sent > 5, "{sent} sent");
+    assert_eq!(sent, received);
+}

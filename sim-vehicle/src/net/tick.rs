@@ -2,7 +2,7 @@
 //! requests are answered here, with the vehicle's clock), the replies to the peer each request
 //! came from, and the telemetry to every peer.
 
-use mavlink::dialects::common::{MavMessage, TIMESYNC_DATA};
+use mavlink::dialects::common::{MavMessage, MavType, TIMESYNC_DATA};
 
 use super::link::Link;
 use crate::vehicle::{ClockSkew, Vehicle};
@@ -24,8 +24,11 @@ fn timesync_reply(clock: &ClockSkew, m: &MavMessage, now: f64) -> Option<MavMess
     }))
 }
 
-pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) {
+/// One tick of `v` at `now`; returns the ground station HEARTBEATs it received (a vehicle
+/// that hears none would, on PX4, soon declare its data link lost).
+pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now: f64) -> u64 {
     let sysid = v.id();
+    let mut gcs_heartbeats = 0;
     for link in links.iter_mut() {
         for r in link.poll(buf) {
             for _ in 0..r.malformed {
@@ -35,6 +38,9 @@ pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now:
                 v.count_rejected(reason);
             }
             for m in &r.messages {
+                if matches!(m, MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS) {
+                    gcs_heartbeats += 1;
+                }
                 if let Some(reply) = timesync_reply(&v.config().clock, m, now) {
                     link.send(sysid, &reply, r.from);
                     continue;
@@ -50,4 +56,5 @@ pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now:
             link.broadcast(sysid, &m);
         }
     }
+    gcs_heartbeats
 }
