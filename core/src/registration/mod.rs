@@ -103,6 +103,7 @@
 //! * S. F. Schmidt, "Application of state-space methods to navigation problems", *Advances in
 //!   Control Systems* 3, 1966.
 
+mod bank;
 mod filter;
 pub mod generate;
 mod imm;
@@ -110,6 +111,7 @@ mod model;
 mod report;
 mod truth;
 
+pub use bank::{BiasBank, Corrected, TrackId, Tracks};
 pub use filter::{
     KnownObject, Observation, Registration, RegistrationState, Seen, SensorSlots, Tuning, Updated,
 };
