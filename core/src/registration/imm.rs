@@ -74,7 +74,7 @@ pub struct DriftModes {
     pub sojourn: f64,
     /// Initial probability of the drifting mode (of the biased hypothesis' share).
     pub initial: f64,
-    /// Initial probability of the "no bias" mode (0: never considered).
+    /// Initial probability of the "no bias" mode.
     pub unbiased: f64,
     /// Mean time before a bias disappears (s): re-seeds the "no bias" mode from the biased ones.
     pub presence_sojourn: f64,
@@ -199,7 +199,7 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
             [pa, (1.0 - pa) * pd, (1.0 - pa) * (1.0 - pd)],
         ];
         let mut out = *state;
-        for j in 0..MODES {
+        for (j, filter) in self.modes.iter().enumerate() {
             let w: [f64; MODES] = std::array::from_fn(|i| tpm[i][j] * state.probs[i]);
             let cbar: f64 = w.iter().sum();
             let mixed = if cbar > 0.0 {
@@ -210,7 +210,7 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
                 // keep its own state.
                 state.modes[j]
             };
-            out.modes[j] = self.modes[j].predict(&mixed, dt)?;
+            out.modes[j] = filter.predict(&mixed, dt)?;
             out.probs[j] = cbar.max(PROB_FLOOR);
         }
         let sum: f64 = out.probs.iter().sum();

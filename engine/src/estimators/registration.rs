@@ -44,7 +44,7 @@ pub const REGISTRATION: EstimatorInfo = EstimatorInfo {
         ),
         (
             "none_prob",
-            "probability of the \"no bias\" mode at the start (default 0.5; 0: always estimate the biases)",
+            "probability of the \"no bias\" mode at the start (default 0.5)",
         ),
         (
             "presence_sojourn",
