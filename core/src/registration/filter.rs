@@ -3,7 +3,7 @@
 //! (the equations are in the [module docs](super)).
 #![allow(non_snake_case)]
 
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector3};
 
 use super::model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 use crate::filter::{Extended, Predictor, consider_update, joseph_update};
@@ -46,6 +46,10 @@ enum Slot {
     Kinematic,
     /// A bias term with its model.
     Bias(BiasPrior),
+    /// A bias term of a group the mode takes as unbiased ([`RegistrationImm`](super::RegistrationImm)'s
+    /// "no bias" hypothesis): exactly its prior mean, never estimated; its column of `H` is zero
+    /// and its variance a placeholder (1), as padding's.
+    Pinned(BiasPrior),
     /// Padding up to the const size N: never observed, never estimated.
     Unused,
 }
@@ -227,6 +231,41 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         out
     }
 
+    /// This filter under the "no bias" hypothesis: every bias term pinned at its prior mean
+    /// (neither estimated nor uncertain; [`RegistrationImm`](super::RegistrationImm)'s first
+    /// mode).
+    pub(super) fn pinned(&self) -> Self {
+        let mut out = self.clone();
+        for slot in &mut out.slots {
+            if let Slot::Bias(p) = *slot {
+                *slot = Slot::Pinned(p);
+            }
+        }
+        out
+    }
+
+    /// `state` with every bias term of this filter at its prior mean exactly (variance 0,
+    /// uncorrelated), in the estimate and in the full covariance; a pinned term at its mean with
+    /// the placeholder variance 1. The target's part stays.
+    pub(super) fn reset_biases(&self, state: &RegistrationState<N>) -> RegistrationState<N> {
+        let mut out = *state;
+        for (i, slot) in self.slots.iter().enumerate() {
+            let (mean, var) = match slot {
+                Slot::Bias(p) => (p.mean, 0.0),
+                Slot::Pinned(p) => (p.mean, 1.0),
+                Slot::Kinematic | Slot::Unused => continue,
+            };
+            out.estimate.mean[i] = mean;
+            for cov in [&mut out.estimate.cov, &mut out.full_cov] {
+                cov.row_mut(i).fill(0.0);
+                cov.column_mut(i).fill(0.0);
+                cov[(i, i)] = var;
+            }
+        }
+        out.projection = None;
+        out
+    }
+
     /// Where each sensor's terms are, in the order of [`Registration::new`].
     pub fn sensors(&self) -> &[SensorSlots] {
         &self.sensors
@@ -255,6 +294,7 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         for (i, slot) in self.slots.iter().enumerate().skip(K) {
             let (m, var) = match slot {
                 Slot::Bias(p) => (p.mean, p.std * p.std),
+                Slot::Pinned(p) => (p.mean, 1.0),
                 Slot::Kinematic | Slot::Unused => (0.0, 1.0),
             };
             mean[i] = m;
@@ -298,13 +338,13 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         let mut T = SMatrix::<f64, N, N>::zeros();
         let sd: [Option<f64>; N] = std::array::from_fn(|i| match self.slots[i] {
             Slot::Bias(p) => Some(p.std),
-            Slot::Kinematic | Slot::Unused => None,
+            Slot::Kinematic | Slot::Pinned(_) | Slot::Unused => None,
         });
         for (i, slot) in self.slots.iter().enumerate() {
             let keep = match slot {
                 Slot::Kinematic => true,
                 Slot::Bias(_) => !self.tuning.hold,
-                Slot::Unused => false,
+                Slot::Pinned(_) | Slot::Unused => false,
             };
             T[(i, i)] = if keep { 1.0 } else { 0.0 };
         }
@@ -373,6 +413,18 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         obs: &Observation<'_>,
         seen: &Seen,
     ) -> Result<Updated<N>> {
+        let slots = self.check(obs, seen)?;
+        obs.model.apply(Update {
+            reg: self,
+            state,
+            slots,
+            obs,
+            seen,
+        })
+    }
+
+    /// The sensor's slots, after checking the detection against them.
+    fn check(&self, obs: &Observation<'_>, seen: &Seen) -> Result<&SensorSlots> {
         let slots = self.sensors.get(obs.sensor).ok_or_else(|| {
             EstimationError::InvalidParameter(format!("no sensor {}", obs.sensor))
         })?;
@@ -398,9 +450,21 @@ impl<const K: usize, const N: usize> Registration<K, N> {
             ensure_finite(&k.vel, "reference velocity")?;
             ensure_finite(&k.cov, "reference covariance")?;
         }
-        obs.model.apply(Update {
+        Ok(slots)
+    }
+
+    /// The innovation `ν = z ⊖ ẑ`, the Jacobian `H` (M × N) and the noise `R` of one detection
+    /// at the state vector `x`, in dynamic sizes (for the [`BiasBank`](super::BiasBank)).
+    pub(super) fn linearised(
+        &self,
+        x: &SVector<f64, N>,
+        obs: &Observation<'_>,
+        seen: &Seen,
+    ) -> Result<(DVector<f64>, DMatrix<f64>, DMatrix<f64>)> {
+        let slots = self.check(obs, seen)?;
+        obs.model.apply(Linearised {
             reg: self,
-            state,
+            x,
             slots,
             obs,
             seen,
@@ -468,6 +532,12 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         if let Some(s) = slots.time_offset {
             H.set_column(s, &(gHp * -vrel));
         }
+        // A pinned term is its prior mean exactly: in ẑ, not in H.
+        for (c, slot) in self.slots.iter().enumerate() {
+            if matches!(slot, Slot::Pinned(_)) {
+                H.column_mut(c).fill(0.0);
+            }
+        }
         let mut R = model.covar();
         if let Seen::Known(k) = seen {
             R += gHp * k.cov * gHp.transpose();
@@ -518,9 +588,35 @@ impl<const K: usize, const N: usize> WithSensor<6> for Update<'_, K, N> {
     }
 }
 
-/// The augmented transition: CV for the target, each bias term's dynamics, padding unchanged.
-struct Augmented<'a, const K: usize, const N: usize> {
+/// The visit of [`Registration::linearised`] with the concrete model.
+struct Linearised<'a, const K: usize, const N: usize> {
     reg: &'a Registration<K, N>,
+    x: &'a SVector<f64, N>,
+    slots: &'a SensorSlots,
+    obs: &'a Observation<'a>,
+    seen: &'a Seen,
+}
+
+impl<const K: usize, const N: usize> WithSensor<6> for Linearised<'_, K, N> {
+    type Output = Result<(DVector<f64>, DMatrix<f64>, DMatrix<f64>)>;
+    fn with<H, const M: usize>(self, model: &H) -> Self::Output
+    where
+        H: MeasurementModel<6, M> + Locate<M>,
+    {
+        let (nu, Hx, R) = self
+            .reg
+            .linearise(model, self.x, self.slots, self.obs, self.seen)?;
+        Ok((
+            DVector::from_column_slice(nu.as_slice()),
+            DMatrix::from_column_slice(M, N, Hx.as_slice()),
+            DMatrix::from_column_slice(M, M, R.as_slice()),
+        ))
+    }
+}
+
+/// The augmented transition: CV for the target, each bias term's dynamics, padding unchanged.
+pub(super) struct Augmented<'a, const K: usize, const N: usize> {
+    pub reg: &'a Registration<K, N>,
 }
 
 impl<const K: usize, const N: usize> TransitionModel<N> for Augmented<'_, K, N> {

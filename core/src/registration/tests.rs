@@ -349,10 +349,11 @@ fn generator_writes_references_and_told_models() {
     );
 }
 
-/// The drift modes: a radar range offset that ramps at 1 m/s, seen against GPS references, makes
-/// the drifting mode win; a constant one leaves the steady mode in front.
+/// The bias modes: a radar range offset that ramps at 1 m/s, seen against GPS references, makes
+/// the drifting mode win; a constant one leaves the steady mode in front; without an offset the
+/// "no bias" mode wins.
 #[test]
-fn the_drift_modes_follow_what_the_references_show() {
+fn the_bias_modes_follow_what_the_references_show() {
     let bias = SensorBias {
         offset: vec![
             Some(BiasPrior::random_walk(50.0, 0.05)),
@@ -361,7 +362,7 @@ fn the_drift_modes_follow_what_the_references_show() {
         scale: Vec::new(),
         time_offset: None,
     };
-    let run = |ramp: f64| {
+    let run = |offset: f64, ramp: f64| {
         let imm = RegistrationImm::new(radar_only(&bias, Tuning::default()), DriftModes::default())
             .unwrap();
         let g = Gaussian::new(
@@ -380,7 +381,7 @@ fn the_drift_modes_follow_what_the_references_show() {
             let h: Vector2<f64> = radar.function(&x6);
             let n: [f64; 2] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
             let z = [
-                h[0] + 20.0 + ramp * k as f64 + 5.0 * n[0],
+                h[0] + offset + ramp * k as f64 + 5.0 * n[0],
                 h[1] + 0.002 * n[1],
             ];
             s = imm.predict(&s, 1.0).unwrap();
@@ -400,13 +401,20 @@ fn the_drift_modes_follow_what_the_references_show() {
         let c = imm.combined(&s);
         (s.probs, c.estimate.mean[4])
     };
-    let (steady, b) = run(0.0);
-    assert!(steady[0] > 0.9 && (b - 20.0).abs() < 3.0, "{steady:?} {b}");
-    let (drifting, b) = run(1.0);
+    // Modes: [none, steady, drifting].
+    let (steady, b) = run(20.0, 0.0);
     assert!(
-        drifting[1] > 0.9 && (b - 320.0).abs() < 10.0,
+        steady[0] < 1e-3 && steady[1] > 0.9 && (b - 20.0).abs() < 3.0,
+        "{steady:?} {b}"
+    );
+    let (drifting, b) = run(20.0, 1.0);
+    assert!(
+        drifting[0] < 1e-3 && drifting[2] > 0.9 && (b - 320.0).abs() < 10.0,
         "{drifting:?} {b}"
     );
+    // No bias: the unbiased mode takes the weight, the estimate is exactly at the prior mean.
+    let (none, b) = run(0.0, 0.0);
+    assert!(none[0] > 0.9 && b.abs() < 1.0, "{none:?} {b}");
     assert!(
         RegistrationImm::new(
             radar_only(&bias, Tuning::default()),

@@ -40,7 +40,15 @@ pub const REGISTRATION: EstimatorInfo = EstimatorInfo {
         ),
         (
             "drift_prob",
-            "probability of the drifting mode at the start (default 0.1)",
+            "probability of the drifting mode at the start, of the biased modes' share (default 0.1)",
+        ),
+        (
+            "none_prob",
+            "probability of the \"no bias\" mode at the start (default 0.5)",
+        ),
+        (
+            "presence_sojourn",
+            "mean time before a bias disappears, s: re-seeds the \"no bias\" mode (default 3600)",
         ),
     ],
     build,
@@ -60,6 +68,8 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
         factor: p.get("drift_factor", d.factor),
         sojourn: p.get("drift_sojourn", d.sojourn),
         initial: p.get("drift_prob", d.initial),
+        unbiased: p.get("none_prob", d.unbiased),
+        presence_sojourn: p.get("presence_sojourn", d.presence_sojourn),
     };
     let mut biases = Vec::with_capacity(sc.sensors.len());
     for s in &sc.sensors {
@@ -202,8 +212,14 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
         if !bias.is_empty() {
             e.extra
                 .insert("bias_est".into(), serde_json::Value::Object(bias));
-            e.extra
-                .insert("bias_drift_prob".into(), serde_json::json!(state.probs[1]));
+            e.extra.insert(
+                "bias_drift_prob".into(),
+                serde_json::json!(state.drifting_prob()),
+            );
+            e.extra.insert(
+                "bias_none_prob".into(),
+                serde_json::json!(state.unbiased_prob()),
+            );
         }
         Ok(Some(e))
     }
