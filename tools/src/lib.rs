@@ -6,7 +6,10 @@
 //! * [`replay`] (`harrier replay`): a named estimator over a `gcs-scenario/1` directory, scored
 //!   against its truth.
 //! * [`guidance_sim`] (`harrier guidance-sim`): closed-loop guidance scenarios and their figures.
-//! * [`gen_multi`] (`harrier gen-multi`): a seeded multi-target scenario.
+//! * [`gen_multi`] (`harrier gen-multi`): a seeded multi-target scenario (crossing targets, or
+//!   close groups of turning ones).
+//! * [`track_eval`] (`harrier track-eval`): the multi-target tracker's associators compared on
+//!   generated close groups, or an estimates file scored.
 //! * [`sessions`] (`harrier sessions`): a recording's sessions listed, summarised and exported
 //!   ([`harrier_recording`]).
 
@@ -14,3 +17,4 @@ pub mod gen_multi;
 pub mod guidance_sim;
 pub mod replay;
 pub mod sessions;
+pub mod track_eval;
