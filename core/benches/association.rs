@@ -53,7 +53,7 @@ fn associations(density: f64) -> [(&'static str, Association); 3] {
         (
             "mht",
             Association::Mht(
-                Mht::new(detection, existence, 3, 16, 1_000_000, 100_000).expect("mht"),
+                Mht::new(detection, existence, 3, 16, 1_000_000, 100_000, 0.0).expect("mht"),
             ),
         ),
     ]

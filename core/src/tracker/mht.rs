@@ -60,6 +60,11 @@ pub struct Mht {
     pub max_hypotheses: usize,
     /// Nodes one cluster's search may visit before it keeps its best assignment so far.
     pub max_search: usize,
+    /// `Δ ≥ 0`: the global hypothesis' search adds it to the score of every leaf that continues
+    /// its tree's reported leaf, so that the reported hypothesis changes only when another is
+    /// more likely by a factor `e^Δ` (a hysteresis against estimates flicking between nearly
+    /// equal hypotheses).
+    pub hysteresis: f64,
 }
 
 impl Mht {
@@ -71,11 +76,18 @@ impl Mht {
         max_leaves: usize,
         max_hypotheses: usize,
         max_search: usize,
+        hysteresis: f64,
     ) -> Result<Self> {
-        if window == 0 || max_leaves == 0 || max_hypotheses == 0 || max_search == 0 {
+        if window == 0
+            || max_leaves == 0
+            || max_hypotheses == 0
+            || max_search == 0
+            || !(hysteresis >= 0.0 && hysteresis.is_finite())
+        {
             return Err(EstimationError::InvalidParameter(format!(
                 "the multi-scan associator needs a window, leaves, hypotheses and a search of at \
-                 least 1, got {window}, {max_leaves}, {max_hypotheses}, {max_search}"
+                 least 1 and a hysteresis ≥ 0, got {window}, {max_leaves}, {max_hypotheses}, \
+                 {max_search}, {hysteresis}"
             )));
         }
         Ok(Self {
@@ -85,6 +97,7 @@ impl Mht {
             max_leaves,
             max_hypotheses,
             max_search,
+            hysteresis,
         })
     }
 }
@@ -111,6 +124,8 @@ pub(crate) struct Leaf<S> {
     pub last_update: f64,
     /// NIS of its last detection.
     pub nis: f64,
+    /// Whether it continues the tree's leaf reported after the last scan.
+    pub reported: bool,
 }
 
 impl<S> Leaf<S> {
@@ -176,6 +191,7 @@ impl<S: Clone> MhtState<S> {
                         consecutive_misses: k.consecutive_misses,
                         last_update: k.last_update,
                         nis: f64::NAN,
+                        reported: true,
                     }],
                     chosen: 0,
                     selected: true,

@@ -353,6 +353,11 @@ const MHT_PARAMS: &[(&str, &str)] = &[
         "nodes a cluster's global-hypothesis search visits before it keeps its best so far, \
          counted (default 100000)",
     ),
+    (
+        "hysteresis",
+        "log-likelihood ratio by which another hypothesis must beat the reported one to replace \
+         it (default 0)",
+    ),
 ];
 
 /// `mht`: the multi-scan associator.
@@ -369,6 +374,7 @@ pub const ASSOCIATOR_MHT: AssociatorInfo = AssociatorInfo {
             count(p, "max_leaves", 16)? as usize,
             count(p, "max_hypotheses", 100_000)? as usize,
             count(p, "max_search", 100_000)? as usize,
+            p.get("hysteresis", 0.0),
         )?))
     },
 };

@@ -118,6 +118,7 @@ where
                         existence: (1.0 - pdpg) * psi / (1.0 - pdpg * psi),
                         window,
                         consecutive_misses: leaf.consecutive_misses + 1,
+                        reported: li == tree.chosen,
                         ..leaf.clone()
                     },
                     li == tree.chosen,
@@ -148,6 +149,7 @@ where
                             consecutive_misses: 0,
                             last_update: t,
                             nis: g.distance_sq,
+                            reported: li == tree.chosen,
                         },
                         false,
                     ));
@@ -188,7 +190,10 @@ where
                         .leaves
                         .iter()
                         .enumerate()
-                        .map(|(li, l)| (l.score + bonus, li, l.used().collect()))
+                        .map(|(li, l)| {
+                            let sticky = if l.reported { m.hysteresis } else { 0.0 };
+                            (l.score + bonus + sticky, li, l.used().collect())
+                        })
                         .collect();
                     Options { options }
                 })
@@ -316,6 +321,7 @@ where
                     consecutive_misses: 0,
                     last_update: t,
                     nis: f64::NAN,
+                    reported: true,
                 }],
                 chosen: 0,
                 selected: false,
