@@ -20,6 +20,7 @@
 //! A new test file goes here as a module (`mod name;` below), not as a new `tests/*.rs` binary.
 
 mod api_clients;
+mod association;
 mod bearings;
 mod cimm;
 mod clock;
