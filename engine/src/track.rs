@@ -228,6 +228,10 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     /// What the associator did so far: clusters solved, and how often a bound was hit (the
     /// bounded fallback of JIPDA and MHT).
     fn association(&self) -> harrier_core::tracker::AssociationStats;
+    /// Takes scans up to `lag` seconds older than the last one, by retrodiction (harrier-core's
+    /// `Tracker::set_retrodiction_lag`; 0: a scan older than the last fails). Fails for a bad
+    /// lag, or a non-zero one with an associator that cannot retrodict (the multi-scan one).
+    fn set_retrodiction_lag(&mut self, lag: f64) -> Result<(), EngineError>;
 }
 
 /// Tracks passed from one track engine to another: each track's record and its Gaussian estimate

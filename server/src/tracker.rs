@@ -6,7 +6,9 @@
 //! all — or once a scan `reorder_window_s` newer has arrived, or when nothing has arrived for that
 //! long in wall time (at least 20 ms). So a scan waits for the slowest active source, never longer
 //! than the window; a lone source is not delayed at all. A scan older than the last processed one
-//! is late: counted and dropped (the first scan of a new source can be).
+//! by at most `late_lag_s` is processed at once: the engine retrodicts it into the tracks it
+//! updates (harrier-core's `tracker::retrodict`), counted as retrodicted; an older one is late:
+//! counted and dropped.
 //!
 //! The actor keeps the list of live tracks from what each scan returns (the engine's
 //! [`ScanOutcome`]: the events and the views of the tracks the scan changed), asking the engine
@@ -191,6 +193,9 @@ pub struct TrackerActor {
     deployment: Deployment,
     estimator: Arc<TrackFilterState>,
     window: f64,
+    /// How much older than the last processed scan a scan may be and still be taken
+    /// (retrodicted); 0: none.
+    late_lag: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
     /// Newest scan time of each source (`vehicle/sensor`).
@@ -246,6 +251,7 @@ impl TrackerActor {
             deployment,
             estimator,
             window,
+            late_lag: 0.0,
             metrics,
             pending: Vec::new(),
             sources: HashMap::new(),
@@ -257,6 +263,19 @@ impl TrackerActor {
             sinks: Sinks::default(),
             bounds: None,
         }
+    }
+
+    /// Takes scans up to `lag` s older than the last processed one, by retrodiction. An engine
+    /// that cannot (the multi-scan associator) keeps dropping them, with a warning.
+    pub fn with_late_lag(mut self, lag: f64) -> Self {
+        self.late_lag = match self.engine.set_retrodiction_lag(lag) {
+            Ok(()) => lag,
+            Err(e) => {
+                tracing::warn!("late scans will be dropped: {e}");
+                0.0
+            }
+        };
+        self
     }
 
     /// Runs a set-membership bound beside every track ([`super::bound`]).
@@ -273,9 +292,20 @@ impl TrackerActor {
 
     /// Takes one scan into the reorder buffer, then processes what the window releases.
     pub fn push(&mut self, s: ReadyScan) {
-        if self.engine.time().is_some_and(|last| s.scan.t < last) {
-            self.metrics.dropped(&s.vehicle, DropReason::Late);
-            tracing::debug!(vehicle = s.vehicle, t = s.scan.t, "late scan dropped");
+        if let Some(last) = self.engine.time().filter(|last| s.scan.t < *last) {
+            if s.scan.t >= last - self.late_lag {
+                self.metrics.retrodicted(&s.vehicle);
+                tracing::debug!(
+                    vehicle = s.vehicle,
+                    t = s.scan.t,
+                    last,
+                    "late scan retrodicted"
+                );
+                self.process(s);
+            } else {
+                self.metrics.dropped(&s.vehicle, DropReason::Late);
+                tracing::debug!(vehicle = s.vehicle, t = s.scan.t, last, "late scan dropped");
+            }
             return;
         }
         let source = format!("{}/{}", s.vehicle, s.sensor);
@@ -309,6 +339,7 @@ impl TrackerActor {
     }
 
     fn process(&mut self, s: ReadyScan) {
+        let late = self.engine.time().is_some_and(|last| s.scan.t < last);
         let outcome: ScanOutcome = match self.engine.ingest(&s.scan) {
             Ok(outcome) => outcome,
             Err(e) => {
@@ -318,6 +349,8 @@ impl TrackerActor {
             }
         };
         let (tracks, events) = outcome.apply(&self.tracks);
+        // The tracks' time: a late scan leaves it where it was.
+        let now = self.engine.time().unwrap_or(s.scan.t);
         let tracks = Arc::new(tracks);
         self.tracks = Arc::clone(&tracks);
         self.metrics.latency(s.received.elapsed().as_secs_f64());
@@ -328,7 +361,7 @@ impl TrackerActor {
         self.metrics.ingested(
             &s.vehicle,
             s.scan.detections.len(),
-            s.scan.t,
+            now,
             confirmed,
             tracks.len(),
         );
@@ -344,7 +377,7 @@ impl TrackerActor {
                 position: s.platform,
                 geodetic: s.geodetic,
             });
-        v.last_t = s.scan.t;
+        v.last_t = v.last_t.max(s.scan.t);
         v.scans += 1;
         v.position = s.platform;
         v.geodetic = s.geodetic;
@@ -353,7 +386,8 @@ impl TrackerActor {
             v.sensors.sort();
         }
         self.remember(&events, &tracks);
-        if let Some(b) = &mut self.bounds {
+        // The set-membership bounds move forward in time only: a late scan leaves them.
+        if let Some(b) = self.bounds.as_mut().filter(|_| !late) {
             let kind = s.scan.sensor.kind();
             let changed = b.on_scan(s.scan.t, kind, &s.noise_std, &s.scan.detections, &events);
             self.metrics.bound_resets(b.resets());
@@ -385,7 +419,7 @@ impl TrackerActor {
             tracks: Arc::clone(&tracks),
             json: OnceLock::new(),
         });
-        self.publish(Some(s.scan.t), tracks);
+        self.publish(Some(now), tracks);
         {
             let mut q = self
                 .recent
@@ -454,6 +488,10 @@ impl TrackerActor {
             to = to.name,
             "estimator changed"
         );
+        if let Err(e) = engine.set_retrodiction_lag(self.late_lag) {
+            tracing::warn!(to = to.name, "late scans will be dropped: {e}");
+            self.late_lag = 0.0;
+        }
         self.engine = engine;
         self.estimator = Arc::new(to.clone());
         let t = self.engine.time();
@@ -604,6 +642,40 @@ mod tests {
         assert_eq!(a.recent.scans_after(4).len(), 3);
         let first = crate::wire::scan_json(&a.recent.scans_after(0)[0]).to_owned();
         assert!(first.contains(r#""type":"scan""#), "{first}");
+    }
+
+    /// Within the lag, a scan older than the last processed one updates its track by
+    /// retrodiction (the tracks' time stays); beyond it, it is dropped as late.
+    #[test]
+    fn late_scans_within_the_lag_are_retrodicted() {
+        let (a, metrics, snap_rx, mut ev_rx) = actor(0.1);
+        let mut a = a.with_late_lag(2.0);
+        for k in 0..=5 {
+            a.push(scan(f64::from(k), "1"));
+        }
+        assert_eq!(snap_rx.borrow().t, Some(5.0));
+        let before = snap_rx.borrow().tracks[0].clone();
+        while ev_rx.try_recv().is_ok() {}
+        a.push(scan(4.5, "2"));
+        let late = ev_rx.try_recv().expect("the late scan's events");
+        assert!(
+            matches!(late.events[..], [TrackEvent::Updated { id, .. }] if id == before.id),
+            "{:?}",
+            late.events
+        );
+        assert_eq!(late.t, 4.5);
+        assert_eq!(snap_rx.borrow().t, Some(5.0));
+        let after = snap_rx.borrow().tracks[0].clone();
+        assert_eq!(after.t, 5.0);
+        assert_ne!(after.state, before.state);
+        assert_eq!(metrics.vehicle_counters("2").retrodicted, 1);
+        a.push(scan(2.5, "2"));
+        assert_eq!(
+            metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
+            Some(&1)
+        );
+        assert_eq!(metrics.scans_ingested(), 7);
+        in_step(&a, &snap_rx);
     }
 
     #[test]

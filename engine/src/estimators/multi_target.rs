@@ -527,6 +527,10 @@ where
     fn association(&self) -> AssociationStats {
         self.tracker.stats()
     }
+
+    fn set_retrodiction_lag(&mut self, lag: f64) -> Result<(), EngineError> {
+        Ok(self.tracker.set_retrodiction_lag(lag)?)
+    }
 }
 
 /// The replay estimator `tracker`: a track engine (the `ekf` track filter and `gnn`, or any pair

@@ -209,8 +209,12 @@ pub struct TrackerConfig {
     /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
-    /// of order are processed in time order; older ones are dropped as late.
+    /// of order are processed in time order.
     pub reorder_window_s: f64,
+    /// A scan older than the last processed one by at most this (s of scan time) updates the
+    /// tracks by retrodiction (harrier-core's `tracker::retrodict`); older ones are dropped as
+    /// late. 0: every scan older than the last processed one is dropped.
+    pub late_lag_s: f64,
     /// Nominal scan period (s): the scenario's `time.dt` (CIMM's road velocity noise).
     pub scan_period_s: f64,
     /// Motion models (`gcs-scenario/1` `motion` block: `accel_std`, `models`, …).
@@ -363,6 +367,7 @@ impl Default for TrackerConfig {
             estimator: "ekf".into(),
             params: Default::default(),
             reorder_window_s: 0.1,
+            late_lag_s: 2.0,
             scan_period_s: 1.0,
             motion: Motion::cv(1.0),
             roads: Vec::new(),

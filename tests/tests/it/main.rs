@@ -33,6 +33,7 @@ mod field_tak;
 mod fuzz_regressions;
 mod guidance;
 mod http_limits;
+mod late_scans;
 mod live_server;
 mod mavlink_gcs;
 mod mavproxy_client;
