@@ -9,7 +9,7 @@
 use harrier_core::scenario::Scenario;
 
 use crate::estimators::{
-    angles, bearings, bias, gaussian, icdkf, imm, multi_target, obe, registration,
+    angles, associators, bearings, bias, gaussian, icdkf, imm, multi_target, obe, registration,
 };
 use crate::{
     AssociatorInfo, Deployment, EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine,
@@ -58,9 +58,9 @@ pub static TRACK_FILTERS: &[TrackFilterInfo] = &[
 /// Every associator by name: how the live tracker associates detections with tracks, chosen
 /// like the track filters (any associator runs with any track filter).
 pub static ASSOCIATORS: &[AssociatorInfo] = &[
-    multi_target::ASSOCIATOR_GNN,
-    multi_target::ASSOCIATOR_JIPDA,
-    multi_target::ASSOCIATOR_MHT,
+    associators::ASSOCIATOR_GNN,
+    associators::ASSOCIATOR_JIPDA,
+    associators::ASSOCIATOR_MHT,
 ];
 
 /// `name`'s parameters: an error naming the first one in none of the lists `known`.

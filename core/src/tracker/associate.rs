@@ -309,9 +309,18 @@ pub fn global_nearest_neighbour(hypotheses: &[TrackHypotheses]) -> Result<Vec<Op
         .flat_map(|h| h.gated.iter().map(|g| g.detection + 1))
         .max()
         .unwrap_or(0);
+    gnn_clusters(hypotheses, &clusters(hypotheses, n_det))
+}
+
+/// [`global_nearest_neighbour`] over the clusters `clusters` of `hypotheses` (those of
+/// [`clusters`]).
+pub(crate) fn gnn_clusters(
+    hypotheses: &[TrackHypotheses],
+    clusters: &[Cluster],
+) -> Result<Vec<Option<usize>>> {
     let mut out = vec![None; hypotheses.len()];
-    for c in clusters(hypotheses, n_det) {
-        assign_cluster(hypotheses, &c, &mut out)?;
+    for c in clusters {
+        assign_cluster(hypotheses, c, &mut out)?;
     }
     Ok(out)
 }

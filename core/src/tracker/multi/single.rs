@@ -7,9 +7,7 @@ use nalgebra::SVector;
 use super::{Association, Jipda, Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
-use crate::tracker::associate::{
-    TrackHypotheses, clusters, global_nearest_neighbour, hypothesise_scan,
-};
+use crate::tracker::associate::{TrackHypotheses, clusters, gnn_clusters, hypothesise_scan};
 use crate::tracker::delete::DeleteReason;
 use crate::tracker::filter::TrackFilter;
 use crate::tracker::initiate::{Initiator, Verdict};
@@ -109,11 +107,16 @@ where
         let mut taken = vec![0.0; detections.len()];
         let decisions: Vec<Decision> = match soft {
             None => {
-                let assigned = global_nearest_neighbour(&hyps)?;
+                let cs = clusters(&hyps, detections.len());
+                let assigned = gnn_clusters(&hyps, &cs)?;
                 for d in assigned.iter().flatten() {
                     taken[*d] = 1.0;
                 }
-                self.stats.clusters += clusters(&hyps, detections.len()).len() as u64;
+                self.stats.clusters += cs.len() as u64;
+                self.stats.largest_cluster = cs
+                    .iter()
+                    .map(|c| c.tracks.len())
+                    .fold(self.stats.largest_cluster, usize::max);
                 assigned.into_iter().map(Decision::Hard).collect()
             }
             Some(j) => self.jipda(&j, &tracks, &gaters, &hyps, detections.len(), &mut taken)?,
