@@ -138,6 +138,9 @@ pub struct TrackView {
     pub last_update: f64,
     /// Mode probabilities of an IMM track (empty otherwise).
     pub mode_probabilities: Vec<f64>,
+    /// Probability of existence (the `jipda` and `mht` associators; `None` under `gnn`). Not
+    /// recorded: a session's tracks read back have none.
+    pub existence: Option<f64>,
 }
 
 impl TrackView {
@@ -303,6 +306,7 @@ mod tests {
             age,
             last_update: 0.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

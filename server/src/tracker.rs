@@ -30,7 +30,9 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use harrier_engine::{Deployment, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView};
+use harrier_engine::{
+    Deployment, EngineError, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView,
+};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
@@ -44,8 +46,32 @@ pub const HISTORY_LEN: usize = 200;
 pub struct TrackFilterState {
     /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
     pub name: String,
-    /// Parameters given (the others have their defaults).
+    /// Associator name (`gnn`, `jipda`, `mht`; `GET /api/v1/estimators`).
+    pub associator: String,
+    /// Parameters given, of the track filter and the associator (the others have their
+    /// defaults).
     pub params: BTreeMap<String, f64>,
+}
+
+impl TrackFilterState {
+    /// The track filter and associator `[tracker]` starts with.
+    pub fn of(config: &crate::config::TrackerConfig) -> Self {
+        Self {
+            name: config.estimator.clone(),
+            associator: config.associator.clone(),
+            params: config.params.clone(),
+        }
+    }
+
+    /// Their track engine for `deployment`.
+    pub fn build(&self, deployment: &Deployment) -> Result<Box<dyn TrackEngine>, EngineError> {
+        harrier_engine::registry::build_track_engine(
+            &self.name,
+            &self.associator,
+            deployment,
+            &Params::from(&self.params),
+        )
+    }
 }
 
 /// A vehicle as seen in its detections.
@@ -476,16 +502,17 @@ impl TrackerActor {
 
     /// Builds `to` for the deployment and hands the live tracks over to it.
     fn set_estimator(&mut self, to: TrackFilterState) -> Result<TrackFilterState, SetError> {
-        let params = Params::from(&to.params);
-        let mut engine =
-            harrier_engine::registry::build_track_filter(&to.name, &self.deployment, &params)
-                .map_err(|e| SetError::Invalid(e.to_string()))?;
+        let mut engine = to
+            .build(&self.deployment)
+            .map_err(|e| SetError::Invalid(e.to_string()))?;
         engine.adopt(&self.engine.handover()).map_err(|e| {
             SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
         })?;
         tracing::info!(
             from = self.estimator.name,
+            from_associator = self.estimator.associator,
             to = to.name,
+            to_associator = to.associator,
             "estimator changed"
         );
         if let Err(e) = engine.set_retrodiction_lag(self.late_lag) {
@@ -584,6 +611,7 @@ mod tests {
             deployment,
             TrackFilterState {
                 name: "ekf".into(),
+                associator: "gnn".into(),
                 params: BTreeMap::new(),
             },
             window,
@@ -689,6 +717,7 @@ mod tests {
         assert_eq!(before.len(), 1);
         let bad = a.set_estimator(TrackFilterState {
             name: "nonesuch".into(),
+            associator: "gnn".into(),
             params: BTreeMap::new(),
         });
         assert!(
@@ -697,6 +726,7 @@ mod tests {
         );
         let bad = a.set_estimator(TrackFilterState {
             name: "cdkf".into(),
+            associator: "gnn".into(),
             params: BTreeMap::from([("m".to_string(), 0.5)]),
         });
         assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
@@ -704,6 +734,7 @@ mod tests {
         let now = a
             .set_estimator(TrackFilterState {
                 name: "cdkf".into(),
+                associator: "gnn".into(),
                 params: BTreeMap::new(),
             })
             .expect("cdkf");
@@ -722,5 +753,27 @@ mod tests {
         in_step(&a, &snap_rx);
         let k = &snap_rx.borrow().tracks[0];
         assert_eq!((k.id, k.updated), (before[0].id, true));
+        assert_eq!(k.existence, None);
+        // The associator too: the track keeps its id and gets an existence.
+        let now = a
+            .set_estimator(TrackFilterState {
+                name: "cdkf".into(),
+                associator: "jipda".into(),
+                params: BTreeMap::new(),
+            })
+            .expect("cdkf + jipda");
+        assert_eq!(now.associator, "jipda");
+        a.push(scan(5.0, "1"));
+        a.release(f64::INFINITY);
+        in_step(&a, &snap_rx);
+        let k = &snap_rx.borrow().tracks[0];
+        assert_eq!((k.id, k.updated), (before[0].id, true));
+        assert!(k.existence.is_some_and(|p| p > 0.5), "{k:?}");
+        let bad = a.set_estimator(TrackFilterState {
+            name: "cdkf".into(),
+            associator: "nonesuch".into(),
+            params: BTreeMap::new(),
+        });
+        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
     }
 }

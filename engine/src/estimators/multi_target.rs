@@ -250,6 +250,7 @@ impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
             age: k.age,
             last_update: k.last_update,
             mode_probabilities: k.mode_probabilities,
+            existence: k.existence,
         }
     }
 }

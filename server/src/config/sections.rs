@@ -206,6 +206,9 @@ pub struct TrackerConfig {
     /// The track filter (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`). The key keeps
     /// the name `estimator`, as `PUT /api/v1/estimator` does: both select the track filter.
     pub estimator: String,
+    /// The associator (`gnn`, `jipda`, `mht`; `GET /api/v1/estimators`), with any track filter;
+    /// `PUT /api/v1/estimator` changes it too.
+    pub associator: String,
     /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
@@ -365,6 +368,7 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             estimator: "ekf".into(),
+            associator: "gnn".into(),
             params: Default::default(),
             reorder_window_s: 0.1,
             late_lag_s: 2.0,
