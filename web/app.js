@@ -170,10 +170,21 @@ async function loadEstimators() {
       ...body.estimators.map((e) => el("option", { value: e.name, text: `${e.name} — ${e.summary}`, title: e.params.map((p) => `${p.name}: ${p.description}`).join("\n") })),
     );
     if (store.estimator) sel.value = store.estimator.name;
+    const assoc = $("estimator-associator");
+    assoc.replaceChildren(
+      ...(body.associators || []).map((a) => el("option", { value: a.name, text: `${a.name} — ${a.summary}`, title: a.params.map((p) => `${p.name}: ${p.description}`).join("\n") })),
+    );
+    assoc.hidden = !body.associators;
+    if (store.estimator?.associator) assoc.value = store.estimator.associator;
     $("estimator-panel").hidden = false;
   } catch {
     $("estimator-panel").hidden = true;
   }
+}
+
+// "ekf + jipda": the track filter and the associator an estimator state names.
+function running(e) {
+  return e.associator ? `${e.name} + ${e.associator}` : e.name;
 }
 
 function parseParams(text) {
@@ -198,7 +209,8 @@ $("estimator-form").addEventListener("submit", async (e) => {
     return;
   }
   const name = $("estimator-name").value;
-  const body = await act(node, `change estimator to ${name}`, () => request("PUT", "estimator", { name, params }), (r) => `now running ${r.name}${Object.keys(r.params || {}).length ? ` (${Object.entries(r.params).map(([k, v]) => `${k}=${v}`).join(", ")})` : ""}`);
+  const associator = $("estimator-associator").value || undefined;
+  const body = await act(node, `change estimator to ${name}`, () => request("PUT", "estimator", { name, associator, params }), (r) => `now running ${running(r)}${Object.keys(r.params || {}).length ? ` (${Object.entries(r.params).map(([k, v]) => `${k}=${v}`).join(", ")})` : ""}`);
   if (body) {
     store.estimator = body;
     markToken(true);
@@ -406,6 +418,9 @@ const stream = new Stream(
         if (store.estimator && $("estimator-name").value !== store.estimator.name && document.activeElement !== $("estimator-name")) {
           $("estimator-name").value = store.estimator.name;
         }
+        if (store.estimator?.associator && $("estimator-associator").value !== store.estimator.associator && document.activeElement !== $("estimator-associator")) {
+          $("estimator-associator").value = store.estimator.associator;
+        }
         break;
       case "scan":
         store.applyScan(msg);
@@ -585,7 +600,7 @@ function updatePanels() {
   setText($("ntracks"), `${store.confirmed().length}`);
   setText($("nuavs"), `${[...store.vehicles.values()].filter((v) => v.position).length}`);
   setText($("fps"), hook.fps.toFixed(0));
-  if (store.estimator) setText($("estimator-running"), `running: ${store.estimator.name}${Object.keys(store.estimator.params || {}).length ? ` ${JSON.stringify(store.estimator.params)}` : ""}`);
+  if (store.estimator) setText($("estimator-running"), `running: ${running(store.estimator)}${Object.keys(store.estimator.params || {}).length ? ` ${JSON.stringify(store.estimator.params)}` : ""}`);
   vehiclesPanel?.update();
   tracksPanel.update(map.follow);
   seriesPanel.update();

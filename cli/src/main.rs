@@ -20,7 +20,7 @@ macro_rules! out {
     }};
 }
 use harrier_engine::Params;
-use harrier_engine::registry::{ESTIMATORS, TRACK_FILTERS};
+use harrier_engine::registry::{ASSOCIATORS, ESTIMATORS, TRACK_FILTERS};
 use harrier_tools::guidance_sim;
 use harrier_tools::replay;
 
@@ -50,16 +50,28 @@ enum Command {
         /// Print the score as JSON instead of a summary.
         #[arg(long)]
         json: bool,
+        /// With `-e tracker`: the filter of each track (`harrier estimators`; default ekf).
+        #[arg(long)]
+        track_filter: Option<String>,
+        /// With `-e tracker`: the associator (`gnn`, `jipda`, `mht`; default gnn).
+        #[arg(long)]
+        associator: Option<String>,
     },
     /// Run a closed-loop guidance scenario (see GUIDANCE.md) and print its figures.
     GuidanceSim(GuidanceSimArgs),
-    /// Write a seeded multi-target scenario: crossing targets, Pd 0.9, clutter (FORMAT-MULTI.md).
+    /// Write a seeded multi-target scenario: crossing targets, Pd 0.9, clutter (FORMAT-MULTI.md);
+    /// or, with --shape, close groups of turning ground targets.
     GenMulti {
         /// Output directory (created if missing).
         dir: PathBuf,
         /// RNG seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Close groups of turning ground targets instead: `crossing`, `parallel` (30–90 m
+        /// apart), `opposing`, `mixed` (four groups, 10 clutter detections a scan) or `dense`
+        /// (mixed, 50 a scan).
+        #[arg(long)]
+        shape: Option<String>,
     },
     /// Write a seeded sensor-registration scenario: a ground target, a biased radar, two UAVs'
     /// cameras with outages, bias truth and references (FORMAT-REGISTRATION.md).
@@ -82,6 +94,10 @@ enum Command {
         #[arg(long, default_value_t = 600.0)]
         duration: f64,
     },
+    /// Compare the multi-target tracker's associators on generated close groups (GOSPA,
+    /// swaps, id switches, breaks, false tracks, confirmation delay, time per scan), or score
+    /// an estimates file.
+    TrackEval(harrier_tools::track_eval::EvalArgs),
     /// Run the live tracking service: detections from Zenoh in, tracks over HTTP (`/api/v1`).
     Serve(ServeArgs),
     /// Run the demo: the service, an in-process Zenoh peer and simulated UAVs, in one process.
@@ -159,13 +175,37 @@ fn main() -> ExitCode {
                     out!("{:<14}   {p} = …  {d}", "");
                 }
             }
+            out!("");
+            out!(
+                "Associators of the live tracker (harrier replay -e tracker --associator NAME), \
+                 with any track filter:"
+            );
+            for a in ASSOCIATORS {
+                out!("{:<14} {}", a.name, a.summary);
+                for (p, d) in a.params.iter().filter(|_| params) {
+                    out!("{:<14}   {p} = …  {d}", "");
+                }
+            }
             ExitCode::SUCCESS
         }
-        Command::GenMulti { dir, seed } => match harrier_tools::gen_multi::write(&dir, seed) {
+        Command::GenMulti { dir, seed, shape } => {
+            let written = match shape {
+                None => harrier_tools::gen_multi::write(&dir, seed),
+                Some(s) => harrier_tools::gen_multi::write_groups(&dir, seed, &s),
+            };
+            match written {
+                Ok(()) => ExitCode::SUCCESS,
+                Err(e) => {
+                    eprintln!("harrier gen-multi: error: {e:#}");
+                    ExitCode::FAILURE
+                }
+            }
+        }
+        Command::TrackEval(args) => match harrier_tools::track_eval::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier gen-multi: error: {e:#}");
-                ExitCode::FAILURE
+                eprintln!("harrier track-eval: error: {e:#}");
+                ExitCode::from(2)
             }
         },
         Command::GenRegistration {
@@ -198,7 +238,16 @@ fn main() -> ExitCode {
             out,
             params,
             json,
-        } => match run_replay(&scenario, &estimator, &out, &params, json) {
+            track_filter,
+            associator,
+        } => match run_replay(
+            &scenario,
+            &estimator,
+            (track_filter, associator),
+            &out,
+            &params,
+            json,
+        ) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
                 eprintln!("harrier replay: error: {e}");
@@ -398,13 +447,27 @@ fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
 fn run_replay(
     dir: &std::path::Path,
     estimator: &str,
+    (track_filter, associator): (Option<String>, Option<String>),
     out: &std::path::Path,
     params: &[String],
     json: bool,
 ) -> Result<(), replay::ReplayError> {
     let params = Params::parse(params).map_err(|e| replay::ReplayError::Setup(e.to_string()))?;
     let data = replay::load(dir)?;
-    let report = replay::run(&data, estimator, &params)?;
+    let report = if track_filter.is_some() || associator.is_some() {
+        if estimator != "tracker" {
+            return Err(replay::ReplayError::Setup(
+                "--track-filter and --associator go with -e tracker".into(),
+            ));
+        }
+        let choice = replay::TrackerChoice {
+            filter: track_filter.unwrap_or_else(|| "ekf".into()),
+            associator: associator.unwrap_or_else(|| "gnn".into()),
+        };
+        replay::run_tracker(&data, &choice, &params)?
+    } else {
+        replay::run(&data, estimator, &params)?
+    };
     replay::write_estimates(out, &report.estimates)?;
     eprintln!(
         "{}: {} estimates from {} measurements with {estimator} in {:.1} ms -> {}",
@@ -429,6 +492,16 @@ fn run_replay(
             eprintln!("  t = {t}: {why}");
         }
     }
+    if let Some(a) = report.association {
+        eprintln!(
+            "association: {} clusters solved (largest {} tracks), largest net {}, {} capped by \
+             their bound",
+            a.clusters, a.largest_cluster, a.largest_net, a.capped
+        );
+    }
+    if estimator == "tracker" {
+        return print_multi_score(dir, &report, json);
+    }
     if let Some(score) = &report.score {
         if json {
             out!(
@@ -440,6 +513,24 @@ fn run_replay(
                 out!("{line}");
             }
         }
+    }
+    Ok(())
+}
+
+/// The multi-target score of a tracker's estimates (`harrier track-eval`'s: GOSPA c = 20 m, p = 2,
+/// continuity), when the scenario has a multi-target truth.
+fn print_multi_score(
+    dir: &std::path::Path,
+    report: &replay::ReplayReport,
+    json: bool,
+) -> Result<(), replay::ReplayError> {
+    use harrier_tools::track_eval;
+    let score = track_eval::score_dir(dir, &report.estimates, 20.0)
+        .map_err(|e| replay::ReplayError::Setup(format!("{e:#}")))?;
+    match score {
+        Some(s) if json => out!("{}", serde_json::to_string_pretty(&s).unwrap_or_default()),
+        Some(s) => out!("{}", track_eval::summary(&s, 20.0)),
+        None => {}
     }
     Ok(())
 }

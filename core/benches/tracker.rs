@@ -15,7 +15,7 @@ use harrier_core::filter::Extended;
 use harrier_core::measurement::{Geometry, Position};
 use harrier_core::motion::ConstantVelocity;
 use harrier_core::tracker::{
-    Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
+    Association, Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
 };
 use nalgebra::Vector2;
 use rand::{Rng, SeedableRng};
@@ -43,6 +43,7 @@ fn tracker_step(c: &mut Criterion) {
         tentative_gater: Gater::chi2(0.99, 2).unwrap(),
         confirm: MOfN::new(2, 3).unwrap(),
         deleter: Deleter::new(3, 1e5, 2).unwrap(),
+        association: Association::Gnn,
     };
     let init = SinglePointInitiator::new(10.0, 10.0).unwrap();
     let mut tracker = Tracker::new(filter, init, config);

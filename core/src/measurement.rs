@@ -29,6 +29,11 @@ pub trait MeasurementModel<const N: usize, const M: usize> {
     fn residual(&self, a: &SVector<f64, M>, b: &SVector<f64, M>) -> SVector<f64, M> {
         a - b
     }
+    /// Whether component `i` is an angle whose residuals [`residual`](Self::residual) wraps to
+    /// `[-π, π)` (an azimuth): what a spatial index over detections needs to know.
+    fn is_angle(&self, _i: usize) -> bool {
+        false
+    }
 }
 
 /// A measurement model with `h(x) = H x`.
@@ -218,6 +223,9 @@ impl<const N: usize> MeasurementModel<N, 2> for RangeBearing {
     fn residual(&self, a: &Vector2<f64>, b: &Vector2<f64>) -> Vector2<f64> {
         Vector2::new(a[0] - b[0], wrap_angle(a[1] - b[1]))
     }
+    fn is_angle(&self, i: usize) -> bool {
+        i == 1
+    }
 }
 
 /// Camera/gimbal `[azimuth, elevation]` (FORMAT.md §3 `az_el`).
@@ -256,6 +264,9 @@ impl<const N: usize> MeasurementModel<N, 2> for AzEl {
     }
     fn residual(&self, a: &Vector2<f64>, b: &Vector2<f64>) -> Vector2<f64> {
         Vector2::new(wrap_angle(a[0] - b[0]), a[1] - b[1])
+    }
+    fn is_angle(&self, i: usize) -> bool {
+        i == 0
     }
 }
 
@@ -331,6 +342,9 @@ impl<const N: usize> MeasurementModel<N, 3> for BearingSize {
     }
     fn residual(&self, a: &Vector3<f64>, b: &Vector3<f64>) -> Vector3<f64> {
         Vector3::new(wrap_angle(a[0] - b[0]), a[1] - b[1], a[2] - b[2])
+    }
+    fn is_angle(&self, i: usize) -> bool {
+        i == 0
     }
 }
 

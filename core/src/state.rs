@@ -26,6 +26,26 @@ impl<const N: usize> Gaussian<N> {
     }
 }
 
+/// `Σ wᵢ N(xᵢ, Pᵢ)` collapsed to one Gaussian by moment matching (Bar-Shalom, Li & Kirubarajan 2001, §11.6.6 step 5):
+/// `x = Σ wᵢ xᵢ`, `P = Σ wᵢ [Pᵢ + (xᵢ − x)(xᵢ − x)ᵀ]`, symmetrised. The weights should sum to 1;
+/// `components` and `weights` are paired in order.
+pub fn moment_match<const N: usize>(components: &[Gaussian<N>], weights: &[f64]) -> Gaussian<N> {
+    let mut mean = SVector::<f64, N>::zeros();
+    for (g, wi) in components.iter().zip(weights) {
+        mean.axpy(*wi, &g.mean, 1.0);
+    }
+    let mut cov = SMatrix::<f64, N, N>::zeros();
+    for (g, wi) in components.iter().zip(weights) {
+        let d = g.mean - mean;
+        cov += g.cov * *wi;
+        cov.ger(*wi, &d, &d, 1.0);
+    }
+    Gaussian {
+        mean,
+        cov: crate::linalg::symmetrize(&cov),
+    }
+}
+
 /// An ellipsoidal set `E(c, P) = {x : (x − c)ᵀ P⁻¹ (x − c) ≤ 1}`, the set-membership counterpart of a
 /// Gaussian (FORMAT.md §5 `ellipsoid`).
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -89,6 +89,7 @@ mod tests {
             age: 7,
             last_update: 10.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

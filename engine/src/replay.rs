@@ -38,6 +38,10 @@ pub trait ReplayEstimator {
     /// the estimator has nothing to report yet). On `Err(EngineError::Estimation)` the step's
     /// measurements are rejected and the estimator's state is left as it was.
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError>;
+    /// What a multi-target tracker's associator did so far; `None` for other estimators.
+    fn association(&self) -> Option<harrier_core::tracker::AssociationStats> {
+        None
+    }
 }
 
 /// `--param name=value` settings (or a live service's `[tracker] params`), checked against the

@@ -2,7 +2,8 @@
 //! fed one [`SensorScan`] at a time, reporting [`TrackView`]s, handing its tracks over to another
 //! ([`Handover`]); built for a [`Deployment`] by a named track filter ([`TrackFilterInfo`]).
 
-use harrier_core::scenario::{Motion, Road, Scenario};
+use harrier_core::scenario::{DetectionSpec, Motion, Road, Scenario};
+use harrier_core::tracker::Association;
 
 use crate::error::EngineError;
 use crate::replay::Params;
@@ -28,6 +29,10 @@ pub struct Deployment {
     /// M-of-N and misses, so the default `misses` is 5 per sensor. The live service, whose
     /// sensors come and go, counts one.
     pub sensors: u32,
+    /// What the sensors are known to do (FORMAT-MULTI.md `detection`): the soft and multi-scan
+    /// associators take `P_D` from it, and the clutter density of planar `position` scans
+    /// (`clutter_rate` over the region's area).
+    pub detection: Option<DetectionSpec>,
 }
 
 impl Deployment {
@@ -35,10 +40,18 @@ impl Deployment {
     pub fn q(&self, p: &Params) -> Result<f64, EngineError> {
         p.q_or(self.motion.as_ref().and_then(Motion::accel_q))
     }
+
+    /// The clutter density of planar `position` scans: `detection.clutter_rate` over the area
+    /// of `detection.region`, when both are given and positive.
+    pub fn ground_clutter_density(&self) -> Option<f64> {
+        let d = self.detection.as_ref()?;
+        let area = d.region?.area();
+        (d.clutter_rate > 0.0 && area > 0.0 && self.dims == 2).then(|| d.clutter_rate / area)
+    }
 }
 
-/// A scenario's deployment: its `dims`, `plane_z`, `motion`, `roads`, `time.dt` and number of
-/// sensors.
+/// A scenario's deployment: its `dims`, `plane_z`, `motion`, `roads`, `time.dt`, number of
+/// sensors and `detection` block.
 impl From<&Scenario> for Deployment {
     fn from(sc: &Scenario) -> Self {
         Self {
@@ -48,6 +61,7 @@ impl From<&Scenario> for Deployment {
             roads: sc.roads.clone(),
             scan_period_s: sc.time.dt,
             sensors: u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX),
+            detection: sc.detection.clone(),
         }
     }
 }
@@ -124,6 +138,9 @@ pub struct TrackView {
     pub last_update: f64,
     /// Mode probabilities of an IMM track (empty otherwise).
     pub mode_probabilities: Vec<f64>,
+    /// Probability of existence (the `jipda` and `mht` associators; `None` under `gnn`). Not
+    /// recorded: a session's tracks read back have none.
+    pub existence: Option<f64>,
 }
 
 impl TrackView {
@@ -207,10 +224,17 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     fn time(&self) -> Option<f64>;
     /// The live tracks in a form any engine of the same deployment can [`adopt`](Self::adopt).
     fn handover(&self) -> Handover;
-    /// Replaces this engine's tracks with `h`'s (a change of track filter at run time): ids, status
-    /// and hit/miss records are kept, each estimate starts this engine's filter. On error
-    /// nothing changes.
+    /// Replaces this engine's tracks with `h`'s (a change of track filter or associator at run
+    /// time): ids, status, hit/miss records and existence are kept, each estimate starts this
+    /// engine's filter. On error nothing changes.
     fn adopt(&mut self, h: &Handover) -> Result<(), EngineError>;
+    /// What the associator did so far: clusters solved, and how often a bound was hit (the
+    /// bounded fallback of JIPDA and MHT).
+    fn association(&self) -> harrier_core::tracker::AssociationStats;
+    /// Takes scans up to `lag` seconds older than the last one, by retrodiction (harrier-core's
+    /// `Tracker::set_retrodiction_lag`; 0: a scan older than the last fails). Fails for a bad
+    /// lag, or a non-zero one with an associator that cannot retrodict (the multi-scan one).
+    fn set_retrodiction_lag(&mut self, lag: f64) -> Result<(), EngineError>;
 }
 
 /// Tracks passed from one track engine to another: each track's record and its Gaussian estimate
@@ -226,8 +250,27 @@ pub struct Handover {
     pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
 }
 
-/// Builds the track engine of a track filter for a deployment.
-pub type TrackFilterBuildFn = fn(&Deployment, &Params) -> Result<Box<dyn TrackEngine>, EngineError>;
+/// Builds the track engine of a track filter for a deployment, with an associator.
+pub type TrackFilterBuildFn =
+    fn(&Deployment, &Params, Association) -> Result<Box<dyn TrackEngine>, EngineError>;
+
+/// Builds an associator's tuning for a deployment.
+pub type AssociatorBuildFn = fn(&Deployment, &Params) -> Result<Association, EngineError>;
+
+/// A named **associator** — how the live multi-target tracker associates detections with its
+/// tracks (`gnn`, `jipda`, `mht`) — as a driver declares it and
+/// [`crate::registry::ASSOCIATORS`] lists it. Any associator runs with any track filter.
+#[derive(Debug)]
+pub struct AssociatorInfo {
+    /// Name.
+    pub name: &'static str,
+    /// One line for `harrier estimators`.
+    pub summary: &'static str,
+    /// Accepted parameter names with a description (and default), besides the track filters'.
+    pub params: &'static [(&'static str, &'static str)],
+    /// Builds its tuning.
+    pub build: AssociatorBuildFn,
+}
 
 /// A named **track filter** — the filter each track of the live multi-target tracker runs (`ekf`,
 /// `cdkf`, `imm`, `cimm`) — as a driver declares it and [`crate::registry::TRACK_FILTERS`] lists
@@ -263,6 +306,7 @@ mod tests {
             age,
             last_update: 0.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

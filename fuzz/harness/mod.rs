@@ -21,7 +21,7 @@ use harrier_core::scenario::{
 };
 use harrier_core::tracker::format::{MultiScenario, parse_multi_truth};
 use harrier_core::tracker::{
-    Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
+    Association, Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, Tracker, TrackerConfig,
 };
 use harrier_link::ardupilot::TargetMask;
 use harrier_link::autopilot::{Personality, VehicleStatus};
@@ -170,6 +170,7 @@ fn track(f: &harrier_link::detections::FrameScan, sensor: &harrier_core::measure
             tentative_gater: Gater::chi2(0.95, 2).expect("gate"),
             confirm: MOfN::new(2, 4).expect("m of n"),
             deleter: Deleter::new(5, 1e5, if N == 4 { 2 } else { 3 }).expect("deleter"),
+            association: Association::Gnn,
         };
         let mut tracker: Tracker<_, _, N> = Tracker::new(
             GaussianFilter {

@@ -90,5 +90,6 @@ pub fn track(id: u64, t: f64, state: [f64; 6]) -> TrackView {
         age: 3,
         last_update: t,
         mode_probabilities: vec![0.9, 0.1],
+        existence: None,
     }
 }

@@ -330,6 +330,7 @@ impl<'a> Db<'a> {
                 age: r.get(13).map_err(|e| bad(e.to_string()))?,
                 last_update: num(14)?,
                 mode_probabilities,
+                existence: None,
             });
         }
         Ok(out)

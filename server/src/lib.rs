@@ -216,15 +216,8 @@ impl LiveServer {
 pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
     config.check()?;
     let deployment = config.deployment();
-    let estimator = TrackFilterState {
-        name: config.tracker.estimator.clone(),
-        params: config.tracker.params.clone(),
-    };
-    let engine = harrier_engine::registry::build_track_filter(
-        &estimator.name,
-        &deployment,
-        &config.params(),
-    )?;
+    let estimator = TrackFilterState::of(&config.tracker);
+    let engine = estimator.build(&deployment)?;
     let engine = pipeline::Engine {
         engine,
         deployment,

@@ -65,6 +65,9 @@ pub struct VehicleCounters {
     pub dropped: BTreeMap<DropReason, u64>,
     /// Scans missing from the `seq` sequences of its sensors.
     pub seq_lost: u64,
+    /// Scans older than the last processed one, within the lag, that the engine took by
+    /// retrodiction.
+    pub retrodicted: u64,
     /// Its clock, as estimated from its scans' `time_unix` and arrival times.
     pub clock: Option<ClockEstimate>,
 }
@@ -158,6 +161,11 @@ impl Metrics {
     /// A payload or scan of `vehicle` was dropped.
     pub fn dropped(&self, vehicle: &str, reason: DropReason) {
         self.vehicle(vehicle, |v| *v.dropped.entry(reason).or_default() += 1);
+    }
+
+    /// A scan of `vehicle` came late (within the lag) and was retrodicted.
+    pub fn retrodicted(&self, vehicle: &str) {
+        self.vehicle(vehicle, |v| v.retrodicted += 1);
     }
 
     /// `n` scans of `vehicle` are missing from a `seq` sequence.
@@ -328,6 +336,13 @@ impl Inner {
             "harrier_seq_lost_total",
             "Scans missing from the per-sensor seq sequences.",
             &|v| v.seq_lost,
+        );
+        per(
+            out,
+            "harrier_scans_retrodicted_total",
+            "Scans older than the last processed one (within tracker.late_lag_s) taken by \
+             retrodiction.",
+            &|v| v.retrodicted,
         );
     }
 

@@ -81,6 +81,7 @@ impl Pipeline {
             snapshot_tx,
             events.clone(),
         )
+        .with_late_lag(config.tracker.late_lag_s)
         .with_bounds(config.tracker.bound);
         if let Some(r) = recorder {
             let r = r.clone();

@@ -6,7 +6,9 @@
 //! all — or once a scan `reorder_window_s` newer has arrived, or when nothing has arrived for that
 //! long in wall time (at least 20 ms). So a scan waits for the slowest active source, never longer
 //! than the window; a lone source is not delayed at all. A scan older than the last processed one
-//! is late: counted and dropped (the first scan of a new source can be).
+//! by at most `late_lag_s` is processed at once: the engine retrodicts it into the tracks it
+//! updates (harrier-core's `tracker::retrodict`), counted as retrodicted; an older one is late:
+//! counted and dropped.
 //!
 //! The actor keeps the list of live tracks from what each scan returns (the engine's
 //! [`ScanOutcome`]: the events and the views of the tracks the scan changed), asking the engine
@@ -28,7 +30,9 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::bound::{BoundConfig, BoundView, Bounds};
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
-use harrier_engine::{Deployment, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView};
+use harrier_engine::{
+    Deployment, EngineError, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView,
+};
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
@@ -42,8 +46,32 @@ pub const HISTORY_LEN: usize = 200;
 pub struct TrackFilterState {
     /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`).
     pub name: String,
-    /// Parameters given (the others have their defaults).
+    /// Associator name (`gnn`, `jipda`, `mht`; `GET /api/v1/estimators`).
+    pub associator: String,
+    /// Parameters given, of the track filter and the associator (the others have their
+    /// defaults).
     pub params: BTreeMap<String, f64>,
+}
+
+impl TrackFilterState {
+    /// The track filter and associator `[tracker]` starts with.
+    pub fn of(config: &crate::config::TrackerConfig) -> Self {
+        Self {
+            name: config.estimator.clone(),
+            associator: config.associator.clone(),
+            params: config.params.clone(),
+        }
+    }
+
+    /// Their track engine for `deployment`.
+    pub fn build(&self, deployment: &Deployment) -> Result<Box<dyn TrackEngine>, EngineError> {
+        harrier_engine::registry::build_track_engine(
+            &self.name,
+            &self.associator,
+            deployment,
+            &Params::from(&self.params),
+        )
+    }
 }
 
 /// A vehicle as seen in its detections.
@@ -192,6 +220,9 @@ pub struct TrackerActor {
     deployment: Deployment,
     estimator: Arc<TrackFilterState>,
     window: f64,
+    /// How much older than the last processed scan a scan may be and still be taken
+    /// (retrodicted); 0: none.
+    late_lag: f64,
     metrics: Arc<Metrics>,
     pending: Vec<ReadyScan>,
     /// Newest scan time of each source (`vehicle/sensor`).
@@ -247,6 +278,7 @@ impl TrackerActor {
             deployment,
             estimator,
             window,
+            late_lag: 0.0,
             metrics,
             pending: Vec::new(),
             sources: HashMap::new(),
@@ -258,6 +290,19 @@ impl TrackerActor {
             sinks: Sinks::default(),
             bounds: None,
         }
+    }
+
+    /// Takes scans up to `lag` s older than the last processed one, by retrodiction. An engine
+    /// that cannot (the multi-scan associator) keeps dropping them, with a warning.
+    pub fn with_late_lag(mut self, lag: f64) -> Self {
+        self.late_lag = match self.engine.set_retrodiction_lag(lag) {
+            Ok(()) => lag,
+            Err(e) => {
+                tracing::warn!("late scans will be dropped: {e}");
+                0.0
+            }
+        };
+        self
     }
 
     /// Runs a set-membership bound beside every track ([`super::bound`]).
@@ -274,9 +319,20 @@ impl TrackerActor {
 
     /// Takes one scan into the reorder buffer, then processes what the window releases.
     pub fn push(&mut self, s: ReadyScan) {
-        if self.engine.time().is_some_and(|last| s.scan.t < last) {
-            self.metrics.dropped(&s.vehicle, DropReason::Late);
-            tracing::debug!(vehicle = s.vehicle, t = s.scan.t, "late scan dropped");
+        if let Some(last) = self.engine.time().filter(|last| s.scan.t < *last) {
+            if s.scan.t >= last - self.late_lag {
+                self.metrics.retrodicted(&s.vehicle);
+                tracing::debug!(
+                    vehicle = s.vehicle,
+                    t = s.scan.t,
+                    last,
+                    "late scan retrodicted"
+                );
+                self.process(s);
+            } else {
+                self.metrics.dropped(&s.vehicle, DropReason::Late);
+                tracing::debug!(vehicle = s.vehicle, t = s.scan.t, last, "late scan dropped");
+            }
             return;
         }
         let source = format!("{}/{}", s.vehicle, s.sensor);
@@ -310,6 +366,7 @@ impl TrackerActor {
     }
 
     fn process(&mut self, s: ReadyScan) {
+        let late = self.engine.time().is_some_and(|last| s.scan.t < last);
         let outcome: ScanOutcome = match self.engine.ingest(&s.scan) {
             Ok(outcome) => outcome,
             Err(e) => {
@@ -319,6 +376,8 @@ impl TrackerActor {
             }
         };
         let (tracks, events) = outcome.apply(&self.tracks);
+        // The tracks' time: a late scan leaves it where it was.
+        let now = self.engine.time().unwrap_or(s.scan.t);
         let tracks = Arc::new(tracks);
         self.tracks = Arc::clone(&tracks);
         self.metrics.latency(s.received.elapsed().as_secs_f64());
@@ -329,7 +388,7 @@ impl TrackerActor {
         self.metrics.ingested(
             &s.vehicle,
             s.scan.detections.len(),
-            s.scan.t,
+            now,
             confirmed,
             tracks.len(),
         );
@@ -346,7 +405,7 @@ impl TrackerActor {
         });
         // The last snapshot holds this view too: only it is copied.
         let v = Arc::make_mut(v);
-        v.last_t = s.scan.t;
+        v.last_t = v.last_t.max(s.scan.t);
         v.scans += 1;
         v.position = s.platform;
         v.geodetic = s.geodetic;
@@ -355,7 +414,8 @@ impl TrackerActor {
             v.sensors.sort();
         }
         self.remember(&events, &tracks);
-        if let Some(b) = &mut self.bounds {
+        // The set-membership bounds move forward in time only: a late scan leaves them.
+        if let Some(b) = self.bounds.as_mut().filter(|_| !late) {
             let kind = s.scan.sensor.kind();
             let changed = b.on_scan(s.scan.t, kind, &s.noise_std, &s.scan.detections, &events);
             self.metrics.bound_resets(b.resets());
@@ -387,7 +447,7 @@ impl TrackerActor {
             tracks: Arc::clone(&tracks),
             json: OnceLock::new(),
         });
-        self.publish(Some(s.scan.t), tracks);
+        self.publish(Some(now), tracks);
         {
             let mut q = self
                 .recent
@@ -445,18 +505,23 @@ impl TrackerActor {
 
     /// Builds `to` for the deployment and hands the live tracks over to it.
     fn set_estimator(&mut self, to: TrackFilterState) -> Result<TrackFilterState, SetError> {
-        let params = Params::from(&to.params);
-        let mut engine =
-            harrier_engine::registry::build_track_filter(&to.name, &self.deployment, &params)
-                .map_err(|e| SetError::Invalid(e.to_string()))?;
+        let mut engine = to
+            .build(&self.deployment)
+            .map_err(|e| SetError::Invalid(e.to_string()))?;
         engine.adopt(&self.engine.handover()).map_err(|e| {
             SetError::Handover(format!("handing the tracks over to {}: {e}", to.name))
         })?;
         tracing::info!(
             from = self.estimator.name,
+            from_associator = self.estimator.associator,
             to = to.name,
+            to_associator = to.associator,
             "estimator changed"
         );
+        if let Err(e) = engine.set_retrodiction_lag(self.late_lag) {
+            tracing::warn!(to = to.name, "late scans will be dropped: {e}");
+            self.late_lag = 0.0;
+        }
         self.engine = engine;
         self.estimator = Arc::new(to.clone());
         let t = self.engine.time();
@@ -549,6 +614,7 @@ mod tests {
             deployment,
             TrackFilterState {
                 name: "ekf".into(),
+                associator: "gnn".into(),
                 params: BTreeMap::new(),
             },
             window,
@@ -609,6 +675,40 @@ mod tests {
         assert!(first.contains(r#""type":"scan""#), "{first}");
     }
 
+    /// Within the lag, a scan older than the last processed one updates its track by
+    /// retrodiction (the tracks' time stays); beyond it, it is dropped as late.
+    #[test]
+    fn late_scans_within_the_lag_are_retrodicted() {
+        let (a, metrics, snap_rx, mut ev_rx) = actor(0.1);
+        let mut a = a.with_late_lag(2.0);
+        for k in 0..=5 {
+            a.push(scan(f64::from(k), "1"));
+        }
+        assert_eq!(snap_rx.borrow().t, Some(5.0));
+        let before = snap_rx.borrow().tracks[0].clone();
+        while ev_rx.try_recv().is_ok() {}
+        a.push(scan(4.5, "2"));
+        let late = ev_rx.try_recv().expect("the late scan's events");
+        assert!(
+            matches!(late.events[..], [TrackEvent::Updated { id, .. }] if id == before.id),
+            "{:?}",
+            late.events
+        );
+        assert_eq!(late.t, 4.5);
+        assert_eq!(snap_rx.borrow().t, Some(5.0));
+        let after = snap_rx.borrow().tracks[0].clone();
+        assert_eq!(after.t, 5.0);
+        assert_ne!(after.state, before.state);
+        assert_eq!(metrics.vehicle_counters("2").retrodicted, 1);
+        a.push(scan(2.5, "2"));
+        assert_eq!(
+            metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
+            Some(&1)
+        );
+        assert_eq!(metrics.scans_ingested(), 7);
+        in_step(&a, &snap_rx);
+    }
+
     #[test]
     fn a_change_of_estimator_keeps_the_tracks() {
         let (mut a, _, snap_rx, _) = actor(0.0);
@@ -620,6 +720,7 @@ mod tests {
         assert_eq!(before.len(), 1);
         let bad = a.set_estimator(TrackFilterState {
             name: "nonesuch".into(),
+            associator: "gnn".into(),
             params: BTreeMap::new(),
         });
         assert!(
@@ -628,6 +729,7 @@ mod tests {
         );
         let bad = a.set_estimator(TrackFilterState {
             name: "cdkf".into(),
+            associator: "gnn".into(),
             params: BTreeMap::from([("m".to_string(), 0.5)]),
         });
         assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
@@ -635,6 +737,7 @@ mod tests {
         let now = a
             .set_estimator(TrackFilterState {
                 name: "cdkf".into(),
+                associator: "gnn".into(),
                 params: BTreeMap::new(),
             })
             .expect("cdkf");
@@ -653,5 +756,27 @@ mod tests {
         in_step(&a, &snap_rx);
         let k = &snap_rx.borrow().tracks[0];
         assert_eq!((k.id, k.updated), (before[0].id, true));
+        assert_eq!(k.existence, None);
+        // The associator too: the track keeps its id and gets an existence.
+        let now = a
+            .set_estimator(TrackFilterState {
+                name: "cdkf".into(),
+                associator: "jipda".into(),
+                params: BTreeMap::new(),
+            })
+            .expect("cdkf + jipda");
+        assert_eq!(now.associator, "jipda");
+        a.push(scan(5.0, "1"));
+        a.release(f64::INFINITY);
+        in_step(&a, &snap_rx);
+        let k = &snap_rx.borrow().tracks[0];
+        assert_eq!((k.id, k.updated), (before[0].id, true));
+        assert!(k.existence.is_some_and(|p| p > 0.5), "{k:?}");
+        let bad = a.set_estimator(TrackFilterState {
+            name: "cdkf".into(),
+            associator: "nonesuch".into(),
+            params: BTreeMap::new(),
+        });
+        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
     }
 }

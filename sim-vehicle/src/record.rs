@@ -563,6 +563,8 @@ fn scenario_json(
             t_start: s.estimator.scoring_t_start,
             primary: "state".into(),
         },
+
+        detection: None,
     };
     let mut extensions = serde_json::Map::new();
     if multi {

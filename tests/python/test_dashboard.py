@@ -212,6 +212,28 @@ def test_a_wrong_token_shows_an_error_and_the_right_one_works(session):
     assert "422" in text and "no_such_param" in text, text
     page.fill("#estimator-params", "")
 
+    # The associator: JIPDA, whose tracks show their probability of existence; then back.
+    options = page.eval_on_selector_all("#estimator-associator option", "os => os.map(o => o.value)")
+    assert options == ["gnn", "jipda", "mht"], options
+    page.select_option("#estimator-associator", "jipda")
+    page.click("#estimator-apply")
+    page.wait_for_selector("#estimator-result[data-state=ok]", timeout=15_000)
+    text = page.inner_text("#estimator-result")
+    assert text.startswith(f"now running {before['name']} + jipda"), text
+    assert httpx.get(f"{URL}/api/v1/estimator", timeout=5).json()["associator"] == "jipda"
+    exists = '#tracks [data-track] .v[title^="probability that the track"]'
+    page.wait_for_selector(exists, timeout=15_000)
+    shown = page.inner_text(exists)
+    print(f"existence shown: {shown!r}", flush=True)
+    assert shown.endswith("%") and 0 < float(shown[:-1]) <= 100, shown
+    page.select_option("#estimator-associator", "gnn")
+    page.click("#estimator-apply")
+    page.wait_for_function(
+        "() => document.querySelector('#estimator-result').textContent.includes('+ gnn')",
+        timeout=15_000,
+    )
+    assert httpx.get(f"{URL}/api/v1/estimator", timeout=5).json()["associator"] == "gnn"
+
 
 def set_token(page, token):
     page.fill("#token", token)

@@ -11,7 +11,7 @@ use harrier_core::metrics::{self, Score};
 use harrier_core::scenario::{Estimate, FormatError, ScenarioData, ScenarioFile};
 
 use harrier_engine::registry;
-use harrier_engine::{EngineError, Params, Step};
+use harrier_engine::{EngineError, Params, ReplayEstimator, Step};
 
 /// Why a replay failed. Every variant is the user's input being wrong (exit code 2) except `Io`
 /// on the output side.
@@ -104,6 +104,18 @@ pub struct ReplayReport {
     pub score: Option<Score>,
     /// Wall time of the estimation loop.
     pub elapsed: Duration,
+    /// What a multi-target tracker's associator did (clusters, bounds hit).
+    pub association: Option<harrier_core::tracker::AssociationStats>,
+}
+
+/// The track filter and associator of the replay estimator `tracker` (`harrier replay -e tracker
+/// --track-filter F --associator A`; `harrier estimators` lists both).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TrackerChoice {
+    /// Track filter name (`ekf`, `cdkf`, `imm`, `cimm`).
+    pub filter: String,
+    /// Associator name (`gnn`, `jipda`, `mht`).
+    pub associator: String,
 }
 
 /// Runs `estimator` over the scenario `data`.
@@ -112,9 +124,29 @@ pub fn run(
     estimator: &str,
     params: &Params,
 ) -> Result<ReplayReport, ReplayError> {
+    let est = registry::build(estimator, &data.scenario, params)
+        .map_err(|e| ReplayError::Setup(e.to_string()))?;
+    run_estimator(data, est)
+}
+
+/// Runs the replay estimator `tracker` with the track filter and associator of `choice` over the
+/// scenario `data`.
+pub fn run_tracker(
+    data: &ScenarioData,
+    choice: &TrackerChoice,
+    params: &Params,
+) -> Result<ReplayReport, ReplayError> {
+    let est = registry::build_tracker(&choice.filter, &choice.associator, &data.scenario, params)
+        .map_err(|e| ReplayError::Setup(e.to_string()))?;
+    run_estimator(data, est)
+}
+
+/// Runs `est` over the scenario `data`.
+fn run_estimator(
+    data: &ScenarioData,
+    mut est: Box<dyn ReplayEstimator>,
+) -> Result<ReplayReport, ReplayError> {
     let sc = &data.scenario;
-    let mut est =
-        registry::build(estimator, sc, params).map_err(|e| ReplayError::Setup(e.to_string()))?;
     // Measurement times per sensor, for Step::next_time.
     let mut times: HashMap<&str, Vec<f64>> = HashMap::new();
     for m in data.measurements.iter().filter(|m| m.is_finite()) {
@@ -164,6 +196,7 @@ pub fn run(
         rejected,
         score,
         elapsed,
+        association: est.association(),
     })
 }
 

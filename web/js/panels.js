@@ -184,6 +184,7 @@ export class TracksPanel {
         el("span", { class: "k", text: "NEES" }), cell("nees"),
         el("span", { class: "k", text: "error" }), cell("err"),
         el("span", { class: "k", text: "OBE" }), cell("bound"),
+        el("span", { class: "k", text: "exists" }), cell("exist"),
       ),
       f.bars);
     c = { node, f, modes: -1 };
@@ -229,6 +230,8 @@ export class TracksPanel {
       setText(f.nees, k.nees != null && Number.isFinite(k.nees) ? fmt(k.nees, 2) : "–");
       f.nees.title = k.nees != null ? `position NEES (${k.neesDim} dof; 95 % bound ${k.neesDim === 3 ? "7.81" : "5.99"})` : "needs simulation truth";
       setText(f.err, k.error != null ? `${fmt(k.error, 1)} m` : "–");
+      setText(f.exist, v.existence != null ? `${(100 * v.existence).toFixed(v.existence > 0.999 ? 2 : 1)}%` : "–");
+      f.exist.title = v.existence != null ? "probability that the track follows a real target (jipda, mht)" : "no existence under the gnn associator";
       setText(f.bound, k.bound ? `${fmt(k.bound.semi_axes[0], 0)}×${fmt(k.bound.semi_axes[1], 0)}` : "–");
       setText(f.follow, follow === k.id ? "Following" : "Follow");
       f.follow.classList.toggle("on", follow === k.id);

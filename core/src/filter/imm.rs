@@ -37,6 +37,10 @@
 //! * \[BLK01\] Y. Bar-Shalom, X. R. Li, T. Kirubarajan, *Estimation with Applications to Tracking and
 //!   Navigation*, Wiley 2001, §11.6.6.
 //! * \[CIMM\] `shared/papers/003`: constrained IMM for multi-UAV standoff tracking, §3.
+//! * \[IMMPDA\] B. Chen, J. K. Tugnait, "Tracking of multiple maneuvering targets in clutter using
+//!   IMM/JPDA filtering and fixed-lag smoothing", *Automatica* 37(2), 239–249, 2001; D. Mušicki,
+//!   B. F. La Scala, "Multi-target tracking in clutter without measurement assignment", *IEEE
+//!   Trans. Aerospace and Electronic Systems* 44(3), 2008 (IMM-JIPDA).
 
 use nalgebra::{SMatrix, SVector};
 
@@ -44,7 +48,7 @@ use super::traits::{MeasurementPrediction, NonlinearFilter, Predictor, Updater};
 use crate::linalg::{ensure_covariance, ensure_finite, symmetrize};
 use crate::measurement::MeasurementModel;
 use crate::motion::{ConstantTurn, ConstantVelocity, LinearTransition, TransitionModel};
-use crate::state::{Gaussian, Posterior};
+use crate::state::{Gaussian, Posterior, moment_match};
 use crate::{EstimationError, Result};
 
 /// Smallest mode probability kept after an update (guards against underflow, so that a mode
@@ -127,28 +131,6 @@ impl<const N: usize, const R: usize> ImmState<N, R> {
     /// The moment-matched single Gaussian (\[BLK01\] §11.6.6 step 5, \[CIMM\] §3.2 step 4).
     pub fn combined(&self) -> Gaussian<N> {
         moment_match(&self.modes, &self.probs)
-    }
-}
-
-/// `Σ w_i N(x_i, P_i)` collapsed to one Gaussian: `x = Σ w_i x_i`,
-/// `P = Σ w_i [P_i + (x_i − x)(x_i − x)ᵀ]` (weights sum to 1).
-pub(crate) fn moment_match<const N: usize, const R: usize>(
-    modes: &[Gaussian<N>; R],
-    w: &[f64; R],
-) -> Gaussian<N> {
-    let mut mean = SVector::<f64, N>::zeros();
-    for (g, wi) in modes.iter().zip(w) {
-        mean.axpy(*wi, &g.mean, 1.0);
-    }
-    let mut cov = SMatrix::<f64, N, N>::zeros();
-    for (g, wi) in modes.iter().zip(w) {
-        let d = g.mean - mean;
-        cov += g.cov * *wi;
-        cov.ger(*wi, &d, &d, 1.0);
-    }
-    Gaussian {
-        mean,
-        cov: symmetrize(&cov),
     }
 }
 
@@ -257,6 +239,70 @@ impl<F, T, const R: usize> Imm<F, T, R> {
         H: MeasurementModel<N, M>,
     {
         update_modes(predicted, |g| self.filter.update_with(model, g, z))
+    }
+
+    /// The update with a mixture of association hypotheses, per mode (IMM-PDA, \[IMMPDA\];
+    /// the per-mode form of IMM-JIPDA): hypothesis 0 ("no detection of this track") has weight
+    /// `β₀ = miss`, detection `zⱼ` weight `βⱼ` (the weights sum to 1). Each mode m is updated
+    /// with each detection in Joseph form, with likelihood `N_mⱼ`, and
+    ///
+    /// ```text
+    /// w(m, 0) = β₀ μ_m,   w(m, j) = βⱼ μ_m N_mⱼ / Σ_t μ_t N_tⱼ      (P(mode m | zⱼ) in the second)
+    /// μ'_m = Σ_e w(m, e),   x'_m, P'_m = the moments of Σ_e w(m, e)/μ'_m N(x_m,e, P_m,e)
+    /// ```
+    ///
+    /// with `x_m,0 = x_m` (the prediction): the mixture over modes and hypotheses reduced to one
+    /// Gaussian per mode by moment matching, and the mode probabilities floored at
+    /// [`PROB_FLOOR`]. One hypothesis of weight 1 is [`Imm::update_with`].
+    pub fn update_mixture_with<H, const N: usize, const M: usize>(
+        &self,
+        model: &H,
+        predicted: &ImmState<N, R>,
+        detections: &[(SVector<f64, M>, f64)],
+        miss: f64,
+    ) -> Result<ImmState<N, R>>
+    where
+        F: NonlinearFilter<N>,
+        H: MeasurementModel<N, M>,
+    {
+        let mut comps: Vec<[Gaussian<N>; R]> = Vec::with_capacity(detections.len());
+        let mut given: Vec<[f64; R]> = Vec::with_capacity(detections.len());
+        for (z, _) in detections {
+            let mut g = predicted.modes;
+            let mut log_w = [0.0; R];
+            for m in 0..R {
+                let post = self.filter.update_with(model, &predicted.modes[m], z)?;
+                g[m] = post.state;
+                log_w[m] = predicted.probs[m].ln() + post.log_likelihood()?;
+            }
+            comps.push(g);
+            given.push(log_normalize(log_w)?);
+        }
+        let mut out = *predicted;
+        let mut probs = [0.0; R];
+        let mut gs = Vec::with_capacity(detections.len() + 1);
+        let mut ws = Vec::with_capacity(detections.len() + 1);
+        for m in 0..R {
+            gs.clear();
+            ws.clear();
+            gs.push(predicted.modes[m]);
+            ws.push(miss * predicted.probs[m]);
+            for ((_, beta), (g, p)) in detections.iter().zip(comps.iter().zip(&given)) {
+                gs.push(g[m]);
+                ws.push(beta * p[m]);
+            }
+            let total: f64 = ws.iter().sum();
+            if total > 0.0 && total.is_finite() {
+                ws.iter_mut().for_each(|w| *w /= total);
+                out.modes[m] = moment_match(&gs, &ws);
+            }
+            probs[m] = total.max(0.0);
+        }
+        out.probs = normalized(probs.map(|p| p.max(PROB_FLOOR)))?;
+        for g in &out.modes {
+            ensure_finite(&g.mean, "IMM mode mean")?;
+        }
+        combinable(out)
     }
 
     /// Predicted measurement of the mixture: each mode's `ẑ_j`, `S_j` moment-matched with the

@@ -37,8 +37,8 @@ pub use ese::{
     DifferenceStart, ErrorSpace, ErrorSpacePredictor, EseStage, EseState, difference_start,
 };
 pub use icdkf::{IcdkfForm, IncrementalCdkf, current};
+pub(crate) use imm::log_normalize;
 pub use imm::{Imm, ImmState, ModeModel, PROB_FLOOR};
-pub(crate) use imm::{log_normalize, moment_match};
 pub use kalman::{Extended, Kalman, consider_update, joseph_update};
 pub use obe::{
     BoundedLinearMeasurement, BoundedLinearTransition, Obe, ObeCriterion, intersect_strip,

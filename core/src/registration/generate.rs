@@ -742,6 +742,7 @@ fn scenario(
         ],
         sensors,
         roads: Vec::new(),
+        detection: None,
         motion: Some(fmt::Motion::cv(ACCEL_STD)),
         prior: Some(fmt::Prior {
             t: 0.0,

@@ -57,9 +57,10 @@
 use nalgebra::SMatrix;
 
 use super::filter::{Observation, Registration, RegistrationState, Seen};
-use crate::filter::{PROB_FLOOR, log_normalize, moment_match};
+use crate::filter::{PROB_FLOOR, log_normalize};
 use crate::linalg::symmetrize;
 use crate::state::Gaussian;
+use crate::state::moment_match;
 use crate::{EstimationError, Result};
 
 /// Number of modes: `[none, steady, drifting]`.

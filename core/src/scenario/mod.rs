@@ -22,8 +22,9 @@ pub use lines::{
 pub use parse::{FormatError, ScenarioFile, parse_measurements, parse_references, parse_truth};
 pub(crate) use parse::{err, finite_cell, header_columns};
 pub use types::{
-    EllipsoidSpec, FORMAT_ID, LinearSystem, Motion, MotionModelSpec, Noise, Platform, Prior, Road,
-    Scenario, Scoring, Segment, Sensor, SizePrior, Target, TimeSpec, default_cov_dims,
+    DetectionSpec, EllipsoidSpec, FORMAT_ID, LinearSystem, Motion, MotionModelSpec, Noise,
+    Platform, Prior, Region, Road, Scenario, Scoring, Segment, Sensor, SizePrior, Target, TimeSpec,
+    default_cov_dims,
 };
 
 #[cfg(test)]

@@ -50,6 +50,10 @@ pub struct Scenario {
     /// Scoring settings.
     #[serde(default)]
     pub scoring: Scoring,
+    /// What the sensors are known to do (FORMAT-MULTI.md §1 `detection`): detection probability
+    /// and clutter, which a multi-target tracker may read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detection: Option<DetectionSpec>,
 }
 
 /// `time` block.
@@ -380,5 +384,34 @@ impl Scenario {
     /// Acceleration spectral density from `motion.accel_std` (m²/s³), if given.
     pub fn accel_q(&self) -> Option<f64> {
         self.motion.as_ref().and_then(Motion::accel_q)
+    }
+}
+
+/// `detection` block of a multi-target `scenario.json` (FORMAT-MULTI.md §1): what the sensors are known to do.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+pub struct DetectionSpec {
+    /// Probability of detecting a target in one scan.
+    pub pd: f64,
+    /// Mean number of clutter detections per scan and sensor (Poisson).
+    #[serde(default)]
+    pub clutter_rate: f64,
+    /// Region where clutter falls (uniformly), `[min, max]` corners in the plane.
+    #[serde(default)]
+    pub region: Option<Region>,
+}
+
+/// An axis-aligned rectangle of the plane.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+pub struct Region {
+    /// `[x_min, y_min]` (m).
+    pub min: [f64; 2],
+    /// `[x_max, y_max]` (m).
+    pub max: [f64; 2],
+}
+
+impl Region {
+    /// Area (m²).
+    pub fn area(&self) -> f64 {
+        (self.max[0] - self.min[0]) * (self.max[1] - self.min[1])
     }
 }

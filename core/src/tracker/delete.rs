@@ -8,11 +8,13 @@ use crate::{EstimationError, Result};
 /// Why a track was deleted.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum DeleteReason {
-    /// A confirmed track missed too many consecutive scans.
+    /// A confirmed track missed too many consecutive scans (JIPDA, MHT: its existence fell below
+    /// the deletion threshold, which only missed scans do).
     Misses,
     /// A confirmed track's position uncertainty grew past the bound.
     Covariance,
-    /// A tentative track can no longer meet the M-of-N rule.
+    /// A tentative track can no longer meet the M-of-N rule (JIPDA, MHT: its existence fell below
+    /// the deletion threshold before it was confirmed).
     Unconfirmed,
     /// The track's filter failed to predict it (the message says why).
     Failed(String),

@@ -4,6 +4,10 @@
 //! \[CIMM\]). The sensor is not part of the filter: every
 //! call takes the measurement model of the scan at hand, so one track is updated by cameras on
 //! moving UAVs and by a ground radar alike.
+//!
+//! # References
+//! * \[PDAF\] Y. Bar-Shalom, F. Daum, J. Huang, "The probabilistic data association filter",
+//!   *IEEE Control Systems Magazine* 29(6), 82–100, 2009.
 
 use nalgebra::SVector;
 
@@ -11,7 +15,7 @@ use crate::Result;
 use crate::filter::{Imm, ImmState, MeasurementPrediction, NonlinearFilter, Predictor};
 use crate::measurement::MeasurementModel;
 use crate::road::{RoadConstraint, RoadNetwork};
-use crate::state::Gaussian;
+use crate::state::{Gaussian, moment_match};
 
 /// What the tracker needs from a track's filter: predict, predict the measurement of a sensor (for
 /// gating and association; Stone Soup's `MeasurementPredictor`), update, and a Gaussian summary
@@ -35,6 +39,25 @@ pub trait TrackFilter<const N: usize> {
         predicted: &Self::State,
         sensor: &H,
         z: &SVector<f64, M>,
+    ) -> Result<Self::State>;
+    /// The update with a mixture of association hypotheses (soft association, PDA): "no
+    /// detection" with weight `miss` and each detection `zⱼ` with its weight `βⱼ` (the weights
+    /// sum to 1), reduced to one state of the filter by moment matching; each component is a
+    /// Joseph-form update. For a single Gaussian (the PDA update of \[PDAF\], written as the
+    /// moments of the mixture so that it holds for any gain):
+    ///
+    /// ```text
+    /// x = β₀ x̂ + Σⱼ βⱼ xⱼ,   P = β₀ [P̂ + (x̂ − x)(x̂ − x)ᵀ] + Σⱼ βⱼ [Pⱼ + (xⱼ − x)(xⱼ − x)ᵀ]
+    /// ```
+    ///
+    /// with `xⱼ, Pⱼ` the update of the prediction `x̂, P̂` with `zⱼ`; a mixture filter (IMM)
+    /// does it per mode ([`Imm::update_mixture_with`]).
+    fn update_mixture<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &Self::State,
+        sensor: &H,
+        detections: &[(SVector<f64, M>, f64)],
+        miss: f64,
     ) -> Result<Self::State>;
     /// Gaussian summary of `state` (moment-matched for mixtures).
     fn estimate(&self, state: &Self::State) -> Gaussian<N>;
@@ -86,6 +109,25 @@ where
         Ok(self.filter.update_with(sensor, predicted, z)?.state)
     }
 
+    fn update_mixture<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &Gaussian<N>,
+        sensor: &H,
+        detections: &[(SVector<f64, M>, f64)],
+        miss: f64,
+    ) -> Result<Gaussian<N>> {
+        let mut gs = Vec::with_capacity(detections.len() + 1);
+        let mut ws = Vec::with_capacity(detections.len() + 1);
+        gs.push(*predicted);
+        ws.push(miss);
+        for (z, beta) in detections {
+            gs.push(self.filter.update_with(sensor, predicted, z)?.state);
+            ws.push(*beta);
+        }
+        let g = moment_match(&gs, &ws);
+        Gaussian::new(g.mean, g.cov)
+    }
+
     fn estimate(&self, state: &Gaussian<N>) -> Gaussian<N> {
         *state
     }
@@ -130,6 +172,17 @@ where
         z: &SVector<f64, M>,
     ) -> Result<ImmState<N, R>> {
         self.imm.update_with(sensor, predicted, z)
+    }
+
+    fn update_mixture<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+        detections: &[(SVector<f64, M>, f64)],
+        miss: f64,
+    ) -> Result<ImmState<N, R>> {
+        self.imm
+            .update_mixture_with(sensor, predicted, detections, miss)
     }
 
     fn estimate(&self, state: &ImmState<N, R>) -> Gaussian<N> {
@@ -205,6 +258,21 @@ where
         z: &SVector<f64, M>,
     ) -> Result<ImmState<N, R>> {
         self.constrain(&self.imm.update(predicted, sensor, z)?)
+    }
+
+    /// The IMM's mixture update, then the road update.
+    fn update_mixture<H: MeasurementModel<N, M>, const M: usize>(
+        &self,
+        predicted: &ImmState<N, R>,
+        sensor: &H,
+        detections: &[(SVector<f64, M>, f64)],
+        miss: f64,
+    ) -> Result<ImmState<N, R>> {
+        self.constrain(
+            &self
+                .imm
+                .update_mixture(predicted, sensor, detections, miss)?,
+        )
     }
 
     fn estimate(&self, state: &ImmState<N, R>) -> Gaussian<N> {

@@ -8,48 +8,18 @@
 
 use std::collections::BTreeMap;
 
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 
+pub use crate::scenario::{DetectionSpec, Region};
 use crate::scenario::{
     FormatError, Measurement, Scenario, ScenarioFile, Target, TruthRow, err, finite_cell,
     header_columns, parse_measurements,
 };
 
-/// `detection` block of a multi-target `scenario.json`: what the sensors are known to do.
-#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
-pub struct DetectionSpec {
-    /// Probability of detecting a target in one scan.
-    pub pd: f64,
-    /// Mean number of clutter detections per scan and sensor (Poisson).
-    #[serde(default)]
-    pub clutter_rate: f64,
-    /// Region where clutter falls (uniformly), `[min, max]` corners in the plane.
-    #[serde(default)]
-    pub region: Option<Region>,
-}
-
-/// An axis-aligned rectangle of the plane.
-#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
-pub struct Region {
-    /// `[x_min, y_min]` (m).
-    pub min: [f64; 2],
-    /// `[x_max, y_max]` (m).
-    pub max: [f64; 2],
-}
-
-impl Region {
-    /// Area (m²).
-    pub fn area(&self) -> f64 {
-        (self.max[0] - self.min[0]) * (self.max[1] - self.min[1])
-    }
-}
-
 /// The keys the extension adds to `scenario.json`.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 struct MultiKeys {
     targets: Vec<Target>,
-    #[serde(default)]
-    detection: Option<DetectionSpec>,
 }
 
 /// One scan: the time and every detection of that time (all sensors), unlabeled.
@@ -97,7 +67,7 @@ impl MultiScenario {
         if ids.windows(2).any(|w| w[0] == w[1]) {
             return Err(err(f, None, "target ids in targets are not unique"));
         }
-        if let Some(d) = &keys.detection {
+        if let Some(d) = &scenario.detection {
             let ok = d.pd > 0.0 && d.pd <= 1.0 && d.clutter_rate >= 0.0;
             if !ok {
                 return Err(err(
@@ -114,9 +84,9 @@ impl MultiScenario {
             .map(|text| parse_multi_truth(text, &keys.targets))
             .transpose()?;
         Ok(Self {
+            detection: scenario.detection.clone(),
             scenario,
             targets: keys.targets,
-            detection: keys.detection,
             scans,
             truth,
             skipped_nonfinite,

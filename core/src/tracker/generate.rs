@@ -1,6 +1,8 @@
-//! A seeded generator of multi-target scenarios in the format of `FORMAT-MULTI.md`: pairs of
-//! targets whose straight paths cross at the same point at the same scan, detected with
-//! probability `pd` by one planar position sensor, plus Poisson clutter uniform over a square.
+//! Seeded generators of multi-target scenarios in the format of `FORMAT-MULTI.md`: [`generate`],
+//! pairs of targets whose straight paths cross at the same point at the same scan, detected with
+//! probability `pd` by one planar position sensor, plus Poisson clutter uniform over a square;
+//! and [`groups::generate`], turning ground targets in close crossing, parallel and opposing
+//! groups.
 //!
 //! Pure: everything comes from a ChaCha8 stream seeded by the caller, so a seed always gives the
 //! same three files.
@@ -15,6 +17,8 @@ use rand_distr::{Distribution, Poisson, StandardNormal};
 
 use super::format::{DetectionSpec, Region};
 use crate::{EstimationError, Result};
+
+pub mod groups;
 
 /// What to generate.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -167,137 +171,220 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         }
     }
 
-    let mut truth = String::from("t,target,x,y,z,vx,vy,vz,mode\n");
-    let mut meas = String::new();
-    let poisson = if cfg.clutter_rate > 0.0 {
-        Some(
-            Poisson::new(cfg.clutter_rate)
-                .map_err(|e| EstimationError::InvalidParameter(format!("clutter rate: {e}")))?,
-        )
-    } else {
-        None
-    };
+    let poisson = clutter(cfg.clutter_rate)?;
     let hw = cfg.half_width;
-    let mut scan: Vec<[f64; 2]> = Vec::new();
+    let region = Region {
+        min: [-hw, -hw],
+        max: [hw, hw],
+    };
+    let mut files = Files::default();
+    let mut alive = Vec::new();
     for k in 0..=cfg.scans {
         let t = k as f64 * cfg.dt;
-        scan.clear();
+        alive.clear();
         for (i, l) in lines.iter().enumerate().filter(|(_, l)| l.birth <= k) {
-            let p = l.at(t);
+            alive.push((i, l.at(t), l.v, "CV"));
+        }
+        files.scan(
+            &mut rng,
+            t,
+            &alive,
+            cfg.pd,
+            cfg.noise_std,
+            poisson.as_ref(),
+            &region,
+        );
+    }
+    let scenario_json = Doc {
+        name: format!("multi_crossing_seed{seed}"),
+        description: "Targets crossing in pairs (same point, same scan), one planar position \
+                      sensor, Pd < 1, Poisson clutter (FORMAT-MULTI.md).",
+        targets: lines.len(),
+        dt: cfg.dt,
+        horizon,
+        pd: cfg.pd,
+        clutter_rate: cfg.clutter_rate,
+        noise_std: cfg.noise_std,
+        region,
+        motion: crate::scenario::Motion::cv(cfg.accel_std_hint),
+        generator: crate::scenario::Generator {
+            family: "harrier-multi-crossing".into(),
+            seed,
+            params: serde_json::json!({
+                "targets": cfg.targets, "scans": cfg.scans, "crossings": crossings.len(),
+                "speed": [cfg.speed_min, cfg.speed_max], "min_angle_rad": cfg.min_angle
+            }),
+        },
+    }
+    .to_json()?;
+    Ok(Generated {
+        scenario_json,
+        measurements_jsonl: files.meas,
+        truth_csv: files.truth,
+        crossings,
+    })
+}
+
+/// The Poisson law of the clutter count, `None` for no clutter.
+fn clutter(rate: f64) -> Result<Option<Poisson<f64>>> {
+    if rate > 0.0 {
+        Poisson::new(rate)
+            .map(Some)
+            .map_err(|e| EstimationError::InvalidParameter(format!("clutter rate: {e}")))
+    } else {
+        Ok(None)
+    }
+}
+
+/// `truth.csv` and `measurements.jsonl` as a generator writes them, scan by scan.
+#[derive(Debug)]
+struct Files {
+    truth: String,
+    meas: String,
+}
+
+impl Default for Files {
+    fn default() -> Self {
+        Self {
+            truth: String::from("t,target,x,y,z,vx,vy,vz,mode\n"),
+            meas: String::new(),
+        }
+    }
+}
+
+impl Files {
+    /// One scan at `t`: a truth row for each target alive `(index, position, velocity, mode)`,
+    /// each detected with probability `pd` with Gaussian noise of std `noise` per axis, plus
+    /// Poisson clutter uniform over `region`, shuffled, as one planar position sensor's lines.
+    #[allow(clippy::too_many_arguments)]
+    fn scan(
+        &mut self,
+        rng: &mut ChaCha8Rng,
+        t: f64,
+        alive: &[(usize, [f64; 2], [f64; 2], &str)],
+        pd: f64,
+        noise: f64,
+        clutter: Option<&Poisson<f64>>,
+        region: &Region,
+    ) {
+        let mut scan: Vec<[f64; 2]> = Vec::with_capacity(alive.len());
+        for (i, p, v, mode) in alive {
             // Writing to a String cannot fail.
             let _ = writeln!(
-                truth,
-                "{t},T{i},{:.4},{:.4},0,{:.4},{:.4},0,CV",
-                p[0], p[1], l.v[0], l.v[1]
+                self.truth,
+                "{t},T{i},{:.4},{:.4},0,{:.4},{:.4},0,{mode}",
+                p[0], p[1], v[0], v[1]
             );
-            if rng.random_bool(cfg.pd) {
+            if rng.random_bool(pd) {
                 let nx: f64 = rng.sample(StandardNormal);
                 let ny: f64 = rng.sample(StandardNormal);
-                scan.push([p[0] + cfg.noise_std * nx, p[1] + cfg.noise_std * ny]);
+                scan.push([p[0] + noise * nx, p[1] + noise * ny]);
             }
         }
-        let n_clutter = poisson.map_or(0.0, |p| p.sample(&mut rng)) as usize;
+        let n_clutter = clutter.map_or(0.0, |p| p.sample(rng)) as usize;
         for _ in 0..n_clutter {
-            scan.push([rng.random_range(-hw..=hw), rng.random_range(-hw..=hw)]);
+            scan.push([
+                rng.random_range(region.min[0]..=region.max[0]),
+                rng.random_range(region.min[1]..=region.max[1]),
+            ]);
         }
-        scan.shuffle(&mut rng);
+        scan.shuffle(rng);
         for z in &scan {
             let _ = writeln!(
-                meas,
+                self.meas,
                 r#"{{"t":{t},"sensor":"radar","kind":"position","platform":{{"pos":[0,0,0],"vel":[0,0,0]}},"z":[{:.4},{:.4}]}}"#,
                 z[0], z[1]
             );
         }
     }
+}
 
-    use crate::scenario as fmt;
-    let target = |id: String| fmt::Target {
-        id,
-        size_m: None,
-        size_prior: None,
-        on_ground: None,
-    };
-    let targets: Vec<fmt::Target> = (0..lines.len()).map(|i| target(format!("T{i}"))).collect();
-    let detection = DetectionSpec {
-        pd: cfg.pd,
-        clutter_rate: cfg.clutter_rate,
-        region: Some(Region {
-            min: [-hw, -hw],
-            max: [hw, hw],
-        }),
-    };
-    let json_err =
-        |e: serde_json::Error| EstimationError::InvalidParameter(format!("scenario.json: {e}"));
-    let mut extensions = serde_json::Map::new();
-    extensions.insert(
-        "targets".into(),
-        serde_json::to_value(&targets).map_err(json_err)?,
-    );
-    extensions.insert(
-        "detection".into(),
-        serde_json::to_value(&detection).map_err(json_err)?,
-    );
-    let scenario = fmt::Scenario {
-        format: fmt::FORMAT_ID.into(),
-        name: format!("multi_crossing_seed{seed}"),
-        description: "Targets crossing in pairs (same point, same scan), one planar position \
-                      sensor, Pd < 1, Poisson clutter (FORMAT-MULTI.md)."
-            .into(),
-        dims: 2,
-        plane_z: Some(0.0),
-        time: fmt::TimeSpec {
-            t0: 0.0,
-            dt: cfg.dt,
-            t_end: horizon,
-        },
-        target: target("multi".into()),
-        platforms: vec![fmt::Platform {
-            id: "gcs".into(),
-            kind: "ground".into(),
-        }],
-        sensors: vec![fmt::Sensor {
-            id: "radar".into(),
-            platform: "gcs".into(),
-            kind: crate::measurement::MeasKind::Position,
-            ncomp: Some(2),
-            rate_hz: Some(1.0 / cfg.dt),
-            noise: fmt::Noise::Gaussian {
-                std: vec![cfg.noise_std, cfg.noise_std],
+/// `scenario.json` of a generated scenario: one planar position sensor ("radar" on the ground
+/// platform "gcs"), targets `T0…`, the detection block, the motion hints.
+#[derive(Debug)]
+struct Doc {
+    name: String,
+    description: &'static str,
+    targets: usize,
+    dt: f64,
+    horizon: f64,
+    pd: f64,
+    clutter_rate: f64,
+    noise_std: f64,
+    region: Region,
+    motion: crate::scenario::Motion,
+    generator: crate::scenario::Generator,
+}
+
+impl Doc {
+    fn to_json(self) -> Result<String> {
+        use crate::scenario as fmt;
+        let target = |id: String| fmt::Target {
+            id,
+            size_m: None,
+            size_prior: None,
+            on_ground: None,
+        };
+        let targets: Vec<fmt::Target> =
+            (0..self.targets).map(|i| target(format!("T{i}"))).collect();
+        let json_err =
+            |e: serde_json::Error| EstimationError::InvalidParameter(format!("scenario.json: {e}"));
+        let mut extensions = serde_json::Map::new();
+        extensions.insert(
+            "targets".into(),
+            serde_json::to_value(&targets).map_err(json_err)?,
+        );
+        let scenario = fmt::Scenario {
+            format: fmt::FORMAT_ID.into(),
+            name: self.name,
+            description: self.description.into(),
+            dims: 2,
+            plane_z: Some(0.0),
+            time: fmt::TimeSpec {
+                t0: 0.0,
+                dt: self.dt,
+                t_end: self.horizon,
             },
-            bias: None,
-        }],
-        roads: Vec::new(),
-        motion: Some(fmt::Motion::cv(cfg.accel_std_hint)),
-        prior: None,
-        linear_system: None,
-        hints: serde_json::Value::Object(serde_json::Map::new()),
-        scoring: fmt::Scoring {
-            t_start: 0.0,
-            primary: "state".into(),
-        },
-    };
-    let generator = fmt::Generator {
-        family: "harrier-multi-crossing".into(),
-        seed,
-        params: serde_json::json!({
-            "targets": cfg.targets, "scans": cfg.scans, "crossings": crossings.len(),
-            "speed": [cfg.speed_min, cfg.speed_max], "min_angle_rad": cfg.min_angle
-        }),
-    };
-    let scenario_json = fmt::ScenarioDocument {
-        scenario,
-        frame: fmt::Frame::enu(None),
-        extensions,
-        generator,
+            target: target("multi".into()),
+            platforms: vec![fmt::Platform {
+                id: "gcs".into(),
+                kind: "ground".into(),
+            }],
+            sensors: vec![fmt::Sensor {
+                id: "radar".into(),
+                platform: "gcs".into(),
+                kind: crate::measurement::MeasKind::Position,
+                ncomp: Some(2),
+                rate_hz: Some(1.0 / self.dt),
+                noise: fmt::Noise::Gaussian {
+                    std: vec![self.noise_std, self.noise_std],
+                },
+                bias: None,
+            }],
+            roads: Vec::new(),
+            motion: Some(self.motion),
+            prior: None,
+            linear_system: None,
+            hints: serde_json::Value::Object(serde_json::Map::new()),
+            scoring: fmt::Scoring {
+                t_start: 0.0,
+                primary: "state".into(),
+            },
+            detection: Some(DetectionSpec {
+                pd: self.pd,
+                clutter_rate: self.clutter_rate,
+                region: Some(self.region),
+            }),
+        };
+        fmt::ScenarioDocument {
+            scenario,
+            frame: fmt::Frame::enu(None),
+            extensions,
+            generator: self.generator,
+        }
+        .to_json()
+        .map_err(json_err)
     }
-    .to_json()
-    .map_err(json_err)?;
-    Ok(Generated {
-        scenario_json,
-        measurements_jsonl: meas,
-        truth_csv: truth,
-        crossings,
-    })
 }
 
 #[cfg(test)]

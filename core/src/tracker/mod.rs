@@ -21,7 +21,7 @@
 //! use harrier_core::measurement::{AzEl, Geometry, Position};
 //! use harrier_core::motion::ConstantVelocity;
 //! use harrier_core::tracker::{
-//!     Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, TrackEvent, Tracker,
+//!     Association, Deleter, Gater, GaussianFilter, MOfN, SinglePointInitiator, TrackEvent, Tracker,
 //!     TrackerConfig,
 //! };
 //! use nalgebra::{Vector2, Vector3};
@@ -32,6 +32,7 @@
 //!     tentative_gater: Gater::chi2(0.99, 2).unwrap(),
 //!     confirm: MOfN::new(2, 3).unwrap(),
 //!     deleter: Deleter::new(3, 1e4, 2).unwrap(),
+//!     association: Association::Gnn,
 //! };
 //! let init = SinglePointInitiator::new(10.0, 10.0).unwrap();
 //! let mut tracker = Tracker::new(filter, init, config);
@@ -56,17 +57,31 @@
 pub mod assign;
 mod associate;
 mod delete;
+pub mod ehm;
+pub mod existence;
 mod filter;
 pub mod format;
+mod gate;
 pub mod generate;
 pub mod identified;
 mod initiate;
+pub mod jipda;
 pub mod metrics;
+pub mod mht;
 mod multi;
 pub mod retrodict;
 
-pub use associate::{Gater, Hypothesis, TrackHypotheses, global_nearest_neighbour, hypothesise};
+pub use associate::{
+    Cluster, Gater, Hypothesis, TrackHypotheses, clusters, global_nearest_neighbour, hypothesise,
+    hypothesise_scan,
+};
 pub use delete::{DeleteReason, Deleter};
+pub use existence::Existence;
 pub use filter::{CimmFilter, GaussianFilter, ImmFilter, TrackFilter};
+pub use gate::DetectionIndex;
 pub use initiate::{Initiator, MOfN, SinglePointInitiator, Verdict};
-pub use multi::{Track, TrackEvent, TrackSnapshot, TrackStatus, Tracker, TrackerConfig};
+pub use mht::Mht;
+pub use multi::{
+    Association, AssociationStats, DetectionModel, Jipda, Track, TrackEvent, TrackSnapshot,
+    TrackStatus, Tracker, TrackerConfig,
+};

@@ -1,19 +1,91 @@
 //! The multi-target tracker step (Stone Soup's `MultiTargetTracker`): predict every track to the
-//! scan time, associate every track with the scan's detections in one global-nearest-neighbour
-//! assignment, update or coast, confirm or delete, and initiate tentative tracks from the
-//! detections no track took. Each scan brings its own sensor model (kind, platform position,
-//! noise), so scans of cameras on moving UAVs and of a ground radar update the same tracks, and
-//! every step reports what happened as [`TrackEvent`]s.
+//! scan time, associate the tracks with the scan's detections, update or coast, confirm or
+//! delete, and initiate tentative tracks from the detections no track took. Each scan brings its
+//! own sensor model (kind, platform position, noise), so scans of cameras on moving UAVs and of a
+//! ground radar update the same tracks, and every step reports what happened as [`TrackEvent`]s.
+//!
+//! The association is the configuration's [`Association`]: global nearest neighbour (one hard
+//! assignment per scan, M-of-N confirmation, a miss count), JIPDA (soft association with track
+//! existence, [`jipda`](super::jipda)) or the multi-scan track-oriented MHT
+//! ([`mht`](super::mht)). All three report the same events and keep track ids for life, so one
+//! tracker's tracks can be [adopted](Tracker::adopt) by a tracker with another associator.
 
 use nalgebra::SVector;
 
-use super::associate::{Gater, TrackHypotheses, global_nearest_neighbour, hypothesise};
+use super::associate::Gater;
 use super::delete::{DeleteReason, Deleter};
+use super::existence::Existence;
 use super::filter::TrackFilter;
-use super::initiate::{Initiator, MOfN, Verdict};
+use super::initiate::{Initiator, MOfN};
+use super::mht::{Mht, MhtState};
 use crate::measurement::{Locate, MeasurementModel, SensorModel, WithSensor};
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
+use late::Retrodiction;
+
+mod late;
+mod multiscan;
+mod single;
+#[cfg(test)]
+mod tests;
+
+/// What the soft and multi-scan associators assume of the sensors.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DetectionModel {
+    /// `P_D`: probability that a sensor's scan detects a target (in its field of view).
+    pub pd: f64,
+    /// Clutter density `ρ` in the sensor's measurement space (detections per unit of measurement
+    /// volume, e.g. per m² for planar `position` sensors); `None`: estimated per cluster from the
+    /// scan (the detections in the gates beyond the expected target detections, over the gates'
+    /// volume).
+    pub clutter_density: Option<f64>,
+}
+
+impl DetectionModel {
+    /// Checked: `P_D` in (0, 1), a given density finite and > 0.
+    pub fn new(pd: f64, clutter_density: Option<f64>) -> Result<Self> {
+        if !(pd > 0.0 && pd < 1.0) || clutter_density.is_some_and(|r| !(r > 0.0 && r.is_finite())) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "detection model needs P_D in (0, 1) and a clutter density > 0, got {pd}, \
+                 {clutter_density:?}"
+            )));
+        }
+        Ok(Self {
+            pd,
+            clutter_density,
+        })
+    }
+}
+
+/// JIPDA's tuning ([`jipda`](super::jipda)).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Jipda {
+    /// `P_D` and the clutter density.
+    pub detection: DetectionModel,
+    /// Existence: its Markov chain, the initial value and the confirm / delete thresholds (which
+    /// replace M-of-N and the miss count).
+    pub existence: Existence,
+    /// A detection starts a tentative track when the probability that no track's target made it
+    /// is at least this.
+    pub birth: f64,
+    /// Nodes per layer of a cluster's EHM net before the net is cut (counted in
+    /// [`AssociationStats::capped`]).
+    pub max_net_nodes: usize,
+}
+
+/// How the tracker associates a scan's detections with its tracks.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Association {
+    /// Global nearest neighbour: one optimal assignment per cluster and scan, M-of-N
+    /// confirmation, deletion after consecutive misses.
+    Gnn,
+    /// Joint integrated probabilistic data association: every track updated with the mixture
+    /// of its gated detections weighted by their exact marginal probabilities, and a probability
+    /// of existence that confirms and deletes tracks.
+    Jipda(Jipda),
+    /// Track-oriented multiple hypotheses over a sliding window of scans, N-scan pruning.
+    Mht(Mht),
+}
 
 /// Tuning of a [`Tracker`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,10 +95,12 @@ pub struct TrackerConfig {
     /// χ² gate of tentative tracks, normally tighter: it is what keeps pairs of clutter
     /// detections from confirming.
     pub tentative_gater: Gater,
-    /// Confirmation rule for tentative tracks.
+    /// Confirmation rule for tentative tracks (GNN).
     pub confirm: MOfN,
-    /// Deletion rule for confirmed tracks.
+    /// Deletion rule for confirmed tracks: misses (GNN) and the covariance bound (all).
     pub deleter: Deleter,
+    /// The associator.
+    pub association: Association,
 }
 
 /// Life-cycle stage of a track.
@@ -55,6 +129,8 @@ pub struct Track<S> {
     pub consecutive_misses: u32,
     /// Time of the last associated detection (s).
     pub last_update: f64,
+    /// Probability that the track follows a real target (JIPDA, MHT); `None` under GNN.
+    pub existence: Option<f64>,
 }
 
 /// What the tracker reports for a track after a scan.
@@ -76,6 +152,8 @@ pub struct TrackSnapshot<const N: usize> {
     pub last_update: f64,
     /// Mode probabilities of a mixture filter (IMM), empty otherwise.
     pub mode_probabilities: Vec<f64>,
+    /// Probability of existence (JIPDA, MHT); `None` under GNN.
+    pub existence: Option<f64>,
 }
 
 /// What happened to a track, or to a detection, in one scan.
@@ -88,12 +166,13 @@ pub enum TrackEvent {
         /// Index of the detection in the scan.
         detection: usize,
     },
-    /// A tentative track met the M-of-N rule.
+    /// A tentative track met the M-of-N rule (or its existence the confirmation threshold).
     Confirmed {
         /// Track id.
         id: u64,
     },
-    /// A track was updated with detection `detection`.
+    /// A track was updated with detection `detection` (soft association: its most probable
+    /// detection, when that is more probable than none).
     Updated {
         /// Track id.
         id: u64,
@@ -102,7 +181,8 @@ pub enum TrackEvent {
         /// Normalised innovation squared `d²` of the detection.
         nis: f64,
     },
-    /// A track had no detection in this scan.
+    /// A track had no detection in this scan (soft association: "no detection" was its most
+    /// probable hypothesis).
     Coasted {
         /// Track id.
         id: u64,
@@ -128,16 +208,37 @@ pub enum TrackEvent {
     },
 }
 
-/// Global-nearest-neighbour multi-target tracker over any [`TrackFilter`] `F` and [`Initiator`]
-/// `I`, on N-dimensional states.
+/// What the associators did so far: how often the bounds on clusters and hypotheses were hit.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct AssociationStats {
+    /// Scans processed.
+    pub scans: u64,
+    /// Clusters of tracks sharing detections that were solved (GNN, JIPDA; MHT: of trees).
+    pub clusters: u64,
+    /// Most tracks (MHT: trees) in one cluster.
+    pub largest_cluster: usize,
+    /// Largest JIPDA EHM net (nodes), or most MHT hypotheses (leaves) after a scan.
+    pub largest_net: usize,
+    /// Clusters whose exact solution hit its bound (an EHM net cut to `max_net_nodes` nodes per
+    /// layer, an MHT search stopped at its node budget): the answer of the bounded fallback.
+    pub capped: u64,
+}
+
+/// Multi-target tracker over any [`TrackFilter`] `F` and [`Initiator`] `I`, on N-dimensional
+/// states, with the association of its configuration.
 #[derive(Debug, Clone)]
 pub struct Tracker<F: TrackFilter<N>, I, const N: usize> {
     filter: F,
     initiator: I,
     config: TrackerConfig,
     tracks: Vec<Track<F::State>>,
+    /// The hypothesis trees of the multi-scan associator (empty otherwise).
+    mht: MhtState<F::State>,
     next_id: u64,
     t: Option<f64>,
+    stats: AssociationStats,
+    /// The tracks' update logs, when late scans are retrodicted.
+    retro: Option<Retrodiction<F::State>>,
 }
 
 impl<F, I, const N: usize> Tracker<F, I, N>
@@ -152,8 +253,11 @@ where
             initiator,
             config,
             tracks: Vec::new(),
+            mht: MhtState::default(),
             next_id: 1,
             t: None,
+            stats: AssociationStats::default(),
+            retro: None,
         }
     }
 
@@ -172,6 +276,27 @@ where
         &self.filter
     }
 
+    /// The configuration.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// What the associator did so far.
+    pub fn stats(&self) -> AssociationStats {
+        self.stats
+    }
+
+    /// Sets the clutter density the soft and multi-scan associators assume for the next scans
+    /// (`None`: estimated from each scan); no effect under GNN. A caller whose sensors differ
+    /// (a known density on the ground for position sensors, none for cameras) sets it per scan.
+    pub fn set_clutter_density(&mut self, density: Option<f64>) {
+        match &mut self.config.association {
+            Association::Gnn => {}
+            Association::Jipda(j) => j.detection.clutter_density = density,
+            Association::Mht(m) => m.detection.clutter_density = density,
+        }
+    }
+
     /// Every live track after the last scan, tentative and confirmed, in id order.
     pub fn snapshot(&self) -> Vec<TrackSnapshot<N>> {
         let t = self.t.unwrap_or(0.0);
@@ -186,6 +311,7 @@ where
                 age: k.scans,
                 last_update: k.last_update,
                 mode_probabilities: self.filter.mode_probabilities(&k.state),
+                existence: k.existence,
             })
             .collect()
     }
@@ -200,7 +326,8 @@ where
     /// Processes one scan of one sensor: all its detections at time `t`, clutter included, under
     /// the sensor model `sensor` (which carries the platform position and the noise). Scans of
     /// several sensors at the same `t` are processed one after the other with no prediction
-    /// between them. Every scan counts towards the M-of-N and miss counts of every track.
+    /// between them. Every scan counts towards the M-of-N and miss counts (and the existence) of
+    /// every track.
     ///
     /// Fails, leaving the tracker untouched, when `t` is not finite or earlier than the last scan,
     /// or a detection is not finite. A numerical failure inside one track does not fail the scan:
@@ -225,178 +352,67 @@ where
             return Err(EstimationError::NonFinite("detection"));
         }
         let dt = self.t.map_or(0.0, |t0| t - t0);
-        let mut events = Vec::new();
-
-        // Predict; a track whose prediction fails is deleted.
-        let mut tracks: Vec<Track<F::State>> = Vec::with_capacity(self.tracks.len());
-        for k in &self.tracks {
-            let state = if dt > 0.0 {
-                match self.filter.predict(&k.state, dt) {
-                    Ok(s) => s,
-                    Err(e) => {
-                        events.push(TrackEvent::Deleted {
-                            id: k.id,
-                            reason: DeleteReason::Failed(e.to_string()),
-                        });
-                        continue;
-                    }
-                }
-            } else {
-                k.state.clone()
-            };
-            tracks.push(Track {
-                state,
-                scans: k.scans + 1,
-                ..k.clone()
-            });
-        }
-
-        // Associate: every track, confirmed or tentative (each with its own gate), competes for
-        // the detections in one assignment.
-        let hyps: Vec<TrackHypotheses> = tracks
-            .iter()
-            .map(|k| {
-                let gater = match k.status {
-                    TrackStatus::Confirmed => &self.config.gater,
-                    TrackStatus::Tentative => &self.config.tentative_gater,
-                };
-                hypothesise(&self.filter, &k.state, sensor, detections, gater).unwrap_or_else(|e| {
-                    events.push(TrackEvent::Rejected {
-                        id: Some(k.id),
-                        detection: None,
-                        reason: format!("measurement prediction: {e}"),
-                    });
-                    TrackHypotheses::default()
-                })
-            })
-            .collect();
-        let assigned = global_nearest_neighbour(&hyps)?;
-        let mut taken = vec![false; detections.len()];
-
-        // Update or coast, then confirm / delete.
-        let confirm = self.config.confirm;
-        let deleter = self.config.deleter;
-        let filter = &self.filter;
-        let mut kept = Vec::with_capacity(tracks.len() + detections.len());
-        for ((mut k, a), h) in tracks.into_iter().zip(assigned).zip(&hyps) {
-            let mut updated = false;
-            if let Some(d) = a {
-                taken[d] = true;
-                match filter.update(&k.state, sensor, &detections[d]) {
-                    Ok(s) => {
-                        k.state = s;
-                        k.hits += 1;
-                        k.consecutive_misses = 0;
-                        k.last_update = t;
-                        updated = true;
-                        let nis = h
-                            .gated
-                            .iter()
-                            .find(|g| g.detection == d)
-                            .map_or(f64::NAN, |g| g.distance_sq);
-                        events.push(TrackEvent::Updated {
-                            id: k.id,
-                            detection: d,
-                            nis,
-                        });
-                    }
-                    Err(e) => events.push(TrackEvent::Rejected {
-                        id: Some(k.id),
-                        detection: Some(d),
-                        reason: format!("update: {e}"),
-                    }),
-                }
-            }
-            if !updated {
-                k.consecutive_misses += 1;
-                events.push(TrackEvent::Coasted {
-                    id: k.id,
-                    misses: k.consecutive_misses,
-                });
-            }
-            let gone = match k.status {
-                TrackStatus::Tentative => match confirm.judge(k.hits, k.scans) {
-                    Verdict::Confirm => {
-                        k.status = TrackStatus::Confirmed;
-                        events.push(TrackEvent::Confirmed { id: k.id });
-                        None
-                    }
-                    Verdict::Pending => None,
-                    Verdict::Drop => Some(DeleteReason::Unconfirmed),
-                },
-                TrackStatus::Confirmed => {
-                    deleter.judge(k.consecutive_misses, &filter.estimate(&k.state))
-                }
-            };
-            match gone {
-                Some(reason) => events.push(TrackEvent::Deleted { id: k.id, reason }),
-                None => kept.push(k),
-            }
-        }
-
-        // Initiate from the detections no track took.
-        for (j, z) in detections.iter().enumerate() {
-            if taken[j] {
-                continue;
-            }
-            let started = sensor
-                .locate(z)
-                .ok_or_else(|| "the detection fixes no position".to_string())
-                .and_then(|fix| {
-                    self.initiator
-                        .initiate(&fix)
-                        .and_then(|g| self.filter.start(g))
-                        .map_err(|e| e.to_string())
-                });
-            let state = match started {
-                Ok(s) => s,
-                Err(reason) => {
-                    events.push(TrackEvent::Rejected {
-                        id: None,
-                        detection: Some(j),
-                        reason: format!("initiation: {reason}"),
-                    });
-                    continue;
-                }
-            };
-            let mut k = Track {
-                id: self.next_id,
-                state,
-                status: TrackStatus::Tentative,
-                scans: 1,
-                hits: 1,
-                consecutive_misses: 0,
-                last_update: t,
-            };
-            self.next_id += 1;
-            events.push(TrackEvent::Born {
-                id: k.id,
-                detection: j,
-            });
-            if confirm.judge(1, 1) == Verdict::Confirm {
-                k.status = TrackStatus::Confirmed;
-                events.push(TrackEvent::Confirmed { id: k.id });
-            }
-            kept.push(k);
-        }
-        kept.sort_by_key(|k| k.id);
-        self.tracks = kept;
+        self.forget_scan();
+        let events = match self.config.association {
+            Association::Mht(m) => self.step_mht(&m, t, dt, sensor, detections)?,
+            _ => self.step_single(t, dt, sensor, detections)?,
+        };
+        self.stats.scans += 1;
         self.t = Some(t);
         Ok(events)
     }
 
-    /// Takes over tracks from another tracker (a change of track filter at run time): each keeps
-    /// its id, status and hit/miss record, and its Gaussian estimate becomes the state of this
-    /// tracker's filter ([`TrackFilter::start`]: a mixture starts every mode from it with the
-    /// initial mode probabilities). The tracker's time becomes `t`; new ids continue after the
-    /// largest one seen. Replaces the tracks held; fails, changing nothing, when `t` is not
-    /// finite, an id repeats or a filter cannot start from an estimate.
+    /// A new tentative track from detection `j`, or the reason it cannot start one (the
+    /// detection fixes no position, or the initiator or filter refuses it).
+    fn start<H, const M: usize>(
+        &self,
+        sensor: &H,
+        z: &SVector<f64, M>,
+        t: f64,
+        existence: Option<f64>,
+    ) -> std::result::Result<Track<F::State>, String>
+    where
+        H: Locate<M>,
+    {
+        let fix = sensor
+            .locate(z)
+            .ok_or_else(|| "the detection fixes no position".to_string())?;
+        let state = self
+            .initiator
+            .initiate(&fix)
+            .and_then(|g| self.filter.start(g))
+            .map_err(|e| e.to_string())?;
+        Ok(Track {
+            id: 0,
+            state,
+            status: TrackStatus::Tentative,
+            scans: 1,
+            hits: 1,
+            consecutive_misses: 0,
+            last_update: t,
+            existence,
+        })
+    }
+
+    /// Takes over tracks from another tracker (a change of track filter or associator at run
+    /// time): each keeps its id, status, hit/miss record and existence, and its Gaussian estimate
+    /// becomes the state of this tracker's filter ([`TrackFilter::start`]: a mixture starts every
+    /// mode from it with the initial mode probabilities). A track without an existence (from a GNN
+    /// tracker) gets one from this tracker's thresholds when it needs one: a confirmed track its
+    /// confirmation threshold, a tentative one its initial value. The tracker's time becomes `t`;
+    /// new ids continue after the largest one seen. Replaces the tracks held; fails, changing
+    /// nothing, when `t` is not finite, an id repeats or a filter cannot start from an estimate.
     pub fn adopt(&mut self, t: f64, tracks: &[(Track<()>, Gaussian<N>)]) -> Result<()> {
         if !t.is_finite() {
             return Err(EstimationError::InvalidParameter(format!(
                 "adopt at t = {t}: not finite"
             )));
         }
+        let existence = match self.config.association {
+            Association::Gnn => None,
+            Association::Jipda(Jipda { existence, .. })
+            | Association::Mht(Mht { existence, .. }) => Some(existence),
+        };
         let mut adopted = Vec::with_capacity(tracks.len());
         for (k, g) in tracks {
             if adopted.iter().any(|a: &Track<F::State>| a.id == k.id) {
@@ -413,18 +429,26 @@ where
                 hits: k.hits,
                 consecutive_misses: k.consecutive_misses,
                 last_update: k.last_update,
+                existence: existence.map(|e| {
+                    k.existence.unwrap_or(match k.status {
+                        TrackStatus::Confirmed => e.confirm,
+                        TrackStatus::Tentative => e.initial,
+                    })
+                }),
             });
         }
         adopted.sort_by_key(|k| k.id);
+        self.mht = MhtState::adopt(&adopted);
         let top = adopted.iter().map(|k| k.id + 1).max().unwrap_or(1);
         self.next_id = self.next_id.max(top);
         self.tracks = adopted;
         self.t = Some(t);
+        self.clear_logs();
         Ok(())
     }
 
-    /// The hit/miss record of every live track, without its state (what [`Tracker::adopt`]
-    /// takes), in id order.
+    /// The hit/miss record (and existence) of every live track, without its state (what
+    /// [`Tracker::adopt`] takes), in id order.
     pub fn records(&self) -> Vec<Track<()>> {
         self.tracks
             .iter()
@@ -436,6 +460,7 @@ where
                 hits: k.hits,
                 consecutive_misses: k.consecutive_misses,
                 last_update: k.last_update,
+                existence: k.existence,
             })
             .collect()
     }
@@ -446,19 +471,33 @@ where
     }
 
     /// [`Tracker::step`] for a sensor whose kind is known only at run time: each detection is a
-    /// slice of [`SensorModel::dim`] components. Fails, leaving the tracker untouched, when a
-    /// detection has the wrong length.
+    /// slice of [`SensorModel::dim`] components. With a retrodiction lag
+    /// ([`Tracker::set_retrodiction_lag`]) it also takes a scan up to the lag older than the
+    /// tracker's time ([`late`](self::late)). Fails, leaving the tracker untouched, when a
+    /// detection has the wrong length or the scan is older than the lag allows.
     pub fn step_any(
         &mut self,
         t: f64,
         sensor: &SensorModel,
         detections: &[&[f64]],
     ) -> Result<Vec<TrackEvent>> {
+        let late = self.is_late(t)?;
         sensor.apply(StepWith {
             tracker: self,
             t,
+            sensor,
+            late,
             detections,
         })
+    }
+}
+
+/// Why a track whose existence fell below the threshold goes: a tentative one never confirmed, a
+/// confirmed one missed too many scans (only misses lower the existence of a track).
+fn gone_by_existence(status: TrackStatus) -> DeleteReason {
+    match status {
+        TrackStatus::Tentative => DeleteReason::Unconfirmed,
+        TrackStatus::Confirmed => DeleteReason::Misses,
     }
 }
 
@@ -466,6 +505,8 @@ where
 struct StepWith<'a, 'd, F: TrackFilter<N>, I, const N: usize> {
     tracker: &'a mut Tracker<F, I, N>,
     t: f64,
+    sensor: &'d SensorModel,
+    late: bool,
     detections: &'d [&'d [f64]],
 }
 
@@ -489,252 +530,14 @@ where
             }
             zs.push(SVector::<f64, M>::from_column_slice(z));
         }
-        self.tracker.step(self.t, model, &zs)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::filter::Extended;
-    use crate::measurement::{Geometry, Position};
-    use crate::motion::ConstantVelocity;
-    use crate::tracker::filter::GaussianFilter;
-    use crate::tracker::initiate::SinglePointInitiator;
-    use nalgebra::Vector2;
-
-    type Kf = GaussianFilter<Extended, ConstantVelocity<4>>;
-    fn cam() -> Position<2> {
-        Position::new(Geometry::planar(0.0), [5.0, 5.0])
-    }
-
-    fn tracker(m: u32, n: u32) -> Tracker<Kf, SinglePointInitiator, 4> {
-        let filter = GaussianFilter {
-            filter: Extended,
-            motion: ConstantVelocity::new(0.5),
-        };
-        let init = SinglePointInitiator::new(10.0, 10.0).unwrap();
-        let config = TrackerConfig {
-            gater: Gater::chi2(0.999, 2).unwrap(),
-            tentative_gater: Gater::chi2(0.99, 2).unwrap(),
-            confirm: MOfN::new(m, n).unwrap(),
-            deleter: Deleter::new(3, 1e4, 2).unwrap(),
-        };
-        Tracker::new(filter, init, config)
-    }
-
-    #[test]
-    fn adopted_tracks_keep_ids_and_records_and_go_on() {
-        let mut a = tracker(2, 3);
-        let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
-        for k in 0..3 {
-            a.step(f64::from(k), &cam(), &[at(f64::from(k))]).unwrap();
+        if self.late {
+            return self.tracker.step_late(self.t, model, self.sensor, &zs);
         }
-        let taken: Vec<_> = a
-            .records()
-            .into_iter()
-            .zip(a.snapshot())
-            .map(|(r, s)| (r, s.estimate))
-            .collect();
-        assert_eq!(taken.len(), 1);
-        let mut b = tracker(2, 3);
-        b.adopt(2.0, &taken).unwrap();
-        assert_eq!(b.records(), a.records());
-        assert_eq!(b.next_id(), 2);
-        let ev = b.step(3.0, &cam(), &[at(3.0), at(30.0)]).unwrap();
-        assert!(ev.contains(&TrackEvent::Updated {
-            id: 1,
-            detection: 0,
-            nis: match ev.iter().find_map(|e| match e {
-                TrackEvent::Updated { nis, .. } => Some(*nis),
-                _ => None,
-            }) {
-                Some(n) => n,
-                None => panic!("no update in {ev:?}"),
-            },
-        }));
-        assert!(
-            ev.contains(&TrackEvent::Born {
-                id: 2,
-                detection: 1
-            }),
-            "{ev:?}"
-        );
-        let twice = vec![taken[0].clone(), taken[0].clone()];
-        assert!(b.adopt(4.0, &twice).is_err());
-        assert!(b.adopt(f64::NAN, &taken).is_err());
-        assert_eq!(b.time(), Some(3.0));
-    }
-
-    #[test]
-    fn two_of_three_confirms_and_deletes() {
-        let mut tr = tracker(2, 3);
-        let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
-        tr.step(0.0, &cam(), &[at(0.0)]).unwrap();
-        assert_eq!(tr.tracks().len(), 1);
-        assert!(tr.confirmed().is_empty());
-        tr.step(1.0, &cam(), &[]).unwrap(); // miss: 1 of 2, still possible
-        assert_eq!(tr.tracks().len(), 1);
-        tr.step(2.0, &cam(), &[at(2.0)]).unwrap(); // 2 of 3: confirmed
-        let c = tr.confirmed();
-        assert_eq!((c.len(), c[0].id), (1, 1));
-        for k in 3..6 {
-            tr.step(f64::from(k), &cam(), &[at(f64::from(k))]).unwrap();
+        let events = self.tracker.step(self.t, model, &zs);
+        match &events {
+            Ok(_) => self.tracker.log_scan(self.t, self.sensor, self.detections),
+            Err(_) => self.tracker.forget_scan(),
         }
-        assert_eq!(tr.confirmed()[0].id, 1);
-        assert!((tr.confirmed()[0].estimate.mean[2] - 10.0).abs() < 3.0);
-        // Three misses delete it.
-        for k in 6..9 {
-            tr.step(f64::from(k), &cam(), &[]).unwrap();
-        }
-        assert!(tr.tracks().is_empty());
-        // A lone clutter point: hit, miss, miss → dropped.
-        tr.step(9.0, &cam(), &[Vector2::new(500.0, 500.0)]).unwrap();
-        tr.step(10.0, &cam(), &[]).unwrap();
-        tr.step(11.0, &cam(), &[]).unwrap();
-        assert!(tr.tracks().is_empty());
-        assert_eq!(tr.next_id, 3);
-    }
-
-    #[test]
-    fn rejects_bad_input_and_keeps_state() {
-        let mut tr = tracker(2, 3);
-        tr.step(1.0, &cam(), &[Vector2::new(0.0, 0.0)]).unwrap();
-        let before = tr.tracks().to_vec();
-        assert!(tr.step(0.5, &cam(), &[]).is_err());
-        assert!(
-            tr.step(2.0, &cam(), &[Vector2::new(f64::NAN, 0.0)])
-                .is_err()
-        );
-        assert!(tr.step(f64::NAN, &cam(), &[]).is_err());
-        assert_eq!(tr.tracks(), before.as_slice());
-        assert_eq!(tr.time(), Some(1.0));
-    }
-
-    #[test]
-    fn events_tell_the_life_of_a_track() {
-        let mut tr = tracker(2, 3);
-        let at = |k: f64| Vector2::new(10.0 * k, 5.0 * k);
-        let ev = tr.step(0.0, &cam(), &[at(0.0)]).unwrap();
-        assert_eq!(
-            ev,
-            vec![TrackEvent::Born {
-                id: 1,
-                detection: 0
-            }]
-        );
-        let ev = tr.step(1.0, &cam(), &[at(1.0)]).unwrap();
-        assert!(matches!(ev[0], TrackEvent::Updated { id: 1, detection: 0, nis } if nis >= 0.0));
-        assert_eq!(ev[1], TrackEvent::Confirmed { id: 1 });
-        let ev = tr.step(2.0, &cam(), &[]).unwrap();
-        assert_eq!(ev, vec![TrackEvent::Coasted { id: 1, misses: 1 }]);
-        tr.step(3.0, &cam(), &[]).unwrap();
-        let ev = tr.step(4.0, &cam(), &[]).unwrap();
-        assert_eq!(
-            ev,
-            vec![
-                TrackEvent::Coasted { id: 1, misses: 3 },
-                TrackEvent::Deleted {
-                    id: 1,
-                    reason: DeleteReason::Misses
-                }
-            ]
-        );
-        // A tentative track that cannot reach 2 of 3 is dropped as unconfirmed.
-        tr.step(5.0, &cam(), &[at(0.0)]).unwrap();
-        tr.step(6.0, &cam(), &[]).unwrap();
-        let ev = tr.step(7.0, &cam(), &[]).unwrap();
-        assert!(ev.contains(&TrackEvent::Deleted {
-            id: 2,
-            reason: DeleteReason::Unconfirmed
-        }));
-        // A camera looking up cannot start a track: rejected, with the reason.
-        let sky = crate::measurement::AzEl::new(
-            Geometry::planar(0.0),
-            nalgebra::Vector3::new(0.0, 0.0, 10.0),
-            [0.01, 0.01],
-        );
-        let ev = tr.step(8.0, &sky, &[Vector2::new(0.0, 0.5)]).unwrap();
-        assert!(matches!(
-            &ev[..],
-            [TrackEvent::Rejected { id: None, detection: Some(0), reason }] if reason.contains("initiation")
-        ));
-    }
-
-    #[test]
-    fn imm_tracks_through_any_sensor() {
-        use crate::filter::{Imm, ModeModel};
-        use crate::measurement::MeasKind;
-        use crate::measurement::{RangeBearing, SensorModel};
-        use crate::tracker::filter::ImmFilter;
-        let q = 0.05;
-        let imm = Imm::new(
-            Extended,
-            [ModeModel::Cv { q }, ModeModel::Ct { omega: 0.1, q }],
-            [[0.95, 0.05], [0.05, 0.95]],
-        )
-        .unwrap();
-        let filter = ImmFilter {
-            imm,
-            initial_probs: [0.9, 0.1],
-        };
-        let config = TrackerConfig {
-            gater: Gater::chi2(0.999, 2).unwrap(),
-            tentative_gater: Gater::chi2(0.99, 2).unwrap(),
-            confirm: MOfN::new(2, 3).unwrap(),
-            deleter: Deleter::new(3, 1e4, 2).unwrap(),
-        };
-        let mut tr = Tracker::new(
-            filter,
-            SinglePointInitiator::new(10.0, 10.0).unwrap(),
-            config,
-        );
-        let radar = RangeBearing::new(
-            Geometry::planar(0.0),
-            nalgebra::Vector3::new(0.0, 0.0, 20.0),
-            [2.0, 0.002],
-        );
-        let truth = |t: f64| nalgebra::Vector4::new(500.0 + 8.0 * t, 300.0, 8.0, 0.0);
-        for k in 0..20 {
-            let t = f64::from(k);
-            let z = MeasurementModel::<4, 2>::function(&radar, &truth(t));
-            // Every other scan comes through the run-time sensor model.
-            if k % 2 == 0 {
-                tr.step(t, &radar, &[z]).unwrap();
-            } else {
-                let any = SensorModel::new(
-                    MeasKind::RangeBearing,
-                    Geometry::planar(0.0),
-                    nalgebra::Vector3::new(0.0, 0.0, 20.0),
-                    &[2.0, 0.002],
-                    None,
-                )
-                .unwrap();
-                tr.step_any(t, &any, &[z.as_slice()]).unwrap();
-            }
-        }
-        let c = tr.confirmed();
-        assert_eq!(c.len(), 1);
-        assert!(
-            (c[0].estimate.mean - truth(19.0)).norm() < 3.0,
-            "{:?}",
-            c[0].estimate.mean
-        );
-        assert_eq!(c[0].mode_probabilities.len(), 2);
-        assert!(
-            c[0].mode_probabilities[0] > 0.5,
-            "{:?}",
-            c[0].mode_probabilities
-        );
-        let pos = SensorModel::new(
-            MeasKind::Position,
-            Geometry::planar(0.0),
-            nalgebra::Vector3::zeros(),
-            &[1.0; 3],
-            None,
-        )
-        .unwrap();
-        assert!(tr.step_any(20.0, &pos, &[&[1.0, 2.0][..]]).is_err());
-        assert_eq!(tr.time(), Some(19.0));
+        events
     }
 }

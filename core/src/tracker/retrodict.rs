@@ -41,40 +41,57 @@ use super::filter::TrackFilter;
 use crate::measurement::{Locate, MeasurementModel, SensorModel, WithSensor};
 use crate::{EstimationError, Result};
 
-/// One update of a track: when, under which sensor model, with which detection, and the
-/// track's filter state after it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// One update of a track: when, under which sensor model, with which detections, and the
+/// track's filter state after it. A hard association (GNN, MHT) used one detection with weight 1;
+/// a soft one (JIPDA) the mixture of its gated detections with their marginal probabilities `βⱼ`
+/// and "no detection" with `β₀` ([`TrackFilter::update_mixture`]). A rerun keeps the weights of
+/// the first pass (the weights a late detection would have changed are not recomputed).
+#[derive(Debug, Clone, PartialEq)]
 pub struct LoggedUpdate<S> {
     /// Scan time of the update (s).
     pub t: f64,
     /// The scan's sensor model (kind, platform pose, noise).
     pub sensor: SensorModel,
-    /// The detection: its first [`SensorModel::dim`] components.
-    pub z: [f64; 3],
+    /// The detections (their first [`SensorModel::dim`] components) and their weights.
+    pub mixture: Vec<([f64; 3], f64)>,
+    /// The weight of "no detection" (0 for a hard association).
+    pub miss: f64,
     /// The filter state after the update.
     pub posterior: S,
 }
 
 impl<S> LoggedUpdate<S> {
-    /// The update at `t` of `sensor` with the detection `z` (of `sensor.dim()` components),
+    /// The update at `t` of `sensor` with the one detection `z` (of `sensor.dim()` components),
     /// whose posterior is `posterior`; `None` when `z` has the wrong length.
     pub fn new(t: f64, sensor: SensorModel, z: &[f64], posterior: S) -> Option<Self> {
-        if z.len() != sensor.dim() {
-            return None;
+        Self::mixture(t, sensor, &[(z, 1.0)], 0.0, posterior)
+    }
+
+    /// The update at `t` of `sensor` with the mixture of `detections` (each with its weight)
+    /// and "no detection" (weight `miss`); `None` when a detection has the wrong length.
+    pub fn mixture(
+        t: f64,
+        sensor: SensorModel,
+        detections: &[(&[f64], f64)],
+        miss: f64,
+        posterior: S,
+    ) -> Option<Self> {
+        let mut mixture = Vec::with_capacity(detections.len());
+        for &(z, w) in detections {
+            if z.len() != sensor.dim() {
+                return None;
+            }
+            let mut fixed = [0.0; 3];
+            fixed[..z.len()].copy_from_slice(z);
+            mixture.push((fixed, w));
         }
-        let mut fixed = [0.0; 3];
-        fixed[..z.len()].copy_from_slice(z);
         Some(Self {
             t,
             sensor,
-            z: fixed,
+            mixture,
+            miss,
             posterior,
         })
-    }
-
-    /// The detection, as many components as the sensor measures.
-    pub fn detection(&self) -> &[f64] {
-        &self.z[..self.sensor.dim()]
     }
 }
 
@@ -161,17 +178,12 @@ impl<S: Clone> UpdateLog<S> {
         }
         let base = &self.entries[b];
         let prior = predict_to(filter, &base.posterior, late.t - base.t)?;
-        let late_posterior = update_at(filter, &prior, &late.sensor, late.detection())?;
+        let late_posterior = update_at(filter, &prior, &late)?;
         let mut state = late_posterior.clone();
         let mut t = late.t;
         let mut rerun = Vec::with_capacity(self.entries.len() - b - 1);
         for e in self.entries.range(b + 1..) {
-            state = update_at(
-                filter,
-                &predict_to(filter, &state, e.t - t)?,
-                &e.sensor,
-                e.detection(),
-            )?;
+            state = update_at(filter, &predict_to(filter, &state, e.t - t)?, e)?;
             t = e.t;
             rerun.push(state.clone());
         }
@@ -185,7 +197,8 @@ impl<S: Clone> UpdateLog<S> {
             LoggedUpdate {
                 t: late.t,
                 sensor: late.sensor,
-                z: late.z,
+                mixture: late.mixture,
+                miss: late.miss,
                 posterior: late_posterior,
             },
         );
@@ -206,25 +219,26 @@ fn predict_to<F: TrackFilter<N>, const N: usize>(
     }
 }
 
-/// `predicted` updated with the detection `z` of `sensor`.
-fn update_at<F: TrackFilter<N>, const N: usize>(
+/// `predicted` updated as `update` was: with its one detection, or its mixture.
+fn update_at<F: TrackFilter<N>, const N: usize, S>(
     filter: &F,
     predicted: &F::State,
-    sensor: &SensorModel,
-    z: &[f64],
+    update: &LoggedUpdate<S>,
 ) -> Result<F::State> {
-    sensor.apply(UpdateWith {
+    update.sensor.apply(UpdateWith {
         filter,
         predicted,
-        z,
+        update: (&update.mixture, update.miss),
+        dim: update.sensor.dim(),
     })
 }
 
-/// The visit of [`update_at`]: the detection as a const-sized vector of the concrete model.
+/// The visit of [`update_at`]: the detections as const-sized vectors of the concrete model.
 struct UpdateWith<'a, F: TrackFilter<N>, const N: usize> {
     filter: &'a F,
     predicted: &'a F::State,
-    z: &'a [f64],
+    update: (&'a [([f64; 3], f64)], f64),
+    dim: usize,
 }
 
 impl<F: TrackFilter<N>, const N: usize> WithSensor<N> for UpdateWith<'_, F, N> {
@@ -233,17 +247,22 @@ impl<F: TrackFilter<N>, const N: usize> WithSensor<N> for UpdateWith<'_, F, N> {
     where
         H: MeasurementModel<N, M> + Locate<M>,
     {
-        if self.z.len() != M {
+        if self.dim != M {
             return Err(EstimationError::InvalidParameter(format!(
                 "a detection has {} components, the sensor measures {M}",
-                self.z.len()
+                self.dim
             )));
         }
-        self.filter.update(
-            self.predicted,
-            model,
-            &SVector::<f64, M>::from_column_slice(self.z),
-        )
+        let z = |c: &[f64; 3]| SVector::<f64, M>::from_column_slice(&c[..M]);
+        match self.update {
+            ([(c, w)], miss) if miss == 0.0 && *w == 1.0 => {
+                self.filter.update(self.predicted, model, &z(c))
+            }
+            (mixture, miss) => {
+                let zs: Vec<_> = mixture.iter().map(|(c, w)| (z(c), *w)).collect();
+                self.filter.update_mixture(self.predicted, model, &zs, miss)
+            }
+        }
     }
 }
 
@@ -347,7 +366,8 @@ mod tests {
             let (ti, sensor, z) = &dets[i];
             if *ti >= t {
                 let p = predict_to(filter, &state, ti - t).unwrap();
-                state = update_at(filter, &p, sensor, z).unwrap();
+                let hard = LoggedUpdate::new(*ti, *sensor, z, ()).unwrap();
+                state = update_at(filter, &p, &hard).unwrap();
                 t = *ti;
                 log.record(
                     LoggedUpdate::new(*ti, *sensor, z, state.clone()).unwrap(),
@@ -454,6 +474,15 @@ mod tests {
             ) -> Result<f64> {
                 Ok(s + z[0])
             }
+            fn update_mixture<H: MeasurementModel<4, M>, const M: usize>(
+                &self,
+                s: &f64,
+                _: &H,
+                zs: &[(SVector<f64, M>, f64)],
+                _: f64,
+            ) -> Result<f64> {
+                Ok(s + zs.iter().map(|(z, w)| w * z[0]).sum::<f64>())
+            }
             fn estimate(&self, _: &f64) -> Gaussian<4> {
                 start()
             }
@@ -462,7 +491,7 @@ mod tests {
         assert_eq!(log, before);
         // Replaying to a time before the newest update is refused too.
         let late = LoggedUpdate::new(8.2, position(1.0), &[100.0, 0.0], ()).unwrap();
-        assert!(log.replay(&Id, late, 9.0).is_err());
+        assert!(log.replay(&Id, late.clone(), 9.0).is_err());
         assert_eq!(log, before);
         // A good one: the late detection's z is added once to every later posterior.
         let now = log.replay(&Id, late, 10.0).unwrap();

@@ -35,8 +35,8 @@ use harrier_core::motion::{
 use harrier_core::road::{Road, RoadNetwork, RoadSegment, road_from_turn_legs};
 use harrier_core::state::{Ellipsoid, Gaussian, Posterior};
 use harrier_core::tracker::{
-    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, Tracker,
-    TrackerConfig,
+    Association, CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator,
+    Tracker, TrackerConfig,
 };
 use nalgebra::{SMatrix, SVector, Vector2, Vector3, Vector4};
 use proptest::prelude::*;
@@ -372,6 +372,7 @@ proptest! {
             tentative_gater: Gater::chi2(0.99, 2).unwrap(),
             confirm: MOfN::new(2, 3).unwrap(),
             deleter: Deleter::new(3, 1e4, 2).unwrap(),
+            association: Association::Gnn,
         };
         let mut ekf: Tracker<_, _, 4> = Tracker::new(
             GaussianFilter { filter: Extended, motion: ConstantVelocity::<4>::new(0.5) },
@@ -476,6 +477,7 @@ proptest! {
             tentative_gater: Gater::chi2(0.99, 2).unwrap(),
             confirm: MOfN::new(2, 3).unwrap(),
             deleter: Deleter::new(3, 1e4, 2).unwrap(),
+            association: Association::Gnn,
         };
         let mut tr: Tracker<_, _, 4> = Tracker::new(filter, SinglePointInitiator::new(10.0, 10.0).unwrap(), config);
         let mut t = 0.0;

@@ -1,11 +1,13 @@
 //! The drivers: each turns scenario measurements into the calls of one estimator family's filters
 //! and declares its [`EstimatorInfo`](crate::EstimatorInfo) entries (and
-//! [`multi_target`] its [`TrackFilterInfo`](crate::TrackFilterInfo)s); and the glue they
+//! [`multi_target`] its [`TrackFilterInfo`](crate::TrackFilterInfo)s, [`associators`] the
+//! [`AssociatorInfo`](crate::AssociatorInfo)s); and the glue they
 //! share: the prior and the measurement models from `scenario.json`, updates with a run-time
 //! measurement kind, estimate lines. Drivers import [the crate root](crate) only; the registry
 //! ([`crate::registry`]) lists them and is the only module that imports them.
 
 pub mod angles;
+pub mod associators;
 pub mod bearings;
 pub mod bias;
 pub mod gaussian;
@@ -24,7 +26,7 @@ use harrier_core::scenario::{Estimate, Measurement, Motion, Scenario};
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector, Vector3};
 
-use crate::{EngineError, setup};
+use crate::{EngineError, Params, setup};
 
 /// Canonical indices of an N-state CV layout: planar `[x, y, vx, vy]` or 3-D `[x, y, z, vx, vy, vz]`.
 pub fn cv_dims(n: usize) -> &'static [usize] {
@@ -221,4 +223,13 @@ pub fn imm_of<const R: usize>(
     let imm = Imm::new(Extended, models, tpm)
         .map_err(|e| setup(format!("motion.transition_matrix: {e}")))?;
     Ok((imm, probs))
+}
+
+/// An integer parameter ≥ 1.
+pub fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
+    let v = p.get(name, f64::from(default));
+    if v.fract() != 0.0 || !(1.0..=1e6).contains(&v) {
+        return Err(setup(format!("--param {name} must be a whole number ≥ 1")));
+    }
+    Ok(v as u32)
 }

@@ -1,14 +1,16 @@
-//! The multi-target tracker of `harrier_core::tracker` (χ² gating, global nearest neighbour over
-//! confirmed and tentative tracks, single-point initiation from any detection kind with M-of-N
-//! confirmation, miss/covariance deletion) as a [`TrackEngine`], `MultiTargetEngine`, one per
-//! **track filter** — the filter of each track: `ekf` (the KF on `position` sensors), `cdkf`,
-//! `imm`, `cimm` ([`TrackFilterInfo`]s, the live service's choice) — built for a [`Deployment`].
+//! The multi-target tracker of `harrier_core::tracker` (χ² gating through a spatial index,
+//! single-point initiation from any detection kind, deletion) as a [`TrackEngine`],
+//! `MultiTargetEngine`, one per **track filter** — the filter of each track: `ekf` (the KF on
+//! `position` sensors), `cdkf`, `imm`, `cimm` ([`TrackFilterInfo`]s, the live service's choice)
+//! — with an **associator** (`gnn`, `jipda`, `mht`: [`associators`](super::associators)), built
+//! for a [`Deployment`].
 //!
-//! The replay estimator `tracker` runs the `ekf` track filter over a multi-target scenario
-//! (FORMAT-MULTI.md): any number of sensors of any kind whose scans carry unlabeled detections,
-//! clutter included. Each sensor's detections of one time are one scan, under that sensor's model
-//! at its platform pose. Each estimate line holds every confirmed track after the scan
-//! (`"state": null`, `"tracks"`): see FORMAT-MULTI.md §4.
+//! The replay estimator `tracker` runs the `ekf` track filter with `gnn` over a multi-target
+//! scenario (FORMAT-MULTI.md); [`replay_tracker`] any other pair (`harrier replay -e tracker
+//! --track-filter imm --associator jipda`): any number of sensors of any kind whose scans carry
+//! unlabeled detections, clutter included. Each sensor's detections of one time are one scan,
+//! under that sensor's model at its platform pose. Each estimate line holds every confirmed
+//! track after the scan (`"state": null`, `"tracks"`): see FORMAT-MULTI.md §4.
 
 use harrier_core::filter::{CentralDifference, Extended, ModeModel};
 use harrier_core::measurement::{MeasKind, SensorModel};
@@ -16,12 +18,12 @@ use harrier_core::motion::ConstantVelocity;
 use harrier_core::road::RoadNetwork;
 use harrier_core::scenario::{Estimate, Scenario};
 use harrier_core::tracker::{
-    CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackFilter,
-    TrackSnapshot, Tracker, TrackerConfig,
+    Association, AssociationStats, CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN,
+    SinglePointInitiator, TrackFilter, TrackSnapshot, Tracker, TrackerConfig,
 };
 use serde_json::{Value, json};
 
-use super::{cv_estimate, geometry, imm_of, mode_models, model_for};
+use super::{count, cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::{
     Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator,
     ScanOutcome, SensorScan, Step, TrackEngine, TrackFilterInfo, TrackView, setup,
@@ -35,22 +37,37 @@ pub const TRACKER: EstimatorInfo = EstimatorInfo {
     summary: "multi-target GNN tracker (EKF, CV, χ² gate, M-of-N), any sensors: all confirmed tracks per scan (FORMAT-MULTI.md)",
     params: TRACKER_PARAMS,
     build: |sc, p| {
-        if sc.sensors.is_empty() {
-            return Err(setup("the tracker needs at least one sensor"));
-        }
-        if let Some(s) = sc
-            .sensors
-            .iter()
-            .find(|s| s.kind == MeasKind::BearingSize && sc.target.size_m.is_none())
-        {
-            return Err(setup(format!(
-                "sensor {:?}: bearing_size detections need target.size_m to start tracks",
-                s.id
-            )));
-        }
-        Ok(Box::new(MultiTracker::new(sc, p)?))
+        let engine = (TRACK_FILTER_EKF.build)(&Deployment::from(sc), p, Association::Gnn)?;
+        replay_tracker(sc, engine)
     },
 };
+
+/// The replay estimator `tracker` over a track engine built for the scenario (any track filter
+/// and associator): refuses a scenario without sensors, or with `bearing_size` sensors and no
+/// target size.
+pub fn replay_tracker(
+    sc: &Scenario,
+    engine: Box<dyn TrackEngine>,
+) -> Result<Box<dyn ReplayEstimator>, EngineError> {
+    if sc.sensors.is_empty() {
+        return Err(setup("the tracker needs at least one sensor"));
+    }
+    if let Some(s) = sc
+        .sensors
+        .iter()
+        .find(|s| s.kind == MeasKind::BearingSize && sc.target.size_m.is_none())
+    {
+        return Err(setup(format!(
+            "sensor {:?}: bearing_size detections need target.size_m to start tracks",
+            s.id
+        )));
+    }
+    Ok(Box::new(MultiTracker {
+        engine,
+        sc: sc.clone(),
+        last_model: None,
+    }))
+}
 
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
@@ -87,9 +104,9 @@ pub const TRACK_FILTER_EKF: TrackFilterInfo = TrackFilterInfo {
     name: "ekf",
     summary: "EKF tracks, CV model (the KF on position sensors)",
     params: TRACKER_PARAMS,
-    build: |d, p| match d.dims {
-        2 => multi_target_engine::<4, _>(d, p, ekf(d, p)?),
-        _ => multi_target_engine::<6, _>(d, p, ekf(d, p)?),
+    build: |d, p, a| match d.dims {
+        2 => multi_target_engine::<4, _>(d, p, a, ekf(d, p)?),
+        _ => multi_target_engine::<6, _>(d, p, a, ekf(d, p)?),
     },
 };
 
@@ -98,13 +115,14 @@ pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
     name: "cdkf",
     summary: "central-difference Kalman filter tracks, CV model",
     params: TRACKER_PARAMS,
-    build: |d, p| {
+    build: |d, p, a| {
         let q = d.q(p)?;
         let filter = CentralDifference::default();
         match d.dims {
             2 => multi_target_engine::<4, _>(
                 d,
                 p,
+                a,
                 GaussianFilter {
                     filter,
                     motion: ConstantVelocity::<4>::new(q),
@@ -113,6 +131,7 @@ pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
             _ => multi_target_engine::<6, _>(
                 d,
                 p,
+                a,
                 GaussianFilter {
                     filter,
                     motion: ConstantVelocity::<6>::new(q),
@@ -127,7 +146,7 @@ pub const TRACK_FILTER_IMM: TrackFilterInfo = TrackFilterInfo {
     name: "imm",
     summary: "IMM tracks (CV / known-rate CT modes from motion.models, EKF mode filters), planar",
     params: TRACKER_PARAMS,
-    build: |d, p| imm_engine(d, p, None),
+    build: |d, p, a| imm_engine(d, p, a, None),
 };
 
 /// `cimm`: road-constrained IMM tracks (\[CIMM\]) over `motion.models` and `roads` (planar).
@@ -135,13 +154,13 @@ pub const TRACK_FILTER_CIMM: TrackFilterInfo = TrackFilterInfo {
     name: "cimm",
     summary: "road-constrained IMM tracks ([CIMM]) on the roads, off-road targets unconstrained, planar",
     params: TRACKER_PARAMS,
-    build: |d, p| {
+    build: |d, p, a| {
         let roads = RoadNetwork::from_scenario(&d.roads)
             .map_err(|e| setup(format!("scenario.json roads: {e}")))?;
         if roads.is_empty() {
             return Err(setup("the cimm track filter needs roads"));
         }
-        imm_engine(d, p, Some(roads))
+        imm_engine(d, p, a, Some(roads))
     },
 };
 
@@ -156,6 +175,7 @@ fn ekf<const N: usize>(d: &Deployment, p: &Params) -> Result<Ekf<N>, EngineError
 fn imm_engine(
     d: &Deployment,
     p: &Params,
+    a: Association,
     roads: Option<RoadNetwork>,
 ) -> Result<Box<dyn TrackEngine>, EngineError> {
     if d.dims != 2 {
@@ -165,13 +185,14 @@ fn imm_engine(
     fn boxed<const R: usize>(
         d: &Deployment,
         p: &Params,
+        a: Association,
         models: &[ModeModel],
         roads: Option<RoadNetwork>,
     ) -> Result<Box<dyn TrackEngine>, EngineError> {
         let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
         let imm = ImmFilter { imm, initial_probs };
         match roads {
-            None => multi_target_engine::<4, _>(d, p, imm),
+            None => multi_target_engine::<4, _>(d, p, a, imm),
             Some(roads) => {
                 let sigma_m = roads
                     .roads()
@@ -184,16 +205,16 @@ fn imm_engine(
                     sigma_v: sigma_m / d.scan_period_s.max(1e-3),
                     max_offset_m: 3.0 * sigma_m + 10.0,
                 };
-                multi_target_engine::<4, _>(d, p, cimm)
+                multi_target_engine::<4, _>(d, p, a, cimm)
             }
         }
     }
     match models.len() {
-        1 => boxed::<1>(d, p, &models, roads),
-        2 => boxed::<2>(d, p, &models, roads),
-        3 => boxed::<3>(d, p, &models, roads),
-        4 => boxed::<4>(d, p, &models, roads),
-        5 => boxed::<5>(d, p, &models, roads),
+        1 => boxed::<1>(d, p, a, &models, roads),
+        2 => boxed::<2>(d, p, a, &models, roads),
+        3 => boxed::<3>(d, p, a, &models, roads),
+        4 => boxed::<4>(d, p, a, &models, roads),
+        5 => boxed::<5>(d, p, a, &models, roads),
         n => Err(setup(format!(
             "motion.models has {n} models; the IMM track filters support 1 to 5"
         ))),
@@ -207,6 +228,11 @@ struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     tracker: Tracker<F, SinglePointInitiator, N>,
     /// The ground plane of planar tracks (their estimate lines' z).
     plane_z: f64,
+    /// The clutter density of every scan (`--param clutter_density`), else …
+    clutter_param: Option<f64>,
+    /// … that of planar `position` scans ([`Deployment::ground_clutter_density`]); other scans'
+    /// is estimated from the scan.
+    position_clutter: Option<f64>,
 }
 
 impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
@@ -224,23 +250,16 @@ impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
             age: k.age,
             last_update: k.last_update,
             mode_probabilities: k.mode_probabilities,
+            existence: k.existence,
         }
     }
 }
 
-/// An integer parameter ≥ 1.
-fn count(p: &Params, name: &str, default: u32) -> Result<u32, EngineError> {
-    let v = p.get(name, f64::from(default));
-    if v.fract() != 0.0 || !(1.0..=1e6).contains(&v) {
-        return Err(setup(format!("--param {name} must be a whole number ≥ 1")));
-    }
-    Ok(v as u32)
-}
-
-/// The engine over `filter` with the tracker tuning of `p`.
+/// The engine over `filter` with the tracker tuning of `p` and the associator `association`.
 fn multi_target_engine<const N: usize, F>(
     d: &Deployment,
     p: &Params,
+    association: Association,
     filter: F,
 ) -> Result<Box<dyn TrackEngine>, EngineError>
 where
@@ -258,10 +277,13 @@ where
             p.get("max_pos_var", 1e5),
             usize::from(d.dims),
         )?,
+        association,
     };
     Ok(Box::new(MultiTargetEngine {
         tracker: Tracker::new(filter, init, config),
         plane_z: d.plane_z,
+        clutter_param: p.opt("clutter_density"),
+        position_clutter: d.ground_clutter_density(),
     }))
 }
 
@@ -271,6 +293,11 @@ where
     F::State: Send,
 {
     fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError> {
+        let planar_position = matches!(scan.sensor, SensorModel::Position2(_));
+        self.tracker.set_clutter_density(
+            self.clutter_param
+                .or(self.position_clutter.filter(|_| planar_position)),
+        );
         let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
         let events = self.tracker.step_any(scan.t, &scan.sensor, &dets)?;
         // `Tracker::step` changes every track it keeps: `scans` + 1 (the view's `age`), the time
@@ -337,10 +364,18 @@ where
         }
         Ok(self.tracker.adopt(t, &tracks)?)
     }
+
+    fn association(&self) -> AssociationStats {
+        self.tracker.stats()
+    }
+
+    fn set_retrodiction_lag(&mut self, lag: f64) -> Result<(), EngineError> {
+        Ok(self.tracker.set_retrodiction_lag(lag)?)
+    }
 }
 
-/// The replay estimator `tracker`: the tracker with the `ekf` track filter, fed one scan per sensor
-/// and time.
+/// The replay estimator `tracker`: a track engine (the `ekf` track filter and `gnn`, or any pair
+/// [`replay_tracker`] was given), fed one scan per sensor and time.
 #[derive(Debug)]
 struct MultiTracker {
     engine: Box<dyn TrackEngine>,
@@ -349,17 +384,11 @@ struct MultiTracker {
     last_model: Option<SensorModel>,
 }
 
-impl MultiTracker {
-    fn new(sc: &Scenario, p: &Params) -> Result<Self, EngineError> {
-        Ok(Self {
-            engine: (TRACK_FILTER_EKF.build)(&Deployment::from(sc), p)?,
-            sc: sc.clone(),
-            last_model: None,
-        })
-    }
-}
-
 impl ReplayEstimator for MultiTracker {
+    fn association(&self) -> Option<AssociationStats> {
+        Some(self.engine.association())
+    }
+
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
         let geo = geometry(&self.sc);
         // One scan per sensor (measurements come sorted by sensor id).
@@ -445,7 +474,8 @@ mod tests {
     use serde_json::json;
 
     use super::*;
-    use crate::registry::TRACK_FILTERS;
+    use crate::AssociatorInfo;
+    use crate::registry::{ASSOCIATORS, TRACK_FILTERS};
 
     /// A planar deployment for every track filter: CV and two CT modes (`imm`, `cimm`), a road
     /// across the region (`cimm`), 1 s scans from two sensors.
@@ -469,6 +499,7 @@ mod tests {
             roads: vec![road],
             scan_period_s: 1.0,
             sensors: 2,
+            detection: None,
         }
     }
 
@@ -514,56 +545,78 @@ mod tests {
     }
 
     /// The list the live service keeps from the outcomes equals the engine's snapshot after
-    /// every scan, for every track filter, through births, confirmations, updates, misses and
-    /// deletions, and after a change of track filter half-way (the list restarts from the new
-    /// engine's snapshot, as the tracker actor does).
+    /// every scan, for every track filter and associator, through births, confirmations,
+    /// updates, misses and deletions, and after a change of track filter and associator
+    /// half-way (the list restarts from the new engine's snapshot, as the tracker actor does;
+    /// the ids are kept).
     #[test]
     fn the_changed_views_keep_the_track_list_equal_to_the_snapshot() {
         let d = deployment();
         let scans = scans(11);
         assert!(scans.len() > 300, "{} scans", scans.len());
-        for (f, info) in TRACK_FILTERS.iter().enumerate() {
-            let mut engine = (info.build)(&d, &Params::default()).expect(info.name);
-            let mut tracks = engine.snapshot();
-            let mut seen = [0usize; 5];
-            for (i, scan) in scans.iter().enumerate() {
-                if i == scans.len() / 2 {
-                    let next = &TRACK_FILTERS[(f + 1) % TRACK_FILTERS.len()];
-                    let mut other = (next.build)(&d, &Params::default()).expect(next.name);
-                    other.adopt(&engine.handover()).expect("a handover");
-                    engine = other;
-                    tracks = engine.snapshot();
-                }
-                let outcome = engine.ingest(scan).expect("a scan");
-                let ids: Vec<u64> = outcome.changed.iter().map(|k| k.id).collect();
-                assert!(ids.is_sorted(), "{}: changed views out of order", info.name);
-                let (after, events) = outcome.apply(&tracks);
-                tracks = after;
-                assert_eq!(tracks, engine.snapshot(), "{}, scan {i}", info.name);
-                for e in &events {
-                    let kind = match e {
-                        TrackEvent::Born { .. } => 0,
-                        TrackEvent::Confirmed { .. } => 1,
-                        TrackEvent::Updated { .. } => 2,
-                        TrackEvent::Coasted { .. } => 3,
-                        TrackEvent::Deleted { .. } => 4,
-                        TrackEvent::Rejected { .. } => continue,
-                    };
-                    seen[kind] += 1;
-                }
+        // Each time's detections come as two scans, so a target is in one of them: P_D 0.45
+        // per scan for the associators that take it.
+        let params = |a: &AssociatorInfo| {
+            if a.params.iter().any(|p| p.0 == "pd") {
+                Params::default().with("pd", 0.45)
+            } else {
+                Params::default()
             }
-            // Every kind of change happened (born, confirmed, updated, coasted, deleted).
-            assert!(seen.iter().all(|&n| n > 0), "{}: {seen:?}", info.name);
-            assert!(
-                tracks
-                    .iter()
-                    .filter(|k| k.status == crate::TrackStatus::Confirmed)
-                    .count()
-                    >= 4,
-                "{}: {} tracks",
-                info.name,
-                tracks.len()
-            );
+        };
+        for (f, info) in TRACK_FILTERS.iter().enumerate() {
+            for (a, assoc) in ASSOCIATORS.iter().enumerate() {
+                let name = format!("{} + {}", info.name, assoc.name);
+                let p = params(assoc);
+                let mut engine =
+                    (info.build)(&d, &p, (assoc.build)(&d, &p).expect(&name)).expect(&name);
+                let mut tracks = engine.snapshot();
+                let mut seen = [0usize; 5];
+                for (i, scan) in scans.iter().enumerate() {
+                    if i == scans.len() / 2 {
+                        let next = &TRACK_FILTERS[(f + 1) % TRACK_FILTERS.len()];
+                        let other_assoc = &ASSOCIATORS[(a + 1) % ASSOCIATORS.len()];
+                        let q = params(other_assoc);
+                        let mut other =
+                            (next.build)(&d, &q, (other_assoc.build)(&d, &q).expect(&name))
+                                .expect(next.name);
+                        other.adopt(&engine.handover()).expect("a handover");
+                        let ids = |e: &dyn TrackEngine| -> Vec<u64> {
+                            e.snapshot().iter().map(|k| k.id).collect()
+                        };
+                        assert_eq!(ids(other.as_ref()), ids(engine.as_ref()), "{name}");
+                        engine = other;
+                        tracks = engine.snapshot();
+                    }
+                    let outcome = engine.ingest(scan).expect("a scan");
+                    let ids: Vec<u64> = outcome.changed.iter().map(|k| k.id).collect();
+                    assert!(ids.is_sorted(), "{name}: changed views out of order");
+                    let (after, events) = outcome.apply(&tracks);
+                    tracks = after;
+                    assert_eq!(tracks, engine.snapshot(), "{name}, scan {i}");
+                    for e in &events {
+                        let kind = match e {
+                            TrackEvent::Born { .. } => 0,
+                            TrackEvent::Confirmed { .. } => 1,
+                            TrackEvent::Updated { .. } => 2,
+                            TrackEvent::Coasted { .. } => 3,
+                            TrackEvent::Deleted { .. } => 4,
+                            TrackEvent::Rejected { .. } => continue,
+                        };
+                        seen[kind] += 1;
+                    }
+                }
+                // Every kind of change happened (born, confirmed, updated, coasted, deleted).
+                assert!(seen.iter().all(|&n| n > 0), "{name}: {seen:?}");
+                assert!(
+                    tracks
+                        .iter()
+                        .filter(|k| k.status == crate::TrackStatus::Confirmed)
+                        .count()
+                        >= 4,
+                    "{name}: {} tracks",
+                    tracks.len()
+                );
+            }
         }
     }
 }

@@ -219,6 +219,7 @@ pub(super) fn scenario_document(
         linear_system: None,
         hints: json!({}),
         scoring: fmt::Scoring::default(),
+        detection: None,
     };
     let generator = fmt::Generator {
         family: "harrier sessions export".into(),

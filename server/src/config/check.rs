@@ -48,6 +48,12 @@ impl Config {
                 t.reorder_window_s
             ));
         }
+        if !(t.late_lag_s.is_finite() && (0.0..=60.0).contains(&t.late_lag_s)) {
+            return bad(format!(
+                "tracker.late_lag_s must be in [0, 60] s, got {}",
+                t.late_lag_s
+            ));
+        }
         if !(t.scan_period_s.is_finite() && t.scan_period_s > 0.0) {
             return bad(format!(
                 "tracker.scan_period_s must be > 0, got {}",

@@ -98,6 +98,7 @@ impl Config {
             roads: t.roads.clone(),
             scan_period_s: t.scan_period_s,
             sensors: 1,
+            detection: None,
         }
     }
 }

@@ -210,11 +210,18 @@ pub struct TrackerConfig {
     /// The track filter (`ekf`, `cdkf`, `imm`, `cimm`; `GET /api/v1/estimators`). The key keeps
     /// the name `estimator`, as `PUT /api/v1/estimator` does: both select the track filter.
     pub estimator: String,
+    /// The associator (`gnn`, `jipda`, `mht`; `GET /api/v1/estimators`), with any track filter;
+    /// `PUT /api/v1/estimator` changes it too.
+    pub associator: String,
     /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
-    /// of order are processed in time order; older ones are dropped as late.
+    /// of order are processed in time order.
     pub reorder_window_s: f64,
+    /// A scan older than the last processed one by at most this (s of scan time) updates the
+    /// tracks by retrodiction (harrier-core's `tracker::retrodict`); older ones are dropped as
+    /// late. 0: every scan older than the last processed one is dropped.
+    pub late_lag_s: f64,
     /// Nominal scan period (s): the scenario's `time.dt` (CIMM's road velocity noise).
     pub scan_period_s: f64,
     /// Motion models (`gcs-scenario/1` `motion` block: `accel_std`, `models`, …).
@@ -365,8 +372,10 @@ impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             estimator: "ekf".into(),
+            associator: "gnn".into(),
             params: Default::default(),
             reorder_window_s: 0.1,
+            late_lag_s: 2.0,
             scan_period_s: 1.0,
             motion: Motion::cv(1.0),
             roads: Vec::new(),

@@ -165,6 +165,7 @@ mod tests {
             age: 5,
             last_update: 1_795_430_412.5,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

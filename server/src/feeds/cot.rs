@@ -401,6 +401,7 @@ mod tests {
             age: 5,
             last_update: 1_790_000_000.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         };
         let settings = CotSettings {
             cot_type: "a-u-G".into(),

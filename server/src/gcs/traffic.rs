@@ -119,6 +119,7 @@ mod tests {
             age: 30,
             last_update: 97.5,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

@@ -765,6 +765,7 @@ mod tests {
             age: 3,
             last_update: 100.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         };
         let e = predict(&track, 100.5);
         assert_eq!(e.position, Vector3::new(1.0, -0.5, 0.0));

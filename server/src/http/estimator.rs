@@ -1,5 +1,6 @@
-//! `GET /estimator`, `PUT /estimator`, `GET /estimators`: the track filter the tracker runs,
-//! changing it at run time (the live tracks are handed over), and the ones it can run.
+//! `GET /estimator`, `PUT /estimator`, `GET /estimators`: the track filter and the associator the
+//! tracker runs, changing them at run time (the live tracks are handed over), and the ones it
+//! can run.
 
 use std::collections::BTreeMap;
 
@@ -14,7 +15,7 @@ use super::error::{ApiError, ErrorBody};
 use super::extract::AppJson;
 use super::state::{ApiState, Tracking};
 use crate::tracker::{Command, TrackFilterState};
-use harrier_engine::registry::TRACK_FILTERS;
+use harrier_engine::registry::{ASSOCIATORS, TRACK_FILTERS};
 
 /// The routes of this file.
 pub(super) fn routes() -> Router<ApiState> {
@@ -49,6 +50,10 @@ pub struct EstimatorChange {
     /// Parameters, name → value (the others default).
     #[serde(default)]
     pub params: BTreeMap<String, f64>,
+    /// Associator name (`GET /api/v1/estimators`); absent: the running one.
+    #[serde(default)]
+    #[schema(schema_with = associator_names)]
+    pub associator: Option<String>,
 }
 
 /// The schema of an estimator name: one of [`TRACK_FILTERS`].
@@ -60,7 +65,19 @@ fn estimator_names() -> utoipa::openapi::Object {
         .build()
 }
 
-/// Changes the estimator; the live tracks are handed over (ids, status and estimates kept).
+/// The schema of an associator name: one of [`ASSOCIATORS`].
+fn associator_names() -> utoipa::openapi::Object {
+    utoipa::openapi::ObjectBuilder::new()
+        .schema_type(utoipa::openapi::schema::Type::String)
+        .enum_values(Some(ASSOCIATORS.iter().map(|a| a.name)))
+        .description(Some(
+            "Associator name (`GET /api/v1/estimators`); absent: the running one",
+        ))
+        .build()
+}
+
+/// Changes the track filter and, when given, the associator; the live tracks are handed over
+/// (ids, status, estimates and existence kept).
 #[utoipa::path(put, path = "/api/v1/estimator", tag = "control", request_body = EstimatorChange,
     responses(
         (status = 200, description = "Now running", body = TrackFilterState),
@@ -78,8 +95,12 @@ async fn put_estimator(
 ) -> Result<Json<TrackFilterState>, ApiError> {
     let gone = || ApiError::unavailable("stopped", "the tracker is not running");
     let (reply, answer) = oneshot::channel();
+    let associator = change
+        .associator
+        .unwrap_or_else(|| s.snapshot.borrow().estimator.associator.clone());
     let to = TrackFilterState {
         name: change.name,
+        associator,
         params: change.params,
     };
     s.commands
@@ -115,9 +136,27 @@ pub struct EstimatorInfoBody {
 pub struct EstimatorsBody {
     /// Every track estimator.
     estimators: Vec<EstimatorInfoBody>,
+    /// Every associator (any runs with any track estimator).
+    associators: Vec<EstimatorInfoBody>,
 }
 
-/// The track estimators that can run live.
+/// The body of a named entry of the registry.
+fn info_body(
+    name: &'static str,
+    summary: &'static str,
+    params: &'static [(&'static str, &'static str)],
+) -> EstimatorInfoBody {
+    EstimatorInfoBody {
+        name,
+        summary,
+        params: params
+            .iter()
+            .map(|&(name, description)| ParamInfo { name, description })
+            .collect(),
+    }
+}
+
+/// The track estimators and the associators that can run live.
 #[utoipa::path(get, path = "/api/v1/estimators", tag = "control",
     responses(
         (status = 200, body = EstimatorsBody),
@@ -128,15 +167,11 @@ async fn estimators() -> Json<EstimatorsBody> {
     Json(EstimatorsBody {
         estimators: TRACK_FILTERS
             .iter()
-            .map(|e| EstimatorInfoBody {
-                name: e.name,
-                summary: e.summary,
-                params: e
-                    .params
-                    .iter()
-                    .map(|&(name, description)| ParamInfo { name, description })
-                    .collect(),
-            })
+            .map(|e| info_body(e.name, e.summary, e.params))
+            .collect(),
+        associators: ASSOCIATORS
+            .iter()
+            .map(|a| info_body(a.name, a.summary, a.params))
             .collect(),
     })
 }
@@ -152,7 +187,10 @@ mod tests {
         let app = TestApp::new();
         let r = app.get("/api/v1/estimator").await;
         assert_eq!(r.status, StatusCode::OK);
-        assert_eq!(r.json(), serde_json::json!({"name": "ekf", "params": {}}));
+        assert_eq!(
+            r.json(),
+            serde_json::json!({"name": "ekf", "associator": "gnn", "params": {}})
+        );
         let list = app.get("/api/v1/estimators").await.json();
         let names: Vec<&str> = list["estimators"]
             .as_array()
@@ -170,6 +208,48 @@ mod tests {
         assert_eq!(r.status, StatusCode::OK);
         assert_eq!(r.json()["name"], "cdkf");
         assert_eq!(app.get("/api/v1/estimator").await.json()["name"], "cdkf");
+        // The associators are listed, and one is chosen with its parameters; the next change
+        // without one keeps it.
+        let associators: Vec<&str> = list["associators"]
+            .as_array()
+            .expect("associators")
+            .iter()
+            .filter_map(|e| e["name"].as_str())
+            .collect();
+        assert_eq!(associators, ["gnn", "jipda", "mht"]);
+        let r = app
+            .send(
+                Method::PUT,
+                "/api/v1/estimator",
+                r#"{"name":"ekf","associator":"jipda","params":{"pd":0.8}}"#,
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::OK);
+        assert_eq!(
+            r.json(),
+            serde_json::json!({"name": "ekf", "associator": "jipda", "params": {"pd": 0.8}})
+        );
+        let r = app
+            .send(Method::PUT, "/api/v1/estimator", r#"{"name":"imm"}"#)
+            .await;
+        assert_eq!(r.json()["associator"], "jipda");
+        let r = app
+            .send(
+                Method::PUT,
+                "/api/v1/estimator",
+                r#"{"name":"imm","associator":"nope"}"#,
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::UNPROCESSABLE_ENTITY);
+        assert!(
+            r.error().contains("unknown associator \"nope\""),
+            "{}",
+            r.error()
+        );
+        assert_eq!(
+            app.get("/api/v1/estimator").await.json()["associator"],
+            "jipda"
+        );
     }
 
     #[tokio::test]

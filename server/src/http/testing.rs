@@ -77,16 +77,10 @@ impl TestApp {
     pub(super) fn with_queue(ws_queue: usize) -> Self {
         let config = Config::default();
         let deployment = config.deployment();
-        let estimator = TrackFilterState {
-            name: config.tracker.estimator.clone(),
-            params: config.tracker.params.clone(),
-        };
-        let engine = harrier_engine::registry::build_track_filter(
-            &estimator.name,
-            &deployment,
-            &config.params(),
-        )
-        .expect("the default track engine");
+        let estimator = TrackFilterState::of(&config.tracker);
+        let engine = estimator
+            .build(&deployment)
+            .expect("the default track engine");
         let metrics = Arc::new(Metrics::default());
         let recent = Arc::new(Recent::default());
         let (snapshot_tx, snapshot) = watch::channel(Arc::new(Snapshot::default()));

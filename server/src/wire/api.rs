@@ -38,6 +38,9 @@ pub struct TrackDto {
     pub last_update: f64,
     /// Mode probabilities of an IMM track (empty otherwise).
     pub mode_probabilities: Vec<f64>,
+    /// Probability that the track follows a real target (the `jipda` and `mht` associators;
+    /// `null` under `gnn`).
+    pub existence: Option<f64>,
     /// 95 % position ellipse over (x, y); `null` when the covariance lacks them.
     pub ellipse_95: Option<Ellipse>,
     /// 95 % position ellipsoid over (x, y, z); `null` for planar tracks.
@@ -57,6 +60,7 @@ impl From<&TrackView> for TrackDto {
             age: k.age,
             last_update: k.last_update,
             mode_probabilities: k.mode_probabilities.clone(),
+            existence: k.existence,
             ellipse_95: Ellipse::of(k),
             ellipsoid_95: Ellipsoid::of(k),
         }
@@ -423,6 +427,7 @@ mod tests {
             age: 7,
             last_update: 10.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 
@@ -437,6 +442,7 @@ mod tests {
                     [0.0, 0.0, 0.0, 1.0]],
             "cov_dims": [0, 1, 3, 4], "updated": true, "age": 7, "last_update": 10.0,
             "mode_probabilities": [],
+            "existence": null,
             "ellipse_95": {"semi_axes": [a, b], "angle_rad": 0.0},
             "ellipsoid_95": null,
         })
@@ -524,6 +530,7 @@ mod tests {
             vehicles: Arc::new(Vec::new()),
             estimator: Arc::new(TrackFilterState {
                 name: "ekf".into(),
+                associator: "gnn".into(),
                 params: BTreeMap::new(),
             }),
         };
@@ -560,7 +567,7 @@ mod tests {
                 "tracks": [planar_json(4, "tentative")],
                 "vehicles": [{"id": 2, "link": null, "detections": null, "clock": null,
                               "clock_refused": 0}],
-                "estimator": {"name": "", "params": {}},
+                "estimator": {"name": "", "associator": "", "params": {}},
             })
         );
         let m = WsMessage::Vehicles(VehiclesMessage {

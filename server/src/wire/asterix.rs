@@ -320,6 +320,7 @@ mod tests {
             age: 30,
             last_update: 100.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

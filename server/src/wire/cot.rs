@@ -446,6 +446,7 @@ mod tests {
             age: 30,
             last_update: 1_790_000_000.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 

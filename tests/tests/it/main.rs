@@ -20,6 +20,7 @@
 //! A new test file goes here as a module (`mod name;` below), not as a new `tests/*.rs` binary.
 
 mod api_clients;
+mod association;
 mod autopilots;
 mod bearings;
 mod cimm;
@@ -34,6 +35,7 @@ mod fuzz_regressions;
 mod guidance;
 mod handoff;
 mod http_limits;
+mod late_scans;
 mod live_server;
 mod mavlink_gcs;
 mod mavproxy_client;

@@ -25,8 +25,8 @@ use harrier_core::tracker::format::MultiScenario;
 use harrier_core::tracker::generate::{GenConfig, generate};
 use harrier_core::tracker::metrics::{Continuity, ContinuityReport, GospaParts, gospa};
 use harrier_core::tracker::{
-    Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator, TrackFilter, Tracker,
-    TrackerConfig,
+    Association, Deleter, Gater, GaussianFilter, ImmFilter, MOfN, SinglePointInitiator,
+    TrackFilter, Tracker, TrackerConfig,
 };
 use nalgebra::{Vector2, Vector3, Vector4};
 use rand::{Rng, SeedableRng};
@@ -66,6 +66,7 @@ where
         tentative_gater: Gater::chi2(0.95, 2).unwrap(),
         confirm: MOfN::new(2, 4).unwrap(),
         deleter: Deleter::new(5, 1e5, 2).unwrap(),
+        association: Association::Gnn,
     };
     let init = SinglePointInitiator::new(12.0, 50.0).unwrap();
     let mut tracker = Tracker::new(filter, init, config);
@@ -194,6 +195,7 @@ fn live_tracker<F: TrackFilter<4>>(filter: F, misses: u32) -> Tracker<F, SingleP
         tentative_gater: Gater::chi2(0.95, 2).unwrap(),
         confirm: MOfN::new(2, 4).unwrap(),
         deleter: Deleter::new(misses, 1e5, 2).unwrap(),
+        association: Association::Gnn,
     };
     Tracker::new(
         filter,

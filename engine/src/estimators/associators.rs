@@ -1,0 +1,160 @@
+//! The associators of the multi-target tracker by name ([`AssociatorInfo`]s, listed by
+//! [`crate::registry::ASSOCIATORS`]): `gnn` (global nearest neighbour, M-of-N), `jipda` (joint
+//! integrated probabilistic data association with track existence) and `mht` (the multi-scan,
+//! track-oriented MHT), each built from a [`Deployment`] (its `detection` block gives `P_D`) and
+//! `--param` settings into harrier-core's [`Association`]. Any of them runs with any track filter
+//! ([`multi_target`](super::multi_target)).
+
+use harrier_core::tracker::existence::Existence;
+use harrier_core::tracker::{Association, DetectionModel, Jipda, Mht};
+
+use super::count;
+use crate::{AssociatorInfo, Deployment, EngineError, Params, setup};
+
+/// The soft and multi-scan associators' sensor and existence parameters.
+const EXISTENCE_PARAMS: [(&str, &str); 7] = [
+    (
+        "pd",
+        "detection probability per scan (default detection.pd of the scenario, else 0.9)",
+    ),
+    (
+        "clutter_density",
+        "clutter per unit of measurement space, per m² for planar position sensors (default \
+         detection.clutter_rate / region area for those, else estimated from each scan)",
+    ),
+    (
+        "survival",
+        "probability that a target persists one second (default 0.995)",
+    ),
+    (
+        "existence_initial",
+        "existence of a track started from one detection (default 0.1)",
+    ),
+    (
+        "existence_confirm",
+        "existence that confirms a track (default 0.9)",
+    ),
+    (
+        "existence_delete",
+        "existence below which a track is deleted (default 0.01)",
+    ),
+    (
+        "birth",
+        "a detection that is no track's with at least this probability starts one (default 0.5)",
+    ),
+];
+
+/// `jipda`'s parameters.
+const JIPDA_PARAMS: &[(&str, &str)] = &[
+    EXISTENCE_PARAMS[0],
+    EXISTENCE_PARAMS[1],
+    EXISTENCE_PARAMS[2],
+    EXISTENCE_PARAMS[3],
+    EXISTENCE_PARAMS[4],
+    EXISTENCE_PARAMS[5],
+    EXISTENCE_PARAMS[6],
+    (
+        "max_net_nodes",
+        "nodes per layer of a cluster's EHM net before it is cut, counted (default 10000)",
+    ),
+];
+
+/// `gnn`: global nearest neighbour.
+pub const ASSOCIATOR_GNN: AssociatorInfo = AssociatorInfo {
+    name: "gnn",
+    summary: "global nearest neighbour: one optimal assignment per cluster and scan, M-of-N \
+              confirmation, deletion after misses",
+    params: &[],
+    build: |_, _| Ok(Association::Gnn),
+};
+
+/// `jipda`: joint integrated probabilistic data association.
+pub const ASSOCIATOR_JIPDA: AssociatorInfo = AssociatorInfo {
+    name: "jipda",
+    summary: "joint integrated PDA: exact marginals (EHM) per cluster, mixture update, track \
+              existence confirms and deletes",
+    params: JIPDA_PARAMS,
+    build: |d, p| {
+        Ok(Association::Jipda(Jipda {
+            detection: detection_model(d, p)?,
+            existence: existence(p)?,
+            birth: unit(p, "birth", 0.5)?,
+            max_net_nodes: count(p, "max_net_nodes", 10_000)? as usize,
+        }))
+    },
+};
+
+/// `mht`'s parameters.
+const MHT_PARAMS: &[(&str, &str)] = &[
+    EXISTENCE_PARAMS[0],
+    EXISTENCE_PARAMS[1],
+    EXISTENCE_PARAMS[2],
+    EXISTENCE_PARAMS[3],
+    EXISTENCE_PARAMS[4],
+    EXISTENCE_PARAMS[5],
+    (
+        "window",
+        "scans of the sliding window; a scan's association is final window − 1 scans later \
+         (default 3)",
+    ),
+    ("max_leaves", "hypotheses per track (default 16)"),
+    (
+        "max_hypotheses",
+        "hypotheses of all tracks together (default 100000)",
+    ),
+    (
+        "max_search",
+        "nodes a cluster's global-hypothesis search visits before it keeps its best so far, \
+         counted (default 100000)",
+    ),
+    (
+        "hysteresis",
+        "log-likelihood ratio by which another hypothesis must beat the reported one to replace \
+         it (default 0)",
+    ),
+];
+
+/// `mht`: the multi-scan associator.
+pub const ASSOCIATOR_MHT: AssociatorInfo = AssociatorInfo {
+    name: "mht",
+    summary: "multi-scan: track-oriented MHT over a sliding window (N-scan pruning), the best \
+              global hypothesis reported, track existence confirms and deletes",
+    params: MHT_PARAMS,
+    build: |d, p| {
+        Ok(Association::Mht(Mht::new(
+            detection_model(d, p)?,
+            existence(p)?,
+            count(p, "window", 3)? as usize,
+            count(p, "max_leaves", 16)? as usize,
+            count(p, "max_hypotheses", 100_000)? as usize,
+            count(p, "max_search", 100_000)? as usize,
+            p.get("hysteresis", 0.0),
+        )?))
+    },
+};
+
+/// `P_D` and the clutter density of `--param pd`, `--param clutter_density`, or the
+/// deployment's `detection` (the density itself is set per scan by the engine).
+fn detection_model(d: &Deployment, p: &Params) -> Result<DetectionModel, EngineError> {
+    let pd = p.get("pd", d.detection.as_ref().map_or(0.9, |x| x.pd).min(0.999));
+    Ok(DetectionModel::new(pd, p.opt("clutter_density"))?)
+}
+
+/// The existence chain and thresholds of the parameters.
+fn existence(p: &Params) -> Result<Existence, EngineError> {
+    Ok(Existence::new(
+        p.get("survival", 0.995),
+        p.get("existence_initial", 0.1),
+        p.get("existence_confirm", 0.9),
+        p.get("existence_delete", 0.01),
+    )?)
+}
+
+/// A probability parameter in [0, 1].
+fn unit(p: &Params, name: &str, default: f64) -> Result<f64, EngineError> {
+    let v = p.get(name, default);
+    if !(0.0..=1.0).contains(&v) {
+        return Err(setup(format!("--param {name} must be in [0, 1]")));
+    }
+    Ok(v)
+}
