@@ -412,7 +412,8 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     if config.vehicles == 0 {
         return Err(DemoError::Invalid("--vehicles must be ≥ 1".into()));
     }
-    if config.personalities().len() > 255 {
+    let fleet = config.personalities();
+    if fleet.len() > 255 {
         return Err(DemoError::Invalid("--fleet: at most 255 vehicles".into()));
     }
     let scenario = scenario_with_car(car_and_standoff_speeds(config).0)?;
