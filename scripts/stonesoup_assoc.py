@@ -25,9 +25,13 @@ update) from the detections no track took, and deleted after 5 scans without an 
 initiation, deletion), mean over the scans, and the process CPU time per scan (which other load
 on a shared machine inflates less).
 
-    pip install stonesoup==1.9.1 pyehm==2.2 ortools      # in a venv of its own
+    eval "$(scripts/setup --env)"                          # the test venv (numpy, scipy)
+    python3 -m pip install stonesoup==1.9.1 pyehm==2.2 ortools  # ad hoc: not in the CI lock
     harrier track-eval --seeds 1-10 --write /tmp/groups  # Harrier's figures + the scenarios
     python3 scripts/stonesoup_assoc.py --harrier target/release/harrier /tmp/groups/*
+
+Stone Soup is slow on dense clutter (minutes per scenario on a shared 2-core machine): pass a
+subset of the directories (BENCHMARKS.md says which were run).
 """
 import argparse
 import json

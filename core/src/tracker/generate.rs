@@ -216,7 +216,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
             }),
         },
     }
-    .to_json()?;
+    .into_json()?;
     Ok(Generated {
         scenario_json,
         measurements_jsonl: files.meas,
@@ -317,7 +317,7 @@ struct Doc {
 }
 
 impl Doc {
-    fn to_json(self) -> Result<String> {
+    fn into_json(self) -> Result<String> {
         use crate::scenario as fmt;
         let target = |id: String| fmt::Target {
             id,

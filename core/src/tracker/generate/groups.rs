@@ -362,7 +362,7 @@ pub fn generate(seed: u64, cfg: &GroupConfig) -> Result<super::Generated> {
             }),
         },
     }
-    .to_json()?;
+    .into_json()?;
     Ok(super::Generated {
         scenario_json,
         measurements_jsonl: files.meas,
