@@ -250,6 +250,7 @@ mod tests {
             age: 5,
             last_update: 10.0,
             mode_probabilities: Vec::new(),
+            existence: None,
         }
     }
 
