@@ -17,7 +17,7 @@
 //! is used twice, maximising the summed scores (the MAP assignment over the window; a confirmed
 //! tree always keeps one of its leaves when any is compatible): the trees are split into
 //! clusters that share detections, and each cluster is solved exactly by branch and bound
-//! ([`solve`]; a search stopped at its node budget keeps the best assignment found, the first of
+//! (`solve`; a search stopped at its node budget keeps the best assignment found, the first of
 //! which is the greedy one, and is counted). The tracks reported are the global hypothesis'
 //! leaves, so a track's estimate may change with the hypothesis but its id does not: an id is a
 //! tree.

@@ -473,8 +473,8 @@ where
     /// [`Tracker::step`] for a sensor whose kind is known only at run time: each detection is a
     /// slice of [`SensorModel::dim`] components. With a retrodiction lag
     /// ([`Tracker::set_retrodiction_lag`]) it also takes a scan up to the lag older than the
-    /// tracker's time ([`late`](self::late)). Fails, leaving the tracker untouched, when a
-    /// detection has the wrong length or the scan is older than the lag allows.
+    /// tracker's time ([`retrodict`](crate::tracker::retrodict)). Fails, leaving the tracker
+    /// untouched, when a detection has the wrong length or the scan is older than the lag allows.
     pub fn step_any(
         &mut self,
         t: f64,

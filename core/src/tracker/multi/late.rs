@@ -76,8 +76,8 @@ where
     I: Initiator<N>,
 {
     /// Keeps every track's updates of the last `lag` seconds, so that [`Tracker::step_any`]
-    /// takes scans up to `lag` older than the tracker's time (see [the module](self)); `0`
-    /// turns it off (and forgets the logs). Tracks logged from the next scan on. Fails for a
+    /// takes scans up to `lag` older than the tracker's time (see
+    /// [`retrodict`](crate::tracker::retrodict)); `0` turns it off (and forgets the logs). Tracks logged from the next scan on. Fails for a
     /// negative or non-finite lag, or a non-zero one with the multi-scan associator.
     pub fn set_retrodiction_lag(&mut self, lag: f64) -> Result<()> {
         if !(lag >= 0.0 && lag.is_finite()) {
