@@ -41,6 +41,10 @@ use super::filter::TrackFilter;
 use crate::measurement::{Locate, MeasurementModel, SensorModel, WithSensor};
 use crate::{EstimationError, Result};
 
+/// The most updates a track's log holds: 10 updates a second from 4 sensors over a 2-s lag (a
+/// track updated faster keeps a shorter window).
+pub const MAX_LOGGED: usize = 80;
+
 /// One update of a track: when, under which sensor model, with which detections, and the
 /// track's filter state after it. A hard association (GNN, MHT) used one detection with weight 1;
 /// a soft one (JIPDA) the mixture of its gated detections with their marginal probabilities `βⱼ`
@@ -118,12 +122,16 @@ impl<S: Clone> UpdateLog<S> {
 
     /// Appends an update newer than (or as new as) every one held, then forgets those no late
     /// detection within `lag` of it can need: every entry before the newest one at or before
-    /// `t − lag`.
+    /// `t − lag`; and beyond [`MAX_LOGGED`] entries the oldest (memory stays bounded when a
+    /// track is updated faster than the lag foresees: a detection older than the log is then
+    /// refused, as one older than the lag).
     pub fn record(&mut self, update: LoggedUpdate<S>, lag: f64) {
         debug_assert!(self.entries.back().is_none_or(|b| b.t <= update.t));
         let horizon = update.t - lag;
         self.entries.push_back(update);
-        while self.entries.len() > 1 && self.entries[1].t <= horizon {
+        while self.entries.len() > 1 && self.entries[1].t <= horizon
+            || self.entries.len() > MAX_LOGGED
+        {
             self.entries.pop_front();
         }
     }
@@ -509,5 +517,20 @@ mod tests {
         );
         assert_eq!(now, 135.0);
         assert!(LoggedUpdate::new(1.0, position(1.0), &[1.0], ()).is_none());
+    }
+
+    /// A track updated faster than the lag foresees keeps only the newest `MAX_LOGGED` updates.
+    #[test]
+    fn the_log_is_bounded() {
+        let mut log = UpdateLog::new();
+        for k in 0..1000 {
+            let t = f64::from(k) * 1e-3;
+            log.record(
+                LoggedUpdate::new(t, position(1.0), &[t, 0.0], t).unwrap(),
+                2.0,
+            );
+        }
+        assert_eq!(log.entries().len(), MAX_LOGGED);
+        assert!(!log.covers(0.5) && log.covers(0.95));
     }
 }
