@@ -55,7 +55,16 @@ mod tests {
         };
         let text = doc.to_json().unwrap();
         assert!(text.ends_with("}\n"));
-        assert_eq!(Scenario::parse(&text).unwrap(), scenario);
+        // The `detection` extension is the multi-target one (FORMAT-MULTI.md): read back too.
+        let back = Scenario::parse(&text).unwrap();
+        assert_eq!(back.detection.as_ref().map(|d| d.pd), Some(0.9));
+        assert_eq!(
+            Scenario {
+                detection: None,
+                ..back
+            },
+            scenario
+        );
         let v: serde_json::Value = serde_json::from_str(&text).unwrap();
         assert_eq!(v["frame"]["type"], "ENU");
         assert_eq!(v["frame"]["origin_geodetic"]["lat_deg"], 47.0);
