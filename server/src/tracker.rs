@@ -754,7 +754,7 @@ mod tests {
         a.push(scan(4.0, "1"));
         a.release(f64::INFINITY);
         in_step(&a, &snap_rx);
-        let k = &snap_rx.borrow().tracks[0];
+        let k = snap_rx.borrow().tracks[0].clone();
         assert_eq!((k.id, k.updated), (before[0].id, true));
         assert_eq!(k.existence, None);
         // The associator too: the track keeps its id and gets an existence.
@@ -769,7 +769,7 @@ mod tests {
         a.push(scan(5.0, "1"));
         a.release(f64::INFINITY);
         in_step(&a, &snap_rx);
-        let k = &snap_rx.borrow().tracks[0];
+        let k = snap_rx.borrow().tracks[0].clone();
         assert_eq!((k.id, k.updated), (before[0].id, true));
         assert!(k.existence.is_some_and(|p| p > 0.5), "{k:?}");
         let bad = a.set_estimator(TrackFilterState {
