@@ -34,7 +34,7 @@ from pyproj import Transformer
 
 # The browser and its one page per module, the console's errors, the stress load and the way to ask
 # tests/tests/it/dashboard.rs: test_dashboard.py's.
-from test_dashboard import MAX_FRAME_MS, MIN_FPS, STRESS, Console, ask, browser, session  # noqa: F401 (fixtures)
+from test_dashboard import MAX_FRAME_MS, MIN_FPS, Console, ask, browser, session, stress  # noqa: F401 (fixtures)
 
 URL = os.environ["HARRIER_URL"].rstrip("/")
 SHOTS = pathlib.Path(os.environ.get("HARRIER_SCREENSHOTS", "target/screenshots"))
@@ -205,7 +205,7 @@ def test_the_geographic_map_runs_at_30_fps_with_20_tracks_and_10_uavs(session):
     page, _ = session
     page.click("button[data-view=map]")
     page.uncheck("[data-layer=bound]")
-    page.evaluate(STRESS)
+    page.evaluate(stress(20, 10))
     wait_map(page, lambda m: m["mode"] == "geo" and m["tracks"] >= 20 and m["uavs"] >= 10, 10.0, "the load drawn")
     time.sleep(2.0)
     windows = []

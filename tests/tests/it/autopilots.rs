@@ -8,8 +8,9 @@
 //! 5 % (multirotor) or 10 % (fixed wing) of R, every gap within 20° of 90°, for 2 s): |r − R| RMS
 //! ≤ 5 % of R for the multirotors and ≤ 10 % for the fixed wings, the phase-spacing error RMS ≤
 //! 15°, and, from the simulator's own physics over the whole flight, no fixed wing ever below its
-//! stall speed. The window is `HARRIER_FLEET_SECONDS` wall seconds (20 in CI, at
-//! 5× speed-up: 100 s of flight); BENCHMARKS.md has a long run.
+//! stall speed. The window is `HARRIER_FLEET_SECONDS` wall seconds (30 in CI, at
+//! 2× speed-up: 60 s of flight; 5× starved the simulator on a loaded machine and the ring never
+//! formed); BENCHMARKS.md has a long run.
 
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -104,10 +105,10 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
     let window_s: u64 = std::env::var("HARRIER_FLEET_SECONDS")
         .ok()
         .and_then(|s| s.parse().ok())
-        .unwrap_or(20);
+        .unwrap_or(30);
     runtime().block_on(within(240 + window_s, "the mixed fleet", async {
         let config = DemoConfig {
-            speedup: 5.0,
+            speedup: 2.0,
             seed: 3,
             radius: R,
             fleet: fleet.clone(),

@@ -348,7 +348,7 @@ fn the_dashboard_draws_the_demo_in_a_real_browser_and_reconnects() {
     );
     assert_eq!(restarts, 1, "the script asked for one restart");
     assert!(
-        output.contains("13 passed"),
+        output.contains("14 passed"),
         "every test ran (none skipped):\n{output}"
     );
     for name in [
