@@ -97,6 +97,14 @@ pub struct TrackHypotheses {
 }
 
 impl TrackHypotheses {
+    /// The NIS `d²` of detection `detection`, NaN when it is not in the gate.
+    pub fn nis(&self, detection: usize) -> f64 {
+        self.gated
+            .iter()
+            .find(|g| g.detection == detection)
+            .map_or(f64::NAN, |g| g.distance_sq)
+    }
+
     /// `ln N(z; ẑ, S) = −½ (d² + ln det S + M ln 2π)` of a gated detection at NIS `d2`.
     pub fn log_likelihood(&self, d2: f64) -> f64 {
         -0.5 * (d2 + self.ln_det_s + self.dim as f64 * (2.0 * std::f64::consts::PI).ln())

@@ -103,6 +103,16 @@ pub struct TrackerConfig {
     pub association: Association,
 }
 
+impl TrackerConfig {
+    /// The gate of a track of `status`.
+    pub fn gater_for(&self, status: TrackStatus) -> Gater {
+        match status {
+            TrackStatus::Confirmed => self.gater,
+            TrackStatus::Tentative => self.tentative_gater,
+        }
+    }
+}
+
 /// Life-cycle stage of a track.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TrackStatus {

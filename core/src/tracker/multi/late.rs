@@ -219,10 +219,7 @@ where
         // 2. Gate and assign.
         let gaters: Vec<_> = at
             .iter()
-            .map(|&i| match self.tracks[i].status {
-                TrackStatus::Confirmed => self.config.gater,
-                TrackStatus::Tentative => self.config.tentative_gater,
-            })
+            .map(|&i| self.config.gater_for(self.tracks[i].status))
             .collect();
         let states: Vec<_> = priors.iter().zip(&gaters).collect();
         let hyps: Vec<TrackHypotheses> = hypothesise_scan(&self.filter, &states, model, detections)
@@ -247,11 +244,7 @@ where
                 Ok(state) => {
                     k.state = state;
                     k.last_update = k.last_update.max(t);
-                    let nis = h
-                        .gated
-                        .iter()
-                        .find(|g| g.detection == d)
-                        .map_or(f64::NAN, |g| g.distance_sq);
+                    let nis = h.nis(d);
                     events.push(TrackEvent::Updated {
                         id: k.id,
                         detection: d,

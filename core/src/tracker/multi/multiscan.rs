@@ -82,10 +82,7 @@ where
         // Gate every leaf against the detections near it.
         let gaters: Vec<Gater> = trees
             .iter()
-            .map(|k| match k.status {
-                TrackStatus::Confirmed => self.config.gater,
-                TrackStatus::Tentative => self.config.tentative_gater,
-            })
+            .map(|k| self.config.gater_for(k.status))
             .collect();
         let states: Vec<(&F::State, &Gater)> = trees
             .iter()

@@ -77,10 +77,7 @@ where
         // detections near it.
         let gaters: Vec<_> = tracks
             .iter()
-            .map(|k| match k.status {
-                TrackStatus::Confirmed => self.config.gater,
-                TrackStatus::Tentative => self.config.tentative_gater,
-            })
+            .map(|k| self.config.gater_for(k.status))
             .collect();
         let states: Vec<_> = tracks
             .iter()
@@ -188,11 +185,7 @@ where
                 k.consecutive_misses = 0;
                 k.last_update = t;
                 updated = true;
-                let nis = h
-                    .gated
-                    .iter()
-                    .find(|g| g.detection == d)
-                    .map_or(f64::NAN, |g| g.distance_sq);
+                let nis = h.nis(d);
                 events.push(TrackEvent::Updated {
                     id: k.id,
                     detection: d,
