@@ -574,6 +574,41 @@ pub fn track_event(e: &serde_json::Value) -> (u64, i64) {
     (id, start)
 }
 
+/// A live server ([`harrier_server::start`]) with `config` made to listen on loopback only (the
+/// API on port 0, Zenoh on a free port, the GCS link on UDP port 0, no MAVLink router: tests run
+/// at once), on a runtime of its own; and the Zenoh endpoint it listens on.
+pub fn loopback_server(
+    mut config: harrier_server::config::Config,
+) -> (tokio::runtime::Runtime, harrier_server::LiveServer, String) {
+    let endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+    config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
+    config.zenoh.listen = vec![endpoint.clone()];
+    config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
+    let rt = runtime();
+    let server = rt
+        .block_on(within(
+            10,
+            "start the server",
+            harrier_server::start(&config),
+        ))
+        .expect("start the live server");
+    (rt, server, endpoint)
+}
+
+/// A Zenoh session (client of nobody else) connected to `endpoint`.
+pub async fn zenoh_client(endpoint: &str) -> zenoh::Session {
+    let bus = harrier_link::bus::BusConfig {
+        connect: vec![endpoint.to_owned()],
+        listen: Vec::new(),
+        ..harrier_link::bus::BusConfig::default()
+    }
+    .to_zenoh()
+    .expect("zenoh config");
+    within(10, "open a session", zenoh::open(bus))
+        .await
+        .expect("zenoh session")
+}
+
 /// A live server ([`harrier_server::start`]) on loopback fed over Zenoh with the scans of one
 /// standing target ([`publish_standing_target`]: vehicle [`Self::VEHICLE`] sees it at
 /// [`Self::TARGET`] from a platform standing at [`Self::PLATFORM`], 10 Hz), recording every
@@ -609,19 +644,8 @@ impl StandingTargetServer {
     /// Starts the server with `config` made to listen on loopback only (the API on port 0,
     /// Zenoh on a free port, the GCS link on UDP port 0, no MAVLink router: tests run at once),
     /// then the target's scans and the recording of the snapshot.
-    pub fn start(mut config: harrier_server::config::Config) -> Self {
-        let zenoh_port = free_tcp_port();
-        config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
-        config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
-        config.mavlink = harrier_server::config::MavlinkConfig::ephemeral();
-        let rt = runtime();
-        let server = rt
-            .block_on(within(
-                10,
-                "start the server",
-                harrier_server::start(&config),
-            ))
-            .expect("start the live server");
+    pub fn start(config: harrier_server::config::Config) -> Self {
+        let (rt, server, endpoint) = loopback_server(config);
         let seen = ConfirmedStates::default();
         let mut snapshot = server.snapshot();
         let recorder = {
@@ -645,16 +669,7 @@ impl StandingTargetServer {
             })
         };
         let (session, publisher) = rt.block_on(async {
-            let bus = harrier_link::bus::BusConfig {
-                connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
-                listen: Vec::new(),
-                ..harrier_link::bus::BusConfig::default()
-            }
-            .to_zenoh()
-            .expect("zenoh config");
-            let session = within(10, "open a session", zenoh::open(bus))
-                .await
-                .expect("zenoh session");
+            let session = zenoh_client(&endpoint).await;
             let publisher = publish_standing_target(
                 &session,
                 Self::VEHICLE,

@@ -9,9 +9,9 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{
     DETECTIONS_SCHEMA, Detection, DetectionScan, PlatformPose, detections_key,
 };
-use harrier_server::config::{Config, DEFAULT_ORIGIN, MavlinkConfig};
+use harrier_server::config::{Config, DEFAULT_ORIGIN};
 use harrier_server::metrics::DropReason;
-use harrier_tests::{free_tcp_port, http_get, runtime, within};
+use harrier_tests::{http_get, loopback_server, within, zenoh_client};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -23,32 +23,12 @@ const TARGET: [f64; 2] = [120.0, -60.0];
 
 #[test]
 fn scans_up_to_two_seconds_late_are_all_tracked() {
-    let mut config = Config::default();
+    let config = Config::default();
     assert_eq!(config.tracker.late_lag_s, 2.0, "the default lag");
-    let zenoh_port = free_tcp_port();
-    config.api.listen = std::net::SocketAddr::from(([127, 0, 0, 1], 0));
-    config.zenoh.listen = vec![format!("tcp/127.0.0.1:{zenoh_port}")];
-    config.mavlink = MavlinkConfig::ephemeral();
-    let rt = runtime();
-    let server = rt
-        .block_on(within(
-            10,
-            "start the server",
-            harrier_server::start(&config),
-        ))
-        .expect("start the live server");
+    let (rt, server, endpoint) = loopback_server(config);
 
     rt.block_on(async {
-        let bus = harrier_link::bus::BusConfig {
-            connect: vec![format!("tcp/127.0.0.1:{zenoh_port}")],
-            listen: Vec::new(),
-            ..harrier_link::bus::BusConfig::default()
-        }
-        .to_zenoh()
-        .expect("zenoh config");
-        let session = within(10, "open a session", zenoh::open(bus))
-            .await
-            .expect("zenoh session");
+        let session = zenoh_client(&endpoint).await;
         let mut publishers = Vec::new();
         for v in 1..=VEHICLES {
             let p = within(
