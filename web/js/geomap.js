@@ -15,6 +15,8 @@ const L = window.L;
 const RAD = Math.PI / 180;
 /** Leaflet's (and Web Mercator's) latitude limit (°). */
 const MAX_LAT = 85.0511287798;
+/** Where a stored point (a history's, a trail's) keeps its WGS-84 and its pixels in the view. */
+const GEODETIC = Symbol("geodetic");
 
 /** The canvas over the map: a Leaflet layer in the map's container, above the tiles. */
 const OverlayLayer = L
@@ -71,7 +73,6 @@ export class GeoMapView {
       return false;
     }
     this.frame = new EnuFrame(body.origin);
-    this.geodetic = new WeakMap(); // stored ENU points → [lat, lon, h]
     const map = L.map(this.el, { zoomAnimation: false, zoomSnap: 1, minZoom: 2, maxZoom: 21, worldCopyJump: false });
     this.map = map;
     const o = body.origin;
@@ -138,14 +139,22 @@ export class GeoMapView {
     return this.project(g[0], g[1]);
   }
 
-  /** `toScreen` of a point that never changes (`key`, its array): its WGS-84 is kept. */
+  /**
+   * `toScreen` of a point that never changes (`key`, its array): its WGS-84 is kept, and its
+   * pixels until the view changes (a trail or history is thousands of points a frame).
+   */
   toScreenCached(key, x, y) {
-    let g = this.geodetic.get(key);
-    if (!g) {
+    let g = key[GEODETIC];
+    if (!g || g.frame !== this.frame) {
       g = this.frame.toGeodetic(x, y, this.store.planeZ);
-      this.geodetic.set(key, g);
+      g.frame = this.frame;
+      key[GEODETIC] = g;
     }
-    return this.project(g[0], g[1]);
+    if (g.view !== this.view) {
+      g.view = this.view;
+      g.px = this.project(g[0], g[1]);
+    }
+    return g.px;
   }
 
   /** Canvas pixels of a latitude and longitude (°): Leaflet's spherical Mercator, inlined. */
@@ -166,7 +175,10 @@ export class GeoMapView {
     const k = (256 * 2 ** zoom) / (2 * Math.PI);
     const origin = map.getPixelOrigin();
     const pane = map.containerPointToLayerPoint([0, 0]);
-    this.view = { k, x0: 128 * 2 ** zoom - origin.x - pane.x, y0: 128 * 2 ** zoom - origin.y - pane.y };
+    const view = { k, x0: 128 * 2 ** zoom - origin.x - pane.x, y0: 128 * 2 ** zoom - origin.y - pane.y };
+    // The same object while the view stays: `toScreenCached` keeps pixels per view.
+    const v = this.view;
+    if (!v || v.k !== view.k || v.x0 !== view.x0 || v.y0 !== view.y0) this.view = view;
   }
 
   /** [lat, lon] under canvas pixels (Leaflet's own inverse; the tests check against it). */

@@ -8,7 +8,7 @@
 // `visible(px, py, r)` and `follow` (the followed track's id).
 
 import { Store } from "./store.js";
-import { colorFor, detectionPoint, detectionRay, fmtDist } from "./util.js";
+import { LABELLED_UAVS, SWARM_TRAIL, colorFor, detectionPoint, detectionRay, fmtDist } from "./util.js";
 
 export class Painter {
   constructor(store, layers) {
@@ -50,8 +50,8 @@ export class Painter {
    * those less than a pixel from the last one kept (a history of 200 updates is a few pixels
    * long at a wide view); the last point is always in.
    */
-  tracePath(ctx, pts, at) {
-    ctx.beginPath();
+  tracePath(ctx, pts, at, begin = true) {
+    if (begin) ctx.beginPath();
     let [lx, ly] = [NaN, NaN];
     const n = pts.length;
     for (let i = 0; i < n; i += 1) {
@@ -404,51 +404,74 @@ export class Painter {
   }
 
   drawVehicles(ctx, st) {
-    for (const v of this.store.vehicles.values()) {
-      if (!v.position) continue;
-      const lost = v.link && v.link.state === "lost";
-      const color = lost ? "#ff5d5d" : "#f4f7fb";
-      if (this.layers.trails && v.trail.length > 1) {
-        ctx.strokeStyle = "rgba(200,215,235,0.35)";
-        ctx.lineWidth = 1.2;
-        this.tracePath(ctx, v.trail, 1);
-        ctx.stroke();
-      }
-      const [px, py] = this.p.toScreen(v.position[0], v.position[1]);
-      if (!this.p.visible(px, py, 20)) continue;
-      ctx.save();
-      ctx.translate(px, py);
-      const heading = v.heading ?? 0;
-      ctx.rotate(heading); // clockwise from North = clockwise on screen from up
+    const shown = [];
+    for (const v of this.store.vehicles.values()) if (v.position) shown.push(v);
+    const swarm = shown.length > LABELLED_UAVS;
+    // Trails: one path for all of them (a swarm's: their newest points).
+    if (this.layers.trails) {
+      ctx.strokeStyle = "rgba(200,215,235,0.35)";
+      ctx.lineWidth = 1.2;
       ctx.beginPath();
-      ctx.moveTo(0, -11);
-      ctx.lineTo(7.5, 8);
-      ctx.lineTo(0, 4.5);
-      ctx.lineTo(-7.5, 8);
-      ctx.closePath();
-      ctx.fillStyle = color;
-      ctx.shadowColor = "rgba(0,0,0,0.6)";
-      ctx.shadowBlur = 4;
+      for (const v of shown) {
+        const t = swarm && v.trail.length > SWARM_TRAIL ? v.trail.slice(-SWARM_TRAIL) : v.trail;
+        if (t.length > 1) this.tracePath(ctx, t, 1, false);
+      }
+      ctx.stroke();
+    }
+    // Bodies: an arrow along the heading (clockwise from North = clockwise on screen from up),
+    // one path per colour; a soft shadow only while few are drawn.
+    const onScreen = [];
+    for (const v of shown) {
+      const [px, py] = this.p.toScreen(v.position[0], v.position[1]);
+      if (this.p.visible(px, py, 20)) onScreen.push({ v, px, py, lost: v.link?.state === "lost" });
+    }
+    for (const lost of [false, true]) {
+      ctx.beginPath();
+      let any = false;
+      for (const u of onScreen) {
+        if (u.lost !== lost) continue;
+        any = true;
+        const h = u.v.heading ?? 0;
+        const [c, s] = [Math.cos(h), Math.sin(h)];
+        const at = (x, y) => [u.px + x * c - y * s, u.py + x * s + y * c];
+        ctx.moveTo(...at(0, -11));
+        ctx.lineTo(...at(7.5, 8));
+        ctx.lineTo(...at(0, 4.5));
+        ctx.lineTo(...at(-7.5, 8));
+        ctx.closePath();
+      }
+      if (!any) continue;
+      ctx.fillStyle = lost ? "#ff5d5d" : "#f4f7fb";
+      if (!swarm) {
+        ctx.shadowColor = "rgba(0,0,0,0.6)";
+        ctx.shadowBlur = 4;
+      }
       ctx.fill();
       ctx.shadowBlur = 0;
       ctx.strokeStyle = "#0c1219";
       ctx.lineWidth = 1;
       ctx.stroke();
-      ctx.restore();
-      if (v.heading == null) {
-        ctx.strokeStyle = "rgba(244,247,251,0.5)";
-        ctx.beginPath();
-        ctx.arc(px, py, 14, 0, 2 * Math.PI);
-        ctx.stroke();
+    }
+    // No heading known: a ring around the arrow.
+    ctx.strokeStyle = "rgba(244,247,251,0.5)";
+    ctx.beginPath();
+    for (const u of onScreen) {
+      if (u.v.heading != null) continue;
+      ctx.moveTo(u.px + 14, u.py);
+      ctx.arc(u.px, u.py, 14, 0, 2 * Math.PI);
+    }
+    ctx.stroke();
+    ctx.font = "600 11.5px system-ui, sans-serif";
+    for (const { v, px, py, lost } of onScreen) {
+      if (!swarm || lost) {
+        const alt = v.position[2] - this.store.planeZ;
+        const label = `UAV ${v.label}  ${alt.toFixed(0)} m${lost ? "  LINK LOST" : ""}`;
+        const w = ctx.measureText(label).width;
+        ctx.fillStyle = "rgba(12,18,25,0.78)";
+        ctx.fillRect(px + 12, py + 4, w + 6, 16);
+        ctx.fillStyle = lost ? "#ff5d5d" : "#f4f7fb";
+        ctx.fillText(label, px + 15, py + 16);
       }
-      const alt = v.position[2] - this.store.planeZ;
-      const label = `UAV ${v.label}  ${alt.toFixed(0)} m${lost ? "  LINK LOST" : ""}`;
-      ctx.font = "600 11.5px system-ui, sans-serif";
-      const w = ctx.measureText(label).width;
-      ctx.fillStyle = "rgba(12,18,25,0.78)";
-      ctx.fillRect(px + 12, py + 4, w + 6, 16);
-      ctx.fillStyle = color;
-      ctx.fillText(label, px + 15, py + 16);
       st.uavs += 1;
       st.drawn.uavs.push({ label: v.label, x: v.position[0], y: v.position[1], px: [px, py] });
     }

@@ -30,6 +30,46 @@ export function showResult(node, kind, text) {
   node.dataset.state = kind;
 }
 
+/** A list longer than this updates only the cards on screen (a swarm's 255 vehicle cards). */
+const EVERY_CARD_UP_TO = 24;
+
+/**
+ * Which cards of a panel are on screen (an IntersectionObserver): in a long list only those are
+ * refreshed, each other card once when it is made and again when it scrolls into view.
+ */
+class OnScreen {
+  constructor() {
+    this.shown = new Set();
+    this.observer =
+      typeof IntersectionObserver === "function"
+        ? new IntersectionObserver((entries) => {
+            for (const e of entries) {
+              if (e.isIntersecting) this.shown.add(e.target);
+              else this.shown.delete(e.target);
+            }
+          })
+        : null;
+  }
+
+  watch(node) {
+    this.observer?.observe(node);
+  }
+
+  forget(node) {
+    this.observer?.unobserve(node);
+    this.shown.delete(node);
+  }
+
+  /** Whether card `c` (`{node, filled}`) of a list of `n` is to be refreshed now. */
+  due(c, n) {
+    if (!this.observer || n <= EVERY_CARD_UP_TO || !c.filled) {
+      c.filled = true;
+      return true;
+    }
+    return this.shown.has(c.node);
+  }
+}
+
 // --- vehicles --------------------------------------------------------------------------------
 
 /** A clock offset: ms below a second, s above. */
@@ -43,6 +83,7 @@ export class VehiclesPanel {
     this.store = store;
     this.actions = actions; // {command(label, command, altitude, resultNode)} or null
     this.cards = new Map();
+    this.onScreen = new OnScreen();
     this.count = document.getElementById("vehicles-count");
   }
 
@@ -90,6 +131,7 @@ export class VehiclesPanel {
     }
     c = { node, f };
     this.cards.set(v.label, c);
+    this.onScreen.watch(node);
     return c;
   }
 
@@ -101,8 +143,10 @@ export class VehiclesPanel {
     if (empty) empty.remove();
     setText(this.count, `${list.length}`);
     for (const v of list) {
-      const { node, f } = this.card(v);
+      const c = this.card(v);
+      const { node, f } = c;
       if (!node.isConnected) this.root.append(node);
+      if (!this.onScreen.due(c, list.length)) continue;
       const link = v.link;
       const alt = v.position ? v.position[2] - s.planeZ : NaN;
       setText(f.title, `UAV ${v.label}`);
@@ -161,6 +205,7 @@ export class TracksPanel {
     this.store = store;
     this.onFollow = onFollow;
     this.cards = new Map();
+    this.onScreen = new OnScreen();
     this.count = document.getElementById("tracks-count");
   }
 
@@ -189,6 +234,7 @@ export class TracksPanel {
       f.bars);
     c = { node, f, modes: -1 };
     this.cards.set(k.id, c);
+    this.onScreen.watch(node);
     return c;
   }
 
@@ -200,6 +246,7 @@ export class TracksPanel {
     for (const [id, c] of this.cards) {
       if (!ids.has(id)) {
         c.node.remove();
+        this.onScreen.forget(c.node);
         this.cards.delete(id);
       }
     }
@@ -216,6 +263,7 @@ export class TracksPanel {
         else this.root.prepend(node);
       }
       prev = node;
+      if (!this.onScreen.due(c, list.length)) continue;
       const v = k.view;
       setText(f.title, `T${k.id}`);
       f.title.style.color = colorFor(k.id);

@@ -7,7 +7,7 @@
 import * as THREE from "three";
 import { OrbitControls } from "../vendor/three/OrbitControls.js";
 import { Store } from "./store.js";
-import { colorHex, cssSize, detectionPoint, detectionRay } from "./util.js";
+import { LABELLED_UAVS, SWARM_TRAIL, colorHex, cssSize, detectionPoint, detectionRay } from "./util.js";
 
 /** Half-thickness (m) of the disc drawn for a planar track's 95 % ellipse. */
 const DISC_HALF_M = 2.8;
@@ -69,6 +69,34 @@ function setLine(line, points, zOffset = 0) {
   line.geometry.setDrawRange(0, n);
 }
 
+/** Most rewrites per second of the UAVs' trails (history: a few a second look continuous). */
+const TRAIL_HZ = 4;
+
+/**
+ * The attribute `name` (`size` numbers per vertex) of a line's geometry with room for `n`
+ * vertices: the one it has, else a new geometry's, grown by doubling (the line's other attributes
+ * are copied into the new geometry, grown alike).
+ */
+function growAttribute(line, name, size, n) {
+  let attr = line.geometry.getAttribute(name);
+  if (attr && attr.count >= n) return attr;
+  const cap = Math.max(64, 2 ** Math.ceil(Math.log2(Math.max(n, 1))));
+  const old = line.geometry;
+  line.geometry = new THREE.BufferGeometry();
+  for (const [k, a] of Object.entries(old.attributes)) {
+    if (k === name) continue;
+    const grown = new THREE.BufferAttribute(new Float32Array(cap * a.itemSize), a.itemSize);
+    grown.array.set(a.array.subarray(0, Math.min(a.array.length, grown.array.length)));
+    grown.setUsage(THREE.DynamicDrawUsage);
+    line.geometry.setAttribute(k, grown);
+  }
+  old.dispose();
+  attr = new THREE.BufferAttribute(new Float32Array(cap * size), size);
+  attr.setUsage(THREE.DynamicDrawUsage);
+  line.geometry.setAttribute(name, attr);
+  return attr;
+}
+
 export class SceneView {
   constructor(canvas, store) {
     this.canvas = canvas;
@@ -115,7 +143,7 @@ export class SceneView {
     this.buildGround(10000, 250);
 
     this.trackObjs = new Map();
-    this.uavObjs = new Map();
+    this.uavLabels = new Map(); // label → { label: sprite } of the UAVs that carry a label
     this.truthObjs = new Map();
 
     // Shared geometry.
@@ -125,6 +153,23 @@ export class SceneView {
     this.cylinder.rotateX(Math.PI / 2); // axis along z
     this.uavGeom = new THREE.ConeGeometry(16, 48, 4); // apex along +y (North) before the heading turn
     this.uavGeom.scale(1, 1, 0.35);
+    // Every UAV in three draw calls, whatever their number: the bodies as one instanced mesh,
+    // the drop lines and the trails each as one line-segment buffer.
+    this.uavBodies = null; // grown by `uavCapacity`
+    this.uavPlaced = []; // per instance: [x, y, z, heading]
+    this.uavMaterial = new THREE.MeshPhongMaterial({ color: 0xffffff, emissive: 0x334455 });
+    this.drops = new THREE.LineSegments(
+      new THREE.BufferGeometry(),
+      new THREE.LineDashedMaterial({ color: 0x9fb3c8, dashSize: 12, gapSize: 8, transparent: true, opacity: 0.6 }),
+    );
+    this.drops.frustumCulled = false;
+    this.trails = new THREE.LineSegments(
+      new THREE.BufferGeometry(),
+      new THREE.LineBasicMaterial({ color: 0xc8d7eb, transparent: true, opacity: 0.45 }),
+    );
+    this.trails.frustumCulled = false;
+    this.trailKeys = new Map(); // label → the newest trail point drawn
+    this.scene.add(this.drops, this.trails);
 
     // Camera rays: one line-segment buffer rewritten per frame.
     const rayGeom = new THREE.BufferGeometry();
@@ -240,21 +285,20 @@ export class SceneView {
     return o;
   }
 
-  uavObj(label) {
-    let o = this.uavObjs.get(label);
-    if (o) return o;
-    const body = new THREE.Mesh(this.uavGeom, new THREE.MeshPhongMaterial({ color: 0xf4f7fb, emissive: 0x334455 }));
-    const drop = new THREE.Line(
-      new THREE.BufferGeometry().setFromPoints([new THREE.Vector3(), new THREE.Vector3()]),
-      new THREE.LineDashedMaterial({ color: 0x9fb3c8, dashSize: 12, gapSize: 8, transparent: true, opacity: 0.6 }),
-    );
-    drop.frustumCulled = false;
-    const trail = new THREE.Line(new THREE.BufferGeometry(), new THREE.LineBasicMaterial({ color: 0xc8d7eb, transparent: true, opacity: 0.45 }));
-    trail.frustumCulled = false;
-    this.scene.add(body, drop, trail);
-    o = { body, drop, trail, trailLen: -1 };
-    this.uavObjs.set(label, o);
-    return o;
+  /** The instanced mesh of the UAVs' bodies, with room for `n` (grown by doubling). */
+  uavCapacity(n) {
+    if (this.uavBodies && this.uavBodies.instanceMatrix.count >= n) return this.uavBodies;
+    const cap = Math.max(16, 2 ** Math.ceil(Math.log2(Math.max(n, 1))));
+    if (this.uavBodies) {
+      this.scene.remove(this.uavBodies);
+      this.uavBodies.dispose();
+    }
+    this.uavBodies = new THREE.InstancedMesh(this.uavGeom, this.uavMaterial, cap);
+    this.uavBodies.instanceMatrix.setUsage(THREE.DynamicDrawUsage);
+    this.uavBodies.frustumCulled = false;
+    this.uavBodies.count = 0;
+    this.scene.add(this.uavBodies);
+    return this.uavBodies;
   }
 
   truthObj(id) {
@@ -339,31 +383,72 @@ export class SceneView {
       if (o.label) o.label.visible = confirmed;
     }
     // UAVs.
-    for (const v of s.vehicles.values()) {
-      if (!v.position) continue;
-      const o = this.uavObj(v.label);
+    const shown = [...s.vehicles.values()].filter((v) => v.position);
+    const bodies = this.uavCapacity(shown.length);
+    const swarm = shown.length > LABELLED_UAVS;
+    const labelled = new Set();
+    const color = new THREE.Color();
+    let trailsChanged = shown.length !== this.trailKeys.size;
+    this.uavPlaced.length = shown.length;
+    shown.forEach((v, i) => {
       const [x, y, z] = v.position;
-      o.body.position.set(x, y, z);
-      o.body.rotation.set(0, 0, -(v.heading ?? 0));
+      this.uavPlaced[i] = [x, y, z, v.heading ?? 0];
       const lost = v.link && v.link.state === "lost";
-      o.body.material.color.setHex(lost ? 0xff5d5d : 0xf4f7fb);
-      this.setLabel(o, `UAV ${v.label} · ${(z - planeZ).toFixed(0)} m${lost ? " · LINK LOST" : ""}`, lost ? "#ff5d5d" : "#f4f7fb");
-      o.label.position.set(x, y, z);
-      const pos = o.drop.geometry.attributes.position;
-      pos.setXYZ(0, x, y, z);
-      pos.setXYZ(1, x, y, planeZ);
-      if (o.dropKey !== v.position) {
-        pos.needsUpdate = true;
-        o.drop.computeLineDistances();
-        o.dropKey = v.position;
+      bodies.setColorAt(i, color.setHex(lost ? 0xff5d5d : 0xf4f7fb));
+      if (!swarm || lost) {
+        let o = this.uavLabels.get(v.label);
+        if (!o) this.uavLabels.set(v.label, (o = {}));
+        this.setLabel(o, `UAV ${v.label} · ${(z - planeZ).toFixed(0)} m${lost ? " · LINK LOST" : ""}`, lost ? "#ff5d5d" : "#f4f7fb");
+        o.label.position.set(x, y, z);
+        labelled.add(v.label);
       }
-      o.trail.visible = layers.trails;
       const lastTrail = v.trail[v.trail.length - 1];
-      if (layers.trails && o.trailKey !== lastTrail) {
-        setLine(o.trail, v.trail);
-        o.trailKey = lastTrail;
-      }
+      if (this.trailKeys.get(v.label) !== lastTrail) trailsChanged = true;
       st.uavs += 1;
+    });
+    bodies.count = shown.length;
+    if (bodies.instanceColor) bodies.instanceColor.needsUpdate = true;
+    this.placeUavs();
+    for (const [label, o] of this.uavLabels) {
+      if (labelled.has(label)) continue;
+      this.scene.remove(o.label);
+      o.label.material.map.dispose();
+      o.label.material.dispose();
+      this.uavLabels.delete(label);
+    }
+    // Drop lines: written in place; their dashes run down from the UAV.
+    const dropPos = growAttribute(this.drops, "position", 3, 2 * shown.length);
+    const dropDist = growAttribute(this.drops, "lineDistance", 1, 2 * shown.length);
+    shown.forEach((v, i) => {
+      const [x, y, z] = v.position;
+      dropPos.setXYZ(2 * i, x, y, z);
+      dropPos.setXYZ(2 * i + 1, x, y, planeZ);
+      dropDist.setX(2 * i, 0);
+      dropDist.setX(2 * i + 1, Math.abs(z - planeZ));
+    });
+    dropPos.needsUpdate = true;
+    dropDist.needsUpdate = true;
+    this.drops.geometry.setDrawRange(0, 2 * shown.length);
+    // Trails: rewritten at most TRAIL_HZ times a second (a swarm's: their newest points).
+    this.trails.visible = layers.trails;
+    if (layers.trails && trailsChanged && now - (this.trailsAt ?? -Infinity) >= 1000 / TRAIL_HZ) {
+      this.trailsAt = now;
+      const keep = swarm ? SWARM_TRAIL : Infinity;
+      let segments = 0;
+      for (const v of shown) segments += Math.max(0, Math.min(v.trail.length, keep) - 1);
+      const pos = growAttribute(this.trails, "position", 3, 2 * segments);
+      let j = 0;
+      this.trailKeys.clear();
+      for (const v of shown) {
+        const t = v.trail;
+        for (let i = Math.max(1, t.length - keep + 1); i < t.length; i++) {
+          pos.setXYZ(j++, t[i - 1][1], t[i - 1][2], t[i - 1][3]);
+          pos.setXYZ(j++, t[i][1], t[i][2], t[i][3]);
+        }
+        this.trailKeys.set(v.label, t[t.length - 1]);
+      }
+      pos.needsUpdate = true;
+      this.trails.geometry.setDrawRange(0, j);
     }
     // Standoff rings and commanded velocities of the active assignments.
     const active = new Set();
@@ -462,6 +547,29 @@ export class SceneView {
     this.ground.position.set(Math.round(c.x / 1000) * 1000, Math.round(c.y / 1000) * 1000, this.store.planeZ);
   }
 
+  /**
+   * Sets every UAV body's instance matrix: its position, its heading (clockwise from North) and a
+   * scale that keeps it legible on screen whatever the zoom (`uavScale`, set by `render`).
+   */
+  placeUavs() {
+    const bodies = this.uavBodies;
+    if (!bodies) return;
+    const m = new THREE.Matrix4();
+    const q = new THREE.Quaternion();
+    const p = new THREE.Vector3();
+    const sc = new THREE.Vector3();
+    const zAxis = new THREE.Vector3(0, 0, 1);
+    const k = this.uavScale ?? 0;
+    this.uavPlaced.forEach(([x, y, z, heading], i) => {
+      p.set(x, y, z);
+      q.setFromAxisAngle(zAxis, -heading);
+      const f = k ? Math.max(0.5, (this.camera.position.distanceTo(p) * k * 1.4) / 16) : 1;
+      m.compose(p, q, sc.set(f, f, f));
+      bodies.setMatrixAt(i, m);
+    });
+    bodies.instanceMatrix.needsUpdate = true;
+  }
+
   /** Renders when the camera moved or (at most DATA_FPS times a second) the data changed. */
   render(now = performance.now()) {
     if (!this.renderer) return false;
@@ -487,7 +595,8 @@ export class SceneView {
     if (!(this.cameraMoved || (dataChanged && due) || now - this.lastRender > 1000)) return false;
     // Markers and UAVs keep a legible size on screen, whatever the zoom.
     const k = Math.tan((this.camera.fov * Math.PI) / 360) / 40;
-    for (const o of this.uavObjs.values()) o.body.scale.setScalar(Math.max(0.5, this.camera.position.distanceTo(o.body.position) * k * 1.4 / 16));
+    this.uavScale = k;
+    this.placeUavs();
     for (const o of this.trackObjs.values()) {
       const f = this.camera.position.distanceTo(o.marker.position) * k * 0.5 / 9;
       o.marker.scale.setScalar(Math.max(0.3, f) * (o.confirmed ? 1 : 0.6));

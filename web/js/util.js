@@ -22,6 +22,16 @@ export function colorHex(id, sat = 0.72, light = 0.62) {
   return (Math.round(f(h + 1 / 3) * 255) << 16) | (Math.round(f(h) * 255) << 8) | Math.round(f(h - 1 / 3) * 255);
 }
 
+/**
+ * Beyond this many UAVs the map and the 3-D view draw a swarm: every UAV's body, trail and drop
+ * line in one batch, and a label only on the UAVs whose link is lost (255 labels are unreadable
+ * and cost more than the rest of the frame).
+ */
+export const LABELLED_UAVS = 24;
+
+/** The points of a UAV's trail drawn in a swarm (its newest ones; 300 are kept). */
+export const SWARM_TRAIL = 30;
+
 /** A number with `d` decimals, or an en dash. */
 export function fmt(v, d = 1) {
   return Number.isFinite(v) ? v.toFixed(d) : "–";
