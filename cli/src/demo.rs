@@ -425,8 +425,9 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
     server_config.map.mbtiles = match config.mbtiles.as_deref() {
         Some("none") => String::new(),
         Some(file) => file.to_owned(),
-        None => crate::tiles::offline_tiles(&server_config)
-            .await?
+        None => crate::offline_map::offline_tiles(&server_config)
+            .await
+            .map_err(DemoError::Tiles)?
             .display()
             .to_string(),
     };

@@ -6,7 +6,9 @@
 //! * [`demo`] (`harrier demo`): the live service ([`harrier_server`]) with harrier-sim's world
 //!   in-process; the one place outside the tests where the service and the simulator meet.
 //! * [`tiles`] (`harrier tiles`): MBTiles files for the dashboard's map, rendered from a
-//!   deployment's roads and obstacles, and the demo's offline map.
+//!   deployment's roads and obstacles.
+//! * [`offline_map`]: a deployment's world for the tile renderer, and the demo's offline map
+//!   (rendered once, cached), which both of the above use.
 //! * [`init_logging`]: the structured logs every subcommand writes.
 //!
 //! The others: `harrier serve` is [`harrier_server::start`], `harrier replay`, `guidance-sim`,
@@ -14,6 +16,7 @@
 //! `harrier_bench`, and `harrier estimators` lists [`harrier_engine::registry`].
 
 pub mod demo;
+pub mod offline_map;
 pub mod tiles;
 
 /// Structured logs on stderr for the `harrier` commands: the `RUST_LOG` filter if set, else
