@@ -2,7 +2,7 @@
 //! (`State<Tracking>`, …, through [`FromRef`]), and the access rule ([`Auth`]).
 
 use std::sync::Arc;
-use std::time::{Instant, SystemTime};
+use std::time::{Duration, Instant, SystemTime};
 
 use axum::extract::{FromRef, Request};
 use axum::http::header;
@@ -54,6 +54,31 @@ pub struct Tracking {
     pub aircraft: watch::Receiver<Arc<AircraftList>>,
 }
 
+/// A message every client sends within a period, serialised by the first client that needs it
+/// and shared by the others while it is younger than the age they accept: with a swarm (254
+/// vehicles, ≈ 260 kB a `vehicles` message) serialising it once per client and tick grew with
+/// vehicles × clients.
+#[derive(Debug, Default)]
+pub struct SharedMessage(std::sync::Mutex<Option<(Instant, Arc<str>)>>);
+
+impl SharedMessage {
+    /// The message built at most `max_age` ago, else `build()`'s (kept for the others).
+    pub(super) fn get(&self, max_age: Duration, build: impl FnOnce() -> String) -> Arc<str> {
+        let mut m = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        match &*m {
+            Some((at, text)) if at.elapsed() <= max_age => Arc::clone(text),
+            _ => {
+                let text: Arc<str> = build().into();
+                *m = Some((Instant::now(), Arc::clone(&text)));
+                text
+            }
+        }
+    }
+}
+
 /// The vehicles' side.
 #[derive(Debug, Clone, Default)]
 pub struct Control {
@@ -62,7 +87,7 @@ pub struct Control {
     /// The guidance loop, when the link runs.
     pub guidance: Option<Guidance>,
     /// The WebSocket `vehicles` message, built once for every client of a period.
-    pub vehicles_message: Arc<super::ws::SharedMessage>,
+    pub vehicles_message: Arc<SharedMessage>,
 }
 
 /// The session recording.
@@ -225,6 +250,22 @@ mod tests {
     use axum::body::Body;
 
     use super::*;
+
+    /// Clients within the age share one build of the message; past it, the next builds anew.
+    #[test]
+    fn a_shared_message_is_built_once_per_age() {
+        let m = SharedMessage::default();
+        let mut builds = 0;
+        let build = |n: &mut i32| {
+            *n += 1;
+            format!("v{n}")
+        };
+        let a = m.get(Duration::from_secs(60), || build(&mut builds));
+        let b = m.get(Duration::from_secs(60), || build(&mut builds));
+        assert_eq!((&*a, &*b, builds), ("v1", "v1", 1));
+        let c = m.get(Duration::ZERO, || build(&mut builds));
+        assert_eq!((&*c, builds), ("v2", 2));
+    }
 
     fn auth() -> Auth {
         Auth {

@@ -100,31 +100,6 @@ fn snapshot_message(s: &Snapshot, c: &Control, t: &Tracking, m: &Metrics, droppe
     )))
 }
 
-/// A message every client sends within a period, serialised by the first client that needs it
-/// and shared by the others while it is younger than the age they accept: with a swarm (254
-/// vehicles, ≈ 260 kB a `vehicles` message) serialising it once per client and tick grew with
-/// vehicles × clients.
-#[derive(Debug, Default)]
-pub struct SharedMessage(std::sync::Mutex<Option<(std::time::Instant, Arc<str>)>>);
-
-impl SharedMessage {
-    /// The message built at most `max_age` ago, else `build()`'s (kept for the others).
-    fn get(&self, max_age: Duration, build: impl FnOnce() -> String) -> Arc<str> {
-        let mut m = self
-            .0
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        match &*m {
-            Some((at, text)) if at.elapsed() <= max_age => Arc::clone(text),
-            _ => {
-                let text: Arc<str> = build().into();
-                *m = Some((std::time::Instant::now(), Arc::clone(&text)));
-                text
-            }
-        }
-    }
-}
-
 /// The `vehicles` message.
 fn vehicles_message(c: &Control, t: &Tracking, m: &Metrics) -> String {
     to_json(&WsMessage::Vehicles(VehiclesMessage {
@@ -256,23 +231,7 @@ mod tests {
     use tokio::task::JoinHandle;
 
     use super::super::testing::{TestApp, WAIT};
-    use super::{SharedMessage, VEHICLES_PERIOD, client};
-
-    /// Clients within the age share one build of the message; past it, the next builds anew.
-    #[test]
-    fn a_shared_message_is_built_once_per_age() {
-        let m = SharedMessage::default();
-        let mut builds = 0;
-        let build = |n: &mut i32| {
-            *n += 1;
-            format!("v{n}")
-        };
-        let a = m.get(std::time::Duration::from_secs(60), || build(&mut builds));
-        let b = m.get(std::time::Duration::from_secs(60), || build(&mut builds));
-        assert_eq!((&*a, &*b, builds), ("v1", "v1", 1));
-        let c = m.get(std::time::Duration::ZERO, || build(&mut builds));
-        assert_eq!((&*c, builds), ("v2", 2));
-    }
+    use super::{VEHICLES_PERIOD, client};
 
     /// A client on channels: what the server sends, what it reads, its task.
     struct Client {
