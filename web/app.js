@@ -7,7 +7,7 @@ import { ApiError, Stream, features, get, getText, getToken, request, setToken }
 import { MapPane } from "./js/mappane.js";
 import { SceneView } from "./js/scene3d.js";
 import { Store } from "./js/store.js";
-import { SeriesPanel, ServicePanel, StandoffPanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
+import { BiasesPanel, SeriesPanel, ServicePanel, StandoffPanel, TracksPanel, VehiclesPanel, el, parseMetrics, setText, showResult } from "./js/panels.js";
 import { cssSize, fmt } from "./js/util.js";
 
 const $ = (id) => document.getElementById(id);
@@ -157,6 +157,7 @@ const vehicleActions = {
 
 let vehiclesPanel;
 const tracksPanel = new TracksPanel($("tracks"), store, (id) => setFollow(map.follow === id ? null : id));
+const biasesPanel = new BiasesPanel($("biases-panel"), $("biases"), store);
 const seriesPanel = new SeriesPanel($("series"), store);
 const standoffPanel = new StandoffPanel($("standoff-range"), $("standoff-spacing"), store);
 let servicePanel;
@@ -513,6 +514,8 @@ async function poll() {
   if (performance.now() - lastVehiclesMsg > 3000 && pollTick % 2 === 1) {
     jobs.push(get("vehicles").then((b) => store.applyVehicles(b)).catch(() => {}));
   }
+  // Bias estimates (sensor registration): at connection, then with the scans that carry them.
+  if (pollTick % 30 === 1) jobs.push(get("biases").then((b) => store.applyBiases(b)).catch(() => {}));
   if (feats.truth) jobs.push(get("truth").then((b) => store.applyTruth(b)).catch(() => {}));
   // The world is static; asked again now and then in case the server was restarted with another.
   if (feats.world && pollTick % 30 === 1) jobs.push(get("world").then((b) => store.applyWorld(b)).catch(() => {}));
@@ -606,6 +609,7 @@ function updatePanels() {
   seriesPanel.update();
   standoffPanel.update();
   servicePanel?.update();
+  biasesPanel.update();
   updateAlerts();
   updateAssignForm();
   updateFollowSelect();

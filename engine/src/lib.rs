@@ -30,6 +30,7 @@ pub use error::{EngineError, setup};
 pub use region::{CHI2_95_2, CHI2_95_3, Ellipse, Ellipsoid};
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
-    AssociatorBuildFn, AssociatorInfo, Deployment, Handover, ScanOutcome, SensorScan, TrackEngine,
-    TrackFilterBuildFn, TrackFilterInfo, TrackStatus, TrackView,
+    AssociatorBuildFn, AssociatorInfo, BiasTermView, Deployment, Handover, RegisteredSensor,
+    ScanOutcome, ScanSource, SensorBiasView, SensorScan, TrackEngine, TrackFilterBuildFn,
+    TrackFilterInfo, TrackStatus, TrackView,
 };

@@ -33,6 +33,77 @@ pub struct Deployment {
     /// associators take `P_D` from it, and the clutter density of planar `position` scans
     /// (`clutter_rate` over the region's area).
     pub detection: Option<DetectionSpec>,
+    /// Live sensor registration: the sensors whose biases the tracker estimates jointly with
+    /// its tracks ([`RegisteredSensor`]); empty: off (no bias is estimated, no work is done).
+    pub registration: Vec<RegisteredSensor>,
+}
+
+/// A sensor whose biases the live tracker estimates (`[[registration.sensors]]`): which scans
+/// are its (`vehicle`, `sensor`), their kind, and its bias terms with their priors
+/// (FORMAT-REGISTRATION.md §1).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegisteredSensor {
+    /// Vehicle label of its scans.
+    pub vehicle: String,
+    /// Sensor id of its scans on the vehicle.
+    pub sensor: String,
+    /// Measurement kind of its scans (`position`, `range_bearing`, `az_el`).
+    pub kind: harrier_core::measurement::MeasKind,
+    /// Its bias terms and their priors.
+    pub bias: harrier_core::registration::SensorBias,
+}
+
+/// Where a scan comes from, for sensor registration ([`TrackEngine::ingest_from`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ScanSource<'a> {
+    /// Vehicle label.
+    pub vehicle: &'a str,
+    /// Sensor id on the vehicle.
+    pub sensor: &'a str,
+    /// Platform position (ENU, m, the engine's frame).
+    pub platform: [f64; 3],
+    /// Per-component noise standard deviations of the detections.
+    pub noise_std: &'a [f64],
+    /// Cooperative references at the scan's time: the UAVs whose own GPS position is known
+    /// (ENU, with its covariance). A detection within the gate of one is that UAV, not a
+    /// target: with registration it updates the sensor's biases and no track.
+    pub references: &'a [harrier_core::registration::KnownObject],
+}
+
+/// One bias term's estimate ([`SensorBiasView::terms`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+pub struct BiasTermView {
+    /// The term: `offset<i>`, `scale<i>` (component `i` of the sensor's measurement, e.g.
+    /// `offset0`) or `time_offset`.
+    pub term: String,
+    /// Estimate (offsets in the component's unit: m, rad; scales dimensionless; s).
+    pub value: f64,
+    /// Its standard deviation.
+    pub std: f64,
+    /// Whether the data determine it: its standard deviation is at most κ = 0.3 times its
+    /// prior's.
+    pub observable: bool,
+}
+
+/// A registered sensor's bias estimate as the live tracker holds it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
+pub struct SensorBiasView {
+    /// Vehicle label of its scans.
+    pub vehicle: String,
+    /// Sensor id on the vehicle.
+    pub sensor: String,
+    /// Measurement kind.
+    pub kind: String,
+    /// Whether every term is observable (the smallest eigenvalue of the sensor's normalised
+    /// information against 1/κ²).
+    pub observable: bool,
+    /// Its detections that updated the biases with a track (targets of opportunity).
+    pub updates: u64,
+    /// Its detections of a cooperative reference (a UAV whose GPS position is known) that
+    /// updated the biases.
+    pub references: u64,
+    /// Each term.
+    pub terms: Vec<BiasTermView>,
 }
 
 impl Deployment {
@@ -62,6 +133,7 @@ impl From<&Scenario> for Deployment {
             scan_period_s: sc.time.dt,
             sensors: u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX),
             detection: sc.detection.clone(),
+            registration: Vec::new(),
         }
     }
 }
@@ -216,6 +288,21 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     /// earlier than the last scan, a non-finite detection, a detection of the wrong size)
     /// nothing changes.
     fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError>;
+    /// [`ingest`](Self::ingest) of a scan from `source`: an engine with sensor registration
+    /// ([`Deployment::registration`]) takes the biases out of a registered sensor's detections
+    /// and updates the biases jointly with its tracks. Without registration, `ingest`.
+    fn ingest_from(
+        &mut self,
+        scan: &SensorScan,
+        _source: &ScanSource<'_>,
+    ) -> Result<ScanOutcome, EngineError> {
+        self.ingest(scan)
+    }
+    /// The registered sensors' bias estimates, in the order of
+    /// [`Deployment::registration`] (empty without registration).
+    fn biases(&self) -> Vec<SensorBiasView> {
+        Vec::new()
+    }
     /// Every live track, tentative and confirmed, in id order: for a start, or after
     /// [`adopt`](Self::adopt); after each scan, [`ScanOutcome::apply`] keeps such a list up to
     /// date.

@@ -105,6 +105,13 @@ CREATE TABLE IF NOT EXISTS vehicle_log (
     json TEXT NOT NULL
 );
 CREATE INDEX IF NOT EXISTS vehicle_log_session ON vehicle_log (session);
+CREATE TABLE IF NOT EXISTS biases (
+    id INTEGER PRIMARY KEY,
+    session INTEGER NOT NULL REFERENCES sessions (id),
+    t REAL NOT NULL,
+    json TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS biases_session ON biases (session);
 ";
 
 /// A new session row.
@@ -118,6 +125,8 @@ pub(super) const INSERT_SCAN: &str = "INSERT INTO scans (session, received_unix,
 /// A vehicle log row.
 pub(super) const INSERT_VEHICLE_LOG: &str =
     "INSERT INTO vehicle_log (session, time_unix, vehicle, kind, json) VALUES (?1, ?2, ?3, ?4, ?5)";
+/// A row of bias estimates.
+pub(super) const INSERT_BIASES: &str = "INSERT INTO biases (session, t, json) VALUES (?1, ?2, ?3)";
 /// A detection of a scan.
 pub(super) const INSERT_DETECTION: &str =
     "INSERT INTO detections (scan, idx, z0, z1, z2) VALUES (?1, ?2, ?3, ?4, ?5)";

@@ -24,9 +24,9 @@ use harrier_core::detection::{DetectionScan, GeoPoint, TruthSample};
 use rusqlite::{Connection, params};
 
 use super::schema::{
-    APPLICATION_ID, END_SESSION, INSERT_ACTION, INSERT_DETECTION, INSERT_SCAN, INSERT_SENSOR,
-    INSERT_SESSION, INSERT_TRACK, INSERT_TRUTH, INSERT_VEHICLE_LOG, SCHEMA, SCHEMA_VERSION,
-    UPDATE_SUMMARY, kind_name, schema_problem,
+    APPLICATION_ID, END_SESSION, INSERT_ACTION, INSERT_BIASES, INSERT_DETECTION, INSERT_SCAN,
+    INSERT_SENSOR, INSERT_SESSION, INSERT_TRACK, INSERT_TRUTH, INSERT_VEHICLE_LOG, SCHEMA,
+    SCHEMA_VERSION, UPDATE_SUMMARY, kind_name, schema_problem,
 };
 use harrier_engine::TrackView;
 use harrier_link::clock::unix_now;
@@ -93,6 +93,14 @@ pub enum Record {
         /// `AssignmentView`).
         json: String,
     },
+    /// The registered sensors' bias estimates (live sensor registration) at scan time `t`, as
+    /// `GET /api/v1/biases` gives them (JSON).
+    Biases {
+        /// Scan time.
+        t: f64,
+        /// The JSON list.
+        json: String,
+    },
 }
 
 /// What the recorder has done so far. Row counts are committed rows.
@@ -112,6 +120,8 @@ pub struct RecorderStats {
     pub actions: u64,
     /// Vehicle log rows (telemetry, link events, commands, assignments).
     pub vehicle_rows: u64,
+    /// Bias estimate rows (live sensor registration).
+    pub bias_rows: u64,
     /// Records dropped because the queue was full (or the writer had stopped).
     pub dropped: u64,
     /// Transactions committed.
@@ -166,6 +176,7 @@ struct Shared {
     truth_rows: AtomicU64,
     actions: AtomicU64,
     vehicle_rows: AtomicU64,
+    bias_rows: AtomicU64,
     dropped: AtomicU64,
     commits: AtomicU64,
     errors: AtomicU64,
@@ -324,6 +335,7 @@ impl Recorder {
             truth_rows: n(&s.truth_rows),
             actions: n(&s.actions),
             vehicle_rows: n(&s.vehicle_rows),
+            bias_rows: n(&s.bias_rows),
             dropped: n(&s.dropped),
             commits: n(&s.commits),
             errors: n(&s.errors),
@@ -363,6 +375,7 @@ struct Batch {
     truth_rows: u64,
     actions: u64,
     vehicle_rows: u64,
+    bias_rows: u64,
     first_received: Option<f64>,
     last_received: Option<f64>,
 }
@@ -477,6 +490,12 @@ impl Writer {
                             .map(|_| ())
                     }),
             ),
+            Record::Biases { t, json } => (
+                "write a bias row",
+                self.conn
+                    .prepare_cached(INSERT_BIASES)
+                    .and_then(|mut st| st.execute(params![self.session, t, json]).map(|_| ())),
+            ),
         };
         match result {
             Ok(()) => self.count(r),
@@ -530,6 +549,7 @@ impl Writer {
             Record::Tracks { tracks, .. } => b.track_rows += tracks.len() as u64,
             Record::Action { .. } => b.actions += 1,
             Record::Vehicle { .. } => b.vehicle_rows += 1,
+            Record::Biases { .. } => b.bias_rows += 1,
         }
     }
 
@@ -637,6 +657,7 @@ impl Writer {
                 s.truth_rows.fetch_add(b.truth_rows, Ordering::Relaxed);
                 s.actions.fetch_add(b.actions, Ordering::Relaxed);
                 s.vehicle_rows.fetch_add(b.vehicle_rows, Ordering::Relaxed);
+                s.bias_rows.fetch_add(b.bias_rows, Ordering::Relaxed);
                 s.commits.fetch_add(1, Ordering::Relaxed);
                 s.last_commit.store(now.to_bits(), Ordering::Relaxed);
             }

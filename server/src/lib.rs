@@ -243,6 +243,17 @@ pub async fn start(config: &Config) -> Result<LiveServer, LiveError> {
         recorder,
     );
     let control = Control::spawn(config, &pipeline.snapshot, recorder, &stop_rx).await?;
+    if let Some(link) = control
+        .link
+        .as_ref()
+        .filter(|_| !config.registration.sensors.is_empty())
+    {
+        // The UAVs' own GPS positions: the cooperative references of sensor registration.
+        let vehicles = tracker::Command::References(link.vehicles.clone());
+        if pipeline.commands.send(vehicles).await.is_err() {
+            tracing::warn!("the tracker stopped before it got the link's vehicles");
+        }
+    }
     let feed_counters = Arc::new(FeedCounters::default());
     let feeds = Feeds::spawn(
         config,

@@ -402,7 +402,8 @@ pub fn render_recorder(stats: &RecorderStats, out: &mut String) {
     .sample(&[("table", &"tracks")], stats.track_rows)
     .sample(&[("table", &"truth")], stats.truth_rows)
     .sample(&[("table", &"actions")], stats.actions)
-    .sample(&[("table", &"vehicle_log")], stats.vehicle_rows);
+    .sample(&[("table", &"vehicle_log")], stats.vehicle_rows)
+    .sample(&[("table", &"biases")], stats.bias_rows);
     Family::counter(
         out,
         "harrier_recorder_dropped_total",

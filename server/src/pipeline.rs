@@ -93,6 +93,12 @@ impl Pipeline {
                         tracks: changed,
                     });
                 }
+                if let Some(b) = &scan.biases {
+                    r.record(Record::Biases {
+                        t: scan.t,
+                        json: serde_json::to_string(&**b).unwrap_or_default(),
+                    });
+                }
             }));
         }
         let mut tasks = Vec::new();

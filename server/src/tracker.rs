@@ -23,21 +23,33 @@ use std::time::Duration;
 
 use harrier_core::detection::GeoPoint;
 use harrier_core::measurement::MeasKind;
+use harrier_core::registration::KnownObject;
 use harrier_core::tracker::TrackEvent;
+use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
 use super::bound::{BoundConfig, BoundView, Bounds};
+use super::gcs::VehicleSample;
+use super::gcs::vehicle::LinkState;
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
 use harrier_engine::{
-    Deployment, EngineError, Params, ScanOutcome, TrackEngine, TrackStatus, TrackView,
+    Deployment, EngineError, Params, ScanOutcome, ScanSource, SensorBiasView, TrackEngine,
+    TrackStatus, TrackView,
 };
 
 /// Scans kept for `GET /api/v1/detections`.
 pub const RECENT_SCANS: usize = 512;
 /// Positions kept per track for its history.
 pub const HISTORY_LEN: usize = 200;
+/// Standard deviation (m) of a UAV's GPS position as a cooperative reference.
+pub const GPS_STD_M: f64 = 3.0;
+/// A vehicle heard longer ago than this (s) is no cooperative reference.
+pub const REFERENCE_MAX_AGE_S: f64 = 2.0;
+/// Scan time (s) between two refreshes of the bias estimates (WebSocket, snapshot, recording):
+/// at most 2 Hz.
+pub const BIAS_PERIOD_S: f64 = 0.5;
 
 /// The track filter the tracker runs, and its parameters. On the wire it keeps the name
 /// "estimator": `GET`/`PUT /api/v1/estimator` read and select the track filter.
@@ -106,6 +118,9 @@ pub struct Snapshot {
     pub vehicles: Arc<Vec<Arc<VehicleView>>>,
     /// The estimator running.
     pub estimator: Arc<TrackFilterState>,
+    /// The registered sensors' bias estimates (`[registration]`; empty when it is off), as of
+    /// the last refresh (at most every [`BIAS_PERIOD_S`] of scan time).
+    pub biases: Arc<Vec<SensorBiasView>>,
 }
 
 /// One processed scan: what it held and what it did to the tracks.
@@ -130,6 +145,9 @@ pub struct ScanEvents {
     /// Every live track after the scan (the actor's list, brought up to date by the scan's
     /// [`ScanOutcome`]).
     pub tracks: Arc<Vec<TrackView>>,
+    /// The registered sensors' bias estimates when this scan refreshed them (at most every
+    /// [`BIAS_PERIOD_S`] of scan time), else `None`.
+    pub biases: Option<Arc<Vec<SensorBiasView>>>,
     /// The WebSocket message, serialised once for every client (`crate::wire::scan_json`).
     json: OnceLock<String>,
 }
@@ -169,6 +187,9 @@ pub enum Command {
         /// The result: the estimator now running, or why the change was refused.
         reply: oneshot::Sender<Result<TrackFilterState, SetError>>,
     },
+    /// The MAVLink link's vehicles: with sensor registration, their GPS positions are the
+    /// cooperative references of every scan (`ScanSource::references`).
+    References(watch::Receiver<Arc<Vec<VehicleSample>>>),
 }
 
 /// Why a change of estimator was refused (nothing changed).
@@ -236,6 +257,11 @@ pub struct TrackerActor {
     sinks: Sinks,
     /// The set-membership bounds, when they run.
     bounds: Option<Bounds>,
+    /// The bias estimates and the scan time of their last refresh (registration only).
+    biases: Arc<Vec<SensorBiasView>>,
+    biases_t: Option<f64>,
+    /// The MAVLink link's vehicles (their GPS positions), once `Command::References` gave them.
+    link_vehicles: Option<watch::Receiver<Arc<Vec<VehicleSample>>>>,
 }
 
 /// A consumer of every processed scan.
@@ -266,9 +292,11 @@ impl TrackerActor {
         events: broadcast::Sender<Arc<ScanEvents>>,
     ) -> Self {
         let estimator = Arc::new(estimator);
+        let biases = Arc::new(engine.biases());
         snapshot.send_modify(|s| {
             *s = Arc::new(Snapshot {
                 estimator: Arc::clone(&estimator),
+                biases: Arc::clone(&biases),
                 ..Snapshot::default()
             });
         });
@@ -289,6 +317,9 @@ impl TrackerActor {
             events,
             sinks: Sinks::default(),
             bounds: None,
+            biases,
+            biases_t: None,
+            link_vehicles: None,
         }
     }
 
@@ -367,7 +398,15 @@ impl TrackerActor {
 
     fn process(&mut self, s: ReadyScan) {
         let late = self.engine.time().is_some_and(|last| s.scan.t < last);
-        let outcome: ScanOutcome = match self.engine.ingest(&s.scan) {
+        let references = self.references(&s.vehicle);
+        let source = ScanSource {
+            vehicle: &s.vehicle,
+            sensor: &s.sensor,
+            platform: s.platform,
+            noise_std: &s.noise_std,
+            references: &references,
+        };
+        let outcome: ScanOutcome = match self.engine.ingest_from(&s.scan, &source) {
             Ok(outcome) => outcome,
             Err(e) => {
                 self.metrics.dropped(&s.vehicle, DropReason::Rejected);
@@ -435,7 +474,9 @@ impl TrackerActor {
                 }
             }
         }
+        let biases = self.refresh_biases(now);
         let scan = Arc::new(ScanEvents {
+            biases,
             seq: self.seq,
             t: s.scan.t,
             kind: s.scan.sensor.kind(),
@@ -492,6 +533,19 @@ impl TrackerActor {
         }
     }
 
+    /// The bias estimates, refreshed when registration runs and [`BIAS_PERIOD_S`] of scan time
+    /// passed since the last refresh (at `t`): `Some` when they were.
+    fn refresh_biases(&mut self, t: f64) -> Option<Arc<Vec<SensorBiasView>>> {
+        if self.deployment.registration.is_empty()
+            || self.biases_t.is_some_and(|last| t - last < BIAS_PERIOD_S)
+        {
+            return None;
+        }
+        self.biases_t = Some(t);
+        self.biases = Arc::new(self.engine.biases());
+        Some(Arc::clone(&self.biases))
+    }
+
     fn publish(&self, t: Option<f64>, tracks: Arc<Vec<TrackView>>) {
         self.snapshot.send_replace(Arc::new(Snapshot {
             t,
@@ -500,6 +554,7 @@ impl TrackerActor {
             // One reference per vehicle: no view is copied here.
             vehicles: Arc::new(self.vehicles.values().map(Arc::clone).collect()),
             estimator: Arc::clone(&self.estimator),
+            biases: Arc::clone(&self.biases),
         }));
     }
 
@@ -526,6 +581,9 @@ impl TrackerActor {
         self.estimator = Arc::new(to.clone());
         let t = self.engine.time();
         self.tracks = Arc::new(self.engine.snapshot());
+        // The new engine's bank starts from the priors: refreshed at the next scan.
+        self.biases = Arc::new(self.engine.biases());
+        self.biases_t = None;
         self.publish(t, Arc::clone(&self.tracks));
         Ok(to)
     }
@@ -537,7 +595,41 @@ impl TrackerActor {
                 self.release(f64::INFINITY);
                 let _ = reply.send(self.set_estimator(to));
             }
+            Command::References(vehicles) => self.link_vehicles = Some(vehicles),
         }
+    }
+
+    /// The cooperative references of a scan of `vehicle` (registration only): every other
+    /// vehicle of the link, connected and heard within [`REFERENCE_MAX_AGE_S`], at its GPS
+    /// position, its variance [`GPS_STD_M`]² plus its motion since its last frame.
+    fn references(&self, vehicle: &str) -> Vec<KnownObject> {
+        let Some(link) = self
+            .link_vehicles
+            .as_ref()
+            .filter(|_| !self.deployment.registration.is_empty())
+        else {
+            return Vec::new();
+        };
+        let own = vehicle.parse::<u8>().ok();
+        link.borrow()
+            .iter()
+            .map(|v| &v.view)
+            .filter(|v| {
+                v.state == LinkState::Connected
+                    && v.last_seen_s <= REFERENCE_MAX_AGE_S
+                    && Some(v.id) != own
+            })
+            .filter_map(|v| {
+                let pos = Vector3::from(v.position?);
+                let vel = Vector3::from(v.velocity.unwrap_or_default());
+                let var = GPS_STD_M.powi(2) + (vel.norm() * v.last_seen_s).powi(2);
+                Some(KnownObject {
+                    pos,
+                    vel,
+                    cov: Matrix3::from_diagonal_element(var),
+                })
+            })
+            .collect()
     }
 
     /// Runs until the scan queue closes, then processes what is left.

@@ -576,6 +576,44 @@ export class ServicePanel {
   }
 }
 
+/** A bias term's value ± sd in its unit: metres, mrad (angles), ppm (scales), ms (time offsets). */
+export function fmtBias(kind, t) {
+  const angle = (kind === "range_bearing" && t.term === "offset1") || (kind !== "range_bearing" && t.term.startsWith("offset"));
+  const [f, unit, digits] = t.term === "time_offset" ? [1e3, "ms", 0]
+    : t.term.startsWith("scale") ? [1e6, "ppm", 0]
+    : angle ? [1e3, "mrad", 2] : [1, "m", 1];
+  return `${fmt(t.value * f, digits)} ± ${fmt(t.std * f, digits)} ${unit}`;
+}
+
+/** "Sensor biases": each registered sensor's terms ± sd and whether they are observable yet. */
+export class BiasesPanel {
+  constructor(section, table, store) {
+    this.section = section;
+    this.table = table;
+    this.store = store;
+  }
+
+  update() {
+    const list = this.store.biases;
+    this.section.hidden = list.length === 0;
+    const rows = [];
+    for (const s of list) {
+      rows.push([`${s.vehicle}/${s.sensor}`, `${s.kind} · ${s.updates} updates · ${s.observable ? "observable" : "not observable"}`, !s.observable, "sensor"]);
+      for (const t of s.terms) rows.push([`  ${t.term}`, `${fmtBias(s.kind, t)} · ${t.observable ? "yes" : "no"}`, !t.observable, "term"]);
+    }
+    if (this.table.rows.length !== rows.length) {
+      this.table.replaceChildren(...rows.map(() => el("tr", {}, el("td"), el("td"))));
+    }
+    rows.forEach(([k, v, bad, kind], i) => {
+      const tr = this.table.rows[i];
+      tr.dataset.kind = kind;
+      setText(tr.cells[0], k);
+      setText(tr.cells[1], v);
+      if (tr.classList.contains("bad") !== bad) tr.classList.toggle("bad", bad);
+    });
+  }
+}
+
 // --- hand-off laws in the assign form -------------------------------------------------------------
 
 /** The hand-off kinds (`Law` on the API): the track handed to each vehicle's autopilot. */

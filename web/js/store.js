@@ -22,6 +22,7 @@ export class Store {
     this.standoff = new Map(); // assignment id → Map(vehicle label → {range: [[t, m]], spacing: [[t, deg]]})
     this.vehicleEvents = []; // the last vehicle events (vehicle_event messages), newest last
     this.estimator = null;
+    this.biases = []; // GET /biases and the scans' `biases`: the registered sensors' bias estimates
     this.seq = 0;
     this.t = null;
     this.scans = 0; // scan messages received since the page loaded
@@ -35,6 +36,12 @@ export class Store {
   }
 
   // --- WebSocket messages -------------------------------------------------------------------
+
+  /** The registered sensors' bias estimates (`GET /biases`, or a scan's `biases`). */
+  applyBiases(list) {
+    this.biases = Array.isArray(list) ? list : [];
+    this.version += 1;
+  }
 
   /** `snapshot`: replaces the tracks and vehicles (a new server, or this page fell behind). */
   applySnapshot(msg) {
@@ -55,6 +62,7 @@ export class Store {
 
   /** `scan`: detections, events, changed tracks. */
   applyScan(msg) {
+    if (msg.biases) this.applyBiases(msg.biases);
     if (this.seq && msg.seq > this.seq + 1) this.gaps += 1;
     this.seq = msg.seq;
     this.t = msg.t;

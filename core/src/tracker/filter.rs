@@ -65,6 +65,31 @@ pub trait TrackFilter<const N: usize> {
     fn mode_probabilities(&self, _state: &Self::State) -> Vec<f64> {
         Vec::new()
     }
+    /// `state` moved to the Gaussian summary `g` by an update made outside the filter (sensor
+    /// registration's joint update of every track with the biases). A single Gaussian becomes
+    /// `g`; a mixture keeps its mode probabilities, every mode shifted by the change of the
+    /// combined mean and its covariance changed by that of the combined covariance.
+    fn recentre(&self, _state: &Self::State, g: Gaussian<N>) -> Result<Self::State> {
+        self.start(g)
+    }
+}
+
+/// A mixture moved to the Gaussian summary `g`: every mode shifted by the change of the combined
+/// mean and its covariance changed by that of the combined covariance, `P_r + (P_g − P)`, or `g`'s
+/// own covariance where that is not positive definite; the mode probabilities kept.
+fn recentre_modes<const N: usize, const R: usize>(
+    state: &ImmState<N, R>,
+    g: Gaussian<N>,
+) -> Result<ImmState<N, R>> {
+    let c = state.combined();
+    let (dm, dp) = (g.mean - c.mean, g.cov - c.cov);
+    let mut out = *state;
+    for m in &mut out.modes {
+        let cov = m.cov + dp;
+        let cov = (cov + cov.transpose()) * 0.5;
+        *m = Gaussian::new(m.mean + dm, cov).or_else(|_| Gaussian::new(m.mean + dm, g.cov))?;
+    }
+    Ok(out)
 }
 
 /// Any Gaussian filter `F` that takes every measurement model ([`NonlinearFilter`]: `Extended`,
@@ -192,6 +217,10 @@ where
     fn mode_probabilities(&self, state: &ImmState<N, R>) -> Vec<f64> {
         state.probs.to_vec()
     }
+
+    fn recentre(&self, state: &ImmState<N, R>, g: Gaussian<N>) -> Result<ImmState<N, R>> {
+        recentre_modes(state, g)
+    }
 }
 
 /// A road-constrained IMM track (\[CIMM\] §3.1–3.2): the [`ImmFilter`], and after every sensor
@@ -281,5 +310,9 @@ where
 
     fn mode_probabilities(&self, state: &ImmState<N, R>) -> Vec<f64> {
         self.imm.mode_probabilities(state)
+    }
+
+    fn recentre(&self, state: &ImmState<N, R>, g: Gaussian<N>) -> Result<ImmState<N, R>> {
+        recentre_modes(state, g)
     }
 }

@@ -475,6 +475,20 @@ where
             .collect()
     }
 
+    /// Moves track `id` to the Gaussian `g` ([`TrackFilter::recentre`]): an update of its
+    /// estimate made outside the tracker (sensor registration's joint update of every track with
+    /// the biases, at the tracker's time). Errors when there is no such track or `g` is not a
+    /// valid state; the track is then unchanged.
+    pub fn recentre(&mut self, id: u64, g: Gaussian<N>) -> Result<()> {
+        let k = self
+            .tracks
+            .iter_mut()
+            .find(|k| k.id == id)
+            .ok_or_else(|| EstimationError::InvalidParameter(format!("no track {id}")))?;
+        k.state = self.filter.recentre(&k.state, g)?;
+        Ok(())
+    }
+
     /// The next id a new track gets.
     pub fn next_id(&self) -> u64 {
         self.next_id

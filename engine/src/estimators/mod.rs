@@ -15,6 +15,7 @@ pub mod icdkf;
 pub mod imm;
 pub mod multi_target;
 pub mod obe;
+pub mod registrar;
 pub mod registration;
 
 use harrier_core::EstimationError;

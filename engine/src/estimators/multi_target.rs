@@ -23,10 +23,12 @@ use harrier_core::tracker::{
 };
 use serde_json::{Value, json};
 
+use super::registrar::{Registrar, registrar};
 use super::{count, cv_estimate, geometry, imm_of, mode_models, model_for};
 use crate::{
     Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator,
-    ScanOutcome, SensorScan, Step, TrackEngine, TrackFilterInfo, TrackView, setup,
+    ScanOutcome, ScanSource, SensorBiasView, SensorScan, Step, TrackEngine, TrackFilterInfo,
+    TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -69,6 +71,10 @@ pub fn replay_tracker(
     }))
 }
 
+/// The state sizes of the registration bank: planar and 3-D tracks with up to 12 bias terms.
+const BANK_2D: usize = 16;
+const BANK_3D: usize = 18;
+
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
 /// The tracker's tuning, shared by every track filter and the replay estimator `tracker`.
@@ -105,8 +111,8 @@ pub const TRACK_FILTER_EKF: TrackFilterInfo = TrackFilterInfo {
     summary: "EKF tracks, CV model (the KF on position sensors)",
     params: TRACKER_PARAMS,
     build: |d, p, a| match d.dims {
-        2 => multi_target_engine::<4, _>(d, p, a, ekf(d, p)?),
-        _ => multi_target_engine::<6, _>(d, p, a, ekf(d, p)?),
+        2 => multi_target_engine::<4, _>(d, p, a, ekf(d, p)?, registrar::<4, BANK_2D>(d, p)?),
+        _ => multi_target_engine::<6, _>(d, p, a, ekf(d, p)?, registrar::<6, BANK_3D>(d, p)?),
     },
 };
 
@@ -127,6 +133,7 @@ pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
                     filter,
                     motion: ConstantVelocity::<4>::new(q),
                 },
+                registrar::<4, BANK_2D>(d, p)?,
             ),
             _ => multi_target_engine::<6, _>(
                 d,
@@ -136,6 +143,7 @@ pub const TRACK_FILTER_CDKF: TrackFilterInfo = TrackFilterInfo {
                     filter,
                     motion: ConstantVelocity::<6>::new(q),
                 },
+                registrar::<6, BANK_3D>(d, p)?,
             ),
         }
     },
@@ -191,8 +199,9 @@ fn imm_engine(
     ) -> Result<Box<dyn TrackEngine>, EngineError> {
         let (imm, initial_probs) = imm_of::<R>(d.motion.as_ref(), models)?;
         let imm = ImmFilter { imm, initial_probs };
+        let reg = registrar::<4, BANK_2D>(d, p)?;
         match roads {
-            None => multi_target_engine::<4, _>(d, p, a, imm),
+            None => multi_target_engine::<4, _>(d, p, a, imm, reg),
             Some(roads) => {
                 let sigma_m = roads
                     .roads()
@@ -205,7 +214,7 @@ fn imm_engine(
                     sigma_v: sigma_m / d.scan_period_s.max(1e-3),
                     max_offset_m: 3.0 * sigma_m + 10.0,
                 };
-                multi_target_engine::<4, _>(d, p, a, cimm)
+                multi_target_engine::<4, _>(d, p, a, cimm, reg)
             }
         }
     }
@@ -233,9 +242,18 @@ struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     /// … that of planar `position` scans ([`Deployment::ground_clutter_density`]); other scans'
     /// is estimated from the scan.
     position_clutter: Option<f64>,
+    /// Live sensor registration, when the deployment has it.
+    registrar: Option<Registrar<N>>,
 }
 
 impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
+    /// The clutter density of `scan`'s association (`None`: estimated from the scan).
+    fn clutter_density(&self, scan: &SensorScan) -> Option<f64> {
+        let planar_position = matches!(scan.sensor, SensorModel::Position2(_));
+        self.clutter_param
+            .or(self.position_clutter.filter(|_| planar_position))
+    }
+
     /// The engine's view of harrier-core's snapshot of a track.
     fn view(&self, k: TrackSnapshot<N>) -> TrackView {
         let e = cv_estimate(self.plane_z, k.t, &k.estimate);
@@ -261,11 +279,17 @@ fn multi_target_engine<const N: usize, F>(
     p: &Params,
     association: Association,
     filter: F,
+    registrar: Option<Registrar<N>>,
 ) -> Result<Box<dyn TrackEngine>, EngineError>
 where
     F: TrackFilter<N> + Send + std::fmt::Debug + 'static,
     F::State: Send,
 {
+    if registrar.is_some() && matches!(association, Association::Mht(_)) {
+        return Err(setup(
+            "registration runs with the single-scan associators (gnn, jipda), not mht",
+        ));
+    }
     let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
     // Every sensor's scan counts as a scan for M-of-N and misses.
     let config = TrackerConfig {
@@ -284,6 +308,7 @@ where
         plane_z: d.plane_z,
         clutter_param: p.opt("clutter_density"),
         position_clutter: d.ground_clutter_density(),
+        registrar,
     }))
 }
 
@@ -293,11 +318,7 @@ where
     F::State: Send,
 {
     fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError> {
-        let planar_position = matches!(scan.sensor, SensorModel::Position2(_));
-        self.tracker.set_clutter_density(
-            self.clutter_param
-                .or(self.position_clutter.filter(|_| planar_position)),
-        );
+        self.tracker.set_clutter_density(self.clutter_density(scan));
         let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
         let events = self.tracker.step_any(scan.t, &scan.sensor, &dets)?;
         // `Tracker::step` changes every track it keeps: `scans` + 1 (the view's `age`), the time
@@ -307,6 +328,29 @@ where
             events,
             changed: self.snapshot(),
         })
+    }
+
+    fn ingest_from(
+        &mut self,
+        scan: &SensorScan,
+        source: &ScanSource<'_>,
+    ) -> Result<ScanOutcome, EngineError> {
+        let density = self.clutter_density(scan);
+        let Some(reg) = self.registrar.as_mut() else {
+            return self.ingest(scan);
+        };
+        self.tracker.set_clutter_density(density);
+        let events = reg.step(&mut self.tracker, scan, source)?;
+        Ok(ScanOutcome {
+            events,
+            changed: self.snapshot(),
+        })
+    }
+
+    fn biases(&self) -> Vec<SensorBiasView> {
+        self.registrar
+            .as_ref()
+            .map_or_else(Vec::new, Registrar::biases)
     }
 
     fn snapshot(&self) -> Vec<TrackView> {
@@ -370,6 +414,11 @@ where
     }
 
     fn set_retrodiction_lag(&mut self, lag: f64) -> Result<(), EngineError> {
+        if self.registrar.is_some() && lag > 0.0 {
+            return Err(setup(
+                "late scans are not retrodicted while registration runs",
+            ));
+        }
         Ok(self.tracker.set_retrodiction_lag(lag)?)
     }
 }
@@ -500,6 +549,7 @@ mod tests {
             scan_period_s: 1.0,
             sensors: 2,
             detection: None,
+            registration: Vec::new(),
         }
     }
 

@@ -18,6 +18,7 @@ impl Config {
         self.asterix.check()?;
         self.cot.check()?;
         self.map.check()?;
+        self.registration.check()?;
         let o = self.frame.origin;
         if !(o.lat_deg.abs() <= 90.0 && o.lon_deg.abs() <= 180.0 && o.alt_m.is_finite()) {
             return bad(format!("frame.origin {o:?} is not a WGS-84 position"));

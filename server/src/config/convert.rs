@@ -88,7 +88,8 @@ impl Config {
     }
 
     /// The deployment: planar targets on the ground plane `frame.plane_z`, the motion models,
-    /// roads and scan period of `[tracker]`, one sensor (scans bring their own models).
+    /// roads and scan period of `[tracker]`, one sensor (scans bring their own models), the
+    /// registered sensors of `[registration]`.
     pub fn deployment(&self) -> Deployment {
         let t = &self.tracker;
         Deployment {
@@ -99,6 +100,9 @@ impl Config {
             scan_period_s: t.scan_period_s,
             sensors: 1,
             detection: None,
+            // Checked by `Config::check` (a configuration built in code with a bad block runs
+            // without registration).
+            registration: self.registration.registered().unwrap_or_default(),
         }
     }
 }

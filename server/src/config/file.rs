@@ -10,6 +10,7 @@ use super::cot::CotConfig;
 use super::error::ConfigError;
 use super::foxglove::FoxgloveConfig;
 use super::map::MapConfig;
+use super::registration::RegistrationConfig;
 use super::sections::{
     ApiConfig, FrameConfig, GuidanceConfig, MavlinkConfig, RecorderConfig, TrackerConfig,
     ZenohConfig,
@@ -45,6 +46,8 @@ pub struct Config {
     pub cot: CotConfig,
     /// The dashboard's geographic map: its tiles.
     pub map: MapConfig,
+    /// Live sensor registration: the sensors whose biases the tracker estimates.
+    pub registration: RegistrationConfig,
 }
 
 impl Config {

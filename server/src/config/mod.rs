@@ -20,6 +20,7 @@ mod error;
 mod file;
 mod foxglove;
 mod map;
+mod registration;
 mod router_filter;
 mod sections;
 #[cfg(test)]
@@ -32,6 +33,7 @@ pub use error::ConfigError;
 pub use file::Config;
 pub use foxglove::FoxgloveConfig;
 pub use map::{MapConfig, OSM_ATTRIBUTION};
+pub use registration::{RegistrationConfig, RegistrationSensor};
 pub use router_filter::{MessageRef, RouterFilterConfig};
 pub use sections::{
     ApiConfig, DEFAULT_ORIGIN, FrameConfig, GuidanceConfig, MavlinkConfig, ObstacleConfig,

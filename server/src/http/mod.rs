@@ -6,6 +6,7 @@
 //! |---|---|
 //! | `GET /tracks[?all=true]`, `GET /tracks/{id}`, `GET /detections[?since=seq]` | [`tracks`] |
 //! | `GET`/`PUT /estimator`, `GET /estimators` | [`estimator`] |
+//! | `GET /biases` | [`biases`] |
 //! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands` | [`vehicles`] |
 //! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}` | [`assignments`] |
 //! | `GET /truth`, `GET /world`, `GET /aircraft` | [`world`] |
@@ -32,6 +33,7 @@
 //! open connections, a body deadline).
 
 pub mod assignments;
+pub mod biases;
 mod error;
 pub mod estimator;
 mod extract;
@@ -106,6 +108,7 @@ pub fn openapi() -> utoipa::openapi::OpenApi {
     let mut doc = ApiDoc::openapi();
     for part in [
         tracks::Doc::openapi(),
+        biases::Doc::openapi(),
         vehicles::Doc::openapi(),
         assignments::Doc::openapi(),
         world::Doc::openapi(),
@@ -129,6 +132,7 @@ pub fn app(state: ApiState, web_dir: Option<&Path>, cors_origins: &[String]) -> 
     // response last (the guard's refusals too).
     let api = Router::new()
         .merge(tracks::routes())
+        .merge(biases::routes())
         .merge(vehicles::routes())
         .merge(assignments::routes())
         .merge(world::routes())

@@ -44,6 +44,19 @@ pub(super) struct TestApp {
     pub(super) truth: watch::Sender<Arc<TruthBody>>,
 }
 
+/// A sensor of [`TestApp::scan_of`].
+#[derive(Debug)]
+pub(super) struct Sensor<'a> {
+    /// Sensor id on the vehicle.
+    pub(super) id: &'a str,
+    /// Measurement kind.
+    pub(super) kind: MeasKind,
+    /// Platform position (ENU, m).
+    pub(super) platform: [f64; 3],
+    /// Noise standard deviation per component.
+    pub(super) noise_std: &'a [f64],
+}
+
 /// A response, read whole.
 #[derive(Debug)]
 pub(super) struct Reply {
@@ -75,7 +88,12 @@ impl TestApp {
     /// The same with a WebSocket queue of `ws_queue` scans. The tracker runs on the test's
     /// runtime.
     pub(super) fn with_queue(ws_queue: usize) -> Self {
-        let config = Config::default();
+        Self::with_config(&Config::default(), ws_queue)
+    }
+
+    /// A service of `config`'s tracker and registration, whose WebSocket queue holds
+    /// `ws_queue` scans.
+    pub(super) fn with_config(config: &Config, ws_queue: usize) -> Self {
         let deployment = config.deployment();
         let estimator = TrackFilterState::of(&config.tracker);
         let engine = estimator
@@ -112,7 +130,7 @@ impl TestApp {
             },
             control: Control::default(),
             recording: Recording::default(),
-            map: Arc::new(crate::map::MapService::new(&config, None)),
+            map: Arc::new(crate::map::MapService::new(config, None)),
             service: Service {
                 metrics,
                 auth: Arc::new(Auth {
@@ -206,32 +224,51 @@ impl TestApp {
     /// One position scan of `vehicle` at `t` with `detections` (`[x, y]`, m); returns once the
     /// tracker has processed it.
     pub(super) async fn scan(&self, vehicle: u8, t: f64, detections: &[[f64; 2]]) {
+        let detections: Vec<Vec<f64>> = detections.iter().map(|d| d.to_vec()).collect();
+        let sensor = Sensor {
+            id: "cam",
+            kind: MeasKind::Position,
+            platform: [0.0, 0.0, 50.0],
+            noise_std: &[2.0, 2.0],
+        };
+        self.scan_of(vehicle, &sensor, t, detections).await;
+    }
+
+    /// One scan of `sensor` on `vehicle` at `t` with `detections` (FORMAT.md §3 layout of its
+    /// kind); returns once the tracker has processed it.
+    pub(super) async fn scan_of(
+        &self,
+        vehicle: u8,
+        sensor: &Sensor<'_>,
+        t: f64,
+        detections: Vec<Vec<f64>>,
+    ) {
         let mut snapshot = self.state.tracking.snapshot.clone();
         let before = snapshot.borrow().seq;
-        let sensor = SensorModel::new(
-            MeasKind::Position,
+        let model = SensorModel::new(
+            sensor.kind,
             Geometry::planar(0.0),
-            nalgebra::Vector3::new(0.0, 0.0, 50.0),
-            &[2.0, 2.0],
+            nalgebra::Vector3::from(sensor.platform),
+            sensor.noise_std,
             None,
         )
-        .expect("a position sensor");
+        .expect("a sensor model");
         let scan = ReadyScan {
             vehicle: vehicle.to_string(),
-            sensor: "cam".into(),
+            sensor: sensor.id.into(),
             scan: SensorScan {
                 t,
-                sensor,
-                detections: detections.iter().map(|d| d.to_vec()).collect(),
+                sensor: model,
+                detections,
             },
-            platform: [0.0, 0.0, 50.0],
+            platform: sensor.platform,
             geodetic: GeoPoint {
                 lat_deg: 47.0,
                 lon_deg: 8.0,
                 alt_m: 540.0,
             },
             received: Instant::now(),
-            noise_std: vec![2.0, 2.0],
+            noise_std: sensor.noise_std.to_vec(),
         };
         self.scans.send(scan).await.expect("the tracker runs");
         tokio::time::timeout(WAIT, snapshot.wait_for(|s| s.seq > before))

@@ -12,7 +12,7 @@ use crate::gcs::vehicle::VehicleLinkView;
 use crate::guidance::AssignmentView;
 use crate::tracker::{ScanEvents, Snapshot, TrackFilterState, VehicleView};
 pub use harrier_engine::{CHI2_95_2, CHI2_95_3, Ellipse, Ellipsoid};
-use harrier_engine::{TrackStatus, TrackView};
+use harrier_engine::{SensorBiasView, TrackStatus, TrackView};
 
 /// A track as the API sends it (REST, WebSocket, Zenoh): the engine's estimate with its 95 %
 /// confidence regions.
@@ -284,6 +284,10 @@ pub struct ScanMessage {
     /// The tracks the scan started, confirmed or updated (a deleted track has a `deleted`
     /// event; a coasted one keeps its last state).
     pub tracks: Vec<TrackDto>,
+    /// The registered sensors' bias estimates, in the scans that refreshed them (sensor
+    /// registration, at most 2 Hz); absent otherwise.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub biases: Option<Vec<SensorBiasView>>,
 }
 
 impl From<&ScanEvents> for ScanMessage {
@@ -298,6 +302,7 @@ impl From<&ScanEvents> for ScanMessage {
             detections: s.detections.clone(),
             events: s.events.iter().map(TrackEventDto::from).collect(),
             tracks: s.changed_tracks().map(TrackDto::from).collect(),
+            biases: s.biases.as_ref().map(|b| b.to_vec()),
         }
     }
 }
@@ -491,6 +496,7 @@ mod tests {
             detections: vec![vec![100.0, 50.0]],
             events: events.iter().map(TrackEventDto::from).collect(),
             tracks: vec![TrackDto::from(&planar(3, TrackStatus::Confirmed))],
+            biases: None,
         });
         let got: serde_json::Value = serde_json::from_str(&to_json(&m)).expect("JSON");
         let want = json!({
@@ -533,6 +539,7 @@ mod tests {
                 associator: "gnn".into(),
                 params: BTreeMap::new(),
             }),
+            biases: Arc::new(Vec::new()),
         };
         let frame = TracksFrame {
             origin: DEFAULT_ORIGIN,
