@@ -12,9 +12,14 @@ use super::publish::Phase;
 /// Arguments of `harrier bench`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct BenchArgs {
-    /// Simulated vehicles, each publishing one sensor's scans on its own key.
+    /// Simulated vehicles, each publishing `--sensors` sensors' scans on its own key.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u8).range(1..))]
     pub vehicles: u8,
+    /// Sensors per vehicle, each a source of its own (`cam` when 1, else `cam0`, `cam1` …: its
+    /// own `seq` sequence, its own place in the reorder buffer): vehicles × sensors sources, e.g.
+    /// 250 × 4 = 1 000 over MAVLink's 255 system ids.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=64))]
+    pub sensors: u8,
     /// MAVLink system id of the first vehicle (the others follow).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
     pub first_vehicle: u8,
@@ -69,9 +74,16 @@ pub struct BenchArgs {
     /// Attach to a running server: its API, `http://HOST:PORT`.
     #[arg(long, requires = "zenoh_connect")]
     pub url: Option<String>,
-    /// With `--url`: the server's Zenoh endpoint, e.g. tcp/127.0.0.1:7447 (repeatable).
-    #[arg(long, value_name = "ENDPOINT", requires = "url")]
+    /// With `--url` or `--publish-only`: the Zenoh endpoint to publish to (the server's, or a
+    /// router's), e.g. tcp/127.0.0.1:7447 (repeatable).
+    #[arg(long, value_name = "ENDPOINT")]
     pub zenoh_connect: Vec<String>,
+    /// Only publish: the vehicles' scans as a Zenoh client of `--zenoh-connect` (a router, or a
+    /// server listening) for `--duration-s`, then print how many were published; no server, no
+    /// WebSocket, no measurement. Several such processes (distinct `--first-vehicle` ranges)
+    /// spread sources over the routers of a mesh (tests/tests/it/mesh.rs).
+    #[arg(long, conflicts_with_all = ["url", "server_process", "sweep", "mavlink", "record"])]
+    pub publish_only: bool,
     /// With `--url`: the API token (sent with every request; needed with `api.auth_reads`).
     #[arg(long, requires = "url")]
     pub token: Option<String>,
@@ -189,6 +201,14 @@ impl BenchArgs {
                 && self.recovered_lag_ms.is_finite()
                 && self.recovered_lag_ms > 0.0,
             "--overload-s must be ≥ 0, --recovery-s and --recovered-lag-ms > 0",
+        )?;
+        bad(
+            self.zenoh_connect.is_empty() || self.url.is_some() || self.publish_only,
+            "--zenoh-connect needs --url or --publish-only",
+        )?;
+        bad(
+            !self.publish_only || !self.zenoh_connect.is_empty(),
+            "--publish-only needs --zenoh-connect ENDPOINT",
         )?;
         if self.url.is_some() {
             bad(

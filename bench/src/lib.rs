@@ -8,6 +8,7 @@
 //! harrier bench --duration-s 30 --overload-factor 10 --overload-s 60 --recovery-s 30 --ws-clients 0
 //! harrier bench --server-process --vehicles 255 --rate-hz 10 --mavlink --assign 50 --duration-s 600
 //! harrier bench --server-process --sweep 10,50,100,255 --rate-hz 10 --mavlink --assign 50
+//! harrier bench --publish-only --zenoh-connect tcp/10.0.0.1:7447 --vehicles 250 --sensors 4 --rate-hz 1
 //! ```
 //!
 //! By default the service runs in this process ([`harrier_server::start`], API on a free loopback
@@ -34,7 +35,8 @@
 //! a nominal phase again, both sampled each second: drops by reason, tracker lag, resident
 //! memory, and when the service recovered (lag back under `--recovered-lag-ms`, no more drops). Progress goes to stderr
 //! every `--progress-s`; the summary to stdout, as a table or (`--json`) as JSON. `--sweep
-//! 10,50,100,255` makes one run per vehicle count and prints how each figure grows.
+//! 10,50,100,255` makes one run per vehicle count and prints how each figure grows. `--publish-only`
+//! runs only the publishers, as a Zenoh client of a router, until `--duration-s` is over.
 //!
 //! The code follows a run: `args` (the command line and the configuration of the server it
 //! starts), `load` (what loads the server: publishers, vehicles, WebSocket clients, REST, and
@@ -74,9 +76,11 @@ pub use self::sweep::sweep_lines;
 use self::target::{Target, free_loopback_endpoint, free_loopback_udp};
 pub use self::ws::WsReport;
 
-/// Runs the load test (or the sweep) and prints its figures.
+/// Runs the load test (or the sweep, or only the publishers) and prints its figures.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
-    let text = if args.sweep.is_empty() {
+    let text = if args.publish_only {
+        publish_only(args)?
+    } else if args.sweep.is_empty() {
         let report = measure(args)?;
         if args.json {
             serde_json::to_string_pretty(&report)?
@@ -101,6 +105,54 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     use std::io::Write as _;
     let _ = writeln!(std::io::stdout().lock(), "{text}");
     Ok(())
+}
+
+/// `--publish-only`: the vehicles' sensors publish to `--zenoh-connect` (as a Zenoh client)
+/// for `--duration-s` once a subscriber matches each; returns what was published.
+fn publish_only(args: &BenchArgs) -> anyhow::Result<String> {
+    args.check()?;
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .thread_name("bench-load")
+        .build()?;
+    let sources = usize::from(args.vehicles) * usize::from(args.sensors);
+    let (scans, failed) = rt.block_on(async {
+        let publishers = publish::Publishers::start(&publish::Plan {
+            vehicles: args.vehicle_ids(),
+            sensors: args.sensors,
+            rate_hz: args.rate_hz,
+            detections: args.detections,
+            origin: harrier_server::config::DEFAULT_ORIGIN,
+            connect: args.zenoh_connect.clone(),
+            listen: None,
+            phase: args.phase,
+        })
+        .await?;
+        eprintln!(
+            "harrier bench: publishing: {sources} sources ({} vehicles from {} × {} sensors) × \
+             {} Hz × {} detections to {} for {} s",
+            args.vehicles,
+            args.first_vehicle,
+            args.sensors,
+            args.rate_hz,
+            args.detections,
+            args.zenoh_connect.join(", "),
+            args.duration_s
+        );
+        tokio::time::sleep(std::time::Duration::from_secs_f64(args.duration_s)).await;
+        anyhow::Ok(publishers.stop().await)
+    })?;
+    Ok(if args.json {
+        serde_json::json!({"sources": sources, "scans": scans, "failed": failed,
+            "duration_s": args.duration_s})
+        .to_string()
+    } else {
+        format!(
+            "harrier bench: published {scans} scans from {sources} sources in {} s ({failed} \
+             failed puts)",
+            args.duration_s
+        )
+    })
 }
 
 /// A random API token for a server this tool starts.

@@ -175,11 +175,12 @@ impl Load {
         let listen = free_loopback_endpoint()?;
         let publishers = Publishers::start(&Plan {
             vehicles: args.vehicle_ids(),
+            sensors: args.sensors,
             rate_hz: args.rate_hz,
             detections: args.detections,
             origin: harrier_server::config::DEFAULT_ORIGIN,
             connect: target.zenoh.clone(),
-            listen,
+            listen: Some(listen),
             phase: args.phase,
         })
         .await?;

@@ -1,11 +1,13 @@
-//! The simulated vehicles: one Zenoh session of their own, a publisher per vehicle on its
-//! detections key, each publishing a `DetectionScan` (JSON, `position` kind) at a fixed rate on a
-//! tokio interval — `seq` +1 per scan, `time_unix` the wall time of the publication (monotonic
-//! per vehicle), one detection of every target.
+//! The simulated vehicles: one Zenoh session of their own, a publisher per sensor of each vehicle
+//! on the vehicle's detections key, each publishing a `DetectionScan` (JSON, `position` kind) at
+//! a fixed rate on a tokio interval — `seq` +1 per scan, `time_unix` the wall time of the
+//! publication (monotonic per sensor), one detection of every target.
 //!
 //! The targets circle (radius [`CIRCLE_M`], [`SPEED_MPS`]) around centres [`SPACING_M`] apart, so
 //! the tracker holds one confirmed, moving track per target and associations stay unambiguous;
-//! detections carry Gaussian noise of [`NOISE_M`] (seeded per vehicle).
+//! detections carry Gaussian noise of [`NOISE_M`] (seeded per vehicle and sensor). The targets
+//! move on the UNIX clock, so that several publishing processes (and machines whose clocks
+//! agree) see the same targets.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -16,7 +18,7 @@ use harrier_core::detection::{
     DETECTIONS_SCHEMA, Detection, DetectionScan, GeoPoint, PlatformPose, detections_key,
 };
 use harrier_core::measurement::MeasKind;
-use harrier_link::bus::BusConfig;
+use harrier_link::bus::{BusConfig, Mode};
 use harrier_link::geo::LocalFrame;
 use nalgebra::Vector3;
 use rand::SeedableRng as _;
@@ -42,6 +44,8 @@ const MATCH_TIMEOUT: Duration = Duration::from_secs(15);
 pub(super) struct Plan {
     /// MAVLink system ids.
     pub vehicles: Vec<u8>,
+    /// Sensors per vehicle, each a source of its own.
+    pub sensors: u8,
     /// Scans per second per vehicle.
     pub rate_hz: f64,
     /// Detections per scan (= targets).
@@ -50,8 +54,8 @@ pub(super) struct Plan {
     pub origin: GeoPoint,
     /// Zenoh endpoints of the server.
     pub connect: Vec<String>,
-    /// Endpoint this session listens on.
-    pub listen: String,
+    /// Endpoint this session listens on, as a peer; none: a client of `connect` (a router).
+    pub listen: Option<String>,
     /// How the vehicles' publication instants are placed within a period.
     pub phase: Phase,
 }
@@ -83,19 +87,29 @@ pub(super) struct Publishers {
     session: zenoh::Session,
 }
 
-/// Target `j`'s position at `tau` seconds after the epoch.
-pub(super) fn target_position(j: usize, tau: f64) -> [f64; 2] {
+/// Target `j`'s position at UNIX time `t` (s).
+pub(super) fn target_position(j: usize, t: f64) -> [f64; 2] {
     let (row, col) = (j / 32, j % 32);
     let phase = j as f64; // spread the targets around their circles
-    let a = phase + SPEED_MPS / CIRCLE_M * tau;
+    // The angle turned since the epoch, reduced to one turn first (f64 keeps µm at 50 m).
+    let a = phase + (SPEED_MPS / CIRCLE_M * t).rem_euclid(std::f64::consts::TAU);
     [
         SPACING_M * col as f64 + CIRCLE_M * a.cos(),
         SPACING_M * row as f64 + CIRCLE_M * a.sin(),
     ]
 }
 
-/// One vehicle's scan template: everything but `t`, `time_unix`, `seq` and the detections.
-fn template(vehicle: u8, origin: GeoPoint, detections: usize) -> DetectionScan {
+/// The sensor id of sensor `k` of `n` on a vehicle: `cam` when it has one, else `cam0`, `cam1` …
+pub(super) fn sensor_id(k: u8, n: u8) -> String {
+    if n == 1 {
+        "cam".into()
+    } else {
+        format!("cam{k}")
+    }
+}
+
+/// One sensor's scan template: everything but `t`, `time_unix`, `seq` and the detections.
+fn template(vehicle: u8, sensor: String, origin: GeoPoint, detections: usize) -> DetectionScan {
     let pos = [100.0 * f64::from(vehicle), -500.0, 300.0];
     let geodetic = LocalFrame::new(origin).from_enu(&Vector3::from(pos));
     DetectionScan {
@@ -104,7 +118,7 @@ fn template(vehicle: u8, origin: GeoPoint, detections: usize) -> DetectionScan {
         time_unix: None,
         vehicle,
         seq: 0,
-        sensor: "cam".into(),
+        sensor,
         kind: MeasKind::Position,
         origin,
         platform: PlatformPose {
@@ -119,13 +133,18 @@ fn template(vehicle: u8, origin: GeoPoint, detections: usize) -> DetectionScan {
 }
 
 impl Publishers {
-    /// Opens the session, declares every vehicle's publisher and waits until the server's
-    /// subscriber matches each; then every vehicle publishes from a start staggered over one
-    /// period (so that the scans of all vehicles spread evenly in time).
+    /// Opens the session, declares every sensor's publisher and waits until the server's
+    /// subscriber matches each; then every sensor publishes from a start staggered over one
+    /// period (so that the scans of all sensors spread evenly in time).
     pub(super) async fn start(plan: &Plan) -> anyhow::Result<Self> {
         let config = BusConfig {
+            mode: if plan.listen.is_some() {
+                Mode::Peer
+            } else {
+                Mode::Client
+            },
             connect: plan.connect.clone(),
-            listen: vec![plan.listen.clone()],
+            listen: plan.listen.iter().cloned().collect(),
             ..BusConfig::default()
         }
         .to_zenoh()?;
@@ -134,16 +153,20 @@ impl Publishers {
             .map_err(|e| anyhow::anyhow!("zenoh: cannot open the publishers' session: {e}"))?;
         let mut publishers = Vec::new();
         for &v in &plan.vehicles {
-            let key = detections_key(v);
-            let p = session
-                .declare_publisher(key.clone())
-                .encoding(zenoh::bytes::Encoding::APPLICATION_JSON.with_schema(DETECTIONS_SCHEMA))
-                .await
-                .map_err(|e| anyhow::anyhow!("zenoh: declare a publisher on {key}: {e}"))?;
-            publishers.push((v, p));
+            for k in 0..plan.sensors {
+                let key = detections_key(v);
+                let p = session
+                    .declare_publisher(key.clone())
+                    .encoding(
+                        zenoh::bytes::Encoding::APPLICATION_JSON.with_schema(DETECTIONS_SCHEMA),
+                    )
+                    .await
+                    .map_err(|e| anyhow::anyhow!("zenoh: declare a publisher on {key}: {e}"))?;
+                publishers.push((v, k, p));
+            }
         }
         let waited = tokio::time::Instant::now();
-        for (v, p) in &publishers {
+        for (v, _, p) in &publishers {
             loop {
                 let matching = p
                     .matching_status()
@@ -177,10 +200,17 @@ impl Publishers {
         let tasks = publishers
             .into_iter()
             .enumerate()
-            .map(|(k, (v, p))| {
+            .map(|(k, (v, sensor, p))| {
                 let vehicle = Vehicle {
-                    scan: template(v, plan.origin, plan.detections),
-                    rng: rand_chacha::ChaCha8Rng::seed_from_u64(u64::from(v)),
+                    scan: template(
+                        v,
+                        sensor_id(sensor, plan.sensors),
+                        plan.origin,
+                        plan.detections,
+                    ),
+                    rng: rand_chacha::ChaCha8Rng::seed_from_u64(
+                        u64::from(v) + 256 * u64::from(sensor),
+                    ),
                     noise,
                     epoch,
                     scans: Arc::clone(&scans),
@@ -231,7 +261,7 @@ impl Publishers {
     }
 }
 
-/// One vehicle's publication state.
+/// One sensor's publication state.
 struct Vehicle {
     scan: DetectionScan,
     rng: rand_chacha::ChaCha8Rng,
@@ -251,7 +281,7 @@ impl Vehicle {
             .map_or(now_unix(), |last| now_unix().max(last + 1e-6));
         let tau = now - self.epoch;
         for (j, d) in self.scan.detections.iter_mut().enumerate() {
-            let p = target_position(j, tau);
+            let p = target_position(j, now);
             d.z[0] = p[0] + self.noise.sample(&mut self.rng);
             d.z[1] = p[1] + self.noise.sample(&mut self.rng);
         }

@@ -4,6 +4,8 @@
 //! simulated sources the live tests feed a server with (a `harrier-sim` process, a standing
 //! target's scans on Zenoh) and read its truth with.
 
+pub mod net;
+
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};

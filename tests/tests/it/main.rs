@@ -40,6 +40,7 @@ mod live_server;
 mod mavlink_gcs;
 mod mavproxy_client;
 mod mavsdk_client;
+mod mesh;
 mod no_alloc;
 mod pymavlink_client;
 mod radar;

@@ -32,13 +32,14 @@
 
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::Command;
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
+use harrier_tests::net::{Netns, Proc, Veth, metric_value, run, zenohd};
 use harrier_tests::{free_tcp_port, http_get, target_bin, targets_at, test_certificates};
 use serde_json::Value;
 use zenoh::Wait as _;
@@ -55,98 +56,6 @@ const MAX_DISAGREEMENT_M: f64 = 5.0;
 const STABLE_POLLS: usize = 6;
 /// Longest wait for tracks.
 const TRACKS_DEADLINE: Duration = Duration::from_secs(90);
-
-/// The pinned `zenohd`: `$HARRIER_ZENOHD`, else where `scripts/setup` installs it.
-fn zenohd_bin() -> PathBuf {
-    let bin = std::env::var_os("HARRIER_ZENOHD").map_or_else(
-        || {
-            let home = std::env::var_os("HOME").unwrap_or_default();
-            Path::new(&home).join(".cache/harrier/zenohd/bin/zenohd")
-        },
-        PathBuf::from,
-    );
-    assert!(
-        bin.is_file(),
-        "{} not found: install the router with `cargo install zenohd --version =1.10.2 --locked \
-         --no-default-features --features \"zenoh/transport_tcp zenoh/transport_tls\" --root \
-         ~/.cache/harrier/zenohd` (scripts/setup does), or set HARRIER_ZENOHD",
-        bin.display()
-    );
-    bin
-}
-
-/// Runs a setup command, returning its stderr on failure.
-fn run(cmd: &[&str]) -> Result<(), String> {
-    let out = Command::new(cmd[0])
-        .args(&cmd[1..])
-        .stdin(Stdio::null())
-        .output()
-        .map_err(|e| format!("{}: {e}", cmd.join(" ")))?;
-    if out.status.success() {
-        Ok(())
-    } else {
-        Err(format!(
-            "{}: {}",
-            cmd.join(" "),
-            String::from_utf8_lossy(&out.stderr).trim()
-        ))
-    }
-}
-
-/// A network namespace joined to the root namespace by a veth pair (`/30`: the root side is
-/// `.1`, the namespace's side `.2`); deleted (with its veth pair) when dropped.
-struct Netns {
-    name: String,
-    root_side: String,
-    /// The root namespace's address on the pair (the router's, seen from the namespace).
-    root_addr: String,
-    /// The namespace's own address.
-    addr: String,
-}
-
-impl Netns {
-    /// Namespace `k` (0-based) of this test process.
-    fn new(k: u32) -> Result<Self, String> {
-        let pid = std::process::id();
-        let name = format!("harrier-{pid}-{k}");
-        let root_side = format!("hz{}r{k}", pid % 100_000);
-        let ns_side = format!("hz{}n{k}", pid % 100_000);
-        // 10.(200 + pid mod 50).(4 ((pid / 50) mod 60) + k).0/30: one /30 per namespace, the
-        // same for no two test processes running at once (unless their pids collide mod 3000).
-        let net = format!("10.{}.{}", 200 + pid % 50, (pid / 50) % 60 * 4 + k);
-        let ns = Self {
-            name: name.clone(),
-            root_side: root_side.clone(),
-            root_addr: format!("{net}.1"),
-            addr: format!("{net}.2"),
-        };
-        run(&["ip", "netns", "add", &name])?;
-        let root_cidr = format!("{}/30", ns.root_addr);
-        let ns_cidr = format!("{}/30", ns.addr);
-        let steps: [&[&str]; 6] = [
-            &[
-                "ip", "link", "add", &root_side, "type", "veth", "peer", "name", &ns_side, "netns",
-                &name,
-            ],
-            &["ip", "addr", "add", &root_cidr, "dev", &root_side],
-            &["ip", "link", "set", &root_side, "up"],
-            &["ip", "-n", &name, "addr", "add", &ns_cidr, "dev", &ns_side],
-            &["ip", "-n", &name, "link", "set", &ns_side, "up"],
-            &["ip", "-n", &name, "link", "set", "lo", "up"],
-        ];
-        for step in steps {
-            run(step)?;
-        }
-        Ok(ns)
-    }
-}
-
-impl Drop for Netns {
-    fn drop(&mut self) {
-        let _ = run(&["ip", "link", "del", &self.root_side]);
-        let _ = run(&["ip", "netns", "del", &self.name]);
-    }
-}
 
 /// Where a process runs: a namespace, or this one (loopback).
 #[derive(Clone)]
@@ -178,81 +87,6 @@ impl Host {
             None => Command::new(program),
         }
     }
-}
-
-/// A child process with its output in a file; SIGKILLed and reaped when dropped.
-struct Proc {
-    what: String,
-    child: Child,
-    log: PathBuf,
-}
-
-impl Proc {
-    fn spawn(what: &str, mut cmd: Command, log: PathBuf) -> Self {
-        let file = std::fs::File::create(&log).expect("log file");
-        let child = cmd
-            .stdin(Stdio::null())
-            .stdout(file.try_clone().expect("log file"))
-            .stderr(file)
-            .spawn()
-            .unwrap_or_else(|e| panic!("start {what}: {e}"));
-        Self {
-            what: what.into(),
-            child,
-            log,
-        }
-    }
-
-    fn log(&self) -> String {
-        std::fs::read_to_string(&self.log).unwrap_or_default()
-    }
-
-    /// Panics with the log when the process has exited.
-    fn assert_running(&mut self) {
-        if let Some(status) = self.child.try_wait().expect("wait for a child") {
-            panic!("{} exited ({status}):\n{}", self.what, self.log());
-        }
-    }
-
-    /// Waits for a log line containing `needle`; returns that line.
-    fn wait_for_line(&mut self, needle: &str, timeout: Duration) -> String {
-        let deadline = Instant::now() + timeout;
-        loop {
-            if let Some(line) = self.log().lines().find(|l| l.contains(needle)) {
-                return line.to_owned();
-            }
-            self.assert_running();
-            assert!(
-                Instant::now() < deadline,
-                "{}: no line with {needle:?} within {timeout:?}:\n{}",
-                self.what,
-                self.log()
-            );
-            std::thread::sleep(Duration::from_millis(50));
-        }
-    }
-
-    fn kill(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-impl Drop for Proc {
-    fn drop(&mut self) {
-        self.kill();
-    }
-}
-
-/// `zenohd` with `args`, once it says where it can be reached.
-fn zenohd(dir: &Path, log: &str, args: &[String]) -> Proc {
-    let mut cmd = Command::new(zenohd_bin());
-    cmd.args(args)
-        .arg("--no-multicast-scouting")
-        .env("RUST_LOG", "info");
-    let mut p = Proc::spawn("zenohd", cmd, dir.join(log));
-    p.wait_for_line("Zenoh can be reached at", Duration::from_secs(20));
-    p
 }
 
 /// The world: the `radar` preset with two targets 0.6-0.9 km from the grounded radar, 2 Hz,
@@ -362,9 +196,7 @@ fn tracks(server: &Server) -> Value {
 fn metric(server: &Server, series: &str) -> f64 {
     let (status, text) = http_get(server.api, "/api/v1/metrics");
     assert_eq!(status, 200, "{text}");
-    text.lines()
-        .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
-        .unwrap_or(0.0)
+    metric_value(&text, series)
 }
 
 /// A Zenoh client session of this test's own.
@@ -523,22 +355,29 @@ fn two_hosts_through_a_router() {
     let targets = scenario.targets.len();
     let port = free_tcp_port();
 
-    // Three hosts: the simulator's and two ground stations'.
-    let namespaces: Result<Vec<Netns>, String> = (0..3).map(Netns::new).collect();
+    // Three hosts: the simulator's and two ground stations', each joined to the root namespace
+    // (the router's) by a veth pair.
+    let namespaces: Result<Vec<(Netns, Veth)>, String> = (0..3)
+        .map(|k| {
+            let ns = Netns::new(&k.to_string())?;
+            let veth = Veth::new(None, &ns, k)?;
+            Ok((ns, veth))
+        })
+        .collect();
     let (hosts, _namespaces) = match namespaces {
         Ok(ns) => {
             let hosts: Vec<Host> = ns
                 .iter()
-                .map(|n| Host {
+                .map(|(n, v)| Host {
                     ns: Some(n.name.clone()),
-                    addr: n.addr.clone(),
-                    router: n.root_addr.clone(),
+                    addr: v.b_addr.clone(),
+                    router: v.a_addr.clone(),
                 })
                 .collect();
             eprintln!(
                 "network namespaces: {}",
                 ns.iter()
-                    .map(|n| format!("{} ({} via {})", n.name, n.addr, n.root_addr))
+                    .map(|(n, v)| format!("{} ({} via {})", n.name, v.b_addr, v.a_addr))
                     .collect::<Vec<_>>()
                     .join(", ")
             );
