@@ -369,6 +369,7 @@ mod tests {
             "aircraft",
             "assignments",
             "assignments/{id}",
+            "biases",
             "detections",
             "estimator",
             "estimators",
