@@ -259,6 +259,36 @@ pub fn zenohd(dir: &Path, log: &str, args: &[String]) -> Proc {
     zenohd_in(Command::new(zenohd_bin()), dir, log, args)
 }
 
+/// `harrier serve --config config --listen ip:0` run by `cmd` (e.g. [`Netns::command`] of the
+/// `harrier` binary), once it prints its ready line; its output in `dir/name.log`. Returns the
+/// process and the API's address from that line.
+pub fn harrier_serve_in(
+    mut cmd: Command,
+    name: &str,
+    config: &Path,
+    ip: &str,
+    dir: &Path,
+) -> (Proc, std::net::SocketAddr) {
+    cmd.arg("serve")
+        .arg("--config")
+        .arg(config)
+        .args(["--listen", &format!("{ip}:0")])
+        .env("RUST_LOG", "info,zenoh=warn");
+    let mut proc = Proc::spawn(
+        &format!("harrier serve ({name})"),
+        cmd,
+        dir.join(format!("{name}.log")),
+    );
+    let line = proc.wait_for_line("harrier serve: ready: http://", Duration::from_secs(30));
+    let api = line
+        .split("http://")
+        .nth(1)
+        .and_then(|s| s.split('/').next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no API address in {line:?}"));
+    (proc, api)
+}
+
 /// The value of one series of a `/metrics` text, e.g. `harrier_seq_lost_total{vehicle="1"}`
 /// (0 when absent).
 pub fn metric_value(text: &str, series: &str) -> f64 {

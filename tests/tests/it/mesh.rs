@@ -39,7 +39,7 @@ use std::path::Path;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use harrier_tests::net::{Netns, Proc, Veth, zenohd_bin, zenohd_in};
+use harrier_tests::net::{Netns, Proc, Veth, harrier_serve_in, zenohd_bin, zenohd_in};
 use harrier_tests::{free_tcp_port, http_get, target_bin};
 use serde_json::Value;
 
@@ -218,24 +218,8 @@ fn ground_station(layout: &Layout, dir: &Path, k: usize) -> Gcs {
         ),
     )
     .expect("write the configuration");
-    let mut cmd = layout.command(&name, &target_bin("harrier"));
-    cmd.arg("serve")
-        .arg("--config")
-        .arg(&config)
-        .args(["--listen", &format!("{api}:0")])
-        .env("RUST_LOG", "info,zenoh=warn");
-    let mut proc = Proc::spawn(
-        &format!("harrier serve ({name})"),
-        cmd,
-        dir.join(format!("{name}.log")),
-    );
-    let line = proc.wait_for_line("harrier serve: ready: http://", Duration::from_secs(30));
-    let api = line
-        .split("http://")
-        .nth(1)
-        .and_then(|s| s.split('/').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no API address in {line:?}"));
+    let cmd = layout.command(&name, &target_bin("harrier"));
+    let (proc, api) = harrier_serve_in(cmd, &name, &config, &api.to_string(), dir);
     Gcs { name, proc, api }
 }
 

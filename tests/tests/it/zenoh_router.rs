@@ -39,7 +39,7 @@ use std::time::{Duration, Instant};
 use harrier_core::detection::{TRACKS_KEY, TRUTH_KEY, TruthSample};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
 use harrier_sim::setup::{Jitter, SimScenario, TargetMotion, TargetSpec};
-use harrier_tests::net::{Netns, Proc, Veth, metric_value, run, zenohd};
+use harrier_tests::net::{Netns, Proc, Veth, harrier_serve_in, metric_value, run, zenohd};
 use harrier_tests::{free_tcp_port, http_get, target_bin, targets_at, test_certificates};
 use serde_json::Value;
 use zenoh::Wait as _;
@@ -165,24 +165,8 @@ fn harrier_serve(
         ),
     )
     .expect("write the configuration");
-    let mut cmd = host.command(&target_bin("harrier"));
-    cmd.arg("serve")
-        .arg("--config")
-        .arg(&config)
-        .args(["--listen", &format!("{}:0", host.addr)])
-        .env("RUST_LOG", "info,zenoh=warn");
-    let mut proc = Proc::spawn(
-        &format!("harrier serve ({name})"),
-        cmd,
-        dir.join(format!("{name}.log")),
-    );
-    let line = proc.wait_for_line("harrier serve: ready: http://", Duration::from_secs(30));
-    let api = line
-        .split("http://")
-        .nth(1)
-        .and_then(|s| s.split('/').next())
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| panic!("no API address in {line:?}"));
+    let cmd = host.command(&target_bin("harrier"));
+    let (proc, api) = harrier_serve_in(cmd, name, &config, &host.addr.to_string(), dir);
     Server { proc, api }
 }
 
