@@ -41,7 +41,7 @@
 use std::collections::HashMap;
 
 use super::existence::Existence;
-use super::multi::{DetectionModel, Track, TrackStatus};
+use super::track::{DetectionModel, Track, TrackStatus};
 use crate::{EstimationError, Result};
 
 /// The multi-scan associator's tuning.

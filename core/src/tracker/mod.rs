@@ -70,6 +70,7 @@ pub mod metrics;
 pub mod mht;
 mod multi;
 pub mod retrodict;
+mod track;
 
 pub use associate::{
     Cluster, Gater, Hypothesis, TrackHypotheses, clusters, global_nearest_neighbour, hypothesise,
