@@ -24,6 +24,9 @@ use harrier_tests::{http_get_json, runtime, within};
 /// Standoff radius (m).
 const R: f64 = 150.0;
 
+/// How long the fleet may take to form its ring (wall seconds).
+const SETTLE_S: u64 = 300;
+
 /// `GET path` as JSON, off the runtime's threads.
 async fn get_json(addr: SocketAddr, path: &str) -> Value {
     let path = path.to_owned();
@@ -106,7 +109,9 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
         .ok()
         .and_then(|s| s.parse().ok())
         .unwrap_or(30);
-    runtime().block_on(within(240 + window_s, "the mixed fleet", async {
+    // Settling took 55 s of wall time on a quiet machine and on one with three busy loops beside
+    // it; a CI run with the whole suite beside it once took longer than the 200 s then allowed.
+    runtime().block_on(within(SETTLE_S + 60 + window_s, "the mixed fleet", async {
         let config = DemoConfig {
             speedup: 2.0,
             seed: 3,
@@ -121,6 +126,7 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
         let started = Instant::now();
         let guided = |m: &str| m == "OFFBOARD" || m == "GUIDED";
         let mut settled = 0;
+        let mut reported = Instant::now();
         while settled < 8 {
             tokio::time::sleep(Duration::from_millis(250)).await;
             let tolerance = |u: &Uav| if u.fixed_wing { 0.1 } else { 0.05 } * R;
@@ -137,9 +143,18 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
                 }
                 _ => 0,
             };
+            // Progress in the log: what the ring looked like, every 30 s of waiting.
+            if reported.elapsed() >= Duration::from_secs(30) {
+                reported = Instant::now();
+                eprintln!(
+                    "fleet: not yet on the ring after {:.0} s: {:?}",
+                    started.elapsed().as_secs_f64(),
+                    sample(addr).await
+                );
+            }
             assert!(
-                started.elapsed() < Duration::from_secs(200),
-                "the fleet did not settle on the ring: {:?}",
+                started.elapsed() < Duration::from_secs(SETTLE_S),
+                "the fleet did not settle on the ring within {SETTLE_S} s: {:?}",
                 sample(addr).await
             );
         }
@@ -147,7 +162,7 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
             "fleet: on the ring (|r - R| within 5 % / 10 %, every gap within 20°) after {:.1} s \
              ({:.0} s of flight)",
             started.elapsed().as_secs_f64(),
-            started.elapsed().as_secs_f64() * 5.0
+            started.elapsed().as_secs_f64() * config.speedup
         );
         // Each recognised by its HEARTBEAT, in the order of the fleet.
         let vehicles = get_json(addr, "/api/v1/vehicles").await;
@@ -173,7 +188,11 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
             let Some((_, uavs)) = sample(addr).await else {
                 continue;
             };
-            assert!(uavs.iter().all(|u| guided(&u.mode)), "{uavs:?}");
+            assert!(
+                uavs.iter().all(|u| guided(&u.mode)),
+                "a vehicle left OFFBOARD/GUIDED {:.0} s into the flight: {uavs:?}",
+                started.elapsed().as_secs_f64()
+            );
             for u in &uavs {
                 if u.fixed_wing {
                     fw2 += (u.r - R).powi(2);
