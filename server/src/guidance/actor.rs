@@ -167,7 +167,26 @@ pub fn start(
         metrics: Arc::clone(&metrics),
         snapshot_at: Instant::now(),
     };
-    let task = tokio::spawn(actor.run(rx, acks, stop));
+    // Its own thread and single-threaded runtime: on a loaded two-core machine the shared
+    // runtime's workers are busy with ingest and the WebSocket when a tick falls due, and
+    // 20 Hz ticks within 5 ms need a thread that is idle then.
+    let (done, finished) = tokio::sync::oneshot::channel::<()>();
+    std::thread::Builder::new()
+        .name("harrier-guidance".into())
+        .spawn(move || {
+            match tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            {
+                Ok(rt) => rt.block_on(actor.run(rx, acks, stop)),
+                Err(e) => tracing::error!("guidance: no runtime for its thread: {e}"),
+            }
+            let _ = done.send(());
+        })
+        .expect("start the guidance thread");
+    let task = tokio::spawn(async move {
+        let _ = finished.await;
+    });
     (
         Guidance {
             requests,
@@ -179,6 +198,15 @@ pub fn start(
     )
 }
 
+/// How early the loop's timer is set before a tick falls due: tokio's timer has a 1-ms grain and
+/// may fire a millisecond late, so the loop sleeps the last stretch on the thread's own clock.
+const TIMER_SLACK: Duration = Duration::from_millis(2);
+
+/// When to wake for a tick due at `due`.
+fn early(due: Instant) -> Instant {
+    due.checked_sub(TIMER_SLACK).unwrap_or(due)
+}
+
 impl Actor {
     async fn run(
         mut self,
@@ -187,8 +215,9 @@ impl Actor {
         mut stop: watch::Receiver<bool>,
     ) {
         let period = Duration::from_secs_f64(1.0 / self.settings.rate_hz);
-        let mut tick = tokio::time::interval(period);
-        tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+        let mut scheduled = Instant::now() + period;
+        let wake = tokio::time::sleep_until(early(scheduled).into());
+        tokio::pin!(wake);
         let mut updates = self.snapshot.clone();
         loop {
             tokio::select! {
@@ -205,11 +234,22 @@ impl Actor {
                     }
                     Err(broadcast::error::RecvError::Closed) => break,
                 },
-                scheduled = tick.tick() => {
+                () = &mut wake => {
+                    // The timer wakes early; the rest is slept on the thread's clock.
+                    if let Some(rest) = scheduled.checked_duration_since(Instant::now()) {
+                        std::thread::sleep(rest);
+                    }
                     let now = Instant::now();
                     // Lateness against the schedule: the jitter of the loop.
-                    self.metrics.late(now.duration_since(scheduled.into_std()).as_micros() as u64);
+                    self.metrics.late(now.saturating_duration_since(scheduled).as_micros() as u64);
                     self.on_tick(now);
+                    // The next tick one period on; after an overrun, one period from now.
+                    scheduled += period;
+                    let now = Instant::now();
+                    if scheduled <= now {
+                        scheduled = now + period;
+                    }
+                    wake.as_mut().reset(early(scheduled).into());
                 }
                 () = stopped(&mut stop) => break,
             }
