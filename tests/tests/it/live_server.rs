@@ -721,10 +721,12 @@ const FUSION_RUNS: [(&str, &[&str]); 3] = [
 /// Three servers on one simulated world of `scenario` (two UAVs on station), tracking from
 /// every sensor (`fused`, whose configuration `registration` completes), the cameras only and
 /// the radars only ([`FUSION_RUNS`]): the position errors each pooled over [`WINDOW_S`] after
-/// [`WARMUP_S`] on station, and the fused server's bias estimates at the end.
+/// [`WARMUP_S`] on station, and the fused server's bias estimates at the end. With `record`, the
+/// fused server records its session into that SQLite file.
 fn fusion_runs(
     scenario: &SimScenario,
     registration: &RegistrationConfig,
+    record: Option<&std::path::Path>,
 ) -> ([Pooled; 3], Vec<SensorBiasView>) {
     let started = Instant::now();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
@@ -758,6 +760,10 @@ fn fusion_runs(
             config.tracker.sensors = sensors.iter().map(|s| (*s).to_owned()).collect();
             if name == "fused" {
                 config.registration = registration.clone();
+                if let Some(path) = record {
+                    config.recorder.path = path.display().to_string();
+                    config.recorder.flush_ms = 100;
+                }
             }
             config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
             config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
@@ -817,6 +823,42 @@ fn fusion_runs(
     out
 }
 
+/// The recording's `biases` table (RECORDING.md) of the fused server: a row at most every 0.5 s
+/// of scan time and at least every 2 s over the run, each the API's list, the last one the
+/// estimates the server ended with (`last`, taken from its snapshot after the window, so within
+/// a few refreshes of it: within 1 sd).
+fn assert_recorded_biases(db: &std::path::Path, last: &[SensorBiasView]) {
+    let c = rusqlite::Connection::open_with_flags(db, rusqlite::OpenFlags::SQLITE_OPEN_READ_ONLY)
+        .expect("open the recording");
+    let rows: Vec<(f64, String)> = c
+        .prepare("SELECT t, json FROM biases WHERE session = 1 ORDER BY t")
+        .expect("the biases table")
+        .query_map([], |r| Ok((r.get(0)?, r.get(1)?)))
+        .expect("query")
+        .collect::<Result<_, _>>()
+        .expect("rows");
+    let span = rows.last().expect("bias rows").0 - rows[0].0;
+    eprintln!(
+        "fusion: {} rows in the recording's biases table over {span:.1} s of scan time",
+        rows.len()
+    );
+    assert!(span >= WINDOW_S, "{span} s of bias rows");
+    assert!(
+        rows.windows(2).all(|w| w[1].0 - w[0].0 >= 0.5 - 1e-6),
+        "rows closer than 0.5 s"
+    );
+    assert!(rows.len() as f64 >= span / 2.0, "{} rows", rows.len());
+    let recorded: Vec<Value> = serde_json::from_str(&rows.last().expect("a row").1).expect("JSON");
+    assert_eq!(recorded.len(), last.len(), "{recorded:?}");
+    for (r, b) in recorded.iter().zip(last) {
+        assert_eq!((r["vehicle"].as_str(), r["sensor"].as_str()), (Some(b.vehicle.as_str()), Some(b.sensor.as_str())));
+        for (i, t) in b.terms.iter().enumerate() {
+            let v = r["terms"][i]["value"].as_f64().expect("a term's value");
+            assert!((v - t.value).abs() <= t.std, "recorded {v}, API {t:?}");
+        }
+    }
+}
+
 /// The fused track beats the cameras' and the radars' alone, within [`MAX_ERROR_M`].
 fn assert_fusion_wins(pooled: &[Pooled; 3]) {
     let [fused, cameras, radars] = pooled;
@@ -833,7 +875,7 @@ fn assert_fusion_wins(pooled: &[Pooled; 3]) {
 
 #[test]
 fn cameras_and_a_biased_radar_fuse_better_than_either() {
-    let (pooled, biases) = fusion_runs(&fusion_scenario(), &RegistrationConfig::default());
+    let (pooled, biases) = fusion_runs(&fusion_scenario(), &RegistrationConfig::default(), None);
     assert!(biases.is_empty(), "{biases:?}");
     assert_fusion_wins(&pooled);
 }
@@ -868,8 +910,11 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     let registration = RegistrationConfig {
         sensors: vec![radar("1"), radar("2")],
     };
-    let (pooled, biases) = fusion_runs(&scenario, &registration);
+    let dir = tempfile::tempdir().expect("temporary directory");
+    let db = dir.path().join("registration.sqlite");
+    let (pooled, biases) = fusion_runs(&scenario, &registration, Some(&db));
     assert_eq!(biases.len(), 2, "{biases:?}");
+    assert_recorded_biases(&db, &biases);
     for b in &biases {
         eprintln!(
             "fusion: radar {}/{}: {} updates, range offset {:.2} ± {:.2} m, azimuth offset \
