@@ -851,7 +851,10 @@ fn assert_recorded_biases(db: &std::path::Path, last: &[SensorBiasView]) {
     let recorded: Vec<Value> = serde_json::from_str(&rows.last().expect("a row").1).expect("JSON");
     assert_eq!(recorded.len(), last.len(), "{recorded:?}");
     for (r, b) in recorded.iter().zip(last) {
-        assert_eq!((r["vehicle"].as_str(), r["sensor"].as_str()), (Some(b.vehicle.as_str()), Some(b.sensor.as_str())));
+        assert_eq!(
+            (r["vehicle"].as_str(), r["sensor"].as_str()),
+            (Some(b.vehicle.as_str()), Some(b.sensor.as_str()))
+        );
         for (i, t) in b.terms.iter().enumerate() {
             let v = r["terms"][i]["value"].as_f64().expect("a term's value");
             assert!((v - t.value).abs() <= t.std, "recorded {v}, API {t:?}");

@@ -17,19 +17,17 @@
 //! blocking) and the scan's track events on a bounded `broadcast` channel (a slow subscriber
 //! loses events, tracking never waits for it).
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
-use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+use std::collections::{BTreeMap, HashMap};
+use std::sync::{Arc, OnceLock, PoisonError};
 use std::time::Duration;
 
-use harrier_core::detection::GeoPoint;
-use harrier_core::measurement::MeasKind;
 use harrier_core::registration::KnownObject;
 use harrier_core::tracker::TrackEvent;
 use nalgebra::{Matrix3, Vector3};
 use serde::Serialize;
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
-use super::bound::{BoundConfig, BoundView, Bounds};
+use super::bound::{BoundConfig, Bounds};
 use super::gcs::VehicleSample;
 use super::gcs::vehicle::LinkState;
 use super::ingest::ReadyScan;
@@ -86,96 +84,9 @@ impl TrackFilterState {
     }
 }
 
-/// A vehicle as seen in its detections.
-#[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
-pub struct VehicleView {
-    /// Vehicle label (MAVLink system id).
-    pub vehicle: String,
-    /// Time of its last processed scan (the tracker's time line).
-    pub last_t: f64,
-    /// Scans of it processed.
-    pub scans: u64,
-    /// Its sensors seen so far.
-    pub sensors: Vec<String>,
-    /// Platform position at its last scan (ENU, m, in the server's frame).
-    pub position: [f64; 3],
-    /// Platform position at its last scan (WGS-84: `lat_deg`, `lon_deg`, `alt_m`).
-    #[schema(value_type = Object)]
-    pub geodetic: GeoPoint,
-}
+mod view;
 
-/// The engine's state after a scan.
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Snapshot {
-    /// Time of the last processed scan.
-    pub t: Option<f64>,
-    /// Scans processed so far (the `seq` of the last [`ScanEvents`]).
-    pub seq: u64,
-    /// Every live track, in id order.
-    pub tracks: Arc<Vec<TrackView>>,
-    /// Every vehicle seen, by label. Each view is shared with the snapshots before it that it
-    /// did not change: a scan copies one vehicle's view, not the swarm's.
-    pub vehicles: Arc<Vec<Arc<VehicleView>>>,
-    /// The estimator running.
-    pub estimator: Arc<TrackFilterState>,
-    /// The registered sensors' bias estimates (`[registration]`; empty when it is off), as of
-    /// the last refresh (at most every [`BIAS_PERIOD_S`] of scan time).
-    pub biases: Arc<Vec<SensorBiasView>>,
-}
-
-/// One processed scan: what it held and what it did to the tracks.
-#[derive(Debug)]
-pub struct ScanEvents {
-    /// Processed-scan counter, from 1 (a subscriber that sees a gap lost messages).
-    pub seq: u64,
-    /// Scan time.
-    pub t: f64,
-    /// The vehicle label of the scan.
-    pub vehicle: String,
-    /// Sensor id on the vehicle.
-    pub sensor: String,
-    /// Measurement kind.
-    pub kind: MeasKind,
-    /// Sensor (platform) position, ENU.
-    pub platform: [f64; 3],
-    /// The detections, in the server's frame (FORMAT.md §3 layout of `kind`).
-    pub detections: Vec<Vec<f64>>,
-    /// What happened.
-    pub events: Vec<TrackEvent>,
-    /// Every live track after the scan (the actor's list, brought up to date by the scan's
-    /// [`ScanOutcome`]).
-    pub tracks: Arc<Vec<TrackView>>,
-    /// The registered sensors' bias estimates when this scan refreshed them (at most every
-    /// [`BIAS_PERIOD_S`] of scan time), else `None`.
-    pub biases: Option<Arc<Vec<SensorBiasView>>>,
-    /// The WebSocket message, serialised once for every client (`crate::wire::scan_json`).
-    json: OnceLock<String>,
-}
-
-impl ScanEvents {
-    /// The tracks this scan started, confirmed or updated, after the scan: those the WebSocket
-    /// `scan` message carries and the recording keeps. (The scan changed the others too — aged,
-    /// predicted, coasted — but they are not sent: a coasted track keeps its last state on the
-    /// page.)
-    pub fn changed_tracks(&self) -> impl Iterator<Item = &TrackView> {
-        self.tracks
-            .iter()
-            .filter(|k| self.events.iter().any(|e| changes(e, k.id)))
-    }
-
-    /// Where `crate::wire::scan_json` keeps this scan's serialised WebSocket message.
-    pub fn wire_cache(&self) -> &OnceLock<String> {
-        &self.json
-    }
-}
-
-/// Whether `e` changed track `id`'s estimate or status (born, confirmed, updated).
-pub fn changes(e: &TrackEvent, id: u64) -> bool {
-    matches!(e,
-        TrackEvent::Born { id: k, .. }
-        | TrackEvent::Confirmed { id: k }
-        | TrackEvent::Updated { id: k, .. } if *k == id)
-}
+pub use self::view::{Recent, ScanEvents, Snapshot, VehicleView, changes};
 
 /// What the API asks of the tracker.
 #[derive(Debug)]
@@ -201,34 +112,6 @@ pub enum SetError {
     /// The live tracks cannot be handed over to the new estimator.
     #[error("{0}")]
     Handover(String),
-}
-
-/// Shared read access to the recent scans and track histories.
-#[derive(Debug, Default)]
-pub struct Recent {
-    scans: Mutex<VecDeque<Arc<ScanEvents>>>,
-    history: Mutex<HashMap<u64, VecDeque<[f64; 4]>>>,
-    bounds: Mutex<HashMap<u64, BoundView>>,
-}
-
-impl Recent {
-    /// The scans processed after `seq` (at most [`RECENT_SCANS`]), oldest first.
-    pub fn scans_after(&self, seq: u64) -> Vec<Arc<ScanEvents>> {
-        let q = self.scans.lock().unwrap_or_else(PoisonError::into_inner);
-        q.iter().filter(|s| s.seq > seq).cloned().collect()
-    }
-    /// Track `id`'s set-membership bound, when bounds run and it has one.
-    pub fn bound(&self, id: u64) -> Option<BoundView> {
-        let b = self.bounds.lock().unwrap_or_else(PoisonError::into_inner);
-        b.get(&id).cloned()
-    }
-    /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
-    pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
-        let h = self.history.lock().unwrap_or_else(PoisonError::into_inner);
-        h.get(&id)
-            .map(|q| q.iter().copied().collect())
-            .unwrap_or_default()
-    }
 }
 
 /// The tracker actor.
@@ -655,220 +538,4 @@ impl TrackerActor {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::config::{Config, DEFAULT_ORIGIN};
-    use harrier_core::measurement::{Geometry, SensorModel};
-    use harrier_engine::SensorScan;
-    use nalgebra::Vector3;
-
-    fn scan(t: f64, vehicle: &str) -> ReadyScan {
-        let sensor = SensorModel::new(
-            MeasKind::Position,
-            Geometry::planar(0.0),
-            Vector3::zeros(),
-            &[10.0, 10.0],
-            None,
-        )
-        .expect("model");
-        ReadyScan {
-            vehicle: vehicle.into(),
-            sensor: "cam".into(),
-            scan: SensorScan {
-                t,
-                sensor,
-                detections: vec![vec![100.0 + t, 50.0]],
-            },
-            platform: [0.0; 3],
-            geodetic: DEFAULT_ORIGIN,
-            received: std::time::Instant::now(),
-            noise_std: vec![10.0, 10.0],
-        }
-    }
-
-    type Parts = (
-        TrackerActor,
-        Arc<Metrics>,
-        watch::Receiver<Arc<Snapshot>>,
-        broadcast::Receiver<Arc<ScanEvents>>,
-    );
-
-    fn actor(window: f64) -> Parts {
-        let c = Config::default();
-        let deployment = c.deployment();
-        let engine = harrier_engine::registry::build_track_filter("ekf", &deployment, &c.params())
-            .expect("engine");
-        let metrics = Arc::new(Metrics::default());
-        let (snap_tx, snap_rx) = watch::channel(Arc::new(Snapshot::default()));
-        let (ev_tx, ev_rx) = broadcast::channel(16);
-        let a = TrackerActor::new(
-            engine,
-            deployment,
-            TrackFilterState {
-                name: "ekf".into(),
-                associator: "gnn".into(),
-                params: BTreeMap::new(),
-            },
-            window,
-            Arc::clone(&metrics),
-            Arc::new(Recent::default()),
-            snap_tx,
-            ev_tx,
-        );
-        (a, metrics, snap_rx, ev_rx)
-    }
-
-    /// The published tracks, kept from the scans' outcomes, are the engine's snapshot.
-    fn in_step(a: &TrackerActor, snap_rx: &watch::Receiver<Arc<Snapshot>>) {
-        assert_eq!(*snap_rx.borrow().tracks, a.engine.snapshot());
-    }
-
-    #[test]
-    fn scans_are_reordered_within_the_window_and_late_ones_dropped() {
-        let (mut a, metrics, snap_rx, mut ev_rx) = actor(2.0);
-        a.push(scan(0.0, "1")); // a lone source: processed at once
-        assert_eq!(snap_rx.borrow().t, Some(0.0));
-        a.push(scan(0.0, "2")); // a second source, same time: in order
-        assert_eq!(snap_rx.borrow().seq, 2);
-        a.push(scan(1.0, "1")); // waits for source 2 …
-        assert_eq!(snap_rx.borrow().t, Some(0.0));
-        a.push(scan(0.8, "2")); // … which is behind: 0.8 first, 1.0 still waits
-        assert_eq!(snap_rx.borrow().t, Some(0.8));
-        a.push(scan(1.1, "2")); // source 2 caught up: 1.0 goes
-        assert_eq!(snap_rx.borrow().t, Some(1.0));
-        in_step(&a, &snap_rx);
-        let seqs: Vec<_> = std::iter::from_fn(|| ev_rx.try_recv().ok())
-            .map(|e| (e.seq, e.t))
-            .collect();
-        assert_eq!(seqs, [(1, 0.0), (2, 0.0), (3, 0.8), (4, 1.0)]);
-        a.push(scan(2.0, "1")); // 1.1 goes, 2.0 waits for source 2
-        assert_eq!(snap_rx.borrow().t, Some(1.1));
-        a.push(scan(3.5, "1")); // source 2 silent for > 2 s: forgotten, nothing waits for it
-        assert_eq!(snap_rx.borrow().t, Some(3.5));
-        a.push(scan(3.0, "2")); // older than the last processed: late
-        assert_eq!(
-            metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
-            Some(&1)
-        );
-        a.release(f64::INFINITY);
-        in_step(&a, &snap_rx);
-        assert_eq!(snap_rx.borrow().seq, 7);
-        assert_eq!(metrics.scans_ingested(), 7);
-        assert!(!snap_rx.borrow().tracks.is_empty());
-        let vehicles: Vec<_> = snap_rx
-            .borrow()
-            .vehicles
-            .iter()
-            .map(|v| (v.vehicle.clone(), v.scans))
-            .collect();
-        assert_eq!(vehicles, [("1".to_string(), 4), ("2".to_string(), 3)]);
-        assert_eq!(a.recent.scans_after(4).len(), 3);
-        let first = crate::wire::scan_json(&a.recent.scans_after(0)[0]).to_owned();
-        assert!(first.contains(r#""type":"scan""#), "{first}");
-    }
-
-    /// Within the lag, a scan older than the last processed one updates its track by
-    /// retrodiction (the tracks' time stays); beyond it, it is dropped as late.
-    #[test]
-    fn late_scans_within_the_lag_are_retrodicted() {
-        let (a, metrics, snap_rx, mut ev_rx) = actor(0.1);
-        let mut a = a.with_late_lag(2.0);
-        for k in 0..=5 {
-            a.push(scan(f64::from(k), "1"));
-        }
-        assert_eq!(snap_rx.borrow().t, Some(5.0));
-        let before = snap_rx.borrow().tracks[0].clone();
-        while ev_rx.try_recv().is_ok() {}
-        a.push(scan(4.5, "2"));
-        let late = ev_rx.try_recv().expect("the late scan's events");
-        assert!(
-            matches!(late.events[..], [TrackEvent::Updated { id, .. }] if id == before.id),
-            "{:?}",
-            late.events
-        );
-        assert_eq!(late.t, 4.5);
-        assert_eq!(snap_rx.borrow().t, Some(5.0));
-        let after = snap_rx.borrow().tracks[0].clone();
-        assert_eq!(after.t, 5.0);
-        assert_ne!(after.state, before.state);
-        assert_eq!(metrics.vehicle_counters("2").retrodicted, 1);
-        a.push(scan(2.5, "2"));
-        assert_eq!(
-            metrics.vehicle_counters("2").dropped.get(&DropReason::Late),
-            Some(&1)
-        );
-        assert_eq!(metrics.scans_ingested(), 7);
-        in_step(&a, &snap_rx);
-    }
-
-    #[test]
-    fn a_change_of_estimator_keeps_the_tracks() {
-        let (mut a, _, snap_rx, _) = actor(0.0);
-        for k in 0..4 {
-            a.push(scan(f64::from(k), "1"));
-        }
-        a.release(f64::INFINITY);
-        let before = snap_rx.borrow().tracks.clone();
-        assert_eq!(before.len(), 1);
-        let bad = a.set_estimator(TrackFilterState {
-            name: "nonesuch".into(),
-            associator: "gnn".into(),
-            params: BTreeMap::new(),
-        });
-        assert!(
-            matches!(bad, Err(SetError::Invalid(ref m)) if m.contains("nonesuch")),
-            "{bad:?}"
-        );
-        let bad = a.set_estimator(TrackFilterState {
-            name: "cdkf".into(),
-            associator: "gnn".into(),
-            params: BTreeMap::from([("m".to_string(), 0.5)]),
-        });
-        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
-        assert_eq!(snap_rx.borrow().estimator.name, "ekf");
-        let now = a
-            .set_estimator(TrackFilterState {
-                name: "cdkf".into(),
-                associator: "gnn".into(),
-                params: BTreeMap::new(),
-            })
-            .expect("cdkf");
-        assert_eq!(now.name, "cdkf");
-        let after = snap_rx.borrow().tracks.clone();
-        in_step(&a, &snap_rx);
-        assert_eq!(snap_rx.borrow().estimator.name, "cdkf");
-        assert_eq!(after.len(), 1);
-        assert_eq!(
-            (after[0].id, after[0].status),
-            (before[0].id, before[0].status)
-        );
-        assert_eq!(after[0].state, before[0].state);
-        a.push(scan(4.0, "1"));
-        a.release(f64::INFINITY);
-        in_step(&a, &snap_rx);
-        let k = snap_rx.borrow().tracks[0].clone();
-        assert_eq!((k.id, k.updated), (before[0].id, true));
-        assert_eq!(k.existence, None);
-        // The associator too: the track keeps its id and gets an existence.
-        let now = a
-            .set_estimator(TrackFilterState {
-                name: "cdkf".into(),
-                associator: "jipda".into(),
-                params: BTreeMap::new(),
-            })
-            .expect("cdkf + jipda");
-        assert_eq!(now.associator, "jipda");
-        a.push(scan(5.0, "1"));
-        a.release(f64::INFINITY);
-        in_step(&a, &snap_rx);
-        let k = snap_rx.borrow().tracks[0].clone();
-        assert_eq!((k.id, k.updated), (before[0].id, true));
-        assert!(k.existence.is_some_and(|p| p > 0.5), "{k:?}");
-        let bad = a.set_estimator(TrackFilterState {
-            name: "cdkf".into(),
-            associator: "nonesuch".into(),
-            params: BTreeMap::new(),
-        });
-        assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
-    }
-}
+mod tests;
