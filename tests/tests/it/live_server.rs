@@ -37,7 +37,8 @@ use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::{BiasModel, CameraOutput, Pointing, SensorType, SimScenario};
 use harrier_tests::{
-    SimProcess, free_tcp_port, open_session, publish_standing_target, runtime, targets_at, within,
+    SimProcess, free_tcp_port, open_session, publish_standing_target, python_json, runtime,
+    targets_at, within,
 };
 use http_body_util::BodyExt as _;
 use hyper_util::rt::TokioIo;
@@ -722,12 +723,13 @@ const FUSION_RUNS: [(&str, &[&str]); 3] = [
 /// every sensor (`fused`, whose configuration `registration` completes), the cameras only and
 /// the radars only ([`FUSION_RUNS`]): the position errors each pooled over [`WINDOW_S`] after
 /// [`WARMUP_S`] on station, and the fused server's bias estimates at the end. With `record`, the
-/// fused server records its session into that SQLite file.
+/// fused server records its session into that SQLite file; with registration, what the page's
+/// "Sensor biases" panel showed in headless Chromium (`tests/python/biases_panel.py`).
 fn fusion_runs(
     scenario: &SimScenario,
     registration: &RegistrationConfig,
     record: Option<&std::path::Path>,
-) -> ([Pooled; 3], Vec<SensorBiasView>) {
+) -> ([Pooled; 3], Vec<SensorBiasView>, Option<Value>) {
     let started = Instant::now();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
     let mut world = WorldConfig::new(SensorLoopConfig {
@@ -799,11 +801,24 @@ fn fusion_runs(
             }
         }
         let biases = servers[0].snapshot().borrow().biases.to_vec();
+        // With registration, the page's "Sensor biases" panel in a real browser, live.
+        let page = if registration.sensors.is_empty() {
+            None
+        } else {
+            let url = format!("http://{}", servers[0].local_addr());
+            Some(
+                tokio::task::spawn_blocking(move || {
+                    python_json("biases_panel.py", &[&url], Duration::from_secs(60))
+                })
+                .await
+                .expect("the browser"),
+            )
+        };
         within(10, "close", session.close()).await.expect("close");
         for server in servers {
             within(10, "shutdown", server.shutdown()).await;
         }
-        (pooled, biases)
+        (pooled, biases, page)
     }));
     world.stop();
 
@@ -862,6 +877,66 @@ fn assert_recorded_biases(db: &std::path::Path, last: &[SensorBiasView]) {
     }
 }
 
+/// The page's "Sensor biases" panel (`tests/python/biases_panel.py`'s report): visible, no
+/// console error, a row per sensor of the API's list (`vehicle/sensor`, kind, updates) and a row
+/// per term whose value ± sd, read back in SI units, lies between the API's values read just
+/// before and just after (widened by the display's rounding and one sd).
+fn assert_biases_panel(report: &Value) {
+    eprintln!("fusion: the page's panel: {}", report["rows"]);
+    assert_eq!(report["visible"], true, "{report}");
+    assert_eq!(report["errors"], serde_json::json!([]), "{report}");
+    let rows = report["rows"].as_array().expect("rows");
+    let before = report["before"].as_array().expect("the API's list");
+    let after = report["after"].as_array().expect("the API's list");
+    assert_eq!(before.len(), 2, "{report}");
+    for (b, a) in before.iter().zip(after) {
+        let label = format!(
+            "{}/{}",
+            b["vehicle"].as_str().expect("vehicle"),
+            b["sensor"].as_str().expect("sensor")
+        );
+        let at = rows
+            .iter()
+            .position(|r| r[0] == "sensor" && r[1] == label.as_str())
+            .unwrap_or_else(|| panic!("no row for {label}: {report}"));
+        let text = rows[at][2].as_str().expect("text");
+        assert!(
+            text.starts_with("range_bearing · ") && text.contains(" updates · "),
+            "{text}"
+        );
+        let terms = b["terms"].as_array().expect("terms");
+        for (i, t) in terms.iter().enumerate() {
+            let row = &rows[at + 1 + i];
+            assert_eq!(row[0], "term", "{report}");
+            assert_eq!(
+                row[1].as_str().map(str::trim),
+                t["term"].as_str(),
+                "{report}"
+            );
+            // "5.10 ± 0.36 m · yes" or "4.80 ± 0.64 mrad · yes".
+            let text = row[2].as_str().expect("text");
+            let words: Vec<&str> = text.split_whitespace().collect();
+            let scale = match words.get(3) {
+                Some(&"m") => 1.0,
+                Some(&"mrad") => 1e-3,
+                other => panic!("unit {other:?} in {text}"),
+            };
+            let shown: f64 = words[0].parse().expect("a number");
+            let value = shown * scale;
+            let (v0, v1) = (
+                t["value"].as_f64().expect("value"),
+                a["terms"][i]["value"].as_f64().expect("value"),
+            );
+            let slack = 0.05 * scale + t["std"].as_f64().expect("std");
+            assert!(
+                value >= v0.min(v1) - slack && value <= v0.max(v1) + slack,
+                "{label} {}: the page shows {text}, the API {v0} then {v1}",
+                t["term"]
+            );
+        }
+    }
+}
+
 /// The fused track beats the cameras' and the radars' alone, within [`MAX_ERROR_M`].
 fn assert_fusion_wins(pooled: &[Pooled; 3]) {
     let [fused, cameras, radars] = pooled;
@@ -878,7 +953,7 @@ fn assert_fusion_wins(pooled: &[Pooled; 3]) {
 
 #[test]
 fn cameras_and_a_biased_radar_fuse_better_than_either() {
-    let (pooled, biases) = fusion_runs(&fusion_scenario(), &RegistrationConfig::default(), None);
+    let (pooled, biases, _) = fusion_runs(&fusion_scenario(), &RegistrationConfig::default(), None);
     assert!(biases.is_empty(), "{biases:?}");
     assert_fusion_wins(&pooled);
 }
@@ -916,9 +991,10 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     };
     let dir = tempfile::tempdir().expect("temporary directory");
     let db = dir.path().join("registration.sqlite");
-    let (pooled, biases) = fusion_runs(&scenario, &registration, Some(&db));
+    let (pooled, biases, page) = fusion_runs(&scenario, &registration, Some(&db));
     assert_eq!(biases.len(), 2, "{biases:?}");
     assert_recorded_biases(&db, &biases);
+    assert_biases_panel(&page.expect("the page's panel"));
     for b in &biases {
         eprintln!(
             "fusion: radar {}/{}: {} updates, range offset {:.2} ± {:.2} m, azimuth offset \
