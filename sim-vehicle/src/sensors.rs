@@ -309,6 +309,10 @@ impl SensorState {
             SensorType::Radar { .. } => -1.0,
         };
         let (scale, offset) = self.bias(t);
+        let [m_az, m_el] = match &self.spec.model {
+            SensorType::Camera { mounting_deg, .. } => mounting_deg.map(f64::to_radians),
+            SensorType::Radar { .. } => [0.0, 0.0],
+        };
         let std = &self.spec.noise_std;
         let mut found: Vec<(Detection, Option<usize>)> = Vec::new();
         for (i, p) in truths.iter().enumerate() {
@@ -339,8 +343,8 @@ impl SensorState {
                 MeasKind::AzEl => {
                     let h = AzEl::new(g, sensor, [std[0], std[1]]).function(&x);
                     vec![
-                        wrap_angle(h[0] + std[0] * n[0]),
-                        (h[1] + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
+                        wrap_angle(h[0] + m_az + std[0] * n[0]),
+                        (h[1] + m_el + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
                     ]
                 }
                 MeasKind::BearingSize => {
@@ -348,8 +352,8 @@ impl SensorState {
                     let h =
                         BearingSize::new(g, sensor, size, [std[0], std[1], std[2]]).function(&x);
                     vec![
-                        wrap_angle(h[0] + std[0] * n[0]),
-                        (h[1] + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
+                        wrap_angle(h[0] + m_az + std[0] * n[0]),
+                        (h[1] + m_el + std[1] * n[1]).clamp(-FRAC_PI_2, FRAC_PI_2),
                         h[2] + std[2] * n[2],
                     ]
                 }

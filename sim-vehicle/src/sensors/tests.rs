@@ -66,6 +66,7 @@ fn camera(output: CameraOutput, fov_deg: f64, pointing: Pointing, noise: Vec<f64
             output,
             fov_deg,
             pointing,
+            mounting_deg: [0.0, 0.0],
         },
     }
 }
@@ -426,5 +427,44 @@ fn a_roi_camera_looks_along_the_gimbal() {
         sources(&mut suite, 2),
         vec![Some(1)],
         "a bad direction: nadir"
+    );
+}
+
+#[test]
+fn a_mounting_error_shifts_the_camera_angles() {
+    // A camera 100 m up looking East at (100, 0): azimuth 90°, elevation −45°.
+    let mut cam = camera(
+        CameraOutput::AzEl,
+        20.0,
+        Pointing::Track { target: 0 },
+        vec![1e-4, 1e-4],
+    );
+    let mean = |cam: SensorSpec| {
+        let s = scenario(vec![still("east", 100.0, 0.0)], cam);
+        let scans = run(&s, &pose([0.0, 0.0, 100.0], 0.0), 100, 3);
+        let n = scans.len() as f64;
+        let sum = scans.iter().fold([0.0, 0.0], |a, l| {
+            let z = &l.scan.detections[0].z;
+            [a[0] + z[0], a[1] + z[1]]
+        });
+        [sum[0] / n, sum[1] / n]
+    };
+    let clean = mean(cam.clone());
+    if let SensorType::Camera { mounting_deg, .. } = &mut cam.model {
+        *mounting_deg = [0.5, -0.3];
+    }
+    let mounted = mean(cam);
+    assert!((clean[0] - FRAC_PI_2).abs() < 1e-4, "{clean:?}");
+    assert!(
+        (clean[1] + std::f64::consts::FRAC_PI_4).abs() < 1e-4,
+        "{clean:?}"
+    );
+    assert!(
+        ((mounted[0] - clean[0]).to_degrees() - 0.5).abs() < 1e-3,
+        "{mounted:?}"
+    );
+    assert!(
+        ((mounted[1] - clean[1]).to_degrees() + 0.3).abs() < 1e-3,
+        "{mounted:?}"
     );
 }

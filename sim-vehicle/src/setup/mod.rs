@@ -196,6 +196,11 @@ pub enum SensorType {
         fov_deg: f64,
         /// Where the boresight points.
         pointing: Pointing,
+        /// A mounting error: `[azimuth, elevation]` (degrees) added to every `az_el` and
+        /// `bearing_size` angle it reports (the constant offsets registration estimates; default
+        /// none).
+        #[serde(default)]
+        mounting_deg: [f64; 2],
     },
     /// Radar: `range_bearing`, all around, with an optional bias (\[ICDKF\] eq. (9)).
     Radar {

@@ -170,10 +170,16 @@ impl SimScenario {
             }
             match &s.model {
                 SensorType::Camera {
-                    fov_deg, pointing, ..
+                    fov_deg,
+                    pointing,
+                    mounting_deg,
+                    ..
                 } => {
                     if !(*fov_deg > 0.0 && *fov_deg < 180.0) {
                         return Err(at("fov_deg must be in (0, 180)"));
+                    }
+                    if !mounting_deg.iter().all(|d| d.abs() <= 10.0) {
+                        return Err(at("mounting_deg must be within ±10 degrees"));
                     }
                     match pointing {
                         Pointing::Fixed {

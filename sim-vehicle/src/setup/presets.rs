@@ -105,6 +105,7 @@ fn cimm_road() -> SimScenario {
                 output: CameraOutput::Position,
                 fov_deg: 30.0,
                 pointing: Pointing::Track { target: 0 },
+                mounting_deg: [0.0, 0.0],
             },
         }],
         vehicles: VehicleSpec {
@@ -174,6 +175,7 @@ fn leader() -> SimScenario {
                 output: CameraOutput::BearingSize,
                 fov_deg: 40.0,
                 pointing: Pointing::Track { target: 0 },
+                mounting_deg: [0.0, 0.0],
             },
         }],
         vehicles: VehicleSpec {
@@ -287,6 +289,7 @@ fn crossing() -> SimScenario {
                 output: CameraOutput::AzEl,
                 fov_deg: 90.0,
                 pointing: Pointing::Nadir,
+                mounting_deg: [0.0, 0.0],
             },
         }],
         vehicles: VehicleSpec {

@@ -661,6 +661,7 @@ fn fusion_scenario() -> SimScenario {
         output: CameraOutput::AzEl,
         fov_deg: 30.0,
         pointing: Pointing::Track { target: 0 },
+        mounting_deg: [0.0, 0.0],
     };
     let mut radar = cam.clone();
     radar.id = "radar".into();
@@ -1355,4 +1356,69 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
         let _ = session.close().await;
         server.shutdown().await;
     }));
+}
+
+/// Camera mounting errors (issue 21), live: 0.5° in azimuth and in elevation on the `az_el`
+/// camera (4 mrad) of both UAVs, unbiased radars. With both cameras registered (constant
+/// offsets, prior sd 0.02 rad) each camera's offsets are estimated within 0.05° of the sim's
+/// (measured: 0.506 / 0.494° and 0.517 / 0.486°, sd 0.015–0.023°). The fused track's error is
+/// 1.91 m against 1.18 m in the same world without mounting errors (nor registration), and the
+/// unregistered cameras alone 14.9 m: issue 21 asks for within 10 % of the clean run, not
+/// reached (1.62 ×); the test asserts at most 2 ×.
+#[test]
+fn camera_mounting_errors_are_learnt_live() {
+    let mut clean = fusion_scenario();
+    clean.sensors[0].noise_std = vec![0.004, 0.004];
+    clean.sensors[1].model = SensorType::Radar {
+        bias: BiasModel::None,
+    };
+    let mounting = [0.5, 0.5];
+    let mut mounted = clean.clone();
+    if let SensorType::Camera { mounting_deg, .. } = &mut mounted.sensors[0].model {
+        *mounting_deg = mounting;
+    }
+    let camera = |vehicle: &str| RegistrationSensor {
+        vehicle: vehicle.into(),
+        sensor: "cam".into(),
+        kind: MeasKind::AzEl,
+        bias: Some(serde_json::json!({"offset": [
+            {"model": "constant", "std": 0.02},
+            {"model": "constant", "std": 0.02},
+        ]})),
+    };
+    let registration = RegistrationConfig {
+        sensors: vec![camera("1"), camera("2")],
+    };
+    let (base, _, _) = fusion_runs(&clean, &RegistrationConfig::default(), None);
+    let (pooled, biases, _) = fusion_runs(&mounted, &registration, None);
+    assert_eq!(biases.len(), 2, "{biases:?}");
+    for b in &biases {
+        eprintln!(
+            "mounting: camera {}/{}: {} updates, azimuth offset {:.3} ± {:.3}°, elevation offset \
+             {:.3} ± {:.3}° (sim: {}°, {}°)",
+            b.vehicle,
+            b.sensor,
+            b.updates,
+            b.terms[0].value.to_degrees(),
+            b.terms[0].std.to_degrees(),
+            b.terms[1].value.to_degrees(),
+            b.terms[1].std.to_degrees(),
+            mounting[0],
+            mounting[1]
+        );
+        for (t, truth) in b.terms.iter().zip(mounting) {
+            assert!((t.value.to_degrees() - truth).abs() <= 0.05, "{b:?}");
+        }
+    }
+    let (fused, clean_fused) = (pooled[0].rmse(), base[0].rmse());
+    eprintln!("mounting: fused RMSE {fused:.2} m, without mounting errors {clean_fused:.2} m");
+    assert!(
+        pooled[0].n > 0 && pooled[0].missed <= pooled[0].n / 20,
+        "{:?}",
+        pooled[0]
+    );
+    assert!(
+        fused <= 2.0 * clean_fused,
+        "fused {fused:.2} m, clean {clean_fused:.2} m"
+    );
 }
