@@ -46,7 +46,7 @@ pub struct Snapshot {
     /// The estimator running.
     pub estimator: Arc<TrackFilterState>,
     /// The registered sensors' bias estimates (`[registration]`; empty when it is off), as of
-    /// the last refresh (at most every [`BIAS_PERIOD_S`] of scan time).
+    /// the last refresh (at most every [`BIAS_PERIOD_S`](super::BIAS_PERIOD_S) of scan time).
     pub biases: Arc<Vec<SensorBiasView>>,
 }
 
@@ -70,10 +70,10 @@ pub struct ScanEvents {
     /// What happened.
     pub events: Vec<TrackEvent>,
     /// Every live track after the scan (the actor's list, brought up to date by the scan's
-    /// [`ScanOutcome`]).
+    /// [`ScanOutcome`](harrier_engine::ScanOutcome)).
     pub tracks: Arc<Vec<TrackView>>,
     /// The registered sensors' bias estimates when this scan refreshed them (at most every
-    /// [`BIAS_PERIOD_S`] of scan time), else `None`.
+    /// [`BIAS_PERIOD_S`](super::BIAS_PERIOD_S) of scan time), else `None`.
     pub biases: Option<Arc<Vec<SensorBiasView>>>,
     /// The WebSocket message, serialised once for every client (`crate::wire::scan_json`).
     pub(super) json: OnceLock<String>,
@@ -113,7 +113,7 @@ pub struct Recent {
 }
 
 impl Recent {
-    /// The scans processed after `seq` (at most [`RECENT_SCANS`]), oldest first.
+    /// The scans processed after `seq` (at most [`RECENT_SCANS`](super::RECENT_SCANS)), oldest first.
     pub fn scans_after(&self, seq: u64) -> Vec<Arc<ScanEvents>> {
         let q = self.scans.lock().unwrap_or_else(PoisonError::into_inner);
         q.iter().filter(|s| s.seq > seq).cloned().collect()
@@ -123,7 +123,7 @@ impl Recent {
         let b = self.bounds.lock().unwrap_or_else(PoisonError::into_inner);
         b.get(&id).cloned()
     }
-    /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`] updates), oldest first.
+    /// The `[t, x, y, z]` history of track `id` (the last [`HISTORY_LEN`](super::HISTORY_LEN) updates), oldest first.
     pub fn history(&self, id: u64) -> Vec<[f64; 4]> {
         let h = self.history.lock().unwrap_or_else(PoisonError::into_inner);
         h.get(&id)
