@@ -199,7 +199,7 @@ pub enum SensorType {
         /// A mounting error: `[azimuth, elevation]` (degrees) added to every `az_el` and
         /// `bearing_size` angle it reports (the constant offsets registration estimates; default
         /// none).
-        #[serde(default)]
+        #[serde(default, skip_serializing_if = "no_mounting")]
         mounting_deg: [f64; 2],
     },
     /// Radar: `range_bearing`, all around, with an optional bias (\[ICDKF\] eq. (9)).
@@ -208,6 +208,11 @@ pub enum SensorType {
         #[serde(default)]
         bias: BiasModel,
     },
+}
+
+/// A camera without a mounting error (its `mounting_deg` left out of the file).
+fn no_mounting(m: &[f64; 2]) -> bool {
+    *m == [0.0, 0.0]
 }
 
 /// What a camera reports.
