@@ -878,6 +878,20 @@ fn assert_recorded_biases(db: &std::path::Path, last: &[SensorBiasView]) {
     }
 }
 
+/// Sensor `sensor` of `vehicle` registered with constant offsets of prior sd `std` on its two
+/// measurement components.
+fn registered(vehicle: &str, sensor: &str, kind: MeasKind, std: [f64; 2]) -> RegistrationSensor {
+    RegistrationSensor {
+        vehicle: vehicle.into(),
+        sensor: sensor.into(),
+        kind,
+        bias: Some(serde_json::json!({"offset": [
+            {"model": "constant", "std": std[0]},
+            {"model": "constant", "std": std[1]},
+        ]})),
+    }
+}
+
 /// The page's "Sensor biases" panel (`tests/python/biases_panel.py`'s report): visible, no
 /// console error, a row per sensor of the API's list (`vehicle/sensor`, kind, updates) and a row
 /// per term whose value ± sd, read back in SI units, lies between the API's values read just
@@ -978,17 +992,10 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
             offset: bias,
         },
     };
-    let radar = |vehicle: &str| RegistrationSensor {
-        vehicle: vehicle.into(),
-        sensor: "radar".into(),
-        kind: MeasKind::RangeBearing,
-        bias: Some(serde_json::json!({"offset": [
-            {"model": "constant", "std": 10.0},
-            {"model": "constant", "std": 0.01},
-        ]})),
-    };
     let registration = RegistrationConfig {
-        sensors: vec![radar("1"), radar("2")],
+        sensors: ["1", "2"]
+            .map(|v| registered(v, "radar", MeasKind::RangeBearing, [10.0, 0.01]))
+            .to_vec(),
     };
     let dir = tempfile::tempdir().expect("temporary directory");
     let db = dir.path().join("registration.sqlite");
@@ -1377,17 +1384,10 @@ fn camera_mounting_errors_are_learnt_live() {
     if let SensorType::Camera { mounting_deg, .. } = &mut mounted.sensors[0].model {
         *mounting_deg = mounting;
     }
-    let camera = |vehicle: &str| RegistrationSensor {
-        vehicle: vehicle.into(),
-        sensor: "cam".into(),
-        kind: MeasKind::AzEl,
-        bias: Some(serde_json::json!({"offset": [
-            {"model": "constant", "std": 0.02},
-            {"model": "constant", "std": 0.02},
-        ]})),
-    };
     let registration = RegistrationConfig {
-        sensors: vec![camera("1"), camera("2")],
+        sensors: ["1", "2"]
+            .map(|v| registered(v, "cam", MeasKind::AzEl, [0.02, 0.02]))
+            .to_vec(),
     };
     let (base, _, _) = fusion_runs(&clean, &RegistrationConfig::default(), None);
     let (pooled, biases, _) = fusion_runs(&mounted, &registration, None);
