@@ -723,9 +723,10 @@ const FUSION_RUNS: [(&str, &[&str]); 3] = [
 /// Three servers on one simulated world of `scenario` (two UAVs on station), tracking from
 /// every sensor (`fused`, whose configuration `registration` completes), the cameras only and
 /// the radars only ([`FUSION_RUNS`]): the position errors each pooled over [`WINDOW_S`] after
-/// [`WARMUP_S`] on station, and the fused server's bias estimates at the end. With `record`, the
-/// fused server records its session into that SQLite file; with registration, what the page's
-/// "Sensor biases" panel showed in headless Chromium (`tests/python/biases_panel.py`).
+/// [`WARMUP_S`] on station, and the fused server's bias estimates at the end. With `record`
+/// (a registered run), the fused server records its session into that SQLite file and the
+/// report of its page's "Sensor biases" panel in headless Chromium
+/// (`tests/python/biases_panel.py`) is returned.
 fn fusion_runs(
     scenario: &SimScenario,
     registration: &RegistrationConfig,
@@ -802,18 +803,19 @@ fn fusion_runs(
             }
         }
         let biases = servers[0].snapshot().borrow().biases.to_vec();
-        // With registration, the page's "Sensor biases" panel in a real browser, live.
-        let page = if registration.sensors.is_empty() {
-            None
-        } else {
-            let url = format!("http://{}", servers[0].local_addr());
-            Some(
-                tokio::task::spawn_blocking(move || {
-                    python_json("biases_panel.py", &[&url], Duration::from_secs(60))
-                })
-                .await
-                .expect("the browser"),
-            )
+        // The page's "Sensor biases" panel in a real browser, live.
+        let page = match record {
+            None => None,
+            Some(_) => {
+                let url = format!("http://{}", servers[0].local_addr());
+                Some(
+                    tokio::task::spawn_blocking(move || {
+                        python_json("biases_panel.py", &[&url], Duration::from_secs(60))
+                    })
+                    .await
+                    .expect("the browser"),
+                )
+            }
         };
         within(10, "close", session.close()).await.expect("close");
         for server in servers {
