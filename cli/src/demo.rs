@@ -7,7 +7,8 @@
 //! MAVLink to the service's GCS link (`--gcs`, PX4's UDP 14550). The service tracks with the
 //! preset's road and motion models (CIMM by default); once a track is confirmed, the demo assigns
 //! every UAV to the slowest one with TOGVF and phase spacing (`--radius`, `--height`), and the
-//! guidance loop arms them, takes them off and flies the standoff. [`run`] is the command: it
+//! guidance loop arms them, takes them off and flies the standoff; when the tracker deletes that
+//! track, the demo assigns them again. [`run`] is the command: it
 //! starts the demo, prints where to point a browser and waits for Ctrl-C.
 
 use std::net::SocketAddr;
@@ -290,7 +291,8 @@ pub struct Demo {
     server: LiveServer,
     world: SimWorld,
     endpoints: Vec<String>,
-    /// Assigns the UAVs once they are on station and a track is confirmed.
+    /// Assigns the UAVs once they are on station and a track is confirmed, and again when the
+    /// tracker deletes that track.
     assigner: Option<tokio::task::JoinHandle<()>>,
 }
 
@@ -487,7 +489,7 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         "simulated world started"
     );
     let assigner = (!config.no_assign).then(|| {
-        tokio::spawn(assign_when_ready(
+        tokio::spawn(keep_assigned(
             server.guidance().cloned(),
             server.link().cloned(),
             server.snapshot(),
@@ -520,10 +522,11 @@ impl DemoConfig {
     }
 }
 
-/// Waits until every UAV is heard on the GCS link (on the ground at home) and a track is
-/// confirmed, then assigns all
-/// UAVs to the slowest confirmed track with TOGVF and phase spacing.
-async fn assign_when_ready(
+/// Keeps the demo's UAVs assigned: [`assign_when_ready`], then, when that assignment ends
+/// because its track was deleted (the tracker gave it up: a car lost from sight, or a ghost of the
+/// cameras' bearings confirmed for a few scans), assigns them again the same way. An assignment
+/// the operator ended is left ended.
+async fn keep_assigned(
     guidance: Option<harrier_server::guidance::Guidance>,
     link: Option<harrier_server::gcs::GcsLink>,
     mut snapshot: tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
@@ -535,9 +538,52 @@ async fn assign_when_ready(
         return;
     };
     loop {
-        if snapshot.changed().await.is_err() {
+        let Some(id) = assign_when_ready(&guidance, &link, &mut snapshot, n, radius, height).await
+        else {
             return;
+        };
+        let mut views = guidance.assignments.clone();
+        loop {
+            let ended = views
+                .borrow_and_update()
+                .iter()
+                .find(|a| a.id == id)
+                .map(|a| a.ended_reason.clone());
+            match ended {
+                Some(Some(reason)) if reason == harrier_server::guidance::ENDED_BY_OPERATOR => {
+                    return;
+                }
+                Some(Some(reason)) => {
+                    tracing::warn!(
+                        assignment = id,
+                        reason,
+                        "demo: assignment ended; assigning the UAVs again"
+                    );
+                    break;
+                }
+                _ => {
+                    if views.changed().await.is_err() {
+                        return;
+                    }
+                }
+            }
         }
+    }
+}
+
+/// Waits until every UAV is heard on the GCS link and a track is confirmed, then assigns all
+/// UAVs to the slowest confirmed track with TOGVF and phase spacing: the assignment's id, `None`
+/// once the service stops.
+async fn assign_when_ready(
+    guidance: &harrier_server::guidance::Guidance,
+    link: &harrier_server::gcs::GcsLink,
+    snapshot: &mut tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
+    n: u8,
+    radius: f64,
+    height: f64,
+) -> Option<u64> {
+    loop {
+        snapshot.changed().await.ok()?;
         let heard = link
             .vehicles
             .borrow()
@@ -574,8 +620,9 @@ async fn assign_when_ready(
                     track,
                     "demo: UAVs assigned to standoff-track"
                 );
-                return;
+                return Some(a.id);
             }
+            Err(harrier_server::guidance::AssignError::Stopped) => return None,
             Err(e) => tracing::warn!("demo: assignment refused ({e}); retrying"),
         }
     }

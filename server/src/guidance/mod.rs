@@ -39,6 +39,6 @@ pub mod plan;
 pub use self::actor::start;
 pub use self::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
 pub use self::plan::{
-    AssignmentRequest, AssignmentState, AssignmentView, GuidanceSettings, Law, OrbitDirection,
-    SlotState, SlotView,
+    AssignmentRequest, AssignmentState, AssignmentView, ENDED_BY_OPERATOR, GuidanceSettings, Law,
+    OrbitDirection, SlotState, SlotView,
 };

@@ -151,6 +151,10 @@ pub enum AssignmentState {
     Ended,
 }
 
+/// The `ended_reason` of an assignment the operator ended (through the API); any other reason
+/// is the service's (its track was deleted).
+pub const ENDED_BY_OPERATOR: &str = "ended by the operator";
+
 /// Where one vehicle of an assignment is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
 #[serde(rename_all = "snake_case")]

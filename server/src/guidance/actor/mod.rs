@@ -22,8 +22,8 @@ use super::formation::FormationState;
 use super::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
 use super::handoff::{Handoff, airborne};
 use super::plan::{
-    AssignmentRequest, AssignmentState, AssignmentView, GuidanceSettings, Law, Plan, SlotState,
-    SlotView,
+    AssignmentRequest, AssignmentState, AssignmentView, ENDED_BY_OPERATOR, GuidanceSettings, Law,
+    Plan, SlotState, SlotView,
 };
 use crate::clock::unix_now;
 use crate::gcs::transport::stopped;
@@ -311,7 +311,7 @@ impl Actor {
                 self.publish();
             }
             GuidanceRequest::End(id, reply) => {
-                let v = self.end(id, "ended by the operator".into());
+                let v = self.end(id, ENDED_BY_OPERATOR.into());
                 let _ = reply.send(v);
                 self.publish();
             }
