@@ -187,7 +187,8 @@ impl SensorSuite {
             let (detections, sources) = s.detect(t, pose, &truths, sizes, plane_z, gimbal);
             let scan = DetectionScan {
                 schema: DETECTIONS_SCHEMA.into(),
-                t,
+                // Taken at t, stamped with the sensor's time offset.
+                t: t + s.spec.time_offset_s,
                 time_unix: None,
                 vehicle: vehicle_id,
                 seq: s.seq,

@@ -60,6 +60,7 @@ fn camera(output: CameraOutput, fov_deg: f64, pointing: Pointing, noise: Vec<f64
         rate_hz: 10.0,
         pd: 1.0,
         clutter_rate: 0.0,
+        time_offset_s: 0.0,
         max_range_m: 1000.0,
         noise_std: noise,
         model: SensorType::Camera {
@@ -130,6 +131,7 @@ fn field_of_view_and_range_limit_detections() {
         rate_hz: 1.0,
         pd: 1.0,
         clutter_rate: 0.0,
+        time_offset_s: 0.0,
         max_range_m: 1500.0,
         noise_std: vec![5.0, 0.005],
         model: SensorType::Radar {
@@ -288,6 +290,7 @@ fn radar_run(bias: BiasModel, scans: usize) -> Vec<[f64; 2]> {
         rate_hz: 1.0,
         pd: 1.0,
         clutter_rate: 0.0,
+        time_offset_s: 0.0,
         max_range_m: 20_000.0,
         noise_std: vec![1e-6, 1e-9],
         model: SensorType::Radar { bias },
@@ -467,4 +470,38 @@ fn a_mounting_error_shifts_the_camera_angles() {
         ((mounted[1] - clean[1]).to_degrees() + 0.3).abs() < 1e-3,
         "{mounted:?}"
     );
+}
+
+#[test]
+fn a_time_offset_stamps_the_same_scans_later() {
+    let mut cam = camera(
+        CameraOutput::AzEl,
+        20.0,
+        Pointing::Track { target: 0 },
+        vec![1e-3, 1e-3],
+    );
+    let scans = |cam: SensorSpec| {
+        let s = scenario(vec![still("east", 100.0, 0.0)], cam);
+        let world = World::new(&s, 3).expect("world");
+        let mut suite = SensorSuite::new(&s, 3, 1).expect("suite");
+        (0..20)
+            .flat_map(|k| {
+                let t = k as f64 / s.sensors[0].rate_hz;
+                suite.scan(t, 1, &pose([0.0, 0.0, 100.0], 0.0), ORIGIN, &world)
+            })
+            .collect::<Vec<_>>()
+    };
+    let clean = scans(cam.clone());
+    cam.time_offset_s = 0.2;
+    let late = scans(cam);
+    assert_eq!(clean.len(), 20);
+    assert_eq!(late.len(), clean.len());
+    for (c, l) in clean.iter().zip(&late) {
+        assert!((l.t - c.t - 0.2).abs() < 1e-12, "{} vs {}", l.t, c.t);
+        assert_eq!(
+            l.detections, c.detections,
+            "the same world, seen at the same time"
+        );
+        assert_eq!(l.platform, c.platform);
+    }
 }

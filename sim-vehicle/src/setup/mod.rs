@@ -177,8 +177,18 @@ pub struct SensorSpec {
     pub max_range_m: f64,
     /// Gaussian noise std of each measured component (units of `z`, FORMAT.md §3).
     pub noise_std: Vec<f64>,
+    /// A time offset δ (s): each scan, taken at `t`, is stamped `t + δ` (a latency: the scan
+    /// stamped `t` shows the world at `t − δ`, the time offset registration estimates; default
+    /// none).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub time_offset_s: f64,
     /// Camera or radar.
     pub model: SensorType,
+}
+
+/// A sensor without a time offset (its `time_offset_s` left out of the file).
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// What a [`SensorSpec`] is — a camera or a radar — with the settings of its type (a sensor's

@@ -160,6 +160,9 @@ impl SimScenario {
             if !s.noise_std.iter().all(|v| v.is_finite() && *v > 0.0) {
                 return Err(at("noise_std must be finite and > 0"));
             }
+            if !(s.time_offset_s.abs() <= 5.0) {
+                return Err(at("time_offset_s must be within ±5 s"));
+            }
             let n = s.kind().len(Some(2));
             if s.noise_std.len() != n {
                 return Err(at(&format!(
@@ -330,6 +333,11 @@ mod tests {
         assert!(e.contains("targets[0] (tgt)") && e.contains("road9"), "{e}");
         let e = parse_err(&good.replace("\"fov_deg\": 30.0", "\"fov_deg\": 200.0"));
         assert!(e.contains("fov_deg must be in (0, 180)"), "{e}");
+        let e = parse_err(&good.replace(
+            "\"clutter_rate\": 0.0,",
+            "\"clutter_rate\": 0.0, \"time_offset_s\": 9.0,",
+        ));
+        assert!(e.contains("time_offset_s must be within ±5 s"), "{e}");
         let e = parse_err(&good.replace("10.0,\n        10.0", "10.0"));
         assert!(e.contains("noise_std has 1 components"), "{e}");
         let e = SimScenario::load("/nonexistent/x.json").expect_err("missing");

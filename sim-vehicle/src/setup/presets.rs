@@ -99,6 +99,7 @@ fn cimm_road() -> SimScenario {
             rate_hz: 1.0,
             pd: 1.0,
             clutter_rate: 0.0,
+            time_offset_s: 0.0,
             max_range_m: 2000.0,
             noise_std: vec![10.0, 10.0],
             model: SensorType::Camera {
@@ -169,6 +170,7 @@ fn leader() -> SimScenario {
             rate_hz: 10.0,
             pd: 1.0,
             clutter_rate: 0.0,
+            time_offset_s: 0.0,
             max_range_m: 2000.0,
             noise_std: vec![0.001, 0.001, 0.001],
             model: SensorType::Camera {
@@ -230,6 +232,7 @@ fn radar(bias: BiasModel, name: &str) -> SimScenario {
             rate_hz: 1.0,
             pd: 1.0,
             clutter_rate: 0.0,
+            time_offset_s: 0.0,
             max_range_m: 20_000.0,
             noise_std: vec![5.0, 0.005],
             model: SensorType::Radar { bias },
@@ -283,6 +286,7 @@ fn crossing() -> SimScenario {
             rate_hz: 2.0,
             pd: 0.9,
             clutter_rate: 1.0,
+            time_offset_s: 0.0,
             max_range_m: 1500.0,
             noise_std: vec![0.002, 0.002],
             model: SensorType::Camera {
