@@ -684,14 +684,22 @@ struct Pooled {
     sum2: f64,
     n: u32,
     missed: u32,
+    /// The same over the window's second half (once the biases are learnt).
+    late_sum2: f64,
+    late_n: u32,
 }
 
 impl Pooled {
     fn rmse(&self) -> f64 {
         (self.sum2 / f64::from(self.n.max(1))).sqrt()
     }
-    /// Adds the errors of `tracks` (confirmed ones, extrapolated) against the truth `s`.
-    fn add(&mut self, s: &TruthSample, tracks: &[TrackView]) {
+    /// The RMSE over the window's second half.
+    fn late_rmse(&self) -> f64 {
+        (self.late_sum2 / f64::from(self.late_n.max(1))).sqrt()
+    }
+    /// Adds the errors of `tracks` (confirmed ones, extrapolated) against the truth `s`, also
+    /// to the second half's when `late`.
+    fn add(&mut self, s: &TruthSample, tracks: &[TrackView], late: bool) {
         let t = unix(s);
         for g in targets_at(s, t) {
             let e = tracks
@@ -706,6 +714,10 @@ impl Pooled {
             if e <= GATE_M {
                 self.sum2 += e * e;
                 self.n += 1;
+                if late {
+                    self.late_sum2 += e * e;
+                    self.late_n += 1;
+                }
             } else {
                 self.missed += 1;
             }
@@ -799,7 +811,7 @@ fn fusion_runs(
             }
             for (p, server) in pooled.iter_mut().zip(&servers) {
                 let snap = server.snapshot().borrow().clone();
-                p.add(&s, &snap.tracks);
+                p.add(&s, &snap.tracks, s.t > t0 + WINDOW_S / 2.0);
             }
         }
         let biases = servers[0].snapshot().borrow().biases.to_vec();
@@ -828,9 +840,10 @@ fn fusion_runs(
     for ((name, sensors), p) in FUSION_RUNS.iter().zip(&out.0) {
         eprintln!(
             "fusion: {name:<8} sensors {sensors:?}: position RMSE {:6.2} m over {} target \
-             samples, {} missed",
+             samples ({:.2} m over the second half), {} missed",
             p.rmse(),
             p.n,
+            p.late_rmse(),
             p.missed
         );
     }
@@ -1371,9 +1384,13 @@ fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
 /// camera (4 mrad) of both UAVs, unbiased radars. With both cameras registered (constant
 /// offsets, prior sd 0.02 rad) each camera's offsets are estimated within 0.05° of the sim's
 /// (measured: 0.506 / 0.494° and 0.517 / 0.486°, sd 0.015–0.023°). The fused track's error is
-/// 1.91 m against 1.18 m in the same world without mounting errors (nor registration), and the
-/// unregistered cameras alone 14.9 m: issue 21 asks for within 10 % of the clean run, not
-/// reached (1.62 ×); the test asserts at most 2 ×.
+/// 1.88 m against 1.16 m in the same world without mounting errors (nor registration), and the
+/// unregistered cameras alone 14.8 m: issue 21 asks for within 10 % of the clean run, not
+/// reached (1.62 ×); the test asserts at most 2 ×. The gap is registration's, not the mounting's:
+/// the clean world with the same registration is 1.91 m (the mounted run 0.98–1.00 × that,
+/// asserted within 10 %), because the bias bank's joint update (a CV target) replaces the
+/// tracker's road-constrained CIMM state (`Tracker::recentre`); keeping the CIMM state instead
+/// (tried) loses the bias estimates.
 #[test]
 fn camera_mounting_errors_are_learnt_live() {
     let mut clean = fusion_scenario();
@@ -1392,6 +1409,7 @@ fn camera_mounting_errors_are_learnt_live() {
             .to_vec(),
     };
     let (base, _, _) = fusion_runs(&clean, &RegistrationConfig::default(), None);
+    let (registered_base, _, _) = fusion_runs(&clean, &registration, None);
     let (pooled, biases, _) = fusion_runs(&mounted, &registration, None);
     assert_eq!(biases.len(), 2, "{biases:?}");
     for b in &biases {
@@ -1413,7 +1431,12 @@ fn camera_mounting_errors_are_learnt_live() {
         }
     }
     let (fused, clean_fused) = (pooled[0].rmse(), base[0].rmse());
-    eprintln!("mounting: fused RMSE {fused:.2} m, without mounting errors {clean_fused:.2} m");
+    let (late, clean_late) = (pooled[0].late_rmse(), base[0].late_rmse());
+    eprintln!(
+        "mounting: fused RMSE {fused:.2} m, without mounting errors {clean_fused:.2} m; over the \
+         second half {late:.2} m against {clean_late:.2} m ({:.2} ×)",
+        late / clean_late
+    );
     assert!(
         pooled[0].n > 0 && pooled[0].missed <= pooled[0].n / 20,
         "{:?}",
@@ -1422,5 +1445,16 @@ fn camera_mounting_errors_are_learnt_live() {
     assert!(
         fused <= 2.0 * clean_fused,
         "fused {fused:.2} m, clean {clean_fused:.2} m"
+    );
+    // The mounting errors themselves cost nothing once learnt: against the same registration
+    // on the clean world, within 10 %.
+    let registered_clean = registered_base[0].rmse();
+    eprintln!(
+        "mounting: the clean world registered {registered_clean:.2} m ({:.2} ×)",
+        fused / registered_clean
+    );
+    assert!(
+        fused <= 1.1 * registered_clean,
+        "fused {fused:.2} m, the clean world registered {registered_clean:.2} m"
     );
 }
