@@ -160,7 +160,7 @@ impl SimScenario {
             if !s.noise_std.iter().all(|v| v.is_finite() && *v > 0.0) {
                 return Err(at("noise_std must be finite and > 0"));
             }
-            if !(s.time_offset_s.abs() <= 5.0) {
+            if !(s.time_offset_s.is_finite() && s.time_offset_s.abs() <= 5.0) {
                 return Err(at("time_offset_s must be within ±5 s"));
             }
             let n = s.kind().len(Some(2));
