@@ -23,7 +23,10 @@
 //! (tried first here: the innovation covariance of a later pair stopped being positive
 //! definite). Between scans the biases follow their dynamics and the tracks the bank's CV model
 //! (`P ← F P Fᵀ + Q`, `F = diag(F_cv, …, F_cv, Φ)`); at each update the tracker's own predicted
-//! `P_ii` replaces the bank's (its motion model may differ: an IMM's moment-matched prediction).
+//! `P_ii` replaces the bank's (its motion model may differ: an IMM's moment-matched prediction,
+//! a road-constrained one's road update), the track's cross-covariances transformed with it
+//! (`A_i = L_c L_b⁻¹` of the two Cholesky factors: `P_ij ← A_i P_ij A_jᵀ`) so that `P` stays
+//! positive semi-definite.
 //!
 //! With one track this is [`Registration`] with `hold: false` exactly (a test checks it). The
 //! bank estimates every term: no Schmidt hold of the undetermined directions (that needs the
@@ -291,17 +294,36 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         R: &DMatrix<f64>,
     ) -> Result<f64> {
         let (b0, d, m) = (self.b0(), self.cov.nrows(), H.nrows());
-        // The tracker's predicted P_ii replace the bank's.
+        // The tracker's predicted P_ii replace the bank's: each track's error taken as the
+        // bank's transformed by A_i = L_c L_b⁻¹ (the Cholesky factors of the tracker's P_ii and
+        // of the bank's), so that its cross-covariances follow, P_ij ← A_i P_ij A_jᵀ, and the
+        // whole stays positive semi-definite however the tracker changed P_ii (an IMM's
+        // moment-matched prediction, a road update); where a factor fails, P_ii alone.
         let mut P = self.cov.clone();
         for (t, &k) in order.iter().enumerate() {
             let c = &tracks[k].1.cov;
             ensure_finite(c, "track covariance")?;
+            let at = t * K;
+            let own = P.view((at, at), (K, K)).into_owned();
+            let own = SMatrix::<f64, K, K>::from_iterator(own.iter().copied());
+            let a = c
+                .cholesky()
+                .zip(own.cholesky())
+                .and_then(|(lc, lb)| Some(lc.l() * lb.l().try_inverse()?));
+            if let Some(a) = a {
+                let a = DMatrix::from_column_slice(K, K, a.as_slice());
+                let rows = &a * P.rows(at, K);
+                P.rows_mut(at, K).copy_from(&rows);
+                let cols = P.columns(at, K) * a.transpose();
+                P.columns_mut(at, K).copy_from(&cols);
+            }
             for r in 0..K {
                 for s in 0..K {
-                    P[(t * K + r, t * K + s)] = c[(r, s)];
+                    P[(at + r, at + s)] = c[(r, s)];
                 }
             }
         }
+        let P = (&P + P.transpose()) * 0.5;
         let mut Hd = DMatrix::zeros(m, d);
         for r in 0..m {
             if let Some(j) = j {

@@ -312,7 +312,9 @@ where
         self.imm.mode_probabilities(state)
     }
 
+    /// The mixture moved to `g` as the IMM's is, then the road update: the outside update is a
+    /// sensor update, and \[CIMM\] §3.1 follows every sensor update with the road's.
     fn recentre(&self, state: &ImmState<N, R>, g: Gaussian<N>) -> Result<ImmState<N, R>> {
-        recentre_modes(state, g)
+        self.constrain(&recentre_modes(state, g)?)
     }
 }

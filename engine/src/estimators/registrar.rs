@@ -18,8 +18,11 @@
 //!    JIPDA's most probable detection) is one joint update of every bank track and every bias
 //!    ([`BiasBank::update`]) with the **raw** detection, from the tracks' predicted states; the
 //!    bank's track states then replace the tracker's ([`Tracker::recentre`]: a mixture keeps its
-//!    mode probabilities). Unregistered sensors' detections go through the bank the same way as
-//!    unbiased sensors: they fix the targets, and through the track–bias correlation, the biases;
+//!    mode probabilities, and a road-constrained IMM applies its road update after it, as after
+//!    any sensor update; the bank carries the cross-covariances through whatever the tracker did
+//!    to a track's covariance, see [`BiasBank`]). Unregistered sensors' detections go through
+//!    the bank the same way as unbiased sensors: they fix the targets, and through the
+//!    track–bias correlation, the biases;
 //! 6. a track enters the bank when it is confirmed (uncorrelated with the biases: it was built
 //!    from corrected detections), at most [`MAX_BANK_TRACKS`] of them, and leaves when deleted.
 //!
