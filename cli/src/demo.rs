@@ -5,11 +5,11 @@
 //! it: the `cimm-road` preset with its car slowed to 5 m/s, a second car ahead on the road and a
 //! camera slaved to each car on every UAV. The UAVs stand on the ground at home and send their
 //! MAVLink to the service's GCS link (`--gcs`, PX4's UDP 14550). The service tracks with the
-//! preset's road and motion models (CIMM by default); once a track is confirmed, the demo assigns
-//! every UAV to the slowest one with TOGVF and phase spacing (`--radius`, `--height`), and the
-//! guidance loop arms them, takes them off and flies the standoff; when the tracker deletes that
-//! track, the demo assigns them again. [`run`] is the command: it
-//! starts the demo, prints where to point a browser and waits for Ctrl-C.
+//! preset's road and motion models (CIMM by default); once every car has a confirmed track (or
+//! 30 s after the first), the demo assigns every UAV to the slowest one with TOGVF and phase
+//! spacing (`--radius`, `--height`), and the guidance loop arms them, takes them off and flies
+//! the standoff; when the tracker deletes that track, the demo assigns them again. [`run`] is
+//! the command: it starts the demo, prints where to point a browser and waits for Ctrl-C.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -291,8 +291,8 @@ pub struct Demo {
     server: LiveServer,
     world: SimWorld,
     endpoints: Vec<String>,
-    /// Assigns the UAVs once they are on station and a track is confirmed, and again when the
-    /// tracker deletes that track.
+    /// Assigns the UAVs once they are heard and every car has a confirmed track, and again when
+    /// the tracker deletes that track ([`Assigner::keep`]).
     assigner: Option<tokio::task::JoinHandle<()>>,
 }
 
@@ -488,16 +488,21 @@ pub async fn start(config: &DemoConfig) -> Result<Demo, DemoError> {
         seed = config.seed,
         "simulated world started"
     );
-    let assigner = (!config.no_assign).then(|| {
-        tokio::spawn(keep_assigned(
-            server.guidance().cloned(),
-            server.link().cloned(),
-            server.snapshot(),
-            fleet.len() as u8,
-            config.radius,
-            config.height,
-        ))
-    });
+    let assigner = match (config.no_assign, server.guidance(), server.link()) {
+        (false, Some(guidance), Some(link)) => Some(tokio::spawn(
+            Assigner {
+                guidance: guidance.clone(),
+                link: link.clone(),
+                snapshot: server.snapshot(),
+                vehicles: fleet.len() as u8,
+                cars: scenario.targets.len(),
+                radius: config.radius,
+                height: config.height,
+            }
+            .keep(),
+        )),
+        _ => None,
+    };
     Ok(Demo {
         server,
         world,
@@ -522,108 +527,121 @@ impl DemoConfig {
     }
 }
 
-/// Keeps the demo's UAVs assigned: [`assign_when_ready`], then, when that assignment ends
-/// because its track was deleted (the tracker gave it up: a car lost from sight, or a ghost of the
-/// cameras' bearings confirmed for a few scans), assigns them again the same way. An assignment
-/// the operator ended is left ended.
-async fn keep_assigned(
-    guidance: Option<harrier_server::guidance::Guidance>,
-    link: Option<harrier_server::gcs::GcsLink>,
-    mut snapshot: tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
-    n: u8,
+/// How long the demo waits, in scan time, for a track of every car before it assigns the UAVs
+/// to the slowest of the tracks there are (s).
+const CAR_WAIT_S: f64 = 30.0;
+
+/// What keeps the demo's UAVs assigned (see [`Assigner::keep`]).
+struct Assigner {
+    guidance: harrier_server::guidance::Guidance,
+    link: harrier_server::gcs::GcsLink,
+    snapshot: tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
+    /// The UAVs, system ids `1..=vehicles`.
+    vehicles: u8,
+    /// The cars of the world.
+    cars: usize,
     radius: f64,
     height: f64,
-) {
-    let (Some(guidance), Some(link)) = (guidance, link) else {
-        return;
-    };
-    loop {
-        let Some(id) = assign_when_ready(&guidance, &link, &mut snapshot, n, radius, height).await
-        else {
-            return;
-        };
-        let mut views = guidance.assignments.clone();
+}
+
+impl Assigner {
+    /// Keeps the demo's UAVs assigned: [`Self::assign_when_ready`], then, when that assignment
+    /// ends because its track was deleted (the tracker gave it up: a car lost from sight, or a
+    /// ghost confirmed for a few scans), assigns them again the same way. An assignment the
+    /// operator ended is left ended.
+    async fn keep(mut self) {
         loop {
-            let ended = views
-                .borrow_and_update()
-                .iter()
-                .find(|a| a.id == id)
-                .map(|a| a.ended_reason.clone());
-            match ended {
-                Some(Some(reason)) if reason == harrier_server::guidance::ENDED_BY_OPERATOR => {
-                    return;
-                }
-                Some(Some(reason)) => {
-                    tracing::warn!(
-                        assignment = id,
-                        reason,
-                        "demo: assignment ended; assigning the UAVs again"
-                    );
-                    break;
-                }
-                _ => {
-                    if views.changed().await.is_err() {
+            let Some(id) = self.assign_when_ready().await else {
+                return;
+            };
+            let mut views = self.guidance.assignments.clone();
+            loop {
+                let ended = views
+                    .borrow_and_update()
+                    .iter()
+                    .find(|a| a.id == id)
+                    .map(|a| a.ended_reason.clone());
+                match ended {
+                    Some(Some(reason)) if reason == harrier_server::guidance::ENDED_BY_OPERATOR => {
                         return;
+                    }
+                    Some(Some(reason)) => {
+                        tracing::warn!(
+                            assignment = id,
+                            reason,
+                            "demo: assignment ended; assigning the UAVs again"
+                        );
+                        break;
+                    }
+                    _ => {
+                        if views.changed().await.is_err() {
+                            return;
+                        }
                     }
                 }
             }
         }
     }
-}
 
-/// Waits until every UAV is heard on the GCS link and a track is confirmed, then assigns all
-/// UAVs to the slowest confirmed track with TOGVF and phase spacing: the assignment's id, `None`
-/// once the service stops.
-async fn assign_when_ready(
-    guidance: &harrier_server::guidance::Guidance,
-    link: &harrier_server::gcs::GcsLink,
-    snapshot: &mut tokio::sync::watch::Receiver<std::sync::Arc<harrier_server::tracker::Snapshot>>,
-    n: u8,
-    radius: f64,
-    height: f64,
-) -> Option<u64> {
-    loop {
-        snapshot.changed().await.ok()?;
-        let heard = link
-            .vehicles
-            .borrow()
-            .iter()
-            .filter(|v| v.view.position.is_some() && v.status.is_some())
-            .count();
-        let track = snapshot
-            .borrow()
-            .tracks
-            .iter()
-            .filter(|t| t.status == harrier_engine::TrackStatus::Confirmed && t.age >= 5)
-            .min_by(|a, b| {
+    /// Waits until every UAV is heard on the GCS link and every car has a confirmed track (or
+    /// [`CAR_WAIT_S`] of scan time since the first: the slowest car is the one to orbit, and its
+    /// track may confirm after the other's), then assigns all UAVs to the slowest confirmed
+    /// track with TOGVF and phase spacing: the assignment's id, `None` once the service stops.
+    async fn assign_when_ready(&mut self) -> Option<u64> {
+        let mut first_seen: Option<f64> = None;
+        loop {
+            self.snapshot.changed().await.ok()?;
+            let heard = self
+                .link
+                .vehicles
+                .borrow()
+                .iter()
+                .filter(|v| v.view.position.is_some() && v.status.is_some())
+                .count();
+            let (t, mut candidates) = {
+                let s = self.snapshot.borrow();
                 let speed = |t: &harrier_engine::TrackView| t.state[3].hypot(t.state[4]);
-                speed(a).total_cmp(&speed(b))
-            })
-            .map(|t| t.id);
-        let (Some(track), true) = (track, heard >= usize::from(n)) else {
-            continue;
-        };
-        let request = harrier_server::guidance::AssignmentRequest {
-            vehicles: (1..=n).collect(),
-            track,
-            law: "togvf".into(),
-            radius_m: Some(radius),
-            height_m: Some(height),
-            spacing_deg: None,
-            speed_m_s: None,
-            orbit: None,
-        };
-        match guidance.create(request).await {
-            Ok(a) => {
-                tracing::info!(
-                    assignment = a.id,
-                    track,
-                    "demo: UAVs assigned to standoff-track"
-                );
-                return Some(a.id);
+                let candidates: Vec<(u64, f64)> = s
+                    .tracks
+                    .iter()
+                    .filter(|t| t.status == harrier_engine::TrackStatus::Confirmed && t.age >= 5)
+                    .map(|t| (t.id, speed(t)))
+                    .collect();
+                (s.t.unwrap_or(0.0), candidates)
+            };
+            if candidates.is_empty() || heard < usize::from(self.vehicles) {
+                continue;
             }
-            Err(harrier_server::guidance::AssignError::Stopped) => return None,
-            Err(e) => tracing::warn!("demo: assignment refused ({e}); retrying"),
+            let waited = t - *first_seen.get_or_insert(t);
+            if candidates.len() < self.cars && waited < CAR_WAIT_S {
+                continue;
+            }
+            candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let track = candidates[0].0;
+            let request = harrier_server::guidance::AssignmentRequest {
+                vehicles: (1..=self.vehicles).collect(),
+                track,
+                law: "togvf".into(),
+                radius_m: Some(self.radius),
+                height_m: Some(self.height),
+                spacing_deg: None,
+                speed_m_s: None,
+                orbit: None,
+            };
+            match self.guidance.create(request).await {
+                Ok(a) => {
+                    tracing::info!(
+                        assignment = a.id,
+                        track,
+                        tracks = candidates.len(),
+                        cars = self.cars,
+                        "demo: UAVs assigned to standoff-track"
+                    );
+                    return Some(a.id);
+                }
+                Err(harrier_server::guidance::AssignError::Stopped) => return None,
+                Err(e) => tracing::warn!("demo: assignment refused ({e}); retrying"),
+            }
         }
     }
 }
