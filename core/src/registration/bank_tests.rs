@@ -194,6 +194,16 @@ fn augmented(dets: &[Detection], i: usize) -> Vec<(f64, RegistrationState<8>)> {
 
 /// The bank with one track per target: after each detection, the tracks and the bank's state.
 fn banked(dets: &[Detection], targets: usize) -> Vec<(f64, Vec<Gaussian<4>>, BiasBank<4, 8>)> {
+    banked_with(dets, targets, |_, _, _| {})
+}
+
+/// [`banked`] with the tracker's own update `own(track, t, state)` of each track after every
+/// prediction, outside the bank.
+fn banked_with(
+    dets: &[Detection],
+    targets: usize,
+    mut own: impl FnMut(usize, f64, &mut Gaussian<4>),
+) -> Vec<(f64, Vec<Gaussian<4>>, BiasBank<4, 8>)> {
     let mut bank = BiasBank::new(registration()).unwrap();
     let motion = ConstantVelocity::<4>::new(Q);
     let mut tracks: Vec<Gaussian<4>> = (0..targets).map(prior_of).collect();
@@ -205,8 +215,9 @@ fn banked(dets: &[Detection], targets: usize) -> Vec<(f64, Vec<Gaussian<4>>, Bia
     for d in dets {
         if d.t > t {
             bank.predict(d.t - t).unwrap();
-            for g in &mut tracks {
+            for (i, g) in tracks.iter_mut().enumerate() {
                 *g = Extended.predict(&motion, g, d.t - t).unwrap();
+                own(i, d.t, g);
             }
             t = d.t;
         }
@@ -405,45 +416,16 @@ fn the_bank_refuses_unknown_tracks() {
 #[test]
 fn a_tracker_that_shrinks_its_tracks_keeps_the_bank_positive_definite() {
     let dets = detections(3, 2, 300.0, false);
-    let mut bank = BiasBank::new(registration()).unwrap();
-    let motion = ConstantVelocity::<4>::new(Q);
-    let mut tracks: Vec<Gaussian<4>> = (0..2).map(prior_of).collect();
-    for (id, g) in tracks.iter().enumerate() {
-        bank.add_track(id as TrackId, g).unwrap();
-    }
-    let mut t = 0.0;
-    for d in &dets {
-        if d.t > t {
-            bank.predict(d.t - t).unwrap();
-            for (i, g) in tracks.iter_mut().enumerate() {
-                *g = Extended.predict(&motion, g, d.t - t).unwrap();
-                // The tracker's own update, outside the bank: north seen with 2 m noise
-                // (Joseph form).
-                let h = nalgebra::RowVector4::new(0.0, 1.0, 0.0, 0.0);
-                let s = (h * g.cov * h.transpose())[0] + 4.0;
-                let k = g.cov * h.transpose() / s;
-                g.mean += k * (target(i, d.t).0.y - g.mean[1]);
-                let a = Matrix4::identity() - k * h;
-                g.cov = a * g.cov * a.transpose() + k * k.transpose() * 4.0;
-            }
-            t = d.t;
-        }
-        let (model, platform_vel) = model_of(d);
-        let obs = Observation {
-            sensor: d.sensor,
-            model: &model,
-            platform_vel,
-            z: &d.z,
-        };
-        let mut all: Vec<(TrackId, &mut Gaussian<4>)> = tracks
-            .iter_mut()
-            .enumerate()
-            .map(|(i, g)| (i as TrackId, g))
-            .collect();
-        let of = d.of.expect("a target") as TrackId;
-        bank.update(&mut all, of, &obs)
-            .unwrap_or_else(|e| panic!("update at {}: {e}", d.t));
-    }
+    // The tracker's own update, outside the bank: north seen with 2 m noise (Joseph form).
+    let north = |i: usize, t: f64, g: &mut Gaussian<4>| {
+        let h = nalgebra::RowVector4::new(0.0, 1.0, 0.0, 0.0);
+        let s = (h * g.cov * h.transpose())[0] + 4.0;
+        let k = g.cov * h.transpose() / s;
+        g.mean += k * (target(i, t).0.y - g.mean[1]);
+        let a = Matrix4::identity() - k * h;
+        g.cov = a * g.cov * a.transpose() + k * k.transpose() * 4.0;
+    };
+    let (_, _, bank) = banked_with(&dets, 2, north).pop().expect("updates");
     assert!(bank.cov.clone().cholesky().is_some(), "{}", bank.cov);
     let terms: Vec<_> = bank.estimates().into_iter().flat_map(|e| e.terms).collect();
     assert_eq!(terms.len(), 4);
