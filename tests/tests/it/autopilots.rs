@@ -65,6 +65,15 @@ struct Uav {
     fixed_wing: bool,
 }
 
+/// The truth target nearest a track's estimate `est`: the car it follows.
+fn nearest_car<'a>(targets: &'a [Value], est: &Value) -> Option<&'a Value> {
+    targets.iter().min_by(|x, y| {
+        polar(&x["position"], est)
+            .0
+            .total_cmp(&polar(&y["position"], est).0)
+    })
+}
+
 /// The assignment (the active one; the demo assigns again when the tracker deletes the track),
 /// the car its track follows (the truth target nearest the estimate) and every vehicle's place
 /// around it.
@@ -81,12 +90,7 @@ async fn sample(addr: SocketAddr) -> Option<(Value, Vec<Uav>)> {
     let truth = get_json(addr, "/api/v1/truth").await;
     let vehicles = get_json(addr, "/api/v1/vehicles").await;
     let est = k.get("state")?.clone();
-    let car = truth["targets"].as_array()?.iter().min_by(|x, y| {
-        polar(&x["position"], &est)
-            .0
-            .total_cmp(&polar(&y["position"], &est).0)
-    })?["position"]
-        .clone();
+    let car = nearest_car(truth["targets"].as_array()?, &est)?["position"].clone();
     let uavs = vehicles["vehicles"]
         .as_array()?
         .iter()
@@ -183,14 +187,7 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
             v(0).hypot(v(1))
         };
         let targets = truth["targets"].as_array().expect("truth");
-        let followed = targets
-            .iter()
-            .min_by(|x, y| {
-                polar(&x["position"], &k["state"])
-                    .0
-                    .total_cmp(&polar(&y["position"], &k["state"]).0)
-            })
-            .expect("a target");
+        let followed = nearest_car(targets, &k["state"]).expect("a target");
         let slowest = targets.iter().map(speed).fold(f64::INFINITY, f64::min);
         assert!(
             speed(followed) <= slowest + 0.5,

@@ -997,8 +997,8 @@ fn cameras_and_a_biased_radar_fuse_better_than_either() {
 /// With both radars registered, each radar's offsets are estimated (within 3 sd of the sim's),
 /// the recording keeps them, and the fused track beats every subset of sensors (measured: fused
 /// 1.14 m, cameras 2.30 m, radars 6.46 m; 1.77 m before the bank's update was followed by the
-/// road update). With 2 mrad cameras the radars (10 mrad, 5 m) add
-/// about 4 % of the information and the fused track ties the cameras' (1.42 against 1.34 m).
+/// road update). With 2 mrad cameras the radars (10 mrad, 5 m) add about 4 % of the information
+/// and the fused track ties the cameras' (1.42 against 1.34 m).
 #[test]
 fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     let mut scenario = fusion_scenario();
