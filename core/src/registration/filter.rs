@@ -7,7 +7,7 @@ use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector3};
 
 use super::model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 use crate::filter::{Extended, Predictor, consider_update, joseph_update};
-use crate::linalg::{ensure_finite, symmetric_eigen};
+use crate::linalg::{ensure_finite, symmetric_eigen, symmetrize};
 use crate::measurement::{Locate, MeasurementModel, SensorModel, TargetSize, WithSensor};
 use crate::motion::{ConstantVelocity, TransitionModel};
 use crate::state::Gaussian;
@@ -264,6 +264,60 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         }
         out.projection = None;
         out
+    }
+
+    /// `state` conditioned on the bias terms at state indices `pinned` being exactly at their
+    /// prior means `μ_c` (the sensors they belong to taken as unbiased), with the log of the
+    /// Savage–Dickey ratio, the Bayes factor of that nested hypothesis against the free terms
+    /// (Dickey 1971; Verdinelli & Wasserman 1995):
+    ///
+    /// ```text
+    /// log B = log N(μ_c; x̂_c, P_cc) − log N(μ_c; μ_c, Σ_c)        (Σ_c: the prior variances)
+    /// x̂' = x̂ + P_·c P_cc⁻¹ (μ_c − x̂_c),   P' = P − P_·c P_cc⁻¹ P_c·   (the joint Gaussian's conditional)
+    /// ```
+    ///
+    /// The pinned terms end exactly at `μ_c` with variance 0 (the full covariance is left as it
+    /// is). `None` when `P_cc` is not positive definite or an index is not a bias term.
+    pub(super) fn given_prior(
+        &self,
+        state: &RegistrationState<N>,
+        pinned: &[usize],
+    ) -> Option<(RegistrationState<N>, f64)> {
+        if pinned.is_empty() {
+            return Some((*state, 0.0));
+        }
+        let priors: Vec<BiasPrior> = pinned
+            .iter()
+            .map(|&i| self.prior_of(i))
+            .collect::<Option<_>>()?;
+        let (x, P) = (&state.estimate.mean, &state.estimate.cov);
+        let k = pinned.len();
+        let Pcc = DMatrix::from_fn(k, k, |i, j| P[(pinned[i], pinned[j])]);
+        let chol = Pcc.cholesky()?;
+        let r = DVector::from_fn(k, |i, _| priors[i].mean - x[pinned[i]]);
+        let a = chol.solve(&r);
+        let log_det = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
+        let log_prior_det: f64 = priors.iter().map(|p| (p.std * p.std).ln()).sum();
+        let log_bf = -0.5 * r.dot(&a) - 0.5 * log_det + 0.5 * log_prior_det;
+        let Pnc = DMatrix::from_fn(N, k, |i, j| P[(i, pinned[j])]);
+        let gain = chol.solve(&Pnc.transpose()).transpose();
+        let mut out = *state;
+        let shift = &Pnc * &a;
+        let drop = &gain * Pnc.transpose();
+        for i in 0..N {
+            out.estimate.mean[i] += shift[i];
+            for j in 0..N {
+                out.estimate.cov[(i, j)] -= drop[(i, j)];
+            }
+        }
+        for (&i, p) in pinned.iter().zip(&priors) {
+            out.estimate.mean[i] = p.mean;
+            out.estimate.cov.row_mut(i).fill(0.0);
+            out.estimate.cov.column_mut(i).fill(0.0);
+        }
+        out.estimate.cov = symmetrize(&out.estimate.cov);
+        out.projection = None;
+        log_bf.is_finite().then_some((out, log_bf))
     }
 
     /// Where each sensor's terms are, in the order of [`Registration::new`].

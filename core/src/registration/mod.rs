@@ -83,7 +83,11 @@
 //! Bayes factor's Occam penalty, so without a bias it takes the weight within seconds and the
 //! cost goes (BENCHMARKS.md), while a bias the shared targets show rejects it in a few scans.
 //! No single drift suits both a steady bias and a Gauss–Markov one (see [`imm`'s
-//! docs](RegistrationImm)).
+//! docs](RegistrationImm)). Sensor by sensor the same selection is made in the output: each
+//! biased mode is split over the sets of biased sensors, each set weighed by the Savage–Dickey
+//! ratio of its unbiased sensors' block and its estimate the mode's conditioned on that block at
+//! the prior (a camera mounted off and an unbiased radar: the filter takes the radar as
+//! unbiased once its block is determined and at zero; `biased_prob` per sensor).
 //!
 //! # The multi-target form: [`BiasBank`]
 //!
@@ -128,7 +132,7 @@ pub use bank::{BiasBank, Corrected, TrackId, Tracks};
 pub use filter::{
     KnownObject, Observation, Registration, RegistrationState, Seen, SensorSlots, Tuning, Updated,
 };
-pub use imm::{DriftModes, RegistrationImm, RegistrationImmState};
+pub use imm::{DriftModes, MAX_SET_SENSORS, RegistrationImm, RegistrationImmState};
 pub use model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 pub use report::{SensorEstimate, TermEstimate};
 pub use truth::BiasTruth;

@@ -426,3 +426,62 @@ fn the_bias_modes_follow_what_the_references_show() {
         .is_err()
     );
 }
+
+/// Taking a sensor as unbiased is the joint Gaussian conditioned on its block at the prior
+/// mean (the same as a perfect measurement of the block), and the Savage–Dickey ratio is the
+/// posterior density of the block there over the prior's.
+#[test]
+fn a_block_taken_at_its_prior_is_the_gaussian_conditional() {
+    let bias = SensorBias {
+        offset: vec![
+            Some(BiasPrior::constant(50.0)),
+            Some(BiasPrior::constant(0.01)),
+        ],
+        scale: Vec::new(),
+        time_offset: None,
+    };
+    let reg = radar_only(&bias, Tuning::default());
+    let mut s = start(&reg, Vector4::new(1000.0, 3000.0, 8.0, -3.0));
+    // A correlated posterior: the target and both offsets moved and tied together.
+    let a = nalgebra::SMatrix::<f64, 8, 8>::from_fn(|i, j| {
+        if i < 6 && j < 6 {
+            ((i * 7 + j * 3) % 5) as f64 * 0.3 - 0.5
+        } else {
+            0.0
+        }
+    });
+    let scale = nalgebra::SVector::<f64, 8>::from_column_slice(&[
+        4.0, 4.0, 1.0, 1.0, 12.0, 0.003, 1.0, 1.0,
+    ]);
+    let d = nalgebra::SMatrix::<f64, 8, 8>::from_diagonal(&scale);
+    let cov = d * (a * a.transpose() + nalgebra::SMatrix::<f64, 8, 8>::identity()) * d;
+    s.estimate.cov = cov;
+    s.estimate.mean[4] = 20.0;
+    s.estimate.mean[5] = 0.004;
+    let (c, log_bf) = reg.given_prior(&s, &[4, 5]).unwrap();
+    // The conditional as a Kalman update with a near-perfect measurement of the block.
+    let h = nalgebra::SMatrix::<f64, 2, 8>::from_fn(|i, j| f64::from(j == i + 4));
+    let innov = nalgebra::Vector2::new(0.0, 0.0) - h * s.estimate.mean;
+    let sm = h * cov * h.transpose() + nalgebra::Matrix2::identity() * 1e-14;
+    let gain = cov * h.transpose() * sm.try_inverse().unwrap();
+    let mean = s.estimate.mean + gain * innov;
+    let p = cov - gain * h * cov;
+    for i in 0..4 {
+        assert!((c.estimate.mean[i] - mean[i]).abs() < 1e-6, "{i}");
+        for j in 0..4 {
+            assert!((c.estimate.cov[(i, j)] - p[(i, j)]).abs() < 1e-6, "{i} {j}");
+        }
+    }
+    assert_eq!((c.estimate.mean[4], c.estimate.mean[5]), (0.0, 0.0));
+    assert_eq!((c.estimate.cov[(4, 4)], c.estimate.cov[(4, 0)]), (0.0, 0.0));
+    let log_n = |r: nalgebra::Vector2<f64>, m: nalgebra::Matrix2<f64>| {
+        -0.5 * (r.dot(&(m.try_inverse().unwrap() * r)) + m.determinant().ln())
+    };
+    let pcc = h * cov * h.transpose();
+    let prior = nalgebra::Matrix2::new(2500.0, 0.0, 0.0, 1e-4);
+    let expected = log_n(innov, pcc) - log_n(nalgebra::Vector2::zeros(), prior);
+    assert!((log_bf - expected).abs() < 1e-9, "{log_bf} {expected}");
+    // Nothing pinned: the state itself; an index that is not a bias term: refused.
+    assert_eq!(reg.given_prior(&s, &[]).unwrap(), (s, 0.0));
+    assert!(reg.given_prior(&s, &[0]).is_none());
+}

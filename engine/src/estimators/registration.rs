@@ -50,6 +50,10 @@ pub const REGISTRATION: EstimatorInfo = EstimatorInfo {
             "presence_sojourn",
             "mean time before a bias disappears, s: re-seeds the \"no bias\" mode (default 3600)",
         ),
+        (
+            "per_sensor",
+            "1: weigh every set of biased sensors (up to 4 sensors with terms; default); 0: every sensor biased, or none",
+        ),
     ],
     build,
 };
@@ -70,6 +74,7 @@ fn build(sc: &Scenario, p: &Params) -> Result<Box<dyn ReplayEstimator>, EngineEr
         initial: p.get("drift_prob", d.initial),
         unbiased: p.get("none_prob", d.unbiased),
         presence_sojourn: p.get("presence_sojourn", d.presence_sojourn),
+        per_sensor: p.get("per_sensor", 1.0) != 0.0,
     };
     let mut biases = Vec::with_capacity(sc.sensors.len());
     for s in &sc.sensors {
@@ -200,13 +205,22 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
         }
         self.state = state;
         self.t = t;
-        let combined = self.filter.combined(&state);
+        let combined = self.filter.combined(&self.state);
         let filter = self.filter.filter();
         let mut e = cv_estimate(self.sc.plane_z(), t, &filter.kinematic(&combined));
         let mut bias = serde_json::Map::new();
-        for (s, est) in self.sc.sensors.iter().zip(filter.estimates(&combined)) {
+        let biased = self.filter.biased_probs(&self.state);
+        for ((s, est), p) in self
+            .sc
+            .sensors
+            .iter()
+            .zip(filter.estimates(&combined))
+            .zip(biased)
+        {
             if !est.terms.is_empty() {
-                bias.insert(s.id.clone(), est.to_json());
+                let mut json = est.to_json();
+                json["biased_prob"] = serde_json::json!(p);
+                bias.insert(s.id.clone(), json);
             }
         }
         if !bias.is_empty() {
@@ -214,11 +228,11 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
                 .insert("bias_est".into(), serde_json::Value::Object(bias));
             e.extra.insert(
                 "bias_drift_prob".into(),
-                serde_json::json!(state.drifting_prob()),
+                serde_json::json!(self.state.drifting_prob()),
             );
             e.extra.insert(
                 "bias_none_prob".into(),
-                serde_json::json!(state.unbiased_prob()),
+                serde_json::json!(self.state.unbiased_prob()),
             );
         }
         Ok(Some(e))

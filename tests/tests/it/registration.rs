@@ -162,6 +162,19 @@ fn radar_nees_ok(run: &Run) -> f64 {
     ok as f64 / n as f64
 }
 
+/// At the end of `run` the sensors `biased` are biased with probability above 0.99 and the
+/// sensors `unbiased` with probability below 0.1 (`bias_est.*.biased_prob`).
+fn assert_biased(run: &Run, biased: &[&str], unbiased: &[&str]) {
+    let last = run.last();
+    let prob = |s: &str| bias(last, s)["biased_prob"].as_f64().expect("biased_prob");
+    for s in biased {
+        assert!(prob(s) > 0.99, "{s}: {}", prob(s));
+    }
+    for s in unbiased {
+        assert!(prob(s) < 0.1, "{s}: {}", prob(s));
+    }
+}
+
 /// No bias and constant radar offsets: the cost of registering against a filter told the true
 /// bias (without bias the "no bias" mode takes the weight), the radar's offsets after 60 s
 /// against the Cramér–Rao bound, and the bias NEES.
@@ -192,6 +205,7 @@ fn constant_radar_offsets_are_learnt_to_the_bound() {
         assert!(nees >= 0.9, "seed {seed}: bias NEES within 95 % in {nees}");
         let none_prob = |r: &Run| r.last().extra["bias_none_prob"].as_f64().unwrap();
         assert!(none_prob(&unbiased) > 0.99 && none_prob(&run) < 1e-3);
+        assert_biased(&run, &["radar1"], &["cam1", "cam2"]);
         let last = bias(run.last(), "radar1");
         assert!(observable(last, Term::Offset(0)) && observable(last, Term::Offset(1)));
     }
@@ -243,12 +257,13 @@ fn camera_mounting_and_latency_are_estimated() {
                 assert!(err <= 0.05, "seed {seed} {cam} {term:?}: {err}°");
             }
         }
-        // The issue asks 1.1; the unbiased run now costs nothing over the told-bias filter (its
-        // "no bias" mode) while the mounted one still learns every sensor's terms: 1.17 mean,
-        // 1.32 worst over 8 seeds (BENCHMARKS.md); this guards the measured cost.
+        // The issue asks 1.1: 1.08 mean, 1.18 worst over 8 seeds with the sets of biased
+        // sensors weighed (1.17 and 1.32 without; BENCHMARKS.md); this guards the worst.
         let ratio = mounted.rmse() / unbiased.rmse();
-        assert!(ratio <= 1.35, "seed {seed}: {ratio}");
+        assert!(ratio <= 1.2, "seed {seed}: {ratio}");
+        assert_biased(&mounted, &["cam1", "cam2"], &["radar1"]);
         let late = Run::new(seed, Case::TimeOffset, Variant::Deployment, 600.0);
+        assert_biased(&late, &["cam1"], &["cam2", "radar1"]);
         let delta = value(bias(late.last(), "cam1"), Term::TimeOffset);
         println!(
             "seed {seed}: mounted / unbiased RMSE {ratio:.3}, latency 0.2 s estimated {delta:.4} s"
