@@ -332,7 +332,8 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
             weight: state.probs[0],
             set: None,
         }];
-        let prior_odds = -((self.sets.len()) as f64).ln();
+        // Equal prior probabilities of the sets; the set of all pins nothing and is always
+        // there, so each mode's weights sum to its probability.
         for m in 1..MODES {
             let conditioned: Vec<_> = self
                 .sets
@@ -340,7 +341,7 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
                 .enumerate()
                 .filter_map(|(i, set)| {
                     let (s, log_bf) = self.modes[m].given_prior(&state.modes[m], &set.pinned)?;
-                    Some((i, s, prior_odds + log_bf))
+                    Some((i, s, log_bf))
                 })
                 .collect();
             let max = conditioned
