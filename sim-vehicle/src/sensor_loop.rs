@@ -8,7 +8,7 @@
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use harrier_core::detection::{TRUTH_SCHEMA, TruthSample};
+use harrier_core::detection::{DetectionScan, TRUTH_SCHEMA, TruthSample};
 
 use crate::bus::{Bus, BusCounters};
 use crate::sensors::{SensorSuite, platform_pose};
@@ -107,9 +107,14 @@ pub fn spawn(
     let counters = Arc::new(Mutex::new(BusCounters::default()));
     let c = Arc::clone(&counters);
     let start = Instant::now();
-    // Scans carry `t` (simulated seconds since this start) and the same instant as UNIX time.
+    // Scans carry `t` (simulated seconds since this start, their stamp) and the same instant as
+    // UNIX time. A sensor with a time offset δ > 0 stamps a scan taken at t with t + δ and it is
+    // published then, as a camera that stamps its frames after δ of processing sends them: its
+    // stamp is never ahead of its arrival (which a real-time server would take for a clock
+    // ahead, [clock] in the server).
     let start_unix = harrier_link::clock::unix_now();
     let mut next_truth = 0.0;
+    let mut stamped_later: Vec<DetectionScan> = Vec::new();
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
         let t = start.elapsed().as_secs_f64() * speedup;
         world.advance(t);
@@ -120,9 +125,18 @@ pub fn spawn(
             };
             suite.set_gimbal(gimbal);
             for mut scan in suite.scan(t, *id, &pose, origin, &world) {
-                scan.time_unix = Some(skew.read(start_unix, t));
-                bus.publish_scan(&scan);
+                scan.time_unix = Some(skew.read(start_unix, scan.t));
+                if scan.t > t {
+                    stamped_later.push(scan);
+                } else {
+                    bus.publish_scan(&scan);
+                }
             }
+        }
+        stamped_later.sort_by(|a, b| a.t.total_cmp(&b.t));
+        let due = stamped_later.partition_point(|s| s.t <= t);
+        for scan in stamped_later.drain(..due) {
+            bus.publish_scan(&scan);
         }
         if t >= next_truth {
             bus.publish_truth(&TruthSample {

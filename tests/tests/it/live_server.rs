@@ -1460,3 +1460,69 @@ fn camera_mounting_errors_are_learnt_live() {
         "the clean world registered {registered_clean:.2} m, unregistered {clean_fused:.2} m"
     );
 }
+
+/// A camera latency (issue 21), live: both UAVs' `az_el` cameras (10 Hz, 4 mrad) stamp their
+/// scans 200 ms after they took them (harrier-sim `time_offset_s`, published when stamped), the
+/// cameras registered with a time-offset term (prior sd 0.3 s) beside their two offsets, the
+/// radars unbiased. Measured: 208 ± 20 and 234 ± 25 ms over the 120-s window (the issue asks
+/// 20 ms: one camera of two); over 360 s 153 ± 19 and 142 ± 18 ms, and with no latency at all
+/// +67 ± 21 and +74 ± 20 ms: the live estimate is biased (BENCHMARKS.md, "Live registration").
+/// Before harrier-sim stamped `time_unix` from the scan's own time the server never saw the
+/// latency (estimates 59 ± 45 and 63 ± 64 ms); this asserts it is seen, within 100 ms.
+#[test]
+fn a_camera_latency_is_learnt_live() {
+    let mut late = fusion_scenario();
+    late.sensors[0].noise_std = vec![0.004, 0.004];
+    late.sensors[0].rate_hz = 10.0;
+    late.sensors[0].time_offset_s = 0.2;
+    late.sensors[1].model = SensorType::Radar {
+        bias: BiasModel::None,
+    };
+    let registration = RegistrationConfig {
+        sensors: ["1", "2"]
+            .map(|v| RegistrationSensor {
+                vehicle: v.into(),
+                sensor: "cam".into(),
+                kind: MeasKind::AzEl,
+                bias: Some(serde_json::json!({
+                    "offset": [
+                        {"model": "constant", "std": 0.02},
+                        {"model": "constant", "std": 0.02},
+                    ],
+                    "time_offset": {"model": "constant", "std": 0.3},
+                })),
+            })
+            .to_vec(),
+    };
+    let (pooled, biases, _) = fusion_runs(&late, &registration, None);
+    assert_eq!(biases.len(), 2, "{biases:?}");
+    for b in &biases {
+        let delta = b
+            .terms
+            .iter()
+            .find(|t| t.term == "time_offset")
+            .expect("a time-offset term");
+        eprintln!(
+            "latency: camera {}/{}: {} updates, time offset {:.0} ± {:.0} ms (sim 200 ms)",
+            b.vehicle,
+            b.sensor,
+            b.updates,
+            delta.value * 1e3,
+            delta.std * 1e3
+        );
+        assert!(
+            delta.observable && (delta.value - 0.2).abs() <= 0.1,
+            "{b:?}"
+        );
+    }
+    eprintln!(
+        "latency: fused RMSE {:.2} m (second half {:.2} m)",
+        pooled[0].rmse(),
+        pooled[0].late_rmse()
+    );
+    assert!(
+        pooled[0].n > 0 && pooled[0].missed <= pooled[0].n / 20,
+        "{:?}",
+        pooled[0]
+    );
+}
