@@ -62,6 +62,9 @@ pub struct ScanSource<'a> {
     pub sensor: &'a str,
     /// Platform position (ENU, m, the engine's frame).
     pub platform: [f64; 3],
+    /// Platform velocity (ENU, m/s): with a sensor's time offset δ, where the platform was δ
+    /// before the scan's time (registration's `p_s(t − δ) ≈ p_s − δ v_s`).
+    pub platform_vel: [f64; 3],
     /// Per-component noise standard deviations of the detections.
     pub noise_std: &'a [f64],
     /// Cooperative references at the scan's time: the UAVs whose own GPS position is known

@@ -64,6 +64,8 @@ pub struct ReadyScan {
     pub scan: SensorScan,
     /// Platform position at the scan (ENU, server frame).
     pub platform: [f64; 3],
+    /// Platform velocity at the scan (ENU, server frame, m/s).
+    pub platform_vel: [f64; 3],
     /// Platform position at the scan (WGS-84).
     pub geodetic: GeoPoint,
     /// When its payload arrived from Zenoh.
@@ -226,6 +228,7 @@ impl Ingest {
         Some(ReadyScan {
             vehicle: p.vehicle.clone(),
             platform: framed.platform_pos.into(),
+            platform_vel: framed.platform_vel.into(),
             // A publisher may leave the geodetic position out: it is the same as `pos`.
             geodetic: scan.platform.geodetic.unwrap_or_else(|| {
                 LocalFrame::new(scan.origin).from_enu(&nalgebra::Vector3::from(scan.platform.pos))

@@ -109,16 +109,19 @@ pub fn spawn(
     let start = Instant::now();
     // Scans carry `t` (simulated seconds since this start, their stamp) and the same instant as
     // UNIX time. A sensor with a time offset δ > 0 stamps a scan taken at t with t + δ and it is
-    // published then, as a camera that stamps its frames after δ of processing sends them: its
-    // stamp is never ahead of its arrival (which a real-time server would take for a clock
-    // ahead, [clock] in the server).
+    // published then, with the platform's pose of then, as a companion computer that stamps a
+    // camera's frame after δ of processing attaches the autopilot's pose of that instant and
+    // sends it (registration's model, FORMAT-REGISTRATION.md §1): its stamp is never ahead of
+    // its arrival (which a real-time server would take for a clock ahead, [clock] in the
+    // server).
     let start_unix = harrier_link::clock::unix_now();
     let mut next_truth = 0.0;
-    let mut stamped_later: Vec<DetectionScan> = Vec::new();
+    let mut stamped_later: Vec<(usize, DetectionScan)> = Vec::new();
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
         let t = start.elapsed().as_secs_f64() * speedup;
         world.advance(t);
-        for ((id, suite), v) in suites.iter_mut().zip(&vehicles) {
+        let mut poses = Vec::with_capacity(vehicles.len());
+        for (i, ((id, suite), v)) in suites.iter_mut().zip(&vehicles).enumerate() {
             let (pose, gimbal) = {
                 let v = v.lock().unwrap_or_else(PoisonError::into_inner);
                 (platform_pose(&v), v.gimbal_direction())
@@ -127,15 +130,17 @@ pub fn spawn(
             for mut scan in suite.scan(t, *id, &pose, origin, &world) {
                 scan.time_unix = Some(skew.read(start_unix, scan.t));
                 if scan.t > t {
-                    stamped_later.push(scan);
+                    stamped_later.push((i, scan));
                 } else {
                     bus.publish_scan(&scan);
                 }
             }
+            poses.push(pose);
         }
-        stamped_later.sort_by(|a, b| a.t.total_cmp(&b.t));
-        let due = stamped_later.partition_point(|s| s.t <= t);
-        for scan in stamped_later.drain(..due) {
+        stamped_later.sort_by(|a, b| a.1.t.total_cmp(&b.1.t));
+        let due = stamped_later.partition_point(|(_, s)| s.t <= t);
+        for (i, mut scan) in stamped_later.drain(..due) {
+            scan.platform = poses[i];
             bus.publish_scan(&scan);
         }
         if t >= next_truth {

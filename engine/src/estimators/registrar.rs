@@ -289,7 +289,7 @@ impl<const K: usize> Registrar<K> {
             let obs = Observation {
                 sensor,
                 model: &raw,
-                platform_vel: Vector3::zeros(),
+                platform_vel: Vector3::from(source.platform_vel),
                 z: &scan.detections[i],
             };
             let mut tracks: Vec<(TrackId, &mut Gaussian<K>)> =
@@ -346,7 +346,7 @@ impl<const K: usize> Registrar<K> {
             let obs = Observation {
                 sensor,
                 model: &raw,
-                platform_vel: Vector3::zeros(),
+                platform_vel: Vector3::from(source.platform_vel),
                 z,
             };
             let mut tracks: Vec<(TrackId, &mut Gaussian<K>)> =
@@ -573,6 +573,7 @@ mod tests {
                 vehicle: "2",
                 sensor: "cam",
                 platform: [0.0, 500.0, 100.0],
+                platform_vel: [0.0; 3],
                 noise_std: &CAM_STD,
                 references: &[],
             };
@@ -597,6 +598,7 @@ mod tests {
                 vehicle: "1",
                 sensor: "radar",
                 platform: [0.0; 3],
+                platform_vel: [0.0; 3],
                 noise_std: &RADAR_STD,
                 references: &[],
             };
@@ -695,6 +697,7 @@ mod tests {
                 vehicle: "1",
                 sensor: "radar",
                 platform: [0.0; 3],
+                platform_vel: [0.0; 3],
                 noise_std: &RADAR_STD,
                 references: if with_uav { &references } else { &[] },
             };

@@ -262,6 +262,7 @@ impl TestApp {
                 detections,
             },
             platform: sensor.platform,
+            platform_vel: [0.0; 3],
             geodetic: GeoPoint {
                 lat_deg: 47.0,
                 lon_deg: 8.0,

@@ -286,6 +286,7 @@ impl TrackerActor {
             vehicle: &s.vehicle,
             sensor: &s.sensor,
             platform: s.platform,
+            platform_vel: s.platform_vel,
             noise_std: &s.noise_std,
             references: &references,
         };

@@ -22,6 +22,7 @@ fn scan(t: f64, vehicle: &str) -> ReadyScan {
             detections: vec![vec![100.0 + t, 50.0]],
         },
         platform: [0.0; 3],
+        platform_vel: [0.0; 3],
         geodetic: DEFAULT_ORIGIN,
         received: std::time::Instant::now(),
         noise_std: vec![10.0, 10.0],
