@@ -6,8 +6,10 @@
 //!
 //! 1. the bank's biases and track covariances are predicted to the scan time;
 //! 2. a registered sensor's detections are corrected ([`BiasBank::correct`]: offsets and scales
-//!    taken out) and its noise inflated by the bias uncertainty (the diagonal of `J P_bb Jᵀ`),
-//!    so that gating, association, initiation and the tentative tracks see de-biased data;
+//!    taken out) and its noise inflated by the bias uncertainty (the diagonal of `J P_bb Jᵀ`);
+//!    with a time offset δ̂ the sensor is placed where its platform was when it took the scan
+//!    (`p_s − δ̂ v_s`, [`ScanSource::platform_vel`]) and the noise carries what δ's uncertainty
+//!    moves, so that gating, association, initiation and the tentative tracks see de-biased data;
 //! 3. a detection within the gate (χ² 0.999) of a cooperative reference
 //!    ([`ScanSource::references`]: a UAV whose own GPS position is known) is that UAV's: it
 //!    updates the biases ([`BiasBank::update_reference`], the GPS covariance in the noise) and
