@@ -734,8 +734,9 @@ const FUSION_RUNS: [(&str, &[&str]); 3] = [
 
 /// Three servers on one simulated world of `scenario` (two UAVs on station), tracking from
 /// every sensor (`fused`, whose configuration `registration` completes), the cameras only and
-/// the radars only ([`FUSION_RUNS`]): the position errors each pooled over [`WINDOW_S`] after
-/// [`WARMUP_S`] on station, and the fused server's bias estimates at the end. With `record`
+/// the radars only ([`FUSION_RUNS`]): the position errors each pooled over `window_s` seconds
+/// (most tests: [`WINDOW_S`]) after [`WARMUP_S`] on station, and the fused server's bias
+/// estimates at the end. With `record`
 /// (a registered run), the fused server records its session into that SQLite file and the
 /// report of its page's "Sensor biases" panel in headless Chromium
 /// (`tests/python/biases_panel.py`) is returned.
@@ -743,6 +744,7 @@ fn fusion_runs(
     scenario: &SimScenario,
     registration: &RegistrationConfig,
     record: Option<&std::path::Path>,
+    window_s: f64,
 ) -> ([Pooled; 3], Vec<SensorBiasView>, Option<Value>) {
     let started = Instant::now();
     let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
@@ -806,12 +808,12 @@ fn fusion_runs(
             if s.t < t0 {
                 continue;
             }
-            if s.t > t0 + WINDOW_S {
+            if s.t > t0 + window_s {
                 break;
             }
             for (p, server) in pooled.iter_mut().zip(&servers) {
                 let snap = server.snapshot().borrow().clone();
-                p.add(&s, &snap.tracks, s.t > t0 + WINDOW_S / 2.0);
+                p.add(&s, &snap.tracks, s.t > t0 + window_s / 2.0);
             }
         }
         let biases = servers[0].snapshot().borrow().biases.to_vec();
@@ -852,7 +854,7 @@ fn fusion_runs(
         );
     }
     eprintln!(
-        "fusion: {WINDOW_S} s window after {WARMUP_S} s on station; {:.1} s in all",
+        "fusion: {window_s} s window after {WARMUP_S} s on station; {:.1} s in all",
         started.elapsed().as_secs_f64()
     );
     out
@@ -987,7 +989,12 @@ fn assert_fusion_wins(pooled: &[Pooled; 3]) {
 
 #[test]
 fn cameras_and_a_biased_radar_fuse_better_than_either() {
-    let (pooled, biases, _) = fusion_runs(&fusion_scenario(), &RegistrationConfig::default(), None);
+    let (pooled, biases, _) = fusion_runs(
+        &fusion_scenario(),
+        &RegistrationConfig::default(),
+        None,
+        WINDOW_S,
+    );
     assert!(biases.is_empty(), "{biases:?}");
     assert_fusion_wins(&pooled);
 }
@@ -1019,7 +1026,7 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     };
     let dir = tempfile::tempdir().expect("temporary directory");
     let db = dir.path().join("registration.sqlite");
-    let (pooled, biases, page) = fusion_runs(&scenario, &registration, Some(&db));
+    let (pooled, biases, page) = fusion_runs(&scenario, &registration, Some(&db), WINDOW_S);
     assert_eq!(biases.len(), 2, "{biases:?}");
     assert_recorded_biases(&db, &biases);
     assert_biases_panel(&page.expect("the page's panel"));
@@ -1411,9 +1418,9 @@ fn camera_mounting_errors_are_learnt_live() {
             .map(|v| registered(v, "cam", MeasKind::AzEl, [0.02, 0.02]))
             .to_vec(),
     };
-    let (base, _, _) = fusion_runs(&clean, &RegistrationConfig::default(), None);
-    let (registered_base, _, _) = fusion_runs(&clean, &registration, None);
-    let (pooled, biases, _) = fusion_runs(&mounted, &registration, None);
+    let (base, _, _) = fusion_runs(&clean, &RegistrationConfig::default(), None, WINDOW_S);
+    let (registered_base, _, _) = fusion_runs(&clean, &registration, None, WINDOW_S);
+    let (pooled, biases, _) = fusion_runs(&mounted, &registration, None, WINDOW_S);
     assert_eq!(biases.len(), 2, "{biases:?}");
     for b in &biases {
         eprintln!(
@@ -1461,14 +1468,20 @@ fn camera_mounting_errors_are_learnt_live() {
     );
 }
 
+/// The window of [`a_camera_latency_is_learnt_live`] (s): three times the others', for the
+/// latency's information.
+const LATENCY_WINDOW_S: f64 = 360.0;
+
 /// A camera latency (issue 21), live: both UAVs' `az_el` cameras (10 Hz, 4 mrad) stamp their
 /// scans 200 ms after they took them (harrier-sim `time_offset_s`, published when stamped), the
 /// cameras registered with a time-offset term (prior sd 0.3 s) beside their two offsets, the
-/// radars unbiased. Measured: 169 ± 15 and 192 ± 13 ms over the 120-s window (the issue asks
-/// 20 ms: one camera of two; BENCHMARKS.md, "Live registration", has the longer runs and the
-/// bias found in them). Before harrier-sim stamped `time_unix` from the scan's own time the
-/// server never saw the latency (estimates 59 ± 45 and 63 ± 64 ms); this asserts it is seen,
-/// within 100 ms.
+/// radars unbiased, over [`LATENCY_WINDOW_S`]. Measured: 200 ± 15 and 204 ± 12 ms (the issue's
+/// 20 ms: met by both), and 4 ± 15 ms with no latency; asserted within 50 ms (more than 3 sd,
+/// so that the test is not a coin toss). Before harrier-sim stamped `time_unix` from the scan's
+/// own time the server never saw the latency (59 ± 45 and 63 ± 64 ms), and before the platform's
+/// pose and velocity of the stamp reached the registrar, which shows the tracker a late sensor
+/// where it was, the estimate read 153 and 142 ms over this window and +67 and +74 ms with no
+/// latency (BENCHMARKS.md, "Live registration").
 #[test]
 fn a_camera_latency_is_learnt_live() {
     let mut late = fusion_scenario();
@@ -1494,7 +1507,7 @@ fn a_camera_latency_is_learnt_live() {
             })
             .to_vec(),
     };
-    let (pooled, biases, _) = fusion_runs(&late, &registration, None);
+    let (pooled, biases, _) = fusion_runs(&late, &registration, None, LATENCY_WINDOW_S);
     assert_eq!(biases.len(), 2, "{biases:?}");
     for b in &biases {
         let delta = b
