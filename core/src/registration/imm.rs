@@ -294,33 +294,32 @@ impl<const K: usize, const N: usize> RegistrationImm<K, N> {
     /// their means) and each biased mode under each set of biased sensors (see the module
     /// docs), the full covariance over the biased modes (observability if there is a bias).
     pub fn combined(&self, state: &RegistrationImmState<N>) -> RegistrationState<N> {
-        let (states, weights): (Vec<_>, Vec<_>) = self
-            .components(state)
-            .into_iter()
-            .map(|c| (c.state, c.weight))
-            .unzip();
-        let all = mix(&states, &weights);
-        let biased = state.probs[1] + state.probs[2];
-        let w = [0.0, state.probs[1] / biased, state.probs[2] / biased];
-        RegistrationState {
-            full_cov: mix(&state.modes, &w).full_cov,
-            ..all
-        }
+        self.output(state).0
     }
 
-    /// The probability that each sensor (in the filter's order) is biased: the weight of the
-    /// sets that hold it biased.
-    pub fn biased_probs(&self, state: &RegistrationImmState<N>) -> Vec<f64> {
-        let mut out = vec![0.0; self.modes[1].sensors().len()];
-        for c in self.components(state) {
+    /// [`RegistrationImm::combined`], and the probability that each sensor (in the filter's
+    /// order) is biased: the weight of the sets that hold it biased.
+    pub fn output(&self, state: &RegistrationImmState<N>) -> (RegistrationState<N>, Vec<f64>) {
+        let components = self.components(state);
+        let mut biased_probs = vec![0.0; self.modes[1].sensors().len()];
+        for c in &components {
             let Some(set) = c.set else { continue };
-            for (p, biased) in out.iter_mut().zip(&self.sets[set].biased) {
+            for (p, biased) in biased_probs.iter_mut().zip(&self.sets[set].biased) {
                 if *biased {
                     *p += c.weight;
                 }
             }
         }
-        out
+        let (states, weights): (Vec<_>, Vec<_>) =
+            components.into_iter().map(|c| (c.state, c.weight)).unzip();
+        let all = mix(&states, &weights);
+        let biased = state.probs[1] + state.probs[2];
+        let w = [0.0, state.probs[1] / biased, state.probs[2] / biased];
+        let combined = RegistrationState {
+            full_cov: mix(&state.modes, &w).full_cov,
+            ..all
+        };
+        (combined, biased_probs)
     }
 
     /// The output's components: the unbiased mode, and each biased mode conditioned on each

@@ -205,11 +205,10 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
         }
         self.state = state;
         self.t = t;
-        let combined = self.filter.combined(&self.state);
+        let (combined, biased) = self.filter.output(&self.state);
         let filter = self.filter.filter();
         let mut e = cv_estimate(self.sc.plane_z(), t, &filter.kinematic(&combined));
         let mut bias = serde_json::Map::new();
-        let biased = self.filter.biased_probs(&self.state);
         for ((s, est), p) in self
             .sc
             .sensors
