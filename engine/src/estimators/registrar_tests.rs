@@ -55,6 +55,43 @@ impl Noise {
     }
 }
 
+/// Where vehicle 2's unbiased `position` sensor hovers.
+const CAM_AT: [f64; 3] = [0.0, 500.0, 100.0];
+
+/// One scan of vehicle 2's position sensor at `t` of the targets at `truth`, ingested.
+fn cam_scan(engine: &mut dyn TrackEngine, t: f64, truth: &[[f64; 2]], noise: &mut Noise) {
+    let cam = SensorModel::new(
+        MeasKind::Position,
+        Geometry::planar(0.0),
+        Vector3::from(CAM_AT),
+        &CAM_STD,
+        None,
+    )
+    .expect("a position sensor");
+    let scan = SensorScan {
+        t,
+        sensor: cam,
+        detections: truth
+            .iter()
+            .map(|p| {
+                vec![
+                    p[0] + CAM_STD[0] * noise.normal(),
+                    p[1] + CAM_STD[1] * noise.normal(),
+                ]
+            })
+            .collect(),
+    };
+    let source = ScanSource {
+        vehicle: "2",
+        sensor: "cam",
+        platform: CAM_AT,
+        platform_vel: [0.0; 3],
+        noise_std: &CAM_STD,
+        references: &[],
+    };
+    engine.ingest_from(&scan, &source).expect("a cam scan");
+}
+
 /// Two targets crossing the radar's (at the origin) view, seen every second by the radar
 /// (biased) and by vehicle 2's unbiased `position` sensor; returns the mean position error
 /// of the confirmed tracks over the last 100 s and the engine.
@@ -77,42 +114,10 @@ fn run(registered: bool, seed: u64) -> (f64, Box<dyn TrackEngine>) {
         None,
     )
     .expect("a radar");
-    let cam = SensorModel::new(
-        MeasKind::Position,
-        Geometry::planar(0.0),
-        Vector3::new(0.0, 500.0, 100.0),
-        &CAM_STD,
-        None,
-    )
-    .expect("a position sensor");
     let (mut sum, mut n) = (0.0, 0);
     for k in 0..300 {
         let t = f64::from(k);
-        let truth = targets(t);
-        let cam_scan = SensorScan {
-            t,
-            sensor: cam,
-            detections: truth
-                .iter()
-                .map(|p| {
-                    vec![
-                        p[0] + CAM_STD[0] * noise.normal(),
-                        p[1] + CAM_STD[1] * noise.normal(),
-                    ]
-                })
-                .collect(),
-        };
-        let cam_source = ScanSource {
-            vehicle: "2",
-            sensor: "cam",
-            platform: [0.0, 500.0, 100.0],
-            platform_vel: [0.0; 3],
-            noise_std: &CAM_STD,
-            references: &[],
-        };
-        engine
-            .ingest_from(&cam_scan, &cam_source)
-            .expect("a cam scan");
+        cam_scan(engine.as_mut(), t, &targets(t), &mut noise);
         let truth = targets(t + 0.5);
         let radar_scan = SensorScan {
             t: t + 0.5,
@@ -321,34 +326,9 @@ fn a_late_radar_on_a_moving_platform_needs_its_velocity() {
         let mut engine = build_track_engine("ekf", "gnn", &d, &p).expect("an engine");
         let mut noise = Noise(5);
         let targets = |t: f64| [[500.0 + 3.0 * t, 800.0 - 1.0 * t], [-600.0, 900.0 + t]];
-        let cam_at = [0.0, 500.0, 100.0];
-        let cam = SensorModel::new(
-            MeasKind::Position,
-            Geometry::planar(0.0),
-            Vector3::from(cam_at),
-            &CAM_STD,
-            None,
-        )
-        .expect("a position sensor");
         for k in 0..200 {
             let t = f64::from(k);
-            let cam_scan = SensorScan {
-                t,
-                sensor: cam,
-                detections: targets(t)
-                    .iter()
-                    .map(|p| vec![p[0] + 4.0 * noise.normal(), p[1] + 4.0 * noise.normal()])
-                    .collect(),
-            };
-            let source = ScanSource {
-                vehicle: "2",
-                sensor: "cam",
-                platform: cam_at,
-                platform_vel: [0.0; 3],
-                noise_std: &CAM_STD,
-                references: &[],
-            };
-            engine.ingest_from(&cam_scan, &source).expect("a cam scan");
+            cam_scan(engine.as_mut(), t, &targets(t), &mut noise);
             // Stamped t + 0.5, taken DELTA earlier, from where the platform was then.
             let stamp = t + 0.5;
             let platform = |t: f64| [-1500.0 + SPEED * t, 0.0, 0.0];
