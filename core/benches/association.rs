@@ -48,6 +48,7 @@ fn associations(density: f64) -> [(&'static str, Association); 3] {
                 existence,
                 birth: 0.5,
                 max_net_nodes: 10_000,
+                star_nodes: 20_000,
             }),
         ),
         (

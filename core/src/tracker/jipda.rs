@@ -32,6 +32,12 @@
 //! the gates' volume, `ρ̂ = max(m − Σ_τ P_D P_G,τ ψ_τ, 0.1) / Σ_τ V_τ` with
 //! `V_τ = c_M γ^{M/2} √det S_τ` (`c_M` the unit ball's volume).
 //!
+//! **Coalescence avoidance** (the default): the marginals are those of JPDA*'s pruned event
+//! set, the most likely permutation of each class of events that detect the same tracks with the
+//! same detections ([`jpda_star`](super::jpda_star), \[JPDA*\]), so that close parallel tracks do
+//! not take weight from each other's detections and merge; clutter and misses are weighted as
+//! above. A cluster too large to enumerate within the budget gets the exact marginals (counted).
+//!
 //! [`TrackFilter::update_mixture`]: super::TrackFilter::update_mixture
 //!
 //! # References
@@ -39,9 +45,12 @@
 //!   *IEEE Trans. Aerospace and Electronic Systems* 40(3), 1093–1099, 2004.
 //! * \[IPDA\] D. Mušicki, R. Evans, S. Stanković, "Integrated probabilistic data association",
 //!   *IEEE Trans. Automatic Control* 39(6), 1237–1241, 1994.
+//! * \[JPDA*\] H. A. P. Blom, E. A. Bloem, "Probabilistic data association avoiding track
+//!   coalescence", *IEEE Trans. Automatic Control* 45(2), 247–259, 2000.
 
 use super::associate::{Cluster, TrackHypotheses};
 use super::ehm::{Row, marginals};
+use super::jpda_star;
 use crate::Result;
 use crate::metrics::unit_ball_volume;
 
@@ -77,7 +86,7 @@ pub struct ClusterOutcome {
     pub taken: Vec<(usize, f64)>,
     /// Nodes of the EHM net.
     pub nodes: usize,
-    /// Whether the net was cut.
+    /// Whether the net was cut, or JPDA* fell back to the exact marginals (its budget ran out).
     pub capped: bool,
 }
 
@@ -96,13 +105,16 @@ pub fn estimated_clutter(cluster: &Cluster, tracks: &[Candidate<'_>], pd: f64) -
 }
 
 /// JIPDA on one cluster: `tracks` (in the cluster's order) with `P_D`, the clutter density `rho`
-/// and the EHM bound.
+/// and the EHM bound; with `star_nodes > 0`, JPDA*'s pruned marginals
+/// ([`jpda_star`](super::jpda_star)) when enumerating the cluster's events visits at most
+/// `star_nodes` nodes, else the exact JIPDA marginals, reported as `capped`.
 pub fn associate(
     cluster: &Cluster,
     tracks: &[Candidate<'_>],
     pd: f64,
     rho: f64,
     max_nodes: usize,
+    star_nodes: usize,
 ) -> Result<ClusterOutcome> {
     let ln_pd_rho = pd.ln() - rho.ln();
     let rows: Vec<Row> = tracks
@@ -131,7 +143,20 @@ pub fn associate(
             }
         })
         .collect();
-    let m = marginals(&rows, cluster.detections.len(), max_nodes)?;
+    let n_det = cluster.detections.len();
+    let star = if star_nodes > 0 && rows.len() > 1 {
+        jpda_star::marginals(&rows, n_det, star_nodes)?
+    } else {
+        None
+    };
+    let m = match star {
+        Some(m) => m,
+        None => {
+            let mut m = marginals(&rows, n_det, max_nodes)?;
+            m.capped |= star_nodes > 0 && rows.len() > 1;
+            m
+        }
+    };
     let mut taken = vec![0.0; cluster.detections.len()];
     let soft = tracks
         .iter()
@@ -202,7 +227,7 @@ mod tests {
             detections: vec![3, 7],
         };
         let (pd, rho) = (0.9, 1e-5);
-        let out = associate(&cluster, &[c], pd, rho, 100).unwrap();
+        let out = associate(&cluster, &[c], pd, rho, 100, 1000).unwrap();
         let ratios: Vec<f64> = h
             .gated
             .iter()
@@ -244,7 +269,7 @@ mod tests {
             tracks: vec![0, 1],
             detections: vec![0, 1],
         };
-        let out = associate(&cluster, &cands, 0.9, 1e-6, 100).unwrap();
+        let out = associate(&cluster, &cands, 0.9, 1e-6, 100, 0).unwrap();
         // Detection 0 mostly goes to track 1 (nearer), detection 1 to track 0.
         assert!(out.tracks[1].detections[0].1 > 0.9, "{out:?}");
         assert!(out.tracks[0].detections[1].1 > 0.9, "{out:?}");

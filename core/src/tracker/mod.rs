@@ -66,6 +66,7 @@ pub mod generate;
 pub mod identified;
 mod initiate;
 pub mod jipda;
+pub mod jpda_star;
 pub mod metrics;
 pub mod mht;
 mod multi;

@@ -44,6 +44,10 @@ pub struct Jipda {
     /// Nodes per layer of a cluster's EHM net before the net is cut (counted in
     /// [`AssociationStats::capped`]).
     pub max_net_nodes: usize,
+    /// Coalescence avoidance ([`jpda_star`](super::jpda_star)): nodes a cluster's enumeration of
+    /// joint events may visit for JPDA*'s pruning; a larger cluster gets the exact JIPDA
+    /// marginals (counted in [`AssociationStats::capped`]). 0: plain JIPDA.
+    pub star_nodes: usize,
 }
 
 /// How the tracker associates a scan's detections with its tracks.

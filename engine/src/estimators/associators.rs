@@ -57,6 +57,11 @@ const JIPDA_PARAMS: &[(&str, &str)] = &[
         "max_net_nodes",
         "nodes per layer of a cluster's EHM net before it is cut, counted (default 10000)",
     ),
+    (
+        "star_nodes",
+        "coalescence avoidance (JPDA*): nodes a cluster's enumeration of joint events may visit; \
+         a larger cluster gets the exact JIPDA marginals, counted (default 20000; 0: plain JIPDA)",
+    ),
 ];
 
 /// `gnn`: global nearest neighbour.
@@ -80,6 +85,7 @@ pub const ASSOCIATOR_JIPDA: AssociatorInfo = AssociatorInfo {
             existence: existence(p)?,
             birth: unit(p, "birth", 0.5)?,
             max_net_nodes: count(p, "max_net_nodes", 10_000)? as usize,
+            star_nodes: star_nodes(p)?,
         }))
     },
 };
@@ -148,6 +154,17 @@ fn existence(p: &Params) -> Result<Existence, EngineError> {
         p.get("existence_confirm", 0.9),
         p.get("existence_delete", 0.01),
     )?)
+}
+
+/// `--param star_nodes`: a whole number in [0, 10⁷] (0 turns JPDA*'s pruning off).
+fn star_nodes(p: &Params) -> Result<usize, EngineError> {
+    let v = p.get("star_nodes", 20_000.0);
+    if v.fract() != 0.0 || !(0.0..=1e7).contains(&v) {
+        return Err(setup(
+            "--param star_nodes must be a whole number in [0, 10000000]",
+        ));
+    }
+    Ok(v as usize)
 }
 
 /// A probability parameter in [0, 1].

@@ -255,6 +255,7 @@ fn jipda_tracker() -> Tracker<Kf, SinglePointInitiator, 4> {
         existence: Existence::new(0.99, 0.2, 0.9, 0.01).unwrap(),
         birth: 0.5,
         max_net_nodes: 1000,
+        star_nodes: 20_000,
     });
     t
 }

@@ -1,0 +1,260 @@
+//! Coalescence avoidance for JPDA-class association: the JPDA* hypothesis pruning of
+//! \[JPDA*\].
+//!
+//! Two tracks that gate each other's detections (close parallel targets) both take weight from
+//! both detections in JPDA; their updates pull them towards each other, which raises the weight
+//! of the crossed assignment in the next scans, until the tracks coalesce and, when they part
+//! again, often swap. JPDA* keeps the soft association's treatment of clutter and misses but
+//! drops the permutations: joint events `e` that detect the same set of tracks `T(e)` with the
+//! same set of detections `D(e)` differ only by which of those tracks took which detection, and
+//! of each such class only the most likely one is kept (\[JPDA*\], the pruned hypothesis set
+//! `Ω*`):
+//!
+//! ```text
+//! Ω* = { e : P(e) = max { P(e') : T(e') = T(e), D(e') = D(e) } }
+//! m*_τ(x) = Σ_{e ∈ Ω*, e_τ = x} P(e) / Σ_{e ∈ Ω*} P(e)            (x = ∅ or a detection)
+//! ```
+//!
+//! with `P(e)` the joint-event weight of [`ehm`](super::ehm) (`Π_τ w_τ(e_τ)`). For a lone track,
+//! and for tracks that share no detection, every class has one event and `m* = m` (JPDA's
+//! marginals). The classes are not a product over tracks, so the exact EHM net does not carry
+//! them: the cluster's events are enumerated depth first, each class keeping its best event,
+//! up to a budget of visited nodes; a larger cluster returns `None` and the caller uses the
+//! exact JPDA marginals of [`ehm::marginals`](super::ehm::marginals) instead (counted).
+//!
+//! # References
+//! * \[JPDA*\] H. A. P. Blom, E. A. Bloem, "Probabilistic data association avoiding track
+//!   coalescence", *IEEE Trans. Automatic Control* 45(2), 247–259, 2000 (§IV, JPDA*).
+
+use std::collections::HashMap;
+
+use super::ehm::{Marginals, Row};
+use crate::{EstimationError, Result};
+
+/// The JPDA* marginals of the rows' joint events (module doc), or `None` when enumerating them
+/// would visit more than `max_nodes` nodes. Fails like [`ehm::marginals`](super::ehm::marginals)
+/// on a negative or non-finite weight, or when no joint event has a positive weight.
+pub fn marginals(rows: &[Row], n_det: usize, max_nodes: usize) -> Result<Option<Marginals>> {
+    let bad = |w: f64| !(w.is_finite() && w >= 0.0);
+    if rows
+        .iter()
+        .any(|r| bad(r.miss) || r.detections.iter().any(|&(d, w)| bad(w) || d >= n_det))
+    {
+        return Err(EstimationError::InvalidParameter(
+            "association weights must be finite, ≥ 0, of detections of the cluster".into(),
+        ));
+    }
+    let n = rows.len();
+    // Log weights, each row scaled to a largest weight of 1 (the marginals do not change).
+    let logs: Vec<(f64, Vec<(usize, f64)>)> = rows
+        .iter()
+        .map(|r| {
+            let top = r.detections.iter().map(|d| d.1).fold(r.miss, f64::max);
+            let s = if top > 0.0 { top.ln() } else { 0.0 };
+            (
+                r.miss.ln() - s,
+                r.detections.iter().map(|&(d, w)| (d, w.ln() - s)).collect(),
+            )
+        })
+        .collect();
+    let (track_words, det_words) = (n.div_ceil(64), n_det.div_ceil(64));
+    let mut search = Search {
+        logs: &logs,
+        track_words,
+        key: vec![0u64; track_words + det_words],
+        choice: vec![usize::MAX; n],
+        lw: 0.0,
+        best: HashMap::new(),
+        visited: 0,
+        max_nodes,
+    };
+    if !search.visit(0) {
+        return Ok(None);
+    }
+    let top = search
+        .best
+        .values()
+        .map(|b| b.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    if !top.is_finite() {
+        return Err(EstimationError::NonFinite("association marginals"));
+    }
+    let mut miss = vec![0.0; n];
+    let mut dets: Vec<Vec<f64>> = rows.iter().map(|r| vec![0.0; r.detections.len()]).collect();
+    let mut total = 0.0;
+    for (lw, event) in search.best.values() {
+        let p = (lw - top).exp();
+        total += p;
+        for (i, &c) in event.iter().enumerate() {
+            if c == usize::MAX {
+                miss[i] += p;
+            } else {
+                dets[i][c] += p;
+            }
+        }
+    }
+    miss.iter_mut().for_each(|v| *v /= total);
+    dets.iter_mut()
+        .for_each(|r| r.iter_mut().for_each(|v| *v /= total));
+    Ok(Some(Marginals {
+        miss,
+        detections: dets,
+        nodes: search.visited,
+        capped: false,
+    }))
+}
+
+/// The depth-first enumeration of one cluster's joint events.
+struct Search<'a> {
+    /// Per row: `ln w(∅)` and `(detection, ln w(j))`.
+    logs: &'a [(f64, Vec<(usize, f64)>)],
+    /// Words of the detected-tracks part of `key`.
+    track_words: usize,
+    /// The class of the current partial event: detected tracks' bits, then used detections'.
+    key: Vec<u64>,
+    /// The current event: per row, the index into its detections or `usize::MAX` (missed).
+    choice: Vec<usize>,
+    /// Its log weight.
+    lw: f64,
+    /// Per class: the largest log weight and its event.
+    best: HashMap<Vec<u64>, (f64, Vec<usize>)>,
+    /// Nodes visited.
+    visited: usize,
+    /// The budget.
+    max_nodes: usize,
+}
+
+impl Search<'_> {
+    /// Extends the current event from row `k`; `false` when the budget ran out.
+    fn visit(&mut self, k: usize) -> bool {
+        self.visited += 1;
+        if self.visited > self.max_nodes {
+            return false;
+        }
+        if k == self.logs.len() {
+            if self.lw > f64::NEG_INFINITY {
+                let e = self
+                    .best
+                    .entry(self.key.clone())
+                    .or_insert((f64::NEG_INFINITY, Vec::new()));
+                if self.lw > e.0 {
+                    *e = (self.lw, self.choice.clone());
+                }
+            }
+            return true;
+        }
+        let logs = self.logs;
+        let (miss, detections) = &logs[k];
+        self.choice[k] = usize::MAX;
+        self.lw += miss;
+        let ok = self.visit(k + 1);
+        self.lw -= miss;
+        if !ok {
+            return false;
+        }
+        let (tw, tb) = (k / 64, 1u64 << (k % 64));
+        for (e, &(d, l)) in detections.iter().enumerate() {
+            let (dw, db) = (self.track_words + d / 64, 1u64 << (d % 64));
+            if self.key[dw] & db != 0 || l == f64::NEG_INFINITY {
+                continue;
+            }
+            self.key[dw] |= db;
+            self.key[tw] |= tb;
+            self.choice[k] = e;
+            self.lw += l;
+            let ok = self.visit(k + 1);
+            self.lw -= l;
+            self.key[dw] &= !db;
+            self.key[tw] &= !tb;
+            if !ok {
+                return false;
+            }
+        }
+        self.choice[k] = usize::MAX;
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracker::ehm;
+
+    #[test]
+    fn independent_tracks_are_jpda() {
+        // No shared detection: every class has one event, the marginals are EHM's.
+        let rows = [
+            Row {
+                miss: 0.2,
+                detections: vec![(0, 1.0), (1, 0.3)],
+            },
+            Row {
+                miss: 0.5,
+                detections: vec![(2, 0.7)],
+            },
+        ];
+        let star = marginals(&rows, 3, 1000).unwrap().unwrap();
+        let exact = ehm::marginals(&rows, 3, usize::MAX).unwrap();
+        for i in 0..2 {
+            assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12);
+            for (a, b) in star.detections[i].iter().zip(&exact.detections[i]) {
+                assert!((a - b).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn the_crossed_permutation_is_pruned() {
+        // Two tracks, two detections, each track nearer its own: JPDA gives each track some
+        // weight of the other's detection; JPDA* none (the crossed event is the less likely
+        // permutation of {τ₀, τ₁} ← {z₀, z₁}), while the one-detection events stay.
+        let rows = [
+            Row {
+                miss: 0.1,
+                detections: vec![(0, 1.0), (1, 0.4)],
+            },
+            Row {
+                miss: 0.1,
+                detections: vec![(0, 0.5), (1, 1.0)],
+            },
+        ];
+        let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
+        let star = marginals(&rows, 2, 1000).unwrap().unwrap();
+        assert!(exact.detections[0][1] > 0.1, "{exact:?}");
+        // Kept: ∅∅ 0.01, z₀∅ 0.1, z₁∅ 0.04, ∅z₀ 0.05, ∅z₁ 0.1, z₀z₁ 1 (z₁z₀ 0.2 pruned).
+        let total = 0.01 + 0.1 + 0.04 + 0.05 + 0.1 + 1.0;
+        assert!(
+            (star.detections[0][0] - 1.1 / total).abs() < 1e-12,
+            "{star:?}"
+        );
+        assert!((star.detections[0][1] - 0.04 / total).abs() < 1e-12);
+        assert!((star.detections[1][0] - 0.05 / total).abs() < 1e-12);
+        assert!((star.miss[1] - 0.15 / total).abs() < 1e-12);
+        for i in 0..2 {
+            let s = star.miss[i] + star.detections[i].iter().sum::<f64>();
+            assert!((s - 1.0).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn the_budget_and_bad_weights() {
+        let chain: Vec<Row> = (0..12)
+            .map(|i| Row {
+                miss: 0.2,
+                detections: vec![(i, 1.0), (i + 1, 0.5)],
+            })
+            .collect();
+        assert!(marginals(&chain, 13, 100).unwrap().is_none());
+        assert!(marginals(&chain, 13, 10_000_000).unwrap().is_some());
+        let bad = [Row {
+            miss: f64::NAN,
+            detections: vec![],
+        }];
+        assert!(marginals(&bad, 0, 10).is_err());
+        let none = [Row {
+            miss: 0.0,
+            detections: vec![],
+        }];
+        assert!(marginals(&none, 0, 10).is_err());
+    }
+}
