@@ -115,6 +115,7 @@ pub fn associate(
     rho: f64,
     max_nodes: usize,
     star_nodes: usize,
+    star_keep: f64,
 ) -> Result<ClusterOutcome> {
     let ln_pd_rho = pd.ln() - rho.ln();
     let rows: Vec<Row> = tracks
@@ -145,7 +146,7 @@ pub fn associate(
         .collect();
     let n_det = cluster.detections.len();
     let star = if star_nodes > 0 && rows.len() > 1 {
-        jpda_star::marginals(&rows, n_det, star_nodes)?
+        jpda_star::marginals(&rows, n_det, star_nodes, star_keep)?
     } else {
         None
     };
@@ -227,7 +228,7 @@ mod tests {
             detections: vec![3, 7],
         };
         let (pd, rho) = (0.9, 1e-5);
-        let out = associate(&cluster, &[c], pd, rho, 100, 1000).unwrap();
+        let out = associate(&cluster, &[c], pd, rho, 100, 1000, 1.0).unwrap();
         let ratios: Vec<f64> = h
             .gated
             .iter()
@@ -269,7 +270,7 @@ mod tests {
             tracks: vec![0, 1],
             detections: vec![0, 1],
         };
-        let out = associate(&cluster, &cands, 0.9, 1e-6, 100, 0).unwrap();
+        let out = associate(&cluster, &cands, 0.9, 1e-6, 100, 0, 1.0).unwrap();
         // Detection 0 mostly goes to track 1 (nearer), detection 1 to track 0.
         assert!(out.tracks[1].detections[0].1 > 0.9, "{out:?}");
         assert!(out.tracks[0].detections[1].1 > 0.9, "{out:?}");

@@ -34,7 +34,15 @@ use crate::{EstimationError, Result};
 /// The JPDA* marginals of the rows' joint events (module doc), or `None` when enumerating them
 /// would visit more than `max_nodes` nodes. Fails like [`ehm::marginals`](super::ehm::marginals)
 /// on a negative or non-finite weight, or when no joint event has a positive weight.
-pub fn marginals(rows: &[Row], n_det: usize, max_nodes: usize) -> Result<Option<Marginals>> {
+///
+/// `keep` in (0, 1] relaxes the pruning: an event is kept when its weight is at least `keep`
+/// times the best of its class (`keep = 1`: JPDA*; towards 0: JPDA).
+pub fn marginals(
+    rows: &[Row],
+    n_det: usize,
+    max_nodes: usize,
+    keep: f64,
+) -> Result<Option<Marginals>> {
     let bad = |w: f64| !(w.is_finite() && w >= 0.0);
     if rows
         .iter()
@@ -65,6 +73,7 @@ pub fn marginals(rows: &[Row], n_det: usize, max_nodes: usize) -> Result<Option<
         choice: vec![usize::MAX; n],
         lw: 0.0,
         best: HashMap::new(),
+        events: Vec::new(),
         visited: 0,
         max_nodes,
     };
@@ -82,7 +91,12 @@ pub fn marginals(rows: &[Row], n_det: usize, max_nodes: usize) -> Result<Option<
     let mut miss = vec![0.0; n];
     let mut dets: Vec<Vec<f64>> = rows.iter().map(|r| vec![0.0; r.detections.len()]).collect();
     let mut total = 0.0;
-    for (lw, event) in search.best.values() {
+    let ln_keep = keep.clamp(f64::MIN_POSITIVE, 1.0).ln();
+    let kept = search.events.iter().filter(|(key, lw, _)| {
+        let class_best = search.best.get(key).map_or(f64::NEG_INFINITY, |b| b.0);
+        *lw >= class_best + ln_keep
+    });
+    for (_, lw, event) in kept {
         let p = (lw - top).exp();
         total += p;
         for (i, &c) in event.iter().enumerate() {
@@ -118,6 +132,8 @@ struct Search<'a> {
     lw: f64,
     /// Per class: the largest log weight and its event.
     best: HashMap<Vec<u64>, (f64, Vec<usize>)>,
+    /// Every complete event: its class, log weight and choices.
+    events: Vec<(Vec<u64>, f64, Vec<usize>)>,
     /// Nodes visited.
     visited: usize,
     /// The budget.
@@ -140,6 +156,8 @@ impl Search<'_> {
                 if self.lw > e.0 {
                     *e = (self.lw, self.choice.clone());
                 }
+                self.events
+                    .push((self.key.clone(), self.lw, self.choice.clone()));
             }
             return true;
         }
@@ -193,7 +211,7 @@ mod tests {
                 detections: vec![(2, 0.7)],
             },
         ];
-        let star = marginals(&rows, 3, 1000).unwrap().unwrap();
+        let star = marginals(&rows, 3, 1000, 1.0).unwrap().unwrap();
         let exact = ehm::marginals(&rows, 3, usize::MAX).unwrap();
         for i in 0..2 {
             assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12);
@@ -219,7 +237,7 @@ mod tests {
             },
         ];
         let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
-        let star = marginals(&rows, 2, 1000).unwrap().unwrap();
+        let star = marginals(&rows, 2, 1000, 1.0).unwrap().unwrap();
         assert!(exact.detections[0][1] > 0.1, "{exact:?}");
         // Kept: ∅∅ 0.01, z₀∅ 0.1, z₁∅ 0.04, ∅z₀ 0.05, ∅z₁ 0.1, z₀z₁ 1 (z₁z₀ 0.2 pruned).
         let total = 0.01 + 0.1 + 0.04 + 0.05 + 0.1 + 1.0;
@@ -244,17 +262,17 @@ mod tests {
                 detections: vec![(i, 1.0), (i + 1, 0.5)],
             })
             .collect();
-        assert!(marginals(&chain, 13, 100).unwrap().is_none());
-        assert!(marginals(&chain, 13, 10_000_000).unwrap().is_some());
+        assert!(marginals(&chain, 13, 100, 1.0).unwrap().is_none());
+        assert!(marginals(&chain, 13, 10_000_000, 1.0).unwrap().is_some());
         let bad = [Row {
             miss: f64::NAN,
             detections: vec![],
         }];
-        assert!(marginals(&bad, 0, 10).is_err());
+        assert!(marginals(&bad, 0, 10, 1.0).is_err());
         let none = [Row {
             miss: 0.0,
             detections: vec![],
         }];
-        assert!(marginals(&none, 0, 10).is_err());
+        assert!(marginals(&none, 0, 10, 1.0).is_err());
     }
 }

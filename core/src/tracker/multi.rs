@@ -48,6 +48,9 @@ pub struct Jipda {
     /// joint events may visit for JPDA*'s pruning; a larger cluster gets the exact JIPDA
     /// marginals (counted in [`AssociationStats::capped`]). 0: plain JIPDA.
     pub star_nodes: usize,
+    /// JPDA*'s pruning relaxed: an event is kept when its weight is at least this times the best
+    /// of its class (1: JPDA*).
+    pub star_keep: f64,
 }
 
 /// How the tracker associates a scan's detections with its tracks.

@@ -288,7 +288,15 @@ where
                 .detection
                 .clutter_density
                 .unwrap_or_else(|| jipda::estimated_clutter(&c, &cands, pd));
-            let o = jipda::associate(&c, &cands, pd, rho, j.max_net_nodes, j.star_nodes)?;
+            let o = jipda::associate(
+                &c,
+                &cands,
+                pd,
+                rho,
+                j.max_net_nodes,
+                j.star_nodes,
+                j.star_keep,
+            )?;
             self.stats.clusters += 1;
             self.stats.largest_cluster = self.stats.largest_cluster.max(c.tracks.len());
             self.stats.largest_net = self.stats.largest_net.max(o.nodes);
