@@ -49,7 +49,7 @@ fn associations(density: f64) -> [(&'static str, Association); 3] {
                 birth: 0.5,
                 max_net_nodes: 10_000,
                 star_nodes: 20_000,
-                star_keep: 1.0,
+                star_gate: 0.9,
             }),
         ),
         (

@@ -34,9 +34,10 @@
 //!
 //! **Coalescence avoidance** (the default): the marginals are those of JPDA*'s pruned event
 //! set, the most likely permutation of each class of events that detect the same tracks with the
-//! same detections ([`jpda_star`](super::jpda_star), \[JPDA*\]), so that close parallel tracks do
-//! not take weight from each other's detections and merge; clutter and misses are weighted as
-//! above. A cluster too large to enumerate within the budget gets the exact marginals (counted).
+//! same detections, among tracks that move together ([`jpda_star`](super::jpda_star),
+//! \[JPDA*\]), so that close parallel tracks do not take weight from each other's detections and
+//! merge; clutter and misses are weighted as above. A cluster too large to enumerate within the
+//! budget gets the exact marginals (counted).
 //!
 //! [`TrackFilter::update_mixture`]: super::TrackFilter::update_mixture
 //!
@@ -106,8 +107,9 @@ pub fn estimated_clutter(cluster: &Cluster, tracks: &[Candidate<'_>], pd: f64) -
 
 /// JIPDA on one cluster: `tracks` (in the cluster's order) with `P_D`, the clutter density `rho`
 /// and the EHM bound; with `star_nodes > 0`, JPDA*'s pruned marginals
-/// ([`jpda_star`](super::jpda_star)) when enumerating the cluster's events visits at most
-/// `star_nodes` nodes, else the exact JIPDA marginals, reported as `capped`.
+/// ([`jpda_star`](super::jpda_star), pruning the permutations among the tracks `together(a, b)`
+/// says move together, by their index in `tracks`) when enumerating the cluster's events visits
+/// at most `star_nodes` nodes, else the exact JIPDA marginals, reported as `capped`.
 pub fn associate(
     cluster: &Cluster,
     tracks: &[Candidate<'_>],
@@ -115,7 +117,7 @@ pub fn associate(
     rho: f64,
     max_nodes: usize,
     star_nodes: usize,
-    star_keep: f64,
+    together: impl Fn(usize, usize) -> bool,
 ) -> Result<ClusterOutcome> {
     let ln_pd_rho = pd.ln() - rho.ln();
     let rows: Vec<Row> = tracks
@@ -146,7 +148,7 @@ pub fn associate(
         .collect();
     let n_det = cluster.detections.len();
     let star = if star_nodes > 0 && rows.len() > 1 {
-        jpda_star::marginals(&rows, n_det, star_nodes, star_keep)?
+        jpda_star::marginals(&rows, n_det, star_nodes, together)?
     } else {
         None
     };
@@ -228,7 +230,7 @@ mod tests {
             detections: vec![3, 7],
         };
         let (pd, rho) = (0.9, 1e-5);
-        let out = associate(&cluster, &[c], pd, rho, 100, 1000, 1.0).unwrap();
+        let out = associate(&cluster, &[c], pd, rho, 100, 1000, |_, _| true).unwrap();
         let ratios: Vec<f64> = h
             .gated
             .iter()
@@ -270,7 +272,7 @@ mod tests {
             tracks: vec![0, 1],
             detections: vec![0, 1],
         };
-        let out = associate(&cluster, &cands, 0.9, 1e-6, 100, 0, 1.0).unwrap();
+        let out = associate(&cluster, &cands, 0.9, 1e-6, 100, 0, |_, _| true).unwrap();
         // Detection 0 mostly goes to track 1 (nearer), detection 1 to track 0.
         assert!(out.tracks[1].detections[0].1 > 0.9, "{out:?}");
         assert!(out.tracks[0].detections[1].1 > 0.9, "{out:?}");

@@ -15,7 +15,18 @@
 //! m*_τ(x) = Σ_{e ∈ Ω*, e_τ = x} P(e) / Σ_{e ∈ Ω*} P(e)            (x = ∅ or a detection)
 //! ```
 //!
-//! with `P(e)` the joint-event weight of [`ehm`](super::ehm) (`Π_τ w_τ(e_τ)`). For a lone track,
+//! with `P(e)` the joint-event weight of [`ehm`](super::ehm) (`Π_τ w_τ(e_τ)`).
+//!
+//! **Only among tracks that move together** (Harrier's restriction, not the paper's): an event
+//! is pruned only when the tracks in which it differs from its class' best all move together
+//! pairwise ([`move_together`]: their velocity difference inside a χ² ellipsoid of its
+//! covariance). Coalescence is a failure of tracks that share detections for a long time (close
+//! parallel targets); targets that cross with distinct velocities share them for a few scans,
+//! and there the permutations are nearly equally likely, so that keeping one is a hard guess
+//! and plain JPDA's mixture, which keeps each track's momentum through the crossing, loses
+//! fewer identities (BENCHMARKS.md, "Association under ambiguity", the sweep of the gate).
+//!
+//! For a lone track,
 //! and for tracks that share no detection, every class has one event and `m* = m` (JPDA's
 //! marginals). The classes are not a product over tracks, so the exact EHM net does not carry
 //! them: the cluster's events are enumerated depth first, each class keeping its best event,
@@ -28,20 +39,46 @@
 
 use std::collections::HashMap;
 
+use nalgebra::{Matrix3, Vector3};
+
 use super::ehm::{Marginals, Row};
+use crate::state::Gaussian;
 use crate::{EstimationError, Result};
+
+/// Whether two tracks' estimates move together: the difference of their velocities (the
+/// constant-velocity layouts' `[p, v]` blocks, N = 4 or 6) inside the ellipsoid of squared
+/// Mahalanobis radius `gate` of the sum of their velocity covariances,
+/// `(v_a − v_b)ᵀ (P_a,vv + P_b,vv)⁻¹ (v_a − v_b) ≤ gate`. Any other layout, or a sum that is not
+/// positive definite, counts as moving together (JPDA*'s pruning applies).
+pub fn move_together<const N: usize>(a: &Gaussian<N>, b: &Gaussian<N>, gate: f64) -> bool {
+    let d = match N {
+        4 => 2,
+        6 => 3,
+        _ => return true,
+    };
+    let mut s = Matrix3::identity();
+    let mut dv = Vector3::zeros();
+    for i in 0..d {
+        dv[i] = a.mean[d + i] - b.mean[d + i];
+        for j in 0..d {
+            s[(i, j)] = a.cov[(d + i, d + j)] + b.cov[(d + i, d + j)];
+        }
+    }
+    s.cholesky().is_none_or(|c| dv.dot(&c.solve(&dv)) <= gate)
+}
 
 /// The JPDA* marginals of the rows' joint events (module doc), or `None` when enumerating them
 /// would visit more than `max_nodes` nodes. Fails like [`ehm::marginals`](super::ehm::marginals)
 /// on a negative or non-finite weight, or when no joint event has a positive weight.
 ///
-/// `keep` in (0, 1] relaxes the pruning: an event is kept when its weight is at least `keep`
-/// times the best of its class (`keep = 1`: JPDA*; towards 0: JPDA).
+/// `together(a, b)` says whether rows `a` and `b` move together: an event is pruned only for a
+/// better event of its class that differs from it in rows that all move together (`|_, _| true`:
+/// JPDA*).
 pub fn marginals(
     rows: &[Row],
     n_det: usize,
     max_nodes: usize,
-    keep: f64,
+    together: impl Fn(usize, usize) -> bool,
 ) -> Result<Option<Marginals>> {
     let bad = |w: f64| !(w.is_finite() && w >= 0.0);
     if rows
@@ -91,10 +128,19 @@ pub fn marginals(
     let mut miss = vec![0.0; n];
     let mut dets: Vec<Vec<f64>> = rows.iter().map(|r| vec![0.0; r.detections.len()]).collect();
     let mut total = 0.0;
-    let ln_keep = keep.clamp(f64::MIN_POSITIVE, 1.0).ln();
-    let kept = search.events.iter().filter(|(key, lw, _)| {
-        let class_best = search.best.get(key).map_or(f64::NEG_INFINITY, |b| b.0);
-        *lw >= class_best + ln_keep
+    let kept = search.events.iter().filter(|(key, lw, event)| {
+        let Some((best_lw, best)) = search.best.get(key) else {
+            return true;
+        };
+        if lw >= best_lw {
+            return true;
+        }
+        let differ: Vec<usize> = (0..n).filter(|&i| event[i] != best[i]).collect();
+        let pruned = differ
+            .iter()
+            .enumerate()
+            .all(|(k, &a)| differ[k + 1..].iter().all(|&b| together(a, b)));
+        !pruned
     });
     for (_, lw, event) in kept {
         let p = (lw - top).exp();
@@ -211,7 +257,7 @@ mod tests {
                 detections: vec![(2, 0.7)],
             },
         ];
-        let star = marginals(&rows, 3, 1000, 1.0).unwrap().unwrap();
+        let star = marginals(&rows, 3, 1000, |_, _| true).unwrap().unwrap();
         let exact = ehm::marginals(&rows, 3, usize::MAX).unwrap();
         for i in 0..2 {
             assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12);
@@ -237,7 +283,7 @@ mod tests {
             },
         ];
         let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
-        let star = marginals(&rows, 2, 1000, 1.0).unwrap().unwrap();
+        let star = marginals(&rows, 2, 1000, |_, _| true).unwrap().unwrap();
         assert!(exact.detections[0][1] > 0.1, "{exact:?}");
         // Kept: ∅∅ 0.01, z₀∅ 0.1, z₁∅ 0.04, ∅z₀ 0.05, ∅z₁ 0.1, z₀z₁ 1 (z₁z₀ 0.2 pruned).
         let total = 0.01 + 0.1 + 0.04 + 0.05 + 0.1 + 1.0;
@@ -255,6 +301,58 @@ mod tests {
     }
 
     #[test]
+    fn permutations_of_tracks_that_do_not_move_together_are_kept() {
+        // The rows of the pruning test, but the tracks pass each other: nothing is pruned and
+        // the marginals are JPDA's.
+        let rows = [
+            Row {
+                miss: 0.1,
+                detections: vec![(0, 1.0), (1, 0.4)],
+            },
+            Row {
+                miss: 0.1,
+                detections: vec![(0, 0.5), (1, 1.0)],
+            },
+        ];
+        let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
+        let star = marginals(&rows, 2, 1000, |_, _| false).unwrap().unwrap();
+        for i in 0..2 {
+            assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12, "{star:?}");
+            for (a, b) in star.detections[i].iter().zip(&exact.detections[i]) {
+                assert!((a - b).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn tracks_move_together_when_their_velocities_are_within_the_gate() {
+        let track = |vx: f64, vy: f64| {
+            let mut cov = nalgebra::SMatrix::<f64, 4, 4>::identity() * 100.0;
+            cov[(2, 2)] = 4.0;
+            cov[(3, 3)] = 4.0;
+            Gaussian::new(nalgebra::SVector::<f64, 4>::new(0.0, 0.0, vx, vy), cov).unwrap()
+        };
+        // Sum of the velocity variances 8 (m/s)²: 2 m/s apart is 0.5, 8 m/s apart 8.
+        let gate = crate::metrics::chi2_quantile(0.9, 2);
+        assert!(move_together(&track(10.0, 0.0), &track(12.0, 0.0), gate));
+        assert!(!move_together(&track(10.0, 0.0), &track(10.0, 8.0), gate));
+        // Positions do not matter; an infinite gate takes every pair.
+        assert!(move_together(
+            &track(10.0, 0.0),
+            &track(-10.0, 0.0),
+            f64::INFINITY
+        ));
+        // A layout without the [p, v] blocks: together (JPDA*'s pruning applies).
+        let g3 = Gaussian::new(
+            nalgebra::SVector::<f64, 3>::new(0.0, 1.0, 2.0),
+            nalgebra::SMatrix::<f64, 3, 3>::identity(),
+        )
+        .unwrap();
+        let g3b = Gaussian::new(nalgebra::SVector::<f64, 3>::new(0.0, 50.0, 2.0), g3.cov).unwrap();
+        assert!(move_together(&g3, &g3b, 1.0));
+    }
+
+    #[test]
     fn the_budget_and_bad_weights() {
         let chain: Vec<Row> = (0..12)
             .map(|i| Row {
@@ -262,17 +360,21 @@ mod tests {
                 detections: vec![(i, 1.0), (i + 1, 0.5)],
             })
             .collect();
-        assert!(marginals(&chain, 13, 100, 1.0).unwrap().is_none());
-        assert!(marginals(&chain, 13, 10_000_000, 1.0).unwrap().is_some());
+        assert!(marginals(&chain, 13, 100, |_, _| true).unwrap().is_none());
+        assert!(
+            marginals(&chain, 13, 10_000_000, |_, _| true)
+                .unwrap()
+                .is_some()
+        );
         let bad = [Row {
             miss: f64::NAN,
             detections: vec![],
         }];
-        assert!(marginals(&bad, 0, 10, 1.0).is_err());
+        assert!(marginals(&bad, 0, 10, |_, _| true).is_err());
         let none = [Row {
             miss: 0.0,
             detections: vec![],
         }];
-        assert!(marginals(&none, 0, 10, 1.0).is_err());
+        assert!(marginals(&none, 0, 10, |_, _| true).is_err());
     }
 }

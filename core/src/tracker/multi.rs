@@ -48,9 +48,11 @@ pub struct Jipda {
     /// joint events may visit for JPDA*'s pruning; a larger cluster gets the exact JIPDA
     /// marginals (counted in [`AssociationStats::capped`]). 0: plain JIPDA.
     pub star_nodes: usize,
-    /// JPDA*'s pruning relaxed: an event is kept when its weight is at least this times the best
-    /// of its class (1: JPDA*).
-    pub star_keep: f64,
+    /// Which tracks JPDA* keeps apart: two tracks move together when the difference of their
+    /// velocities lies inside this probability's χ² ellipsoid of their velocity covariances
+    /// ([`move_together`](super::jpda_star::move_together)); only the permutations among tracks
+    /// that move together are pruned. 1: every track (JPDA*).
+    pub star_gate: f64,
 }
 
 /// How the tracker associates a scan's detections with its tracks.

@@ -63,9 +63,9 @@ const JIPDA_PARAMS: &[(&str, &str)] = &[
          a larger cluster gets the exact JIPDA marginals, counted (default 20000; 0: plain JIPDA)",
     ),
     (
-        "star_keep",
-        "JPDA* relaxed: a joint event is kept when at least this times the most likely \
-         permutation of its class (default 1: JPDA*)",
+        "star_gate",
+        "JPDA* prunes the permutations of tracks that move together: velocities within this \
+         probability's chi-square ellipsoid (default 0.9; 1: every track)",
     ),
 ];
 
@@ -91,7 +91,7 @@ pub const ASSOCIATOR_JIPDA: AssociatorInfo = AssociatorInfo {
             birth: unit(p, "birth", 0.5)?,
             max_net_nodes: count(p, "max_net_nodes", 10_000)? as usize,
             star_nodes: star_nodes(p)?,
-            star_keep: p.get("star_keep", 1.0),
+            star_gate: unit(p, "star_gate", 0.9)?,
         }))
     },
 };

@@ -7,11 +7,13 @@ use nalgebra::SVector;
 use super::{Association, Jipda, Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
+use crate::metrics::chi2_quantile;
 use crate::tracker::associate::{TrackHypotheses, clusters, gnn_clusters, hypothesise_scan};
 use crate::tracker::delete::DeleteReason;
 use crate::tracker::filter::TrackFilter;
 use crate::tracker::initiate::{Initiator, Verdict};
 use crate::tracker::jipda::{self, Candidate, Soft};
+use crate::tracker::jpda_star::move_together;
 
 /// What association decided for one track.
 enum Decision {
@@ -274,6 +276,11 @@ where
                 })
             })
             .collect();
+        let gate = if j.star_gate >= 1.0 {
+            f64::INFINITY
+        } else {
+            chi2_quantile(j.star_gate, N / 2)
+        };
         for c in clusters(hyps, n_det) {
             let cands: Vec<Candidate<'_>> = c
                 .tracks
@@ -288,15 +295,16 @@ where
                 .detection
                 .clutter_density
                 .unwrap_or_else(|| jipda::estimated_clutter(&c, &cands, pd));
-            let o = jipda::associate(
-                &c,
-                &cands,
-                pd,
-                rho,
-                j.max_net_nodes,
-                j.star_nodes,
-                j.star_keep,
-            )?;
+            // JPDA* looks at the velocities of the tracks of shared clusters only.
+            let shared = j.star_nodes > 0 && c.tracks.len() > 1;
+            let estimates: Vec<_> = c
+                .tracks
+                .iter()
+                .filter(|_| shared)
+                .map(|&i| self.filter.estimate(&tracks[i].state))
+                .collect();
+            let together = |a: usize, b: usize| move_together(&estimates[a], &estimates[b], gate);
+            let o = jipda::associate(&c, &cands, pd, rho, j.max_net_nodes, j.star_nodes, together)?;
             self.stats.clusters += 1;
             self.stats.largest_cluster = self.stats.largest_cluster.max(c.tracks.len());
             self.stats.largest_net = self.stats.largest_net.max(o.nodes);

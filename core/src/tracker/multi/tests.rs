@@ -256,7 +256,7 @@ fn jipda_tracker() -> Tracker<Kf, SinglePointInitiator, 4> {
         birth: 0.5,
         max_net_nodes: 1000,
         star_nodes: 20_000,
-        star_keep: 1.0,
+        star_gate: 1.0,
     });
     t
 }
