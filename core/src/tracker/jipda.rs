@@ -34,7 +34,7 @@
 //!
 //! **Coalescence avoidance** (the default): the marginals are those of JPDA*'s pruned event
 //! set, the most likely permutation of each class of events that detect the same tracks with the
-//! same detections, among tracks that move together ([`jpda_star`](super::jpda_star),
+//! same detections, among tracks that move together ([`jpda_star`],
 //! \[JPDA*\]), so that close parallel tracks do not take weight from each other's detections and
 //! merge; clutter and misses are weighted as above. A cluster too large to enumerate within the
 //! budget gets the exact marginals (counted).
@@ -107,7 +107,7 @@ pub fn estimated_clutter(cluster: &Cluster, tracks: &[Candidate<'_>], pd: f64) -
 
 /// JIPDA on one cluster: `tracks` (in the cluster's order) with `P_D`, the clutter density `rho`
 /// and the EHM bound; with `star_nodes > 0`, JPDA*'s pruned marginals
-/// ([`jpda_star`](super::jpda_star), pruning the permutations among the tracks `together(a, b)`
+/// ([`jpda_star`], pruning the permutations among the tracks `together(a, b)`
 /// says move together, by their index in `tracks`) when enumerating the cluster's events visits
 /// at most `star_nodes` nodes, else the exact JIPDA marginals, reported as `capped`.
 pub fn associate(
