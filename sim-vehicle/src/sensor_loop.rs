@@ -8,7 +8,10 @@
 use std::sync::{Arc, Mutex, PoisonError};
 use std::time::{Duration, Instant};
 
-use harrier_core::detection::{DetectionScan, TRUTH_SCHEMA, TruthSample};
+use harrier_core::detection::{DetectionScan, PlatformPose, TRUTH_SCHEMA, TruthSample};
+
+use harrier_link::geo::LocalFrame;
+use nalgebra::Vector3;
 
 use crate::bus::{Bus, BusCounters};
 use crate::sensors::{SensorSuite, platform_pose};
@@ -109,12 +112,14 @@ pub fn spawn(
     let start = Instant::now();
     // Scans carry `t` (simulated seconds since this start, their stamp) and the same instant as
     // UNIX time. A sensor with a time offset δ > 0 stamps a scan taken at t with t + δ and it is
-    // published then, with the platform's pose of then, as a companion computer that stamps a
-    // camera's frame after δ of processing attaches the autopilot's pose of that instant and
-    // sends it (registration's model, FORMAT-REGISTRATION.md §1): its stamp is never ahead of
-    // its arrival (which a real-time server would take for a clock ahead, [clock] in the
-    // server).
+    // published then (by the first pass at or after it), with the platform's pose of then (that
+    // pass's pose moved back to the stamp along its velocity), as a companion computer that
+    // stamps a camera's frame after δ of processing attaches the autopilot's pose of that
+    // instant and sends it (registration's model, FORMAT-REGISTRATION.md §1): its stamp is never
+    // ahead of its arrival (which a real-time server would take for a clock ahead, [clock] in
+    // the server).
     let start_unix = harrier_link::clock::unix_now();
+    let frame = LocalFrame::new(origin);
     let mut next_truth = 0.0;
     let mut stamped_later: Vec<(usize, DetectionScan)> = Vec::new();
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
@@ -140,7 +145,7 @@ pub fn spawn(
         stamped_later.sort_by(|a, b| a.1.t.total_cmp(&b.1.t));
         let due = stamped_later.partition_point(|(_, s)| s.t <= t);
         for (i, mut scan) in stamped_later.drain(..due) {
-            scan.platform = poses[i];
+            scan.platform = pose_at(&poses[i], scan.t - t, &frame);
             bus.publish_scan(&scan);
         }
         if t >= next_truth {
@@ -158,6 +163,17 @@ pub fn spawn(
     })
     .map_err(SensorLoopError::Thread)?;
     Ok(SensorLoopHandle { counters, worker })
+}
+
+/// `pose` moved `dt` seconds along its velocity (`dt` ≤ 0: back to a scan's stamp from the pass
+/// that publishes it, up to a pass later), its geodetic position with it.
+fn pose_at(pose: &PlatformPose, dt: f64, frame: &LocalFrame) -> PlatformPose {
+    let pos = Vector3::from(pose.pos) + Vector3::from(pose.vel) * dt;
+    PlatformPose {
+        pos: pos.into(),
+        geodetic: pose.geodetic.map(|_| frame.from_enu(&pos)),
+        ..*pose
+    }
 }
 
 #[cfg(test)]

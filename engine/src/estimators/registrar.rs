@@ -24,7 +24,10 @@
 //!    any sensor update; the bank carries the cross-covariances through whatever the tracker did
 //!    to a track's covariance, see [`BiasBank`]). Unregistered sensors' detections go through
 //!    the bank the same way as unbiased sensors: they fix the targets, and through the
-//!    track–bias correlation, the biases;
+//!    track–bias correlation, the biases. On a planar deployment an angle-only detection that
+//!    looks at the ground too flat to range the target (its elevation gives the ground range
+//!    with a relative error `σ_el / (sin|el| cos|el|)` over 0.2: a UAV on its take-off roll)
+//!    updates the tracker only;
 //! 6. a track enters the bank when it is confirmed (uncorrelated with the biases: it was built
 //!    from corrected detections), at most [`MAX_BANK_TRACKS`] of them, and leaves when deleted.
 //!
@@ -53,6 +56,29 @@ pub const MAX_BANK_TRACKS: usize = 40;
 
 /// The gate probability of a detection of a cooperative reference.
 const REFERENCE_GATE: f64 = 0.999;
+
+/// The largest relative error of the ground range an angle-only detection may carry and still
+/// update the bank (see [`grazing`]).
+const MAX_GROUND_RANGE_ERROR: f64 = 0.2;
+
+/// Whether an angle-only detection `z` (`az_el`, `bearing_size`: elevation `z[1]`, its noise
+/// `std[1]`) of a target on the ground plane looks at it too flat for the bank. Its ground range
+/// comes from the elevation alone, `r = h / tan|el|` (h the height above the plane), with the
+/// relative error `σ_r / r = σ_el / (sin|el| cos|el|)`; above [`MAX_GROUND_RANGE_ERROR`] (4 mrad
+/// of noise: |el| below 1.15°) the bank's linearisation fails, and such a detection taken as a
+/// joint update of biases and tracks leaves them wrong and over-confident for minutes (a UAV on
+/// its take-off roll, a camera near the ground: measured in BENCHMARKS.md, "Latency, live"). The
+/// tracker still takes it.
+fn grazing(kind: MeasKind, z: &[f64], std: &[f64]) -> bool {
+    if !matches!(kind, MeasKind::AzEl | MeasKind::BearingSize) {
+        return false;
+    }
+    let (Some(&el), Some(&sd)) = (z.get(1), std.get(1)) else {
+        return false;
+    };
+    let (s, c) = el.abs().sin_cos();
+    !(el.is_finite() && sd.is_finite()) || sd > MAX_GROUND_RANGE_ERROR * s * c
+}
 
 /// The bank behind its track state size `K` (its bias capacity erased).
 trait LiveBank<const K: usize>: Send + std::fmt::Debug {
@@ -364,6 +390,9 @@ impl<const K: usize> Registrar<K> {
                 continue;
             };
             if !predicted.iter().any(|(k, _)| *k == id) {
+                continue;
+            }
+            if !self.geometry.up_in_state && grazing(kind, z, source.noise_std) {
                 continue;
             }
             let obs = Observation {
