@@ -68,15 +68,7 @@ type Key = Box<[u64]>;
 /// positive weight.
 pub fn marginals(rows: &[Row], n_det: usize, max_nodes: usize) -> Result<Marginals> {
     let n = rows.len();
-    let bad = |w: f64| !(w.is_finite() && w >= 0.0);
-    if rows
-        .iter()
-        .any(|r| bad(r.miss) || r.detections.iter().any(|&(d, w)| bad(w) || d >= n_det))
-    {
-        return Err(EstimationError::InvalidParameter(
-            "association weights must be finite, ≥ 0, of detections of the cluster".into(),
-        ));
-    }
+    check_rows(rows, n_det)?;
     // Scale each row to a largest weight of 1: every joint event has one factor per row, so the
     // marginals do not change, and products stay in range.
     let rows: Vec<Row> = rows
@@ -291,6 +283,20 @@ fn breadth_first(rows: &[Row], n_det: usize) -> Vec<usize> {
         }
     }
     order
+}
+
+/// Every weight of `rows` finite and ≥ 0, every detection one of the cluster's `n_det`.
+pub(super) fn check_rows(rows: &[Row], n_det: usize) -> Result<()> {
+    let bad = |w: f64| !(w.is_finite() && w >= 0.0);
+    if rows
+        .iter()
+        .any(|r| bad(r.miss) || r.detections.iter().any(|&(d, w)| bad(w) || d >= n_det))
+    {
+        return Err(EstimationError::InvalidParameter(
+            "association weights must be finite, ≥ 0, of detections of the cluster".into(),
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]

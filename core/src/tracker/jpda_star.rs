@@ -41,7 +41,7 @@ use std::collections::HashMap;
 
 use nalgebra::{Matrix3, Vector3};
 
-use super::ehm::{Marginals, Row};
+use super::ehm::{Marginals, Row, check_rows};
 use crate::state::Gaussian;
 use crate::{EstimationError, Result};
 
@@ -80,15 +80,7 @@ pub fn marginals(
     max_nodes: usize,
     together: impl Fn(usize, usize) -> bool,
 ) -> Result<Option<Marginals>> {
-    let bad = |w: f64| !(w.is_finite() && w >= 0.0);
-    if rows
-        .iter()
-        .any(|r| bad(r.miss) || r.detections.iter().any(|&(d, w)| bad(w) || d >= n_det))
-    {
-        return Err(EstimationError::InvalidParameter(
-            "association weights must be finite, ≥ 0, of detections of the cluster".into(),
-        ));
-    }
+    check_rows(rows, n_det)?;
     let n = rows.len();
     // Log weights, each row scaled to a largest weight of 1 (the marginals do not change).
     let logs: Vec<(f64, Vec<(usize, f64)>)> = rows
@@ -259,20 +251,12 @@ mod tests {
         ];
         let star = marginals(&rows, 3, 1000, |_, _| true).unwrap().unwrap();
         let exact = ehm::marginals(&rows, 3, usize::MAX).unwrap();
-        for i in 0..2 {
-            assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12);
-            for (a, b) in star.detections[i].iter().zip(&exact.detections[i]) {
-                assert!((a - b).abs() < 1e-12);
-            }
-        }
+        assert_same(&star, &exact);
     }
 
-    #[test]
-    fn the_crossed_permutation_is_pruned() {
-        // Two tracks, two detections, each track nearer its own: JPDA gives each track some
-        // weight of the other's detection; JPDA* none (the crossed event is the less likely
-        // permutation of {τ₀, τ₁} ← {z₀, z₁}), while the one-detection events stay.
-        let rows = [
+    /// Two tracks, two detections, each track nearer its own.
+    fn two_tracks() -> [Row; 2] {
+        [
             Row {
                 miss: 0.1,
                 detections: vec![(0, 1.0), (1, 0.4)],
@@ -281,7 +265,24 @@ mod tests {
                 miss: 0.1,
                 detections: vec![(0, 0.5), (1, 1.0)],
             },
-        ];
+        ]
+    }
+
+    fn assert_same(a: &Marginals, b: &Marginals) {
+        for i in 0..a.miss.len() {
+            assert!((a.miss[i] - b.miss[i]).abs() < 1e-12, "{a:?} vs {b:?}");
+            for (x, y) in a.detections[i].iter().zip(&b.detections[i]) {
+                assert!((x - y).abs() < 1e-12, "{a:?} vs {b:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn the_crossed_permutation_is_pruned() {
+        // JPDA gives each track some weight of the other's detection; JPDA* none (the crossed
+        // event is the less likely permutation of {τ₀, τ₁} ← {z₀, z₁}), while the
+        // one-detection events stay.
+        let rows = two_tracks();
         let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
         let star = marginals(&rows, 2, 1000, |_, _| true).unwrap().unwrap();
         assert!(exact.detections[0][1] > 0.1, "{exact:?}");
@@ -304,24 +305,10 @@ mod tests {
     fn permutations_of_tracks_that_do_not_move_together_are_kept() {
         // The rows of the pruning test, but the tracks pass each other: nothing is pruned and
         // the marginals are JPDA's.
-        let rows = [
-            Row {
-                miss: 0.1,
-                detections: vec![(0, 1.0), (1, 0.4)],
-            },
-            Row {
-                miss: 0.1,
-                detections: vec![(0, 0.5), (1, 1.0)],
-            },
-        ];
+        let rows = two_tracks();
         let exact = ehm::marginals(&rows, 2, usize::MAX).unwrap();
         let star = marginals(&rows, 2, 1000, |_, _| false).unwrap().unwrap();
-        for i in 0..2 {
-            assert!((star.miss[i] - exact.miss[i]).abs() < 1e-12, "{star:?}");
-            for (a, b) in star.detections[i].iter().zip(&exact.detections[i]) {
-                assert!((a - b).abs() < 1e-12);
-            }
-        }
+        assert_same(&star, &exact);
     }
 
     #[test]
