@@ -55,6 +55,16 @@ impl Noise {
     }
 }
 
+/// The radar's range and azimuth offsets within 3 sd of the simulated ones.
+fn assert_radar_offsets(b: &SensorBiasView, context: &str) {
+    for (t, truth) in b.terms.iter().zip([RANGE_OFFSET, AZIMUTH_OFFSET]) {
+        assert!(
+            (t.value - truth).abs() <= 3.0 * t.std,
+            "{context}: {t:?}, truth {truth}"
+        );
+    }
+}
+
 /// Where vehicle 2's unbiased `position` sensor hovers.
 const CAM_AT: [f64; 3] = [0.0, 500.0, 100.0];
 
@@ -170,12 +180,7 @@ fn the_radar_bias_is_estimated_from_shared_targets_and_the_tracks_improve() {
         assert_eq!(b.len(), 1);
         assert!(b[0].updates > 400, "{b:?}");
         assert!(b[0].observable, "{b:?}");
-        for (t, truth) in b[0].terms.iter().zip([RANGE_OFFSET, AZIMUTH_OFFSET]) {
-            assert!(
-                (t.value - truth).abs() <= 3.0 * t.std,
-                "seed {seed}: {t:?}, truth {truth}"
-            );
-        }
+        assert_radar_offsets(&b[0], &format!("seed {seed}"));
         eprintln!(
             "seed {seed}: mean track error {on:.2} m with registration, {off:.2} m without; \
              range offset {:.2} ± {:.2} m, azimuth offset {:.2} ± {:.2} mrad",
@@ -265,12 +270,7 @@ fn a_uav_the_radar_paints_makes_its_bias_observable_and_without_it_the_bias_is_h
     let (b, tracks) = radar_alone(true);
     assert!(b[0].references > 250, "{b:?}");
     assert!(b[0].observable, "{b:?}");
-    for (t, truth) in b[0].terms.iter().zip([RANGE_OFFSET, AZIMUTH_OFFSET]) {
-        assert!(
-            (t.value - truth).abs() <= 3.0 * t.std,
-            "{t:?}, truth {truth}"
-        );
-    }
+    assert_radar_offsets(&b[0], "radar + UAV reference");
     eprintln!(
         "radar + UAV reference: range offset {:.2} ± {:.2} m, azimuth offset {:.2} ± {:.2} mrad",
         b[0].terms[0].value,
