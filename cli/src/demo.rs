@@ -531,6 +531,39 @@ impl DemoConfig {
 /// to the slowest of the tracks there are (s).
 const CAR_WAIT_S: f64 = 30.0;
 
+/// How well a track's speed must be known (1σ, m/s) before the demo compares it with another's
+/// (or [`CAR_WAIT_S`] has passed).
+const SPEED_STD_M_S: f64 = 0.5;
+
+/// A confirmed track the demo may assign the UAVs to: its ground speed and that speed's 1σ.
+#[derive(Debug)]
+struct Candidate {
+    id: u64,
+    speed: f64,
+    speed_std: f64,
+}
+
+impl Candidate {
+    /// The speed of `t` and its standard deviation, linearised at the estimate (infinite when
+    /// the covariance has no velocity).
+    fn of(t: &harrier_engine::TrackView) -> Self {
+        let (vx, vy) = (t.state[3], t.state[4]);
+        let speed = vx.hypot(vy);
+        let var = match (t.cov_at(3, 3), t.cov_at(4, 4), t.cov_at(3, 4)) {
+            (Some(xx), Some(yy), Some(xy)) if speed > 1e-6 => {
+                (vx * vx * xx + 2.0 * vx * vy * xy + vy * vy * yy) / (speed * speed)
+            }
+            (Some(xx), Some(yy), _) => xx.max(yy),
+            _ => f64::INFINITY,
+        };
+        Self {
+            id: t.id,
+            speed,
+            speed_std: var.max(0.0).sqrt(),
+        }
+    }
+}
+
 /// What keeps the demo's UAVs assigned (see [`Assigner::keep`]).
 struct Assigner {
     guidance: harrier_server::guidance::Guidance,
@@ -583,10 +616,11 @@ impl Assigner {
         }
     }
 
-    /// Waits until every UAV is heard on the GCS link and every car has a confirmed track (or
-    /// [`CAR_WAIT_S`] of scan time since the first: the slowest car is the one to orbit, and its
-    /// track may confirm after the other's), then assigns all UAVs to the slowest confirmed
-    /// track with TOGVF and phase spacing: the assignment's id, `None` once the service stops.
+    /// Waits until every UAV is heard on the GCS link and every car has a confirmed track whose
+    /// speed is known within [`SPEED_STD_M_S`] (or [`CAR_WAIT_S`] of scan time since the first:
+    /// the slowest car is the one to orbit, and its track may confirm after the other's), then
+    /// assigns all UAVs to the slowest confirmed track with TOGVF and phase spacing: the
+    /// assignment's id, `None` once the service stops.
     async fn assign_when_ready(&mut self) -> Option<u64> {
         let mut first_seen: Option<f64> = None;
         loop {
@@ -600,12 +634,11 @@ impl Assigner {
                 .count();
             let (t, mut candidates) = {
                 let s = self.snapshot.borrow();
-                let speed = |t: &harrier_engine::TrackView| t.state[3].hypot(t.state[4]);
-                let candidates: Vec<(u64, f64)> = s
+                let candidates: Vec<Candidate> = s
                     .tracks
                     .iter()
                     .filter(|t| t.status == harrier_engine::TrackStatus::Confirmed && t.age >= 5)
-                    .map(|t| (t.id, speed(t)))
+                    .map(Candidate::of)
                     .collect();
                 (s.t.unwrap_or(0.0), candidates)
             };
@@ -613,11 +646,14 @@ impl Assigner {
                 continue;
             }
             let waited = t - *first_seen.get_or_insert(t);
-            if candidates.len() < self.cars && waited < CAR_WAIT_S {
+            // A speed is only compared once it is known: a young track's speed is still
+            // mostly its prior (3.4 and 3.9 m/s for cars at 1.5 and 7 m/s).
+            let settled = candidates.iter().all(|c| c.speed_std <= SPEED_STD_M_S);
+            if (candidates.len() < self.cars || !settled) && waited < CAR_WAIT_S {
                 continue;
             }
-            candidates.sort_by(|a, b| a.1.total_cmp(&b.1));
-            let track = candidates[0].0;
+            candidates.sort_by(|a, b| a.speed.total_cmp(&b.speed));
+            let track = candidates[0].id;
             let request = harrier_server::guidance::AssignmentRequest {
                 vehicles: (1..=self.vehicles).collect(),
                 track,
@@ -635,6 +671,7 @@ impl Assigner {
                         track,
                         tracks = candidates.len(),
                         cars = self.cars,
+                        candidates = ?candidates,
                         "demo: UAVs assigned to standoff-track"
                     );
                     return Some(a.id);
