@@ -28,7 +28,9 @@ const EXISTENCE_PARAMS: [(&str, &str); 7] = [
     ),
     (
         "existence_initial",
-        "existence of a track started from one detection (default 0.1)",
+        "existence of a track started from one detection (default 5 / (5 + detection.clutter_rate) \
+         within [0.02, 0.5]: 1/3 at 10 clutter detections a scan, 0.09 at 50; 0.1 without a \
+         clutter rate)",
     ),
     (
         "existence_confirm",
@@ -87,7 +89,7 @@ pub const ASSOCIATOR_JIPDA: AssociatorInfo = AssociatorInfo {
     build: |d, p| {
         Ok(Association::Jipda(Jipda {
             detection: detection_model(d, p)?,
-            existence: existence(p)?,
+            existence: existence(d, p)?,
             birth: unit(p, "birth", 0.5)?,
             max_net_nodes: count(p, "max_net_nodes", 10_000)? as usize,
             star_nodes: star_nodes(p)?,
@@ -135,7 +137,7 @@ pub const ASSOCIATOR_MHT: AssociatorInfo = AssociatorInfo {
     build: |d, p| {
         Ok(Association::Mht(Mht::new(
             detection_model(d, p)?,
-            existence(p)?,
+            existence(d, p)?,
             count(p, "window", 3)? as usize,
             count(p, "max_leaves", 16)? as usize,
             count(p, "max_hypotheses", 100_000)? as usize,
@@ -152,11 +154,29 @@ fn detection_model(d: &Deployment, p: &Params) -> Result<DetectionModel, EngineE
     Ok(DetectionModel::new(pd, p.opt("clutter_density"))?)
 }
 
+/// Births a scan that the default initial existence weighs against the deployment's clutter
+/// detections a scan (`ψ₀ = b / (b + clutter_rate)`): a tuning of how fast tracks confirm
+/// against how many false ones do, not a measured birth rate. At 10 clutter detections a scan
+/// ψ₀ = 1/3 confirms a target seen, missed and seen again on the third scan (the 2-of-3 rule's
+/// timing); at 50 a scan ψ₀ = 0.09 keeps the false tracks down.
+const BIRTHS_PER_SCAN: f64 = 5.0;
+
+/// The initial existence when the parameters give none: [`BIRTHS_PER_SCAN`] against the
+/// deployment's `detection.clutter_rate`, within [0.02, 0.5]; 0.1 without a clutter rate.
+fn default_initial_existence(d: &Deployment) -> f64 {
+    d.detection
+        .as_ref()
+        .filter(|x| x.clutter_rate > 0.0 && x.clutter_rate.is_finite())
+        .map_or(0.1, |x| {
+            (BIRTHS_PER_SCAN / (BIRTHS_PER_SCAN + x.clutter_rate)).clamp(0.02, 0.5)
+        })
+}
+
 /// The existence chain and thresholds of the parameters.
-fn existence(p: &Params) -> Result<Existence, EngineError> {
+fn existence(d: &Deployment, p: &Params) -> Result<Existence, EngineError> {
     Ok(Existence::new(
         p.get("survival", 0.995),
-        p.get("existence_initial", 0.1),
+        p.get("existence_initial", default_initial_existence(d)),
         p.get("existence_confirm", 0.9),
         p.get("existence_delete", 0.01),
     )?)
@@ -180,4 +200,45 @@ fn unit(p: &Params, name: &str, default: f64) -> Result<f64, EngineError> {
         return Err(setup(format!("--param {name} must be in [0, 1]")));
     }
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use harrier_core::scenario::DetectionSpec;
+
+    fn deployment(clutter_rate: Option<f64>) -> Deployment {
+        Deployment {
+            dims: 2,
+            plane_z: 0.0,
+            motion: None,
+            roads: Vec::new(),
+            scan_period_s: 1.0,
+            sensors: 1,
+            detection: clutter_rate.map(|clutter_rate| DetectionSpec {
+                pd: 0.9,
+                clutter_rate,
+                region: None,
+            }),
+            registration: Vec::new(),
+        }
+    }
+
+    /// The initial existence falls as the clutter rate rises, within [0.02, 0.5], and the
+    /// parameter overrides it.
+    #[test]
+    fn the_initial_existence_is_weighed_against_the_clutter_rate() {
+        let initial = |rate: Option<f64>, p: &Params| {
+            existence(&deployment(rate), p).expect("existence").initial
+        };
+        let none = Params::default();
+        assert!((initial(Some(10.0), &none) - 1.0 / 3.0).abs() < 1e-12);
+        assert!((initial(Some(50.0), &none) - 5.0 / 55.0).abs() < 1e-12);
+        assert_eq!(initial(Some(1.0), &none), 0.5);
+        assert_eq!(initial(Some(1e6), &none), 0.02);
+        assert_eq!(initial(Some(0.0), &none), 0.1);
+        assert_eq!(initial(None, &none), 0.1);
+        let p = Params::parse(&["existence_initial=0.2"]).expect("parameters");
+        assert_eq!(initial(Some(10.0), &p), 0.2);
+    }
 }
