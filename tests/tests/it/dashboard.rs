@@ -11,7 +11,8 @@
 //!   UAVs; and a second server this test starts with `[map] tile_url` pointing at the script's
 //!   own tile server (asked with a line `HARRIER-TILE-SERVER URL`, answered `tile-server
 //!   http://ADDR`), whose tiles the page requests and draws;
-//! - the page loads with no console error and, within 30 s, draws at least one track with its
+//! - the page loads with no console error (Chromium's log of a 404 for the details of a track
+//!   the tracker deleted meanwhile is the race the page expects, set apart) and, within 30 s, draws at least one track with its
 //!   95 % ellipse and three UAVs in the map, and the same with its ellipsoid in the 3-D view (what
 //!   the page exposes in `window.harrier` and data attributes, cross-checked with REST);
 //!   screenshots of the live page go to
