@@ -76,6 +76,16 @@ fn value(b: &serde_json::Value, term: Term) -> f64 {
     v.as_f64().expect("term estimated")
 }
 
+/// The standard deviation of `term` in a `bias_est` entry.
+fn std_of(b: &serde_json::Value, term: Term) -> f64 {
+    let v = match term {
+        Term::Offset(i) => &b["offset_std"][i],
+        Term::Scale(i) => &b["scale_std"][i],
+        Term::TimeOffset => &b["time_offset_std"],
+    };
+    v.as_f64().expect("term's std")
+}
+
 fn observable(b: &serde_json::Value, term: Term) -> bool {
     let v = match term {
         Term::Offset(i) => &b["observable"]["offset"][i],
@@ -273,7 +283,8 @@ fn camera_mounting_and_latency_are_estimated() {
 }
 
 /// One radar alone: with a UAV it paints, its range and azimuth offsets are observable from the
-/// UAV's GPS and estimated to the bound; without it, reported unobservable and held at the prior.
+/// UAV's GPS and estimated to the bound; without it, reported unobservable, held at the prior
+/// and reported as uncertain as the prior.
 #[test]
 fn a_painted_uav_makes_a_lone_radars_bias_observable() {
     let (mut err, mut bound) = ([0.0; 2], [0.0; 2]);
@@ -306,6 +317,13 @@ fn a_painted_uav_makes_a_lone_radars_bias_observable() {
             assert!(
                 value(b, term).abs() <= 0.05 * sigma,
                 "seed {seed} {term:?}: {b}"
+            );
+            // Held at the prior, and as uncertain as the prior: the "no bias" hypothesis, which
+            // the data cannot reject here, does not shrink it.
+            assert!(
+                std_of(b, term) >= 0.9 * sigma,
+                "seed {seed} {term:?}: std {} of prior {sigma}",
+                std_of(b, term)
             );
         }
         println!(
