@@ -66,24 +66,26 @@ fn bias<'a>(e: &'a Estimate, sensor: &str) -> &'a serde_json::Value {
     &e.extra["bias_est"][sensor]
 }
 
+/// The value of `term` in a `bias_est` entry (`suffix` ""), or its standard deviation
+/// (`suffix` "_std").
+fn field(b: &serde_json::Value, term: Term, suffix: &str) -> f64 {
+    let v = match term {
+        Term::Offset(i) => &b[format!("offset{suffix}")][i],
+        Term::Scale(i) => &b[format!("scale{suffix}")][i],
+        Term::TimeOffset => &b[format!("time_offset{suffix}")],
+    };
+    v.as_f64()
+        .unwrap_or_else(|| panic!("{term:?}{suffix} in {b}"))
+}
+
 /// The value of `term` in a `bias_est` entry.
 fn value(b: &serde_json::Value, term: Term) -> f64 {
-    let v = match term {
-        Term::Offset(i) => &b["offset"][i],
-        Term::Scale(i) => &b["scale"][i],
-        Term::TimeOffset => &b["time_offset"],
-    };
-    v.as_f64().expect("term estimated")
+    field(b, term, "")
 }
 
 /// The standard deviation of `term` in a `bias_est` entry.
 fn std_of(b: &serde_json::Value, term: Term) -> f64 {
-    let v = match term {
-        Term::Offset(i) => &b["offset_std"][i],
-        Term::Scale(i) => &b["scale_std"][i],
-        Term::TimeOffset => &b["time_offset_std"],
-    };
-    v.as_f64().expect("term's std")
+    field(b, term, "_std")
 }
 
 fn observable(b: &serde_json::Value, term: Term) -> bool {
