@@ -6,10 +6,11 @@
 //! camera slaved to each car on every UAV. The UAVs stand on the ground at home and send their
 //! MAVLink to the service's GCS link (`--gcs`, PX4's UDP 14550). The service tracks with the
 //! preset's road and motion models (CIMM by default); once every car has a confirmed track whose
-//! speed is known within 0.5 m/s (or 30 s after the first), the demo assigns every UAV to the slowest one with TOGVF and phase
-//! spacing (`--radius`, `--height`), and the guidance loop arms them, takes them off and flies
-//! the standoff; when the tracker deletes that track, the demo assigns them again. [`run`] is
-//! the command: it starts the demo, prints where to point a browser and waits for Ctrl-C.
+//! speed is known within 0.5 m/s (or 30 s after the first), the demo assigns every UAV to the
+//! slowest one with TOGVF and phase spacing (`--radius`, `--height`), and the guidance loop arms
+//! them, takes them off and flies the standoff; when the tracker deletes that track, the demo
+//! assigns them again. [`run`] is the command: it starts the demo, prints where to point a
+//! browser and waits for Ctrl-C.
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
