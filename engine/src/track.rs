@@ -38,6 +38,24 @@ pub struct Deployment {
     pub registration: Vec<RegisteredSensor>,
 }
 
+#[cfg(test)]
+impl Deployment {
+    /// A planar deployment on the plane z = 0 with `sensors` sensors, 1 s scans and nothing
+    /// else known (no motion, roads, detection block or registration): the tests' base.
+    pub(crate) fn planar(sensors: u32) -> Self {
+        Self {
+            dims: 2,
+            plane_z: 0.0,
+            motion: None,
+            roads: Vec::new(),
+            scan_period_s: 1.0,
+            sensors,
+            detection: None,
+            registration: Vec::new(),
+        }
+    }
+}
+
 /// A sensor whose biases the live tracker estimates (`[[registration.sensors]]`): which scans
 /// are its (`vehicle`, `sensor`), their kind, and its bias terms with their priors
 /// (FORMAT-REGISTRATION.md §1).

@@ -209,18 +209,12 @@ mod tests {
 
     fn deployment(clutter_rate: Option<f64>) -> Deployment {
         Deployment {
-            dims: 2,
-            plane_z: 0.0,
-            motion: None,
-            roads: Vec::new(),
-            scan_period_s: 1.0,
-            sensors: 1,
             detection: clutter_rate.map(|clutter_rate| DetectionSpec {
                 pd: 0.9,
                 clutter_rate,
                 region: None,
             }),
-            registration: Vec::new(),
+            ..Deployment::planar(1)
         }
     }
 

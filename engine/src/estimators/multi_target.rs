@@ -542,14 +542,9 @@ mod tests {
         }))
         .expect("a road");
         Deployment {
-            dims: 2,
-            plane_z: 0.0,
             motion: Some(motion),
             roads: vec![road],
-            scan_period_s: 1.0,
-            sensors: 2,
-            detection: None,
-            registration: Vec::new(),
+            ..Deployment::planar(2)
         }
     }
 

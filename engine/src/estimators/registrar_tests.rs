@@ -20,13 +20,6 @@ fn deployment(registered: bool) -> Deployment {
     .expect("a bias block")
     .expect("terms");
     Deployment {
-        dims: 2,
-        plane_z: 0.0,
-        motion: None,
-        roads: Vec::new(),
-        scan_period_s: 1.0,
-        sensors: 1,
-        detection: None,
         registration: if registered {
             vec![RegisteredSensor {
                 vehicle: "1".into(),
@@ -37,6 +30,7 @@ fn deployment(registered: bool) -> Deployment {
         } else {
             Vec::new()
         },
+        ..Deployment::planar(1)
     }
 }
 
