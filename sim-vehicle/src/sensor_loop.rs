@@ -1,5 +1,6 @@
 //! The live sensor loop: moves the world in (sped-up) wall time, scans every vehicle's sensors from
-//! the vehicle's real pose, and publishes the scans and the truth over Zenoh.
+//! the vehicle's real pose (radars that paint vehicles see the others where they fly), and
+//! publishes the scans and the truth over Zenoh.
 //!
 //! It runs on its own thread beside the vehicles' threads ([`crate::net::spawn`]) and only reads
 //! the vehicles (their pose under their lock). Unlike `record`, a live run is not reproducible:
@@ -125,14 +126,22 @@ pub fn spawn(
     let worker = Worker::spawn("harrier-sim-sensors".into(), move || {
         let t = start.elapsed().as_secs_f64() * speedup;
         world.advance(t);
-        let mut poses = Vec::with_capacity(vehicles.len());
-        for (i, ((id, suite), v)) in suites.iter_mut().zip(&vehicles).enumerate() {
-            let (pose, gimbal) = {
+        let (poses, gimbals): (Vec<_>, Vec<_>) = vehicles
+            .iter()
+            .map(|v| {
                 let v = v.lock().unwrap_or_else(PoisonError::into_inner);
                 (platform_pose(&v), v.gimbal_direction())
-            };
-            suite.set_gimbal(gimbal);
-            for mut scan in suite.scan(t, *id, &pose, origin, &world) {
+            })
+            .unzip();
+        for (i, (id, suite)) in suites.iter_mut().enumerate() {
+            let pose = &poses[i];
+            suite.set_gimbal(gimbals[i]);
+            let others: Vec<Vector3<f64>> = (poses.iter().enumerate())
+                .filter(|(j, _)| *j != i)
+                .map(|(_, p)| Vector3::from(p.pos))
+                .collect();
+            suite.set_vehicles(&others);
+            for mut scan in suite.scan(t, *id, pose, origin, &world) {
                 scan.time_unix = Some(skew.read(start_unix, scan.t));
                 if scan.t > t {
                     stamped_later.push((i, scan));
@@ -140,7 +149,6 @@ pub fn spawn(
                     bus.publish_scan(&scan);
                 }
             }
-            poses.push(pose);
         }
         stamped_later.sort_by(|a, b| a.1.t.total_cmp(&b.1.t));
         let due = stamped_later.partition_point(|(_, s)| s.t <= t);

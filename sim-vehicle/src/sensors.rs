@@ -10,8 +10,10 @@
 //! of clutter detections (mean `clutter_rate`) falls uniformly in the field of view: directions
 //! uniform over the cone's solid angle (cameras; geolocated onto the target plane for `position`
 //! output, range uniform up to `max_range_m` for `bearing_size`), range and azimuth uniform for
-//! radars. Detections are shuffled, so their order reveals nothing; [`LabelledScan::sources`]
-//! keeps which target made each (simulation only).
+//! radars. A radar with `paints_vehicles` also detects the other vehicles
+//! ([`SensorSuite::set_vehicles`]), as it does the targets: cooperative targets whose GPS
+//! position the ground station knows. Detections are shuffled, so their order reveals nothing;
+//! [`LabelledScan::sources`] keeps which target made each (simulation only).
 //!
 //! Randomness: one ChaCha8 stream per (vehicle, sensor) from the run's seed, so adding a vehicle
 //! or a sensor never changes another one's noise; every scan draws the same numbers whatever was
@@ -43,7 +45,9 @@ fn sensor_stream(vehicle: u8, index: usize) -> u64 {
     (1 << 32) | (u64::from(vehicle) << 16) | (index as u64 & 0xffff)
 }
 
-/// A scan with, for each detection, the index of the target that produced it (`None`: clutter).
+/// A scan with, for each detection, the index of the target that produced it (`None`: clutter;
+/// an index past the world's targets: that vehicle of [`SensorSuite::set_vehicles`]'s list, in
+/// its order).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LabelledScan {
     /// The published scan.
@@ -72,6 +76,8 @@ pub struct SensorSuite {
     plane_z: f64,
     /// Where the vehicle's gimbal points (unit ENU), for cameras with `pointing: roi`.
     gimbal: Option<Vector3<f64>>,
+    /// The other vehicles' positions (ENU), for radars that paint them.
+    vehicles: Vec<Vector3<f64>>,
 }
 
 /// The pose of a simulated vehicle as published with its detections: ENU position and velocity,
@@ -135,6 +141,7 @@ impl SensorSuite {
             sizes: scenario.targets.iter().map(|t| t.size_m).collect(),
             plane_z: scenario.plane_z(),
             gimbal: None,
+            vehicles: Vec::new(),
         })
     }
 
@@ -142,6 +149,14 @@ impl SensorSuite {
     /// no region of interest) for the next scans of its `roi` cameras.
     pub fn set_gimbal(&mut self, direction: Option<Vector3<f64>>) {
         self.gimbal = direction.filter(|d| d.iter().all(|x| x.is_finite()));
+    }
+
+    /// Where the other vehicles are (ENU positions) for the next scans of radars with
+    /// `paints_vehicles` (none until set).
+    pub fn set_vehicles(&mut self, positions: &[Vector3<f64>]) {
+        self.vehicles.clear();
+        self.vehicles
+            .extend(positions.iter().filter(|p| p.iter().all(|x| x.is_finite())));
     }
 
     /// One [`DetectionScan`] per sensor due at `t` (each scans at `k / rate_hz`; a sensor whose
@@ -176,15 +191,26 @@ impl SensorSuite {
         if !due.contains(&true) {
             return Vec::new();
         }
-        let truths: Vec<Vector3<f64>> = world
+        let targets: Vec<Vector3<f64>> = world
             .truth()
             .iter()
             .map(|s| Vector3::new(s.state[0], s.state[1], s.state[2]))
             .collect();
+        // The targets, then the other vehicles (only for the radars that paint them, so that
+        // the other sensors' draws stay as they were).
+        let painted: Vec<Vector3<f64>> = targets.iter().chain(&self.vehicles).copied().collect();
         let (sizes, plane_z, gimbal) = (&self.sizes, self.plane_z, self.gimbal);
         let mut out = Vec::new();
         for (s, _) in self.sensors.iter_mut().zip(due).filter(|(_, d)| *d) {
-            let (detections, sources) = s.detect(t, pose, &truths, sizes, plane_z, gimbal);
+            let paints = matches!(
+                s.spec.model,
+                SensorType::Radar {
+                    paints_vehicles: true,
+                    ..
+                }
+            );
+            let truths = if paints { &painted } else { &targets };
+            let (detections, sources) = s.detect(t, pose, truths, sizes, plane_z, gimbal);
             let scan = DetectionScan {
                 schema: DETECTIONS_SCHEMA.into(),
                 // Taken at t, stamped with the sensor's time offset.
@@ -248,7 +274,7 @@ impl SensorState {
 
     /// Bias `(scale, offset)` at `t` (\[ICDKF\] eq. (9)); draws two normals per scan for Markov.
     fn bias(&mut self, t: f64) -> ([f64; 2], [f64; 2]) {
-        let SensorType::Radar { bias } = self.spec.model else {
+        let SensorType::Radar { bias, .. } = self.spec.model else {
             return ([0.0; 2], [0.0; 2]);
         };
         match bias {

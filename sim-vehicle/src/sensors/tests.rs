@@ -136,6 +136,7 @@ fn field_of_view_and_range_limit_detections() {
         noise_std: vec![5.0, 0.005],
         model: SensorType::Radar {
             bias: BiasModel::None,
+            paints_vehicles: false,
         },
     };
     let s = scenario(
@@ -293,7 +294,10 @@ fn radar_run(bias: BiasModel, scans: usize) -> Vec<[f64; 2]> {
         time_offset_s: 0.0,
         max_range_m: 20_000.0,
         noise_std: vec![1e-6, 1e-9],
-        model: SensorType::Radar { bias },
+        model: SensorType::Radar {
+            bias,
+            paints_vehicles: false,
+        },
     };
     let s = scenario(vec![still("t", 3000.0, 4000.0)], radar);
     run(&s, &pose([0.0, 0.0, 0.0], 0.0), scans, 8)
@@ -504,4 +508,64 @@ fn a_time_offset_stamps_the_same_scans_later() {
         );
         assert_eq!(l.platform, c.platform);
     }
+}
+
+/// A radar that paints vehicles detects the other vehicles as it does the targets (with its
+/// bias, labelled past the targets), within its range; one that does not, and the cameras, see
+/// the targets only, with the same draws as before.
+#[test]
+fn a_radar_that_paints_vehicles_sees_the_others_with_its_bias() {
+    let radar = |paints_vehicles| SensorSpec {
+        id: "radar".into(),
+        rate_hz: 1.0,
+        pd: 1.0,
+        clutter_rate: 0.0,
+        time_offset_s: 0.0,
+        max_range_m: 6000.0,
+        noise_std: vec![1e-6, 1e-9],
+        model: SensorType::Radar {
+            bias: BiasModel::Abrupt {
+                t_on: 0.0,
+                t_off: 1e9,
+                scale: [0.0, 0.0],
+                offset: [25.0, 0.004],
+            },
+            paints_vehicles,
+        },
+    };
+    let scan = |paints: bool| {
+        let s = scenario(vec![still("t", 3000.0, 4000.0)], radar(paints));
+        let world = World::new(&s, 3).expect("world");
+        let mut suite = SensorSuite::new(&s, 3, 1).expect("suite");
+        // A UAV 300 m East, 400 m North and 120 m up of the radar; another out of range.
+        suite.set_vehicles(&[
+            Vector3::new(300.0, 400.0, 120.0),
+            Vector3::new(9000.0, 0.0, 100.0),
+        ]);
+        let mut l = suite.scan_labelled(0.0, 1, &pose([0.0, 0.0, 0.0], 0.0), ORIGIN, &world);
+        assert_eq!(l.len(), 1);
+        l.remove(0)
+    };
+    let plain = scan(false);
+    assert_eq!(plain.sources, vec![Some(0)]);
+    let painting = scan(true);
+    let mut sources = painting.sources.clone();
+    sources.sort();
+    assert_eq!(sources, vec![Some(0), Some(1)]);
+    let uav = painting
+        .sources
+        .iter()
+        .position(|s| *s == Some(1))
+        .expect("the UAV");
+    let z = &painting.scan.detections[uav].z;
+    let slant = (300.0f64 * 300.0 + 400.0 * 400.0 + 120.0 * 120.0).sqrt();
+    assert!((z[0] - (slant + 25.0)).abs() < 1e-3, "{z:?}");
+    assert!((z[1] - (0.6435011087932844 + 0.004)).abs() < 1e-6, "{z:?}");
+    // The target's detection is the one of the radar that does not paint vehicles.
+    let target = painting
+        .sources
+        .iter()
+        .position(|s| *s == Some(0))
+        .expect("the target");
+    assert_eq!(painting.scan.detections[target], plain.scan.detections[0]);
 }

@@ -217,6 +217,11 @@ pub enum SensorType {
         /// Bias model.
         #[serde(default)]
         bias: BiasModel,
+        /// Whether it also paints the other vehicles of the world (cooperative targets whose
+        /// own GPS position the ground station hears over MAVLink: registration's references),
+        /// as it paints the targets; default no.
+        #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+        paints_vehicles: bool,
     },
 }
 

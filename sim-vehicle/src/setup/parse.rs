@@ -197,7 +197,7 @@ impl SimScenario {
                         _ => {}
                     }
                 }
-                SensorType::Radar { bias } => {
+                SensorType::Radar { bias, .. } => {
                     let ok = match bias {
                         BiasModel::None => true,
                         BiasModel::Abrupt {

@@ -235,7 +235,10 @@ fn radar(bias: BiasModel, name: &str) -> SimScenario {
             time_offset_s: 0.0,
             max_range_m: 20_000.0,
             noise_std: vec![5.0, 0.005],
-            model: SensorType::Radar { bias },
+            model: SensorType::Radar {
+                bias,
+                paints_vehicles: false,
+            },
         }],
         vehicles: VehicleSpec {
             airframe: AirframeSpec::Multirotor,

@@ -17,6 +17,10 @@
 //! - `registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off`: the same with a
 //!   5 m / 5 mrad radar bias and `[registration]` on both radars: the offsets estimated within
 //!   3 sd of the sim's, fused RMSE below the radars' and within 10 % of the cameras'.
+//! - `a_radar_learns_its_bias_from_the_uav_it_paints_live`: two vehicles' radars, biased 25 m /
+//!   4 mrad, paint each other (harrier-sim's `paints_vehicles`); the server hears both GPS
+//!   positions over its MAVLink link and takes the radars' detections of them as cooperative
+//!   references: both offsets observable and within 3 sd of the sim's, no track on a vehicle.
 //! - `pymavlink_gets_the_tracks_as_traffic_through_the_router`: a confirmed track reaches a
 //!   pymavlink client of the MAVLink router as ADSB_VEHICLE (`mavlink.tracks_hz`), where REST has
 //!   it.
@@ -674,6 +678,7 @@ fn fusion_scenario() -> SimScenario {
             tau_s: 30.0,
             scale: [0.0, 0.0],
         },
+        paints_vehicles: false,
     };
     s.sensors = vec![cam, radar];
     s
@@ -1027,6 +1032,7 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
             scale: [0.0, 0.0],
             offset: bias,
         },
+        paints_vehicles: false,
     };
     let registration = RegistrationConfig {
         sensors: ["1", "2"]
@@ -1416,6 +1422,7 @@ fn camera_mounting_errors_are_learnt_live() {
     clean.sensors[0].noise_std = vec![0.004, 0.004];
     clean.sensors[1].model = SensorType::Radar {
         bias: BiasModel::None,
+        paints_vehicles: false,
     };
     let mounting = [0.5, 0.5];
     let mut mounted = clean.clone();
@@ -1507,6 +1514,7 @@ fn a_camera_latency_is_learnt_live() {
     late.sensors[0].time_offset_s = latency;
     late.sensors[1].model = SensorType::Radar {
         bias: BiasModel::None,
+        paints_vehicles: false,
     };
     let registration = RegistrationConfig {
         sensors: ["1", "2"]
@@ -1556,4 +1564,130 @@ fn a_camera_latency_is_learnt_live() {
         "{:?}",
         pooled[0]
     );
+}
+
+/// Issue 21's lone radar with a UAV it paints, live: vehicle 1 stands on the ground at the
+/// origin, vehicle 2 flies to a station 500 m away and 120 m up; each carries a radar biased
+/// 25 m / 4 mrad that paints the other vehicle (`paints_vehicles`) and sees no target. The server
+/// hears both vehicles' GPS over its MAVLink GCS link, and with both radars registered each
+/// radar's detections of the other vehicle are cooperative references: they update the radar's
+/// bias, and no track. After 60 references each, both offsets are observable and within 3 sd of
+/// the sim's, the API counts the references (and no target of opportunity), and no confirmed
+/// track stands on either vehicle.
+#[test]
+fn a_radar_learns_its_bias_from_the_uav_it_paints_live() {
+    const BIAS: [f64; 2] = [25.0, 0.004];
+    let mut scenario = SimScenario::load("radar").expect("preset");
+    // The preset's target starts 5 km away: out of range (2 km) for the whole test.
+    let radar = &mut scenario.sensors[0];
+    radar.rate_hz = 2.0;
+    radar.max_range_m = 2000.0;
+    radar.model = SensorType::Radar {
+        bias: BiasModel::Abrupt {
+            t_on: 0.0,
+            t_off: 1e9,
+            scale: [0.0, 0.0],
+            offset: BIAS,
+        },
+        paints_vehicles: true,
+    };
+    let started = Instant::now();
+    runtime().block_on(within(150, "the painted-UAV test", async {
+        let sim_endpoint = format!("tcp/127.0.0.1:{}", free_tcp_port());
+        let mut config = Config::default();
+        config.api.listen = SocketAddr::from(([127, 0, 0, 1], 0));
+        config.mavlink.gcs = vec!["udpin:127.0.0.1:0".into()];
+        config.mavlink.router.clear();
+        config.frame.origin = scenario.origin;
+        config.zenoh.listen = vec![format!("tcp/127.0.0.1:{}", free_tcp_port())];
+        config.zenoh.connect = vec![sim_endpoint.clone()];
+        config.registration = RegistrationConfig {
+            sensors: ["1", "2"]
+                .map(|v| registered(v, "radar", MeasKind::RangeBearing, [50.0, 0.01]))
+                .to_vec(),
+        };
+        let server = within(10, "start", harrier_server::start(&config))
+            .await
+            .expect("start a live server");
+        let gcs: SocketAddr = server
+            .link()
+            .and_then(|l| l.gcs().next().map(|e| e.addr()))
+            .expect("a GCS link");
+        let mut world = WorldConfig::new(SensorLoopConfig {
+            scenario: scenario.clone(),
+            seed: 5,
+            speedup: 1.0,
+            truth_hz: 5.0,
+            clock: Default::default(),
+        });
+        world.vehicles = vec![
+            WorldVehicle::grounded(1),
+            WorldVehicle::at(2, [400.0, 300.0, 120.0]),
+        ];
+        world.zenoh.listen = vec![sim_endpoint];
+        world.gcs = Some(gcs);
+        let world = tokio::task::spawn_blocking(move || SimWorld::start(&world))
+            .await
+            .expect("start")
+            .expect("the simulated world");
+
+        let mut snapshot = server.snapshot();
+        let biases = within(120, "60 references on each radar", async {
+            loop {
+                snapshot.changed().await.expect("snapshot");
+                let b = snapshot.borrow().biases.to_vec();
+                if b.len() == 2 && b.iter().all(|b| b.references >= 60) {
+                    return b;
+                }
+            }
+        })
+        .await;
+        let snap = server.snapshot().borrow().clone();
+        let positions: Vec<[f64; 3]> = world
+            .vehicles()
+            .iter()
+            .map(|v| v.vehicle().state().position.into())
+            .collect();
+        server.shutdown().await;
+        tokio::task::spawn_blocking(move || world.stop())
+            .await
+            .expect("stop");
+
+        for b in &biases {
+            eprintln!(
+                "painted UAV: radar {}/{}: {} references, {} targets of opportunity, range \
+                 offset {:.2} ± {:.2} m, azimuth offset {:.2} ± {:.2} mrad, observable {} \
+                 (sim: {} m, {} mrad)",
+                b.vehicle,
+                b.sensor,
+                b.references,
+                b.updates,
+                b.terms[0].value,
+                b.terms[0].std,
+                1e3 * b.terms[1].value,
+                1e3 * b.terms[1].std,
+                b.observable,
+                BIAS[0],
+                1e3 * BIAS[1]
+            );
+            assert_eq!(b.updates, 0, "a target of opportunity: {b:?}");
+            assert!(b.observable, "{b:?}");
+            for (t, truth) in b.terms.iter().zip(BIAS) {
+                assert!(t.observable, "{b:?}");
+                assert!((t.value - truth).abs() <= 3.0 * t.std, "{b:?}");
+            }
+        }
+        let confirmed: Vec<&TrackView> = snap
+            .tracks
+            .iter()
+            .filter(|k| k.status == harrier_engine::TrackStatus::Confirmed)
+            .collect();
+        eprintln!(
+            "painted UAV: {} tracks ({} confirmed) with the vehicles at {positions:?}; {:.1} s",
+            snap.tracks.len(),
+            confirmed.len(),
+            started.elapsed().as_secs_f64()
+        );
+        assert!(confirmed.is_empty(), "a track on a vehicle: {confirmed:?}");
+    }));
 }
