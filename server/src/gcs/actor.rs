@@ -580,6 +580,7 @@ impl Actor {
                 self.send_to(id, &request);
             }
         }
+        let unix = unix_now();
         let samples: Vec<VehicleSample> = self
             .vehicles
             .values()
@@ -588,6 +589,7 @@ impl Actor {
                 status: v.status(),
                 home_amsl: v.home_amsl(),
                 gimbal_manager: v.gimbal_manager(),
+                position_unix: v.position_age(now).map(|age| unix - age),
             })
             .collect();
         self.watch.send_replace(Arc::new(samples));

@@ -249,6 +249,9 @@ pub struct VehicleSample {
     /// Its gimbal manager, once it announced one (GIMBAL_MANAGER_INFORMATION): the manager's
     /// component id and the gimbal device it manages.
     pub gimbal_manager: Option<(u8, u8)>,
+    /// When its position (`view.position`, `view.velocity`) arrived: UNIX seconds on the
+    /// server's clock, once a GLOBAL_POSITION_INT was heard.
+    pub position_unix: Option<f64>,
 }
 
 /// Rate of the vehicles watch and of the timeout checks.

@@ -177,6 +177,8 @@ pub struct VehicleLink {
     geodetic: Option<Geodetic>,
     relative_alt: Option<f64>,
     velocity_ned: Option<Vector3<f64>>,
+    /// When its last GLOBAL_POSITION_INT arrived.
+    position_heard: Option<Instant>,
     heading: Option<f64>,
     attitude: Option<[f64; 3]>,
     battery_pct: Option<f64>,
@@ -209,6 +211,7 @@ impl VehicleLink {
             geodetic: None,
             relative_alt: None,
             velocity_ned: None,
+            position_heard: None,
             heading: None,
             attitude: None,
             battery_pct: None,
@@ -304,6 +307,7 @@ impl VehicleLink {
                     f64::from(p.vz) * 0.01,
                 ));
                 self.heading = (p.hdg != u16::MAX).then(|| f64::from(p.hdg) * 0.01);
+                self.position_heard = Some(now);
             }
             // A NaN or infinite angle (the wire allows them) keeps the last good attitude:
             // JSON has no NaN, and the API would serve `null` for a number.
@@ -350,6 +354,12 @@ impl VehicleLink {
     pub fn kinematics(&self, frame: &LocalFrame) -> Option<(Vector3<f64>, Vector3<f64>)> {
         let g = self.geodetic?;
         Some((frame.to_enu(&g), ned_to_enu(&self.velocity_ned?)))
+    }
+
+    /// Seconds from the arrival of its last GLOBAL_POSITION_INT to `now`, once one was heard.
+    pub fn position_age(&self, now: Instant) -> Option<f64> {
+        self.position_heard
+            .map(|h| now.saturating_duration_since(h).as_secs_f64())
     }
 
     /// Home altitude AMSL (m): altitude minus height above home.

@@ -224,6 +224,7 @@ mod tests {
             }),
             home_amsl: Some(488.0),
             gimbal_manager: None,
+            position_unix: None,
         }
     }
 

@@ -43,8 +43,12 @@ pub const RECENT_SCANS: usize = 512;
 pub const HISTORY_LEN: usize = 200;
 /// Standard deviation (m) of a UAV's GPS position as a cooperative reference.
 pub const GPS_STD_M: f64 = 3.0;
-/// A vehicle heard longer ago than this (s) is no cooperative reference.
+/// A vehicle whose last position is further than this (s) from a scan's time is no cooperative
+/// reference of the scan.
 pub const REFERENCE_MAX_AGE_S: f64 = 2.0;
+/// Standard deviation (s) of the time of a vehicle's position as a reference: the server stamps
+/// a GLOBAL_POSITION_INT when it arrives, a transport delay after the vehicle's fix.
+pub const REFERENCE_TIMING_STD_S: f64 = 0.05;
 /// Scan time (s) between two refreshes of the bias estimates (WebSocket, snapshot, recording):
 /// at most 2 Hz.
 pub const BIAS_PERIOD_S: f64 = 0.5;
@@ -281,7 +285,7 @@ impl TrackerActor {
 
     fn process(&mut self, s: ReadyScan) {
         let late = self.engine.time().is_some_and(|last| s.scan.t < last);
-        let references = self.references(&s.vehicle);
+        let references = self.references(&s.vehicle, s.scan.t);
         let source = ScanSource {
             vehicle: &s.vehicle,
             sensor: &s.sensor,
@@ -483,10 +487,14 @@ impl TrackerActor {
         }
     }
 
-    /// The cooperative references of a scan of `vehicle` (registration only): every other
-    /// vehicle of the link, connected and heard within [`REFERENCE_MAX_AGE_S`], at its GPS
-    /// position, its variance [`GPS_STD_M`]² plus its motion since its last frame.
-    fn references(&self, vehicle: &str) -> Vec<KnownObject> {
+    /// The cooperative references of a scan of `vehicle` at `t` (registration only): every other
+    /// vehicle of the link, connected, whose last GPS position arrived within
+    /// [`REFERENCE_MAX_AGE_S`] of `t`, moved along its velocity from its arrival to `t` (a UAV
+    /// at 15 m/s moves 1.5 m in the 0.1 s between a frame and a scan), with the variance
+    /// [`GPS_STD_M`]² plus that of its motion over [`REFERENCE_TIMING_STD_S`]. The scan's time
+    /// and the frame's are both the server's UNIX time only for sources on real time
+    /// (`[clock] real_time`): a simulator that runs faster gets no references.
+    fn references(&self, vehicle: &str, t: f64) -> Vec<KnownObject> {
         let Some(link) = self
             .link_vehicles
             .as_ref()
@@ -497,16 +505,12 @@ impl TrackerActor {
         let own = vehicle.parse::<u8>().ok();
         link.borrow()
             .iter()
-            .map(|v| &v.view)
-            .filter(|v| {
-                v.state == LinkState::Connected
-                    && v.last_seen_s <= REFERENCE_MAX_AGE_S
-                    && Some(v.id) != own
-            })
+            .filter(|v| v.view.state == LinkState::Connected && Some(v.view.id) != own)
             .filter_map(|v| {
-                let pos = Vector3::from(v.position?);
-                let vel = Vector3::from(v.velocity.unwrap_or_default());
-                let var = GPS_STD_M.powi(2) + (vel.norm() * v.last_seen_s).powi(2);
+                let dt = Some(t - v.position_unix?).filter(|dt| dt.abs() <= REFERENCE_MAX_AGE_S)?;
+                let vel = Vector3::from(v.view.velocity.unwrap_or_default());
+                let pos = Vector3::from(v.view.position?) + vel * dt;
+                let var = GPS_STD_M.powi(2) + (vel.norm() * REFERENCE_TIMING_STD_S).powi(2);
                 Some(KnownObject {
                     pos,
                     vel,

@@ -37,7 +37,10 @@ type Parts = (
 );
 
 fn actor(window: f64) -> Parts {
-    let c = Config::default();
+    actor_of(&Config::default(), window)
+}
+
+fn actor_of(c: &Config, window: f64) -> Parts {
     let deployment = c.deployment();
     let engine = harrier_engine::registry::build_track_filter("ekf", &deployment, &c.params())
         .expect("engine");
@@ -213,4 +216,78 @@ fn a_change_of_estimator_keeps_the_tracks() {
         params: BTreeMap::new(),
     });
     assert!(matches!(bad, Err(SetError::Invalid(_))), "{bad:?}");
+}
+
+/// With registration on, a scan's cooperative references are the link's other vehicles, each
+/// GPS position moved along its velocity from its arrival to the scan's time (a UAV at 15 m/s
+/// moves 1.5 m in a tenth of a second); the scan's own vehicle, a position more than 2 s from the
+/// scan and a lost vehicle are none.
+#[test]
+fn references_are_the_other_vehicles_at_the_scans_time() {
+    use crate::config::RegistrationSensor;
+    use crate::gcs::transport::Peer;
+    use crate::gcs::vehicle::VehicleLink;
+    use harrier_link::geo::LocalFrame;
+    use harrier_link::mavlink::MavHeader;
+    use harrier_link::mavlink::dialects::common::{GLOBAL_POSITION_INT_DATA, MavMessage};
+
+    let mut c = Config::default();
+    c.registration.sensors = vec![RegistrationSensor {
+        vehicle: "1".into(),
+        sensor: "radar".into(),
+        kind: MeasKind::RangeBearing,
+        bias: None,
+    }];
+    let (mut a, ..) = actor_of(&c, 0.1);
+    assert!(a.references("1", 1000.0).is_empty(), "no link yet");
+    let frame = LocalFrame::new(c.frame.origin);
+    let t0 = std::time::Instant::now();
+    let peer = Peer::Udp(std::net::SocketAddr::from(([127, 0, 0, 1], 9)));
+    // At the origin, 100 m up, flying North-East: NED (10, 10, 0) m/s.
+    let position = MavMessage::GLOBAL_POSITION_INT(GLOBAL_POSITION_INT_DATA {
+        lat: (c.frame.origin.lat_deg * 1e7).round() as i32,
+        lon: (c.frame.origin.lon_deg * 1e7).round() as i32,
+        alt: ((c.frame.origin.alt_m + 100.0) * 1e3).round() as i32,
+        relative_alt: 100_000,
+        vx: 1000,
+        vy: 1000,
+        ..GLOBAL_POSITION_INT_DATA::DEFAULT
+    });
+    let sample = |id: u8, state: LinkState| {
+        let mut v = VehicleLink::new(id, 0, peer, t0);
+        let header = MavHeader {
+            system_id: u32::from(id),
+            component_id: 1,
+            sequence: 0,
+        };
+        v.on_frame(&header, &position, (0, peer), t0, 0.0);
+        let mut view = v.view(&frame, t0);
+        view.state = state;
+        VehicleSample {
+            view,
+            status: None,
+            home_amsl: None,
+            gimbal_manager: None,
+            position_unix: Some(1000.0),
+        }
+    };
+    let vehicles = vec![
+        sample(1, LinkState::Connected),
+        sample(2, LinkState::Connected),
+        sample(3, LinkState::Lost),
+    ];
+    let (_tx, rx) = watch::channel(Arc::new(vehicles));
+    a.command(Command::References(rx));
+    let r = a.references("1", 1000.5);
+    assert_eq!(r.len(), 1, "{r:?}");
+    let moved = Vector3::new(5.0, 5.0, 100.0);
+    assert!((r[0].pos - moved).norm() < 0.01, "{:?}", r[0].pos);
+    assert!((r[0].vel - Vector3::new(10.0, 10.0, 0.0)).norm() < 1e-9);
+    // GPS_STD_M² plus the motion over the timing's uncertainty.
+    let var = GPS_STD_M.powi(2) + (200f64.sqrt() * REFERENCE_TIMING_STD_S).powi(2);
+    assert!((r[0].cov[(0, 0)] - var).abs() < 1e-9, "{:?}", r[0].cov);
+    // Before its arrival too (a scan processed after the next frame).
+    let r = a.references("2", 999.8);
+    assert!((r[0].pos - Vector3::new(-2.0, -2.0, 100.0)).norm() < 0.01);
+    assert!(a.references("1", 1002.5).is_empty(), "2.5 s from the scan");
 }
