@@ -136,11 +136,10 @@ pub fn spawn(
         for (i, (id, suite)) in suites.iter_mut().enumerate() {
             let pose = &poses[i];
             suite.set_gimbal(gimbals[i]);
-            let others: Vec<Vector3<f64>> = (poses.iter().enumerate())
-                .filter(|(j, _)| *j != i)
-                .map(|(_, p)| Vector3::from(p.pos))
-                .collect();
-            suite.set_vehicles(&others);
+            if suite.paints_vehicles() {
+                let others = poses.iter().enumerate().filter(|(j, _)| *j != i);
+                suite.set_vehicles(others.map(|(_, p)| Vector3::from(p.pos)));
+            }
             for mut scan in suite.scan(t, *id, pose, origin, &world) {
                 scan.time_unix = Some(skew.read(start_unix, scan.t));
                 if scan.t > t {

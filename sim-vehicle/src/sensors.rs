@@ -151,12 +151,21 @@ impl SensorSuite {
         self.gimbal = direction.filter(|d| d.iter().all(|x| x.is_finite()));
     }
 
+    /// Whether one of its sensors paints the other vehicles (a radar with `paints_vehicles`):
+    /// only then do its scans need [`Self::set_vehicles`].
+    pub fn paints_vehicles(&self) -> bool {
+        self.sensors.iter().any(SensorState::paints_vehicles)
+    }
+
     /// Where the other vehicles are (ENU positions) for the next scans of radars with
     /// `paints_vehicles` (none until set).
-    pub fn set_vehicles(&mut self, positions: &[Vector3<f64>]) {
+    pub fn set_vehicles(&mut self, positions: impl IntoIterator<Item = Vector3<f64>>) {
         self.vehicles.clear();
-        self.vehicles
-            .extend(positions.iter().filter(|p| p.iter().all(|x| x.is_finite())));
+        self.vehicles.extend(
+            positions
+                .into_iter()
+                .filter(|p| p.iter().all(|x| x.is_finite())),
+        );
     }
 
     /// One [`DetectionScan`] per sensor due at `t` (each scans at `k / rate_hz`; a sensor whose
@@ -196,19 +205,17 @@ impl SensorSuite {
             .iter()
             .map(|s| Vector3::new(s.state[0], s.state[1], s.state[2]))
             .collect();
-        // The targets, then the other vehicles (only for the radars that paint them, so that
-        // the other sensors' draws stay as they were).
-        let painted: Vec<Vector3<f64>> = targets.iter().chain(&self.vehicles).copied().collect();
+        // The targets, then the other vehicles, for the radars that paint them (the other
+        // sensors' draws stay as they were).
+        let painted: Vec<Vector3<f64>> = if self.vehicles.is_empty() {
+            Vec::new()
+        } else {
+            targets.iter().chain(&self.vehicles).copied().collect()
+        };
         let (sizes, plane_z, gimbal) = (&self.sizes, self.plane_z, self.gimbal);
         let mut out = Vec::new();
         for (s, _) in self.sensors.iter_mut().zip(due).filter(|(_, d)| *d) {
-            let paints = matches!(
-                s.spec.model,
-                SensorType::Radar {
-                    paints_vehicles: true,
-                    ..
-                }
-            );
+            let paints = s.paints_vehicles() && !painted.is_empty();
             let truths = if paints { &painted } else { &targets };
             let (detections, sources) = s.detect(t, pose, truths, sizes, plane_z, gimbal);
             let scan = DetectionScan {
@@ -233,6 +240,17 @@ impl SensorSuite {
 }
 
 impl SensorState {
+    /// A radar that paints the other vehicles.
+    fn paints_vehicles(&self) -> bool {
+        matches!(
+            self.spec.model,
+            SensorType::Radar {
+                paints_vehicles: true,
+                ..
+            }
+        )
+    }
+
     /// Whether a scan is due at `t`; moves the schedule past `t`.
     fn due(&mut self, t: f64) -> bool {
         let k = (t * self.spec.rate_hz + 1e-6).floor();

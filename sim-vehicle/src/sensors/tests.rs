@@ -538,7 +538,8 @@ fn a_radar_that_paints_vehicles_sees_the_others_with_its_bias() {
         let world = World::new(&s, 3).expect("world");
         let mut suite = SensorSuite::new(&s, 3, 1).expect("suite");
         // A UAV 300 m East, 400 m North and 120 m up of the radar; another out of range.
-        suite.set_vehicles(&[
+        assert_eq!(suite.paints_vehicles(), paints);
+        suite.set_vehicles([
             Vector3::new(300.0, 400.0, 120.0),
             Vector3::new(9000.0, 0.0, 100.0),
         ]);
