@@ -926,6 +926,29 @@ fn registered(vehicle: &str, sensor: &str, kind: MeasKind, std: [f64; 2]) -> Reg
     }
 }
 
+/// A registered radar's range and azimuth offsets against the sim's `truth` (m, rad), printed
+/// with its counts: each within 3 sd.
+fn assert_radar_offsets(test: &str, b: &SensorBiasView, truth: [f64; 2]) {
+    eprintln!(
+        "{test}: radar {}/{}: {} targets of opportunity, {} references, range offset {:.2} ± \
+         {:.2} m, azimuth offset {:.2} ± {:.2} mrad, observable {} (sim: {} m, {} mrad)",
+        b.vehicle,
+        b.sensor,
+        b.updates,
+        b.references,
+        b.terms[0].value,
+        b.terms[0].std,
+        1e3 * b.terms[1].value,
+        1e3 * b.terms[1].std,
+        b.observable,
+        truth[0],
+        1e3 * truth[1]
+    );
+    for (t, truth) in b.terms.iter().zip(truth) {
+        assert!((t.value - truth).abs() <= 3.0 * t.std, "{b:?}");
+    }
+}
+
 /// The page's "Sensor biases" panel (`tests/python/biases_panel.py`'s report): visible, no
 /// console error, a row per sensor of the API's list (`vehicle/sensor`, kind, updates) and a row
 /// per term whose value ± sd, read back in SI units, lies between the API's values read just
@@ -1046,23 +1069,8 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     assert_recorded_biases(&db, &biases);
     assert_biases_panel(&page.expect("the page's panel"));
     for b in &biases {
-        eprintln!(
-            "fusion: radar {}/{}: {} updates, range offset {:.2} ± {:.2} m, azimuth offset \
-             {:.2} ± {:.2} mrad (sim: {} m, {} mrad)",
-            b.vehicle,
-            b.sensor,
-            b.updates,
-            b.terms[0].value,
-            b.terms[0].std,
-            1e3 * b.terms[1].value,
-            1e3 * b.terms[1].std,
-            bias[0],
-            1e3 * bias[1]
-        );
+        assert_radar_offsets("fusion", b, bias);
         assert!(b.updates > 100, "{b:?}");
-        for (t, truth) in b.terms.iter().zip(bias) {
-            assert!((t.value - truth).abs() <= 3.0 * t.std, "{b:?}");
-        }
     }
     assert_fusion_wins(&pooled);
 }
@@ -1654,28 +1662,12 @@ fn a_radar_learns_its_bias_from_the_uav_it_paints_live() {
             .expect("stop");
 
         for b in &biases {
-            eprintln!(
-                "painted UAV: radar {}/{}: {} references, {} targets of opportunity, range \
-                 offset {:.2} ± {:.2} m, azimuth offset {:.2} ± {:.2} mrad, observable {} \
-                 (sim: {} m, {} mrad)",
-                b.vehicle,
-                b.sensor,
-                b.references,
-                b.updates,
-                b.terms[0].value,
-                b.terms[0].std,
-                1e3 * b.terms[1].value,
-                1e3 * b.terms[1].std,
-                b.observable,
-                BIAS[0],
-                1e3 * BIAS[1]
-            );
+            assert_radar_offsets("painted UAV", b, BIAS);
             assert_eq!(b.updates, 0, "a target of opportunity: {b:?}");
-            assert!(b.observable, "{b:?}");
-            for (t, truth) in b.terms.iter().zip(BIAS) {
-                assert!(t.observable, "{b:?}");
-                assert!((t.value - truth).abs() <= 3.0 * t.std, "{b:?}");
-            }
+            assert!(
+                b.observable && b.terms.iter().all(|t| t.observable),
+                "{b:?}"
+            );
         }
         let confirmed: Vec<&TrackView> = snap
             .tracks
