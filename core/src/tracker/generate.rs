@@ -78,6 +78,28 @@ pub struct Generated {
     pub truth_csv: String,
     /// `(scan, target a, target b)` of each crossing: both are at the same point at that scan.
     pub crossings: Vec<(usize, usize, usize)>,
+    /// One entry per row of `truth.csv`, in its order: `(t, i, detected)`, whether the sensor
+    /// detected target `T{i}` at that scan (what the unlabelled detections do not say).
+    pub detected: Vec<(f64, usize, bool)>,
+}
+
+impl Generated {
+    /// The targets (`i` of `T{i}`) detected at least twice in their first three scans: those
+    /// a rule that needs two detections can confirm within three scans at all.
+    pub fn confirmable(&self) -> std::collections::BTreeSet<usize> {
+        let mut seen: std::collections::BTreeMap<usize, (usize, usize)> = Default::default();
+        for &(_, i, hit) in &self.detected {
+            let (scans, hits) = seen.entry(i).or_default();
+            if *scans < 3 {
+                *scans += 1;
+                *hits += usize::from(hit);
+            }
+        }
+        seen.into_iter()
+            .filter(|(_, (_, hits))| *hits >= 2)
+            .map(|(i, _)| i)
+            .collect()
+    }
 }
 
 /// A straight-line target alive from scan `birth` on: `p(t) = c + v (t − tc)`.
@@ -222,6 +244,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         measurements_jsonl: files.meas,
         truth_csv: files.truth,
         crossings,
+        detected: files.detected,
     })
 }
 
@@ -241,6 +264,8 @@ fn clutter(rate: f64) -> Result<Option<Poisson<f64>>> {
 struct Files {
     truth: String,
     meas: String,
+    /// Per truth row: `(t, target, detected)`.
+    detected: Vec<(f64, usize, bool)>,
 }
 
 impl Default for Files {
@@ -248,6 +273,7 @@ impl Default for Files {
         Self {
             truth: String::from("t,target,x,y,z,vx,vy,vz,mode\n"),
             meas: String::new(),
+            detected: Vec::new(),
         }
     }
 }
@@ -275,11 +301,13 @@ impl Files {
                 "{t},T{i},{:.4},{:.4},0,{:.4},{:.4},0,{mode}",
                 p[0], p[1], v[0], v[1]
             );
-            if rng.random_bool(pd) {
+            let hit = rng.random_bool(pd);
+            if hit {
                 let nx: f64 = rng.sample(StandardNormal);
                 let ny: f64 = rng.sample(StandardNormal);
                 scan.push([p[0] + noise * nx, p[1] + noise * ny]);
             }
+            self.detected.push((t, *i, hit));
         }
         let n_clutter = clutter.map_or(0.0, |p| p.sample(rng)) as usize;
         for _ in 0..n_clutter {

@@ -368,6 +368,7 @@ pub fn generate(seed: u64, cfg: &GroupConfig) -> Result<super::Generated> {
         measurements_jsonl: files.meas,
         truth_csv: files.truth,
         crossings: Vec::new(),
+        detected: files.detected,
     })
 }
 
@@ -432,6 +433,51 @@ mod tests {
                 }
             )
             .is_err()
+        );
+    }
+
+    /// `detected` has one entry per truth row; at Pd 1 every target is detected in each of its
+    /// scans and so confirmable, at Pd 0.9 some miss and a few (two misses in their first three
+    /// scans) are not.
+    #[test]
+    fn the_detections_of_each_target_are_known_and_so_which_can_confirm_in_three_scans() {
+        let rows = |g: &super::super::Generated| g.truth_csv.lines().count() - 1;
+        let sure = GroupConfig {
+            pd: 1.0,
+            ..GroupConfig::default()
+        };
+        let g = generate(4, &sure).unwrap();
+        assert_eq!(g.detected.len(), rows(&g));
+        assert!(g.detected.iter().all(|d| d.2));
+        let targets = g
+            .truth_csv
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(1))
+            .collect::<std::collections::BTreeSet<_>>()
+            .len();
+        assert_eq!(g.confirmable().len(), targets);
+        let mut total = (0, 0);
+        for seed in 1..=10 {
+            let g = generate(seed, &GroupConfig::default()).unwrap();
+            assert_eq!(g.detected.len(), rows(&g));
+            let hits = g.detected.iter().filter(|d| d.2).count() as f64;
+            let share = hits / g.detected.len() as f64;
+            assert!((share - 0.9).abs() < 0.03, "seed {seed}: {share}");
+            let n = g
+                .truth_csv
+                .lines()
+                .skip(1)
+                .map(|l| l.split(',').nth(1))
+                .collect::<std::collections::BTreeSet<_>>()
+                .len();
+            total.0 += g.confirmable().len();
+            total.1 += n;
+        }
+        // P(at most one detection in three scans) = 0.028 at Pd 0.9.
+        assert!(
+            total.0 < total.1 && total.0 * 100 >= total.1 * 90,
+            "{total:?}"
         );
     }
 }
