@@ -199,10 +199,14 @@ fn cat062_tracks_decode_where_the_tracker_has_them() {
         records.len(),
         tracks.len()
     );
-    assert_eq!(
-        tracks.len(),
-        2,
-        "two standing targets, two tracks: {tracks:?}"
+    // Each track number is one of the tracker's tracks: one per standing target, and (seen
+    // once, on a machine running the whole suite: three tracks, every record matched) maybe a
+    // third the tracker started meanwhile. How many tracks the tracker keeps is not the feed's
+    // to assert; that each record is one of them is.
+    let known: std::collections::BTreeSet<u64> = history.keys().map(|k| k.0).collect();
+    assert!(
+        tracks.len() >= 2 && tracks.is_subset(&known),
+        "two standing targets: tracks {tracks:?} in ASTERIX, {known:?} in the tracker"
     );
     // The history sees every snapshot unless two scans land between two of its wake-ups.
     assert!(
