@@ -442,6 +442,14 @@ mod tests {
     #[test]
     fn the_detections_of_each_target_are_known_and_so_which_can_confirm_in_three_scans() {
         let rows = |g: &super::super::Generated| g.truth_csv.lines().count() - 1;
+        let targets = |g: &super::super::Generated| {
+            g.truth_csv
+                .lines()
+                .skip(1)
+                .map(|l| l.split(',').nth(1))
+                .collect::<std::collections::BTreeSet<_>>()
+                .len()
+        };
         let sure = GroupConfig {
             pd: 1.0,
             ..GroupConfig::default()
@@ -449,14 +457,7 @@ mod tests {
         let g = generate(4, &sure).unwrap();
         assert_eq!(g.detected.len(), rows(&g));
         assert!(g.detected.iter().all(|d| d.2));
-        let targets = g
-            .truth_csv
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').nth(1))
-            .collect::<std::collections::BTreeSet<_>>()
-            .len();
-        assert_eq!(g.confirmable().len(), targets);
+        assert_eq!(g.confirmable().len(), targets(&g));
         let mut total = (0, 0);
         for seed in 1..=10 {
             let g = generate(seed, &GroupConfig::default()).unwrap();
@@ -464,15 +465,8 @@ mod tests {
             let hits = g.detected.iter().filter(|d| d.2).count() as f64;
             let share = hits / g.detected.len() as f64;
             assert!((share - 0.9).abs() < 0.03, "seed {seed}: {share}");
-            let n = g
-                .truth_csv
-                .lines()
-                .skip(1)
-                .map(|l| l.split(',').nth(1))
-                .collect::<std::collections::BTreeSet<_>>()
-                .len();
             total.0 += g.confirmable().len();
-            total.1 += n;
+            total.1 += targets(&g);
         }
         // P(at most one detection in three scans) = 0.028 at Pd 0.9.
         assert!(
