@@ -3,6 +3,7 @@
 baselines on `harrier gen-registration` scenarios, several seeds per case.
 
     python3 scripts/eval_registration.py [--seeds 1-8] [--duration 600] [--harrier PATH] [--json]
+    python3 scripts/eval_registration.py --estimator tracker [--track-filter ekf]   # the live one
 
 For every seed and case (FORMAT-REGISTRATION.md section 5) it writes the scenario variants into
 --out (default a temporary directory), replays them and scores the estimates against truth.csv
@@ -20,6 +21,12 @@ Bias figures: the error of each term from --from seconds on (RMS over scans and 
 square root of its posterior Cramer-Rao bound (scripts/registration_crlb.py on the same scenario,
 RMS over the same scans and seeds); bias NEES per sensor block against the chi-square 95 % bound;
 observability at the end. Needs numpy (the CRLB) and a built `harrier`.
+
+`--estimator tracker` scores the live service's estimator instead: the multi-target track engine
+with its registrar (harrier-core's BiasBank), `harrier replay -e tracker --register` on the same
+scenarios, its baselines the same engine on `told-bias` (nothing to register) and with
+`--register` on `told-model`; its position error is that of the confirmed track nearest the truth
+at each line (a line without a confirmed track is counted in `no track`).
 """
 import argparse
 import json
@@ -72,9 +79,11 @@ def generate(harrier, out, case, variant, seed, duration):
     return d
 
 
-def replay(harrier, d, estimator, params=()):
-    est = os.path.join(d, f"estimates_{estimator}.jsonl")
+def replay(harrier, d, estimator, params=(), track_filter="ekf", register=False):
+    est = os.path.join(d, f"estimates_{estimator}{'_reg' if register else ''}.jsonl")
     cmd = [harrier, "replay", d, "-e", estimator, "-o", est, "--json"]
+    if estimator == "tracker":
+        cmd += ["--track-filter", track_filter] + (["--register"] if register else [])
     for p in params:
         cmd += ["-p", p]
     run(cmd)
@@ -87,13 +96,20 @@ def truth_of(d):
 
 
 def pos_errors(estimates, truth, t_start):
-    out = []
+    """Position errors from t_start on: of the line's `state`, or of a tracker's confirmed track
+    nearest the truth; and the number of tracker lines without a confirmed track."""
+    out, missing = [], 0
     for e in estimates:
-        if e["t"] < t_start or e.get("state") is None:
+        if e["t"] < t_start:
             continue
         pos, _ = registration_crlb.truth_at(truth, e["t"])
-        out.append(math.hypot(e["state"][0] - pos[0], e["state"][1] - pos[1]))
-    return np.array(out)
+        states = [e["state"]] if e.get("state") is not None else \
+            [k["state"] for k in e.get("tracks", [])]
+        if not states:
+            missing += "tracks" in e
+            continue
+        out.append(min(math.hypot(s[0] - pos[0], s[1] - pos[1]) for s in states))
+    return np.array(out), missing
 
 
 def rms(v):
@@ -149,7 +165,12 @@ def main():
     ap.add_argument("--out", default=None)
     ap.add_argument("--from", dest="t_from", type=float, default=60.0)
     ap.add_argument("--param", action="append", default=[],
-                    help="extra registration parameter NAME=VALUE (repeatable)")
+                    help="extra parameter NAME=VALUE of the estimator under test (repeatable)")
+    ap.add_argument("--estimator", choices=["registration", "tracker"], default="registration",
+                    help="registration: the replay estimator (default); tracker: the live "
+                         "service's track engine with its registrar")
+    ap.add_argument("--track-filter", default="ekf",
+                    help="with --estimator tracker: the track filter (default ekf)")
     ap.add_argument("--json", action="store_true")
     a = ap.parse_args()
     harrier = find_harrier(a.harrier)
@@ -163,18 +184,22 @@ def main():
         for seed in seeds:
             dep = generate(harrier, out, case, "deployment", seed, a.duration)
             truth = truth_of(dep)
-            runs = {"registration": replay(harrier, dep, "registration", a.param),
+            def under_test(d, params=(), register=True):
+                return replay(harrier, d, a.estimator, params, a.track_filter, register)
+            runs = {"registration": under_test(dep, a.param),
                     "ekf": replay(harrier, dep, "ekf")}
             told = generate(harrier, out, case, "told-bias", seed, a.duration)
-            runs["told-bias"] = replay(harrier, told, "registration")
+            runs["told-bias"] = under_test(told, register=False)
             if case == "gauss-markov":
                 model = generate(harrier, out, case, "told-model", seed, a.duration)
-                runs["told-model"] = replay(harrier, model, "registration")
+                runs["told-model"] = under_test(model)
             if case == "mounting":
                 unbiased = generate(harrier, out, "none", "deployment", seed, a.duration)
-                runs["unbiased run"] = replay(harrier, unbiased, "registration", a.param)
+                runs["unbiased run"] = under_test(unbiased, a.param)
             for name, est in runs.items():
-                rows["rmse"].setdefault(name, []).append(rms(pos_errors(est, truth, 10.0)))
+                err, missing = pos_errors(est, truth, 10.0)
+                rows["rmse"].setdefault(name, []).append(rms(err))
+                rows.setdefault("no_track", {}).setdefault(name, []).append(missing)
             errors, nees, last, final = bias_series(runs["registration"], dep, a.t_from)
             bound = registration_crlb.crlb(dep, a.t_from)[0]["terms"]
             for b in bound:
@@ -202,14 +227,17 @@ def main():
     if a.json:
         print(json.dumps(result, indent=1))
         return
-    print(f"seeds {a.seeds}, {a.duration:.0f} s, bias figures from {a.t_from:.0f} s; data in {out}")
+    print(f"{a.estimator}{'/' + a.track_filter if a.estimator == 'tracker' else ''}: "
+          f"seeds {a.seeds}, {a.duration:.0f} s, bias figures from {a.t_from:.0f} s; data in {out}")
     for case, rows in result["cases"].items():
         print(f"\n## {case}")
         base = np.array(rows["rmse"]["told-bias"])
         for name, v in rows["rmse"].items():
             v = np.array(v)
+            missing = sum(rows["no_track"][name])
             print(f"  pos RMSE {name:13} mean {v.mean():8.3f} m  max {v.max():8.3f}  "
-                  f"ratio to told-bias mean {np.mean(v / base):.3f} max {np.max(v / base):.3f}")
+                  f"ratio to told-bias mean {np.mean(v / base):.3f} max {np.max(v / base):.3f}"
+                  + (f"  ({missing} lines without a track)" if missing else ""))
         reg = np.array(rows["rmse"]["registration"])
         for name in ("told-model", "unbiased run"):
             if name in rows["rmse"]:

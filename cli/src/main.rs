@@ -56,6 +56,11 @@ enum Command {
         /// With `-e tracker`: the associator (`gnn`, `jipda`, `mht`; default gnn).
         #[arg(long)]
         associator: Option<String>,
+        /// With `-e tracker`: estimate the biases of the sensors with a `bias` block jointly
+        /// with the tracks, as the live service's `[registration]` does; the estimate lines get
+        /// `bias_est` (FORMAT-REGISTRATION.md).
+        #[arg(long)]
+        register: bool,
     },
     /// Run a closed-loop guidance scenario (see GUIDANCE.md) and print its figures.
     GuidanceSim(GuidanceSimArgs),
@@ -240,10 +245,11 @@ fn main() -> ExitCode {
             json,
             track_filter,
             associator,
+            register,
         } => match run_replay(
             &scenario,
             &estimator,
-            (track_filter, associator),
+            (track_filter, associator, register),
             &out,
             &params,
             json,
@@ -447,22 +453,23 @@ fn run_guidance_sim(a: &GuidanceSimArgs) -> Result<(), guidance_sim::SimError> {
 fn run_replay(
     dir: &std::path::Path,
     estimator: &str,
-    (track_filter, associator): (Option<String>, Option<String>),
+    (track_filter, associator, register): (Option<String>, Option<String>, bool),
     out: &std::path::Path,
     params: &[String],
     json: bool,
 ) -> Result<(), replay::ReplayError> {
     let params = Params::parse(params).map_err(|e| replay::ReplayError::Setup(e.to_string()))?;
     let data = replay::load(dir)?;
-    let report = if track_filter.is_some() || associator.is_some() {
+    let report = if track_filter.is_some() || associator.is_some() || register {
         if estimator != "tracker" {
             return Err(replay::ReplayError::Setup(
-                "--track-filter and --associator go with -e tracker".into(),
+                "--track-filter, --associator and --register go with -e tracker".into(),
             ));
         }
         let choice = replay::TrackerChoice {
             filter: track_filter.unwrap_or_else(|| "ekf".into()),
             associator: associator.unwrap_or_else(|| "gnn".into()),
+            register,
         };
         replay::run_tracker(&data, &choice, &params)?
     } else {

@@ -381,6 +381,20 @@ fn generated_multi_target_scenario_replays_with_the_tracker() {
         assert_eq!(v["t"].as_f64(), Some(*t));
         assert!(v["tracks"].is_array());
     }
+    // Nothing to register: no sensor has a bias block.
+    let out = harrier(&[
+        "replay",
+        sc.to_str().unwrap(),
+        "-e",
+        "tracker",
+        "--register",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("no sensor of the scenario has a bias block"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 /// A configuration with a road and a no-fly disc, its API on a free port and no MAVLink link.
@@ -545,6 +559,38 @@ fn a_generated_registration_scenario_replays_with_its_references() {
         serde_json::json!([true, true])
     );
     assert_eq!(radar["terms"].as_array().unwrap().len(), 4);
+
+    // The live registrar on the same scenario: the painted UAV's detections are references,
+    // they make the offsets observable and start no track.
+    let live = dir.path().join("live.jsonl");
+    let out = harrier(&[
+        "replay",
+        sc.to_str().unwrap(),
+        "-e",
+        "tracker",
+        "--register",
+        "-o",
+        live.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(&live).unwrap();
+    let last: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
+    let radar = &last["bias_est"]["radar1"];
+    assert_eq!(
+        radar["observable"]["offset"],
+        serde_json::json!([true, true]),
+        "{radar}"
+    );
+    assert!(radar["references"].as_u64().unwrap() > 100, "{radar}");
+    assert_eq!(last["tracks"].as_array().unwrap().len(), 1, "{last}");
+    let out = harrier(&["replay", sc.to_str().unwrap(), "-e", "ekf", "--register"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("go with -e tracker"));
 
     // The same directory as another case: its references go; a bad reference line is refused.
     let out = generate("radar-alone");

@@ -12,8 +12,8 @@ use crate::estimators::{
     angles, associators, bearings, bias, gaussian, icdkf, imm, multi_target, obe, registration,
 };
 use crate::{
-    AssociatorInfo, Deployment, EngineError, EstimatorInfo, Params, ReplayEstimator, TrackEngine,
-    TrackFilterInfo, setup,
+    AssociatorInfo, Deployment, EngineError, EstimatorInfo, Params, RegisteredSensor,
+    ReplayEstimator, TrackEngine, TrackFilterInfo, setup,
 };
 
 /// Every replay estimator Harrier can run by name (`harrier replay -e NAME`), in the order
@@ -128,14 +128,28 @@ pub fn build_track_engine(
 }
 
 /// The replay estimator `tracker` with the track filter `filter` and the associator `associator`
-/// (`harrier replay -e tracker --track-filter F --associator A`), for `sc`.
+/// (`harrier replay -e tracker --track-filter F --associator A`), for `sc`; with `register`
+/// (`--register`), estimating the biases of the scenario's sensors that carry a `bias` block
+/// jointly with the tracks, as the live service's `[registration]` does
+/// ([`RegisteredSensor::of_scenario`]).
 pub fn build_tracker(
     filter: &str,
     associator: &str,
     sc: &Scenario,
     params: &Params,
+    register: bool,
 ) -> Result<Box<dyn ReplayEstimator>, EngineError> {
-    let engine = build_track_engine(filter, associator, &Deployment::from(sc), params)?;
+    let mut deployment = Deployment::from(sc);
+    if register {
+        deployment.registration = RegisteredSensor::of_scenario(sc)?;
+        if deployment.registration.is_empty() {
+            return Err(setup(
+                "--register: no sensor of the scenario has a bias block with terms \
+                 (FORMAT-REGISTRATION.md §1)",
+            ));
+        }
+    }
+    let engine = build_track_engine(filter, associator, &deployment, params)?;
     multi_target::replay_tracker(sc, engine)
 }
 

@@ -71,6 +71,29 @@ pub struct RegisteredSensor {
     pub bias: harrier_core::registration::SensorBias,
 }
 
+impl RegisteredSensor {
+    /// The sensors of a scenario with a `bias` block that has terms (FORMAT-REGISTRATION.md §1),
+    /// each under its platform's id as the vehicle: what `harrier replay -e tracker --register`
+    /// registers, as `[[registration.sensors]]` does live. Errors name the sensor.
+    pub fn of_scenario(sc: &Scenario) -> Result<Vec<Self>, EngineError> {
+        let mut out = Vec::new();
+        for s in &sc.sensors {
+            let Some(block) = &s.bias else { continue };
+            let bias = harrier_core::registration::SensorBias::from_block(block, s.dim())
+                .map_err(|e| crate::setup(format!("sensor {:?}: {e}", s.id)))?;
+            if let Some(bias) = bias {
+                out.push(Self {
+                    vehicle: s.platform.clone(),
+                    sensor: s.id.clone(),
+                    kind: s.kind,
+                    bias,
+                });
+            }
+        }
+        Ok(out)
+    }
+}
+
 /// Where a scan comes from, for sensor registration ([`TrackEngine::ingest_from`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanSource<'a> {
@@ -323,6 +346,12 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     /// [`Deployment::registration`] (empty without registration).
     fn biases(&self) -> Vec<SensorBiasView> {
         Vec::new()
+    }
+    /// The registered sensors' entries of an estimate line's `bias_est` (FORMAT-REGISTRATION.md
+    /// §4, with the term covariance), keyed by sensor id: what `harrier replay -e tracker
+    /// --register` writes (empty without registration).
+    fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
+        serde_json::Map::new()
     }
     /// Every live track, tentative and confirmed, in id order: for a start, or after
     /// [`adopt`](Self::adopt); after each scan, [`ScanOutcome::apply`] keeps such a list up to

@@ -116,6 +116,9 @@ pub struct TrackerChoice {
     pub filter: String,
     /// Associator name (`gnn`, `jipda`, `mht`).
     pub associator: String,
+    /// Estimate the biases of the sensors with a `bias` block jointly with the tracks (the
+    /// live registrar; `--register`).
+    pub register: bool,
 }
 
 /// Runs `estimator` over the scenario `data`.
@@ -136,8 +139,14 @@ pub fn run_tracker(
     choice: &TrackerChoice,
     params: &Params,
 ) -> Result<ReplayReport, ReplayError> {
-    let est = registry::build_tracker(&choice.filter, &choice.associator, &data.scenario, params)
-        .map_err(|e| ReplayError::Setup(e.to_string()))?;
+    let est = registry::build_tracker(
+        &choice.filter,
+        &choice.associator,
+        &data.scenario,
+        params,
+        choice.register,
+    )
+    .map_err(|e| ReplayError::Setup(e.to_string()))?;
     run_estimator(data, est)
 }
 

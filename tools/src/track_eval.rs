@@ -330,6 +330,7 @@ pub fn evaluate(args: &EvalArgs) -> anyhow::Result<Vec<Row>> {
                 TrackerChoice {
                     filter: f.into(),
                     associator: a.into(),
+                    register: false,
                 },
             )
         })

@@ -15,8 +15,9 @@
 use harrier_core::filter::{CentralDifference, Extended, ModeModel};
 use harrier_core::measurement::{MeasKind, SensorModel};
 use harrier_core::motion::ConstantVelocity;
+use harrier_core::registration::KnownObject;
 use harrier_core::road::RoadNetwork;
-use harrier_core::scenario::{Estimate, Scenario};
+use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use harrier_core::tracker::{
     Association, AssociationStats, CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN,
     SinglePointInitiator, TrackFilter, TrackSnapshot, Tracker, TrackerConfig,
@@ -31,7 +32,7 @@ use crate::{
     TrackView, setup,
 };
 use harrier_core::state::Gaussian;
-use nalgebra::{SMatrix, SVector};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 /// `tracker`: GNN multi-target tracker.
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
@@ -65,9 +66,10 @@ pub fn replay_tracker(
         )));
     }
     Ok(Box::new(MultiTracker {
+        registers: !engine.biases().is_empty(),
         engine,
         sc: sc.clone(),
-        last_model: None,
+        last: None,
     }))
 }
 
@@ -353,6 +355,12 @@ where
             .map_or_else(Vec::new, Registrar::biases)
     }
 
+    fn bias_est(&self) -> serde_json::Map<String, Value> {
+        self.registrar
+            .as_ref()
+            .map_or_else(serde_json::Map::new, Registrar::bias_est)
+    }
+
     fn snapshot(&self) -> Vec<TrackView> {
         self.tracker
             .snapshot()
@@ -424,13 +432,63 @@ where
 }
 
 /// The replay estimator `tracker`: a track engine (the `ekf` track filter and `gnn`, or any pair
-/// [`replay_tracker`] was given), fed one scan per sensor and time.
+/// [`replay_tracker`] was given), fed one scan per sensor and time. With registration (the
+/// engine's deployment registers sensors: `harrier replay -e tracker --register`) each scan
+/// goes with its source (platform pose, and the step's cooperative references of its sensor,
+/// their detections in the scan), and each estimate line carries `bias_est`.
 #[derive(Debug)]
 struct MultiTracker {
     engine: Box<dyn TrackEngine>,
     sc: Scenario,
-    /// The model of the last scan, for the empty scans between measurement lines.
-    last_model: Option<SensorModel>,
+    /// Whether the engine registers sensors (it takes references and writes `bias_est`).
+    registers: bool,
+    /// The last scan, for the empty scans between measurement lines.
+    last: Option<ReplayScan>,
+}
+
+/// One sensor's scan of a replay step with where it comes from ([`ScanSource`], owned).
+#[derive(Debug, Clone)]
+struct ReplayScan {
+    scan: SensorScan,
+    vehicle: String,
+    sensor: String,
+    platform: [f64; 3],
+    platform_vel: [f64; 3],
+    noise_std: Vec<f64>,
+    references: Vec<KnownObject>,
+}
+
+impl ReplayScan {
+    /// An empty scan of the line `m`'s sensor at its platform pose.
+    fn of(sc: &Scenario, m: &Measurement) -> Result<Self, EngineError> {
+        let s = sc
+            .sensor(&m.sensor)
+            .ok_or_else(|| setup(format!("unknown sensor {:?}", m.sensor)))?;
+        Ok(Self {
+            scan: SensorScan {
+                t: m.t,
+                sensor: model_for(sc, geometry(sc), m, None)?,
+                detections: Vec::new(),
+            },
+            vehicle: s.platform.clone(),
+            sensor: s.id.clone(),
+            platform: m.platform.pos,
+            platform_vel: m.platform.vel,
+            noise_std: s.noise.std(),
+            references: Vec::new(),
+        })
+    }
+
+    fn source(&self) -> ScanSource<'_> {
+        ScanSource {
+            vehicle: &self.vehicle,
+            sensor: &self.sensor,
+            platform: self.platform,
+            platform_vel: self.platform_vel,
+            noise_std: &self.noise_std,
+            references: &self.references,
+        }
+    }
 }
 
 impl ReplayEstimator for MultiTracker {
@@ -439,55 +497,83 @@ impl ReplayEstimator for MultiTracker {
     }
 
     fn step(&mut self, step: &Step<'_>) -> Result<Option<Estimate>, EngineError> {
-        let geo = geometry(&self.sc);
         // One scan per sensor (measurements come sorted by sensor id).
-        let mut scans: Vec<SensorScan> = Vec::new();
-        let mut last_sensor: Option<&str> = None;
+        let mut scans: Vec<ReplayScan> = Vec::new();
         for m in step.measurements {
-            if last_sensor != Some(m.sensor.as_str()) {
-                scans.push(SensorScan {
-                    t: step.t,
-                    sensor: model_for(&self.sc, geo, m, None)?,
-                    detections: Vec::new(),
-                });
-                last_sensor = Some(m.sensor.as_str());
+            if scans.last().is_none_or(|s| s.sensor != m.sensor) {
+                scans.push(ReplayScan::of(&self.sc, m)?);
             }
-            if let Some(scan) = scans.last_mut() {
-                scan.detections.push(m.z.clone());
+            if let Some(s) = scans.last_mut() {
+                s.scan.detections.push(m.z.clone());
             }
         }
+        // With registration, a cooperative reference's detection joins its sensor's scan of the
+        // same time (or makes one), the reference beside it.
+        if self.registers {
+            for r in step.references {
+                let m = &r.measurement;
+                let i = match scans
+                    .iter()
+                    .position(|s| s.sensor == m.sensor && (s.scan.t - m.t).abs() < 1e-9)
+                {
+                    Some(i) => i,
+                    None => {
+                        scans.push(ReplayScan::of(&self.sc, m)?);
+                        scans.len() - 1
+                    }
+                };
+                let o = &r.object;
+                scans[i].scan.detections.push(m.z.clone());
+                scans[i].references.push(KnownObject {
+                    pos: Vector3::from(o.pos),
+                    vel: Vector3::from(o.vel),
+                    cov: Matrix3::from_diagonal(&Vector3::from(o.std).map(|s| s * s)),
+                });
+            }
+            scans.sort_by(|a, b| a.scan.t.total_cmp(&b.scan.t));
+        }
         // Scans without any detection have no measurement line: run them as empty scans so that
-        // the M-of-N and miss counts see them (scan times t0 + k·dt, FORMAT-MULTI.md §3).
+        // the M-of-N and miss counts see them (scan times t0 + k·dt, FORMAT-MULTI.md §3; the
+        // last scan's sensor's own period where its `rate_hz` makes it longer than `dt`, as a
+        // 1 Hz radar's in a registration scenario of 0.2 s steps).
         let mut all = Vec::new();
-        if let (Some(last), Some(model)) = (self.engine.time(), self.last_model) {
-            let dt = self.sc.time.dt;
+        if let (Some(last), Some(model)) = (self.engine.time(), self.last.as_ref()) {
+            let dt = self
+                .sc
+                .sensor(&model.sensor)
+                .and_then(|s| s.rate_hz)
+                .filter(|r| *r > 0.0)
+                .map_or(self.sc.time.dt, |r| (1.0 / r).max(self.sc.time.dt));
             let gap = ((step.t - last) / dt - 0.5).floor().clamp(0.0, 1e6) as u32;
-            all.extend((1..=gap).map(|k| SensorScan {
-                t: last + f64::from(k) * dt,
-                sensor: model,
-                detections: Vec::new(),
+            all.extend((1..=gap).map(|k| {
+                let mut empty = model.clone();
+                empty.scan.t = last + f64::from(k) * dt;
+                empty.scan.detections.clear();
+                empty.references.clear();
+                empty
             }));
         }
         // Check every scan before the first is ingested, so that a bad step changes nothing.
-        for scan in &scans {
-            if let Some(z) = scan
+        for s in &scans {
+            if let Some(z) = s
+                .scan
                 .detections
                 .iter()
-                .find(|z| z.len() != scan.sensor.dim())
+                .find(|z| z.len() != s.scan.sensor.dim())
             {
                 return Err(setup(format!(
                     "a measurement has {} components, its sensor {}",
                     z.len(),
-                    scan.sensor.dim()
+                    s.scan.sensor.dim()
                 )));
             }
         }
         all.extend(scans);
-        for scan in &all {
-            self.engine.ingest(scan)?;
+        for s in &all {
+            self.engine.ingest_from(&s.scan, &s.source())?;
         }
-        if let Some(scan) = all.last() {
-            self.last_model = Some(scan.sensor);
+        if let Some(s) = all.pop() {
+            self.last = Some(s);
         }
         let tracks: Vec<Value> = self
             .engine
@@ -509,6 +595,10 @@ impl ReplayEstimator for MultiTracker {
             ..Estimate::default()
         };
         est.extra.insert("tracks".into(), Value::Array(tracks));
+        if self.registers {
+            est.extra
+                .insert("bias_est".into(), Value::Object(self.engine.bias_est()));
+        }
         Ok(Some(est))
     }
 }

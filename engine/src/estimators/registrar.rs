@@ -451,6 +451,23 @@ impl<const K: usize> Registrar<K> {
         Ok(events)
     }
 
+    /// The registered sensors' entries of `bias_est`, keyed by sensor id, with the detections
+    /// that updated them (`updates`: with a track; `references`: of a cooperative reference).
+    pub fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
+        self.bank
+            .estimates()
+            .into_iter()
+            .zip(&self.sensors)
+            .zip(self.updates.iter().zip(&self.references))
+            .map(|((e, s), (n, r))| {
+                let mut json = e.to_json();
+                json["updates"] = serde_json::json!(n);
+                json["references"] = serde_json::json!(r);
+                (s.sensor.clone(), json)
+            })
+            .collect()
+    }
+
     /// The registered sensors' estimates.
     pub fn biases(&self) -> Vec<SensorBiasView> {
         self.bank

@@ -51,6 +51,7 @@ fn run(
         let choice = TrackerChoice {
             filter: filter.into(),
             associator: associator.into(),
+            register: false,
         };
         let report = run_tracker(&data, &choice, params).unwrap();
         let s: MultiScore = score(&m, &report.estimates, 20.0).unwrap();

@@ -342,3 +342,100 @@ fn a_painted_uav_makes_a_lone_radars_bias_observable() {
     );
     assert!(ratio.iter().all(|r| *r <= 1.5), "{ratio:?}");
 }
+
+/// The live service's registrar (the track engine's `BiasBank`) on the same scenarios, through
+/// `harrier replay -e tracker --register`: constant radar offsets learnt and observable, the
+/// track within 1.2 × the same engine on the data with the biases taken out; a lone radar's
+/// offsets reported unobservable; without `--register` no `bias_est` and a track over 3 × worse.
+/// (Its figures over 8 seeds and every case: BENCHMARKS.md, "The live registrar in replay".)
+#[test]
+fn the_live_registrar_learns_the_replay_scenarios() {
+    /// The live engine (`ekf` tracks, `gnn`) over one scenario, and its position RMSE from
+    /// 10 s on: the confirmed track nearest the truth at each line (a line without one fails).
+    fn live(
+        seed: u64,
+        case: Case,
+        variant: Variant,
+        register: bool,
+    ) -> (ReplayReport, f64, BiasTruth) {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("scenario");
+        let cfg = GenConfig {
+            case,
+            variant,
+            duration: 600.0,
+        };
+        harrier_tools::gen_registration::write(&path, seed, &cfg).expect("generate");
+        let data = replay::load(&path).expect("scenario loads");
+        let choice = replay::TrackerChoice {
+            filter: "ekf".into(),
+            associator: "gnn".into(),
+            register,
+        };
+        let report = replay::run_tracker(&data, &choice, &Params::default()).expect("replay");
+        assert!(report.rejected.is_empty(), "{:?}", report.rejected);
+        let truth = data.truth.as_deref().expect("truth");
+        let mut sq = Vec::new();
+        for e in report.estimates.iter().filter(|e| e.t >= 10.0) {
+            let (x, _, _) = harrier_core::scenario::truth_at(truth, e.t).expect("truth at t");
+            let nearest = e.extra["tracks"]
+                .as_array()
+                .expect("tracks")
+                .iter()
+                .map(|k| {
+                    let s = &k["state"];
+                    let d = |i: usize| s[i].as_f64().expect("state") - x[i];
+                    d(0).hypot(d(1))
+                })
+                .min_by(f64::total_cmp);
+            sq.push(nearest.unwrap_or_else(|| panic!("seed {seed} {case:?}: no track at {}", e.t)));
+        }
+        let rmse = (sq.iter().map(|d| d * d).sum::<f64>() / sq.len() as f64).sqrt();
+        let text = std::fs::read_to_string(path.join("bias_truth.csv")).expect("bias truth");
+        (
+            report,
+            rmse,
+            BiasTruth::parse(&text).expect("bias truth parses"),
+        )
+    }
+    for seed in SEEDS {
+        let (run, rmse, truth) = live(seed, Case::Constant, Variant::Deployment, true);
+        let (_, told, _) = live(seed, Case::Constant, Variant::ToldBias, false);
+        let (plain, unregistered, _) = live(seed, Case::Constant, Variant::Deployment, false);
+        assert!(
+            !plain
+                .estimates
+                .iter()
+                .any(|e| e.extra.contains_key("bias_est"))
+        );
+        let last = run.estimates.last().expect("estimates");
+        let b = bias(last, "radar1");
+        println!(
+            "seed {seed}: RMSE registered {rmse:.2} m, told the bias {told:.2} m, unregistered \
+             {unregistered:.2} m; radar offsets {:.2} ± {:.2} m (truth {:.2}), {:.5} ± {:.5} rad \
+             (truth {:.5})",
+            value(b, Term::Offset(0)),
+            std_of(b, Term::Offset(0)),
+            truth.at("radar1", Term::Offset(0), last.t),
+            value(b, Term::Offset(1)),
+            std_of(b, Term::Offset(1)),
+            truth.at("radar1", Term::Offset(1), last.t),
+        );
+        for term in [Term::Offset(0), Term::Offset(1)] {
+            let err = value(b, term) - truth.at("radar1", term, last.t);
+            assert!(observable(b, term), "seed {seed} {term:?}");
+            assert!(
+                err.abs() <= 3.0 * std_of(b, term),
+                "seed {seed} {term:?}: {b}"
+            );
+        }
+        assert!(rmse <= 1.2 * told, "seed {seed}: {rmse} vs {told}");
+        assert!(
+            3.0 * rmse < unregistered,
+            "seed {seed}: {rmse} vs {unregistered}"
+        );
+        let (alone, _, _) = live(seed, Case::RadarAlone, Variant::Deployment, true);
+        let b = bias(alone.estimates.last().expect("estimates"), "radar1");
+        assert_eq!(b["observable"]["all"], false, "seed {seed}: {b}");
+    }
+}
