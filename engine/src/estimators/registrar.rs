@@ -289,6 +289,12 @@ impl<const K: usize> Registrar<K> {
             let mut zs = Vec::with_capacity(scan.detections.len());
             let vs = Vector3::from(source.platform_vel);
             let mut at = Vector3::from(source.platform);
+            // The fastest bank track's speed: how far a target may have moved in δ̂.
+            let fastest = predicted
+                .iter()
+                .map(|(_, g)| g.mean.rows(K / 2, K / 2).norm())
+                .filter(|v| v.is_finite())
+                .fold(0.0, f64::max);
             for (i, z) in scan.detections.iter().enumerate() {
                 let c = self.bank.correct(sensor, z)?;
                 if i == 0 {
@@ -296,9 +302,27 @@ impl<const K: usize> Registrar<K> {
                     let moved = Self::model_at(kind, Geometry::spatial(), source, at, &std)?;
                     let shift = vs * c.time_offset_var.max(0.0).sqrt();
                     let by_latency = moved.apply(Displacement { z: &c.z, shift });
+                    // The target's own motion in δ̂, which one model per scan cannot place
+                    // (each target moves its own way; the bank's joint update models it per
+                    // track): up to the fastest track's speed × |δ̂| along either ground axis,
+                    // as noise for the tracker's gating and update. Without it a 200 ms late
+                    // camera's detections of a 10 m/s target fell outside the gate of their
+                    // own track and started duplicates (BENCHMARKS.md, "The live registrar on
+                    // the replay scenarios").
+                    let reach = c.time_offset.abs() * fastest;
+                    let by_target = [Vector3::x(), Vector3::y()].map(|u| {
+                        moved.apply(Displacement {
+                            z: &c.z,
+                            shift: u * reach,
+                        })
+                    });
                     for (j, s) in std.iter_mut().enumerate() {
                         let d = by_latency.as_ref().map_or(0.0, |d| d[j]);
-                        *s = (*s * *s + c.extra_cov[(j, j)].max(0.0) + d * d).sqrt();
+                        let m: f64 = by_target
+                            .iter()
+                            .map(|t| t.as_ref().map_or(0.0, |t| t[j] * t[j]))
+                            .sum();
+                        *s = (*s * *s + c.extra_cov[(j, j)].max(0.0) + d * d + m).sqrt();
                     }
                 }
                 zs.push(c.z);
