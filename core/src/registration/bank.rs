@@ -28,9 +28,12 @@
 //! (`A_i = L_c L_b⁻¹` of the two Cholesky factors: `P_ij ← A_i P_ij A_jᵀ`) so that `P` stays
 //! positive semi-definite.
 //!
-//! With one track this is [`Registration`] with `hold: false` exactly (a test checks it). The
-//! bank estimates every term: no Schmidt hold of the undetermined directions (that needs the
-//! full filter's covariance beside the consider one, as [`Registration`] keeps).
+//! With one track this is [`Registration`] with `hold: false` exactly (a test checks it). With
+//! `hold` (the default tuning, the live registrar's) the bank keeps, as [`Registration`] does,
+//! the covariance a bank estimating every term would have beside its own, and projects the
+//! gain's bias rows onto the directions that one says the data determine
+//! (`Registration::gain_projection`): a Schmidt–Kalman consider update, the other directions
+//! held at their prior and their uncertainty carried by the tracks.
 //!
 //! **For the tracker's own update** (gating, association, or a track filter that does not go
 //! through the bank), [`BiasBank::correct`] gives a scan's detections with the biases taken out
@@ -68,8 +71,11 @@ pub struct BiasBank<const K: usize, const N: usize> {
     bias: SVector<f64, N>,
     /// The tracks, in the order of their blocks in `cov`.
     ids: Vec<TrackId>,
-    /// Covariance of `[x_1; …; x_T; b_K..N]`.
+    /// Covariance of `[x_1; …; x_T; b_K..N]` (with the hold: of the consider updates).
     cov: DMatrix<f64>,
+    /// With the hold (`reg`'s `Tuning::hold`): the covariance of the same layout a bank
+    /// estimating every term would have, which says what the data determine.
+    full: Option<DMatrix<f64>>,
 }
 
 /// A scan's detection with the biases taken out ([`BiasBank::correct`]).
@@ -95,11 +101,13 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         };
         let s = reg.initial(&placeholder)?;
         let cov = s.estimate.cov.view((K, K), (N - K, N - K)).into_owned();
+        let cov = DMatrix::from_column_slice(N - K, N - K, cov.as_slice());
         Ok(Self {
-            reg,
             bias: s.estimate.mean,
             ids: Vec::new(),
-            cov: DMatrix::from_column_slice(N - K, N - K, cov.as_slice()),
+            full: reg.tuning().hold.then(|| cov.clone()),
+            cov,
+            reg,
         })
     }
 
@@ -117,17 +125,20 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// (mean 0, identity covariance, uncorrelated).
     pub fn state(&self) -> RegistrationState<N> {
         let b0 = self.b0();
-        let cov = SMatrix::<f64, N, N>::from_fn(|i, j| match (i < K, j < K) {
-            (true, true) => f64::from(u8::from(i == j)),
-            (false, false) => self.cov[(b0 + i - K, b0 + j - K)],
-            _ => 0.0,
-        });
+        let of = |all: &DMatrix<f64>| {
+            SMatrix::<f64, N, N>::from_fn(|i, j| match (i < K, j < K) {
+                (true, true) => f64::from(u8::from(i == j)),
+                (false, false) => all[(b0 + i - K, b0 + j - K)],
+                _ => 0.0,
+            })
+        };
+        let cov = of(&self.cov);
         RegistrationState {
             estimate: Gaussian {
                 mean: self.bias,
                 cov,
             },
-            full_cov: cov,
+            full_cov: self.full.as_ref().map_or(cov, of),
             projection: None,
         }
     }
@@ -165,22 +176,29 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             )));
         }
         ensure_finite(&track.cov, "track covariance")?;
-        let (b0, d) = (self.b0(), self.cov.nrows());
-        let mut cov = DMatrix::zeros(d + K, d + K);
+        let b0 = self.b0();
         // Old tracks, then the new one, then the biases.
-        let map = |i: usize| if i < b0 { i } else { i + K };
-        for i in 0..d {
-            for j in 0..d {
-                cov[(map(i), map(j))] = self.cov[(i, j)];
+        let grow = |old: &DMatrix<f64>| {
+            let d = old.nrows();
+            let mut cov = DMatrix::zeros(d + K, d + K);
+            let map = |i: usize| if i < b0 { i } else { i + K };
+            for i in 0..d {
+                for j in 0..d {
+                    cov[(map(i), map(j))] = old[(i, j)];
+                }
             }
-        }
-        for i in 0..K {
-            for j in 0..K {
-                cov[(b0 + i, b0 + j)] = track.cov[(i, j)];
+            for i in 0..K {
+                for j in 0..K {
+                    cov[(b0 + i, b0 + j)] = track.cov[(i, j)];
+                }
             }
+            cov
+        };
+        if let Some(full) = self.full.take() {
+            self.full = Some(grow(&full));
         }
+        self.cov = grow(&self.cov);
         self.ids.push(id);
-        self.cov = cov;
         Ok(())
     }
 
@@ -192,6 +210,10 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 .filter(|r| !(i * K..(i + 1) * K).contains(r))
                 .collect();
             self.cov = self.cov.select_rows(&keep).select_columns(&keep);
+            self.full = self
+                .full
+                .as_ref()
+                .map(|f| f.select_rows(&keep).select_columns(&keep));
             self.ids.remove(i);
         }
     }
@@ -225,8 +247,14 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 }
             }
         }
-        let P = &F * &self.cov * F.transpose() + Q;
-        self.cov = (&P + P.transpose()) * 0.5;
+        let predict = |P: &DMatrix<f64>| {
+            let P = &F * P * F.transpose() + &Q;
+            (&P + P.transpose()) * 0.5
+        };
+        if let Some(full) = self.full.take() {
+            self.full = Some(predict(&full));
+        }
+        self.cov = predict(&self.cov);
         Ok(())
     }
 
@@ -282,8 +310,13 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         }
     }
 
-    /// The update of the module docs with `ν`, `H` (M × N: the track `j`'s columns, then the
-    /// biases') and `R`.
+    /// The joint update with one detection (see the module docs), `j` the detected track (none
+    /// for a reference); returns its normalised innovation squared. With the hold, the gain's
+    /// bias rows are projected onto the directions the data determine, as
+    /// [`Registration`]'s (a Schmidt–Kalman consider update: the expanded Joseph form of
+    /// [`joint`] is the covariance of any gain, so the other directions keep their prior and the
+    /// tracks carry their uncertainty), and the full covariance takes the optimal update that
+    /// says which directions are determined.
     fn apply(
         &mut self,
         tracks: &mut Tracks<'_, K>,
@@ -294,12 +327,60 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         R: &DMatrix<f64>,
     ) -> Result<f64> {
         let (b0, d, m) = (self.b0(), self.cov.nrows(), H.nrows());
-        // The tracker's predicted P_ii replace the bank's: each track's error taken as the
-        // bank's transformed by A_i = L_c L_b⁻¹ (the Cholesky factors of the tracker's P_ii and
-        // of the bank's), so that its cross-covariances follow, P_ij ← A_i P_ij A_jᵀ, and the
-        // whole stays positive semi-definite however the tracker changed P_ii (an IMM's
-        // moment-matched prediction, a road update); where a factor fails, P_ii alone.
-        let mut P = self.cov.clone();
+        let mut Hd = DMatrix::zeros(m, d);
+        for r in 0..m {
+            if let Some(j) = j {
+                for c in 0..K {
+                    Hd[(r, j * K + c)] = H[(r, c)];
+                }
+            }
+            for c in K..N {
+                Hd[(r, b0 + c - K)] = H[(r, c)];
+            }
+        }
+        // The bias rows of the gain projected onto the directions the data determine
+        // (`Registration::gain_projection`, from the full covariance).
+        let projection = self.full.is_some().then(|| {
+            let T = self.reg.gain_projection(&self.state());
+            DMatrix::from_fn(N - K, N - K, |r, c| T[(K + r, K + c)])
+        });
+        let P = self.with_tracks(&self.cov, tracks, order)?;
+        let (dx, P, nis) = joint(&P, &Hd, nu, R, projection.as_ref().map(|T| (b0, T)))?;
+        let full = match &self.full {
+            Some(f) => Some(joint(f, &Hd, nu, R, None)?.1),
+            None => None,
+        };
+        for (t, &k) in order.iter().enumerate() {
+            let g = &mut *tracks[k].1;
+            for r in 0..K {
+                g.mean[r] += dx[t * K + r];
+                for s in 0..K {
+                    g.cov[(r, s)] = P[(t * K + r, t * K + s)];
+                }
+            }
+        }
+        for i in K..N {
+            self.bias[i] += dx[b0 + i - K];
+        }
+        self.cov = P;
+        if full.is_some() {
+            self.full = full;
+        }
+        Ok(nis)
+    }
+
+    /// `cov` with the tracker's predicted `P_ii` in place of the bank's: each track's error
+    /// taken as the bank's transformed by `A_i = L_c L_b⁻¹` (the Cholesky factors of the
+    /// tracker's `P_ii` and of the bank's), so that its cross-covariances follow, `P_ij ← A_i
+    /// P_ij A_jᵀ`, and the whole stays positive semi-definite however the tracker changed `P_ii`
+    /// (an IMM's moment-matched prediction, a road update); where a factor fails, `P_ii` alone.
+    fn with_tracks(
+        &self,
+        cov: &DMatrix<f64>,
+        tracks: &Tracks<'_, K>,
+        order: &[usize],
+    ) -> Result<DMatrix<f64>> {
+        let mut P = cov.clone();
         for (t, &k) in order.iter().enumerate() {
             let c = &tracks[k].1.cov;
             ensure_finite(c, "track covariance")?;
@@ -323,50 +404,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 }
             }
         }
-        let P = (&P + P.transpose()) * 0.5;
-        let mut Hd = DMatrix::zeros(m, d);
-        for r in 0..m {
-            if let Some(j) = j {
-                for c in 0..K {
-                    Hd[(r, j * K + c)] = H[(r, c)];
-                }
-            }
-            for c in K..N {
-                Hd[(r, b0 + c - K)] = H[(r, c)];
-            }
-        }
-        let PHt = &P * Hd.transpose();
-        let S = &Hd * &PHt + R;
-        let S = (&S + S.transpose()) * 0.5;
-        let Si = S
-            .clone()
-            .cholesky()
-            .ok_or(EstimationError::NotPositiveDefinite(
-                "innovation covariance",
-            ))?
-            .inverse();
-        let Kd = &PHt * &Si;
-        let dx = &Kd * nu;
-        let KHP = &Kd * PHt.transpose();
-        let P = &P - &KHP - KHP.transpose() + &Kd * &S * Kd.transpose();
-        let P = (&P + P.transpose()) * 0.5;
-        if !(dx.iter().all(|v| v.is_finite()) && P.iter().all(|v| v.is_finite())) {
-            return Err(EstimationError::NonFinite("bias bank update"));
-        }
-        for (t, &k) in order.iter().enumerate() {
-            let g = &mut *tracks[k].1;
-            for r in 0..K {
-                g.mean[r] += dx[t * K + r];
-                for s in 0..K {
-                    g.cov[(r, s)] = P[(t * K + r, t * K + s)];
-                }
-            }
-        }
-        for i in K..N {
-            self.bias[i] += dx[b0 + i - K];
-        }
-        self.cov = P;
-        Ok((nu.transpose() * Si * nu)[0])
+        Ok((&P + P.transpose()) * 0.5)
     }
 
     /// A detection `z` of sensor `sensor` with the offsets and scales taken out, the bias
@@ -417,6 +455,43 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             time_offset_var,
         })
     }
+}
+
+/// One EKF update of `[x_1; …; x_T; b]` (covariance `P`, the stacked `Hd`) with the innovation
+/// `nu` of noise `R`, with `projection = (b0, T)` the gain's bias rows (from `b0`) projected by
+/// `T` (`K_b ← T K_b`): the correction, the covariance of that gain (the Joseph form
+/// (5.2.3-18) expanded, `P − K H P − (K H P)ᵀ + K S Kᵀ`, exact for any gain) and the
+/// normalised innovation squared.
+fn joint(
+    P: &DMatrix<f64>,
+    Hd: &DMatrix<f64>,
+    nu: &DVector<f64>,
+    R: &DMatrix<f64>,
+    projection: Option<(usize, &DMatrix<f64>)>,
+) -> Result<(DVector<f64>, DMatrix<f64>, f64)> {
+    let PHt = P * Hd.transpose();
+    let S = Hd * &PHt + R;
+    let S = (&S + S.transpose()) * 0.5;
+    let Si = S
+        .clone()
+        .cholesky()
+        .ok_or(EstimationError::NotPositiveDefinite(
+            "innovation covariance",
+        ))?
+        .inverse();
+    let mut Kd = &PHt * &Si;
+    if let Some((b0, T)) = projection {
+        let kb = T * Kd.rows(b0, T.nrows());
+        Kd.rows_mut(b0, T.nrows()).copy_from(&kb);
+    }
+    let dx = &Kd * nu;
+    let KHP = &Kd * PHt.transpose();
+    let P = P - &KHP - KHP.transpose() + &Kd * &S * Kd.transpose();
+    let P = (&P + P.transpose()) * 0.5;
+    if !(dx.iter().all(|v| v.is_finite()) && P.iter().all(|v| v.is_finite())) {
+        return Err(EstimationError::NonFinite("bias bank update"));
+    }
+    Ok((dx, P, (nu.transpose() * Si * nu)[0]))
 }
 
 #[cfg(test)]

@@ -202,9 +202,18 @@ fn banked(dets: &[Detection], targets: usize) -> Vec<(f64, Vec<Gaussian<4>>, Bia
 fn banked_with(
     dets: &[Detection],
     targets: usize,
+    own: impl FnMut(usize, f64, &mut Gaussian<4>),
+) -> Vec<(f64, Vec<Gaussian<4>>, BiasBank<4, 8>)> {
+    run_bank(BiasBank::new(registration()).unwrap(), dets, targets, own)
+}
+
+/// [`banked_with`] from `bank`.
+fn run_bank(
+    mut bank: BiasBank<4, 8>,
+    dets: &[Detection],
+    targets: usize,
     mut own: impl FnMut(usize, f64, &mut Gaussian<4>),
 ) -> Vec<(f64, Vec<Gaussian<4>>, BiasBank<4, 8>)> {
-    let mut bank = BiasBank::new(registration()).unwrap();
     let motion = ConstantVelocity::<4>::new(Q);
     let mut tracks: Vec<Gaussian<4>> = (0..targets).map(prior_of).collect();
     for (id, g) in tracks.iter().enumerate() {
@@ -434,5 +443,52 @@ fn a_tracker_that_shrinks_its_tracks_keeps_the_bank_positive_definite() {
             (term.value - truth).abs() <= 4.0 * term.std,
             "{term:?} against {truth}"
         );
+    }
+}
+
+/// With the hold (`Tuning::hold`, the live registrar's), a radar alone leaves its offsets
+/// where their prior puts them, reported unobservable, and the track carries their
+/// uncertainty; with the UAV it paints they are learnt.
+#[test]
+fn with_the_hold_a_lone_radars_offsets_stay_at_their_prior() {
+    let [radar, camera] = biases();
+    let reg = Registration::<4, 8>::new(
+        Q,
+        0.0,
+        &[(2, Some(&radar)), (2, Some(&camera))],
+        Tuning::default(),
+    )
+    .unwrap();
+    for references in [false, true] {
+        let dets: Vec<Detection> = detections(3, 1, 300.0, references)
+            .into_iter()
+            .filter(|d| d.sensor == 0)
+            .collect();
+        let out = run_bank(BiasBank::new(reg.clone()).unwrap(), &dets, 1, |_, _, _| {});
+        let (_, tracks, bank) = out.last().unwrap();
+        let radar = &bank.estimates()[0];
+        let offsets: Vec<(f64, f64)> = radar.terms.iter().map(|t| (t.value, t.std)).collect();
+        println!(
+            "references {references}: offsets {offsets:?}, observable {}",
+            radar.observable
+        );
+        if references {
+            assert!(radar.observable);
+            for (t, truth) in radar.terms.iter().zip(TRUTH) {
+                assert!((t.value - truth).abs() <= 3.0 * t.std, "{t:?}");
+            }
+        } else {
+            assert!(!radar.observable);
+            for (t, sd) in radar.terms.iter().zip(PRIOR_STD) {
+                assert_eq!(t.value, 0.0, "{t:?}");
+                assert!(t.std > 0.9 * sd, "{t:?}");
+            }
+            // The track's covariance carries the offsets' uncertainty: it covers the 30 m of
+            // range offset the track is off by.
+            let (p, _) = target(0, 300.0);
+            let err = (tracks[0].mean.fixed_rows::<2>(0) - p).norm();
+            let sd = tracks[0].cov.fixed_view::<2, 2>(0, 0).trace().sqrt();
+            assert!(err <= 3.0 * sd, "track {err} m off with sd {sd} m");
+        }
     }
 }

@@ -388,7 +388,7 @@ impl<const K: usize, const N: usize> Registration<K, N> {
     /// (a camera's azimuth offset with its latency, a radar's range offset with its scale) is
     /// estimated while each term alone may not be; `T_bb = D^{1/2} V_o V_oᵀ D^{-1/2}`. Every
     /// bias direction when the tuning does not hold; padding never.
-    fn gain_projection(&self, state: &RegistrationState<N>) -> SMatrix<f64, N, N> {
+    pub(super) fn gain_projection(&self, state: &RegistrationState<N>) -> SMatrix<f64, N, N> {
         let mut T = SMatrix::<f64, N, N>::zeros();
         let sd: [Option<f64>; N] = std::array::from_fn(|i| match self.slots[i] {
             Slot::Bias(p) => Some(p.std),
