@@ -34,6 +34,16 @@ fn harrier(args: &[&str]) -> Output {
         .unwrap()
 }
 
+/// Asserts that the run exited 0, showing its stderr if not.
+fn assert_ok(out: &Output) {
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn replay(dir: &Path, out: &Path, est: &str) -> Output {
     harrier(&[
         "replay",
@@ -368,12 +378,7 @@ fn generated_multi_target_scenario_replays_with_the_tracker() {
     assert!(scans.len() > 1);
     let est = dir.path().join("tracks.jsonl");
     let out = replay(&sc, &est, "tracker");
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let text = std::fs::read_to_string(&est).unwrap();
     assert_eq!(text.lines().count(), scans.len(), "one line per scan");
     for (l, t) in text.lines().zip(&scans) {
@@ -538,12 +543,7 @@ fn a_generated_registration_scenario_replays_with_its_references() {
     }
     let est = dir.path().join("est.jsonl");
     let out = replay(&sc, &est, "registration");
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let last: serde_json::Value = serde_json::from_str(
         std::fs::read_to_string(&est)
             .unwrap()
@@ -572,12 +572,7 @@ fn a_generated_registration_scenario_replays_with_its_references() {
         "-o",
         live.to_str().unwrap(),
     ]);
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_ok(&out);
     let text = std::fs::read_to_string(&live).unwrap();
     let last: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
     let radar = &last["bias_est"]["radar1"];
