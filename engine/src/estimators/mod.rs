@@ -23,9 +23,10 @@ use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};
 use harrier_core::measurement::{
     Geometry, Locate, MeasKind, MeasurementModel, SensorModel, TargetSize, WithSensor,
 };
-use harrier_core::scenario::{Estimate, Measurement, Motion, Scenario};
+use harrier_core::registration::KnownObject;
+use harrier_core::scenario::{Estimate, Measurement, Motion, ReferenceObject, Scenario};
 use harrier_core::state::Gaussian;
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::{EngineError, Params, setup};
 
@@ -75,6 +76,17 @@ pub fn prior<const N: usize>(
     }
     let g = Gaussian::new(mean, cov).map_err(|e| setup(format!("prior: {e}")))?;
     Ok((p.t, g))
+}
+
+/// A cooperative reference's object (`references.jsonl`, FORMAT-REGISTRATION.md §2) as the
+/// registration filters take it: its position and velocity, the covariance of its reported
+/// standard deviations.
+pub fn known_object(o: &ReferenceObject) -> KnownObject {
+    KnownObject {
+        pos: Vector3::from(o.pos),
+        vel: Vector3::from(o.vel),
+        cov: Matrix3::from_diagonal(&Vector3::from(o.std).map(|s| s * s)),
+    }
 }
 
 /// The measurement model of one measurement line (sensor noise from the scenario, sensor at the

@@ -25,14 +25,14 @@ use harrier_core::tracker::{
 use serde_json::{Value, json};
 
 use super::registrar::{Registrar, registrar};
-use super::{count, cv_estimate, geometry, imm_of, mode_models, model_for};
+use super::{count, cv_estimate, geometry, imm_of, known_object, mode_models, model_for};
 use crate::{
     Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator,
     ScanOutcome, ScanSource, SensorBiasView, SensorScan, Step, TrackEngine, TrackFilterInfo,
     TrackView, setup,
 };
 use harrier_core::state::Gaussian;
-use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector};
 
 /// `tracker`: GNN multi-target tracker.
 pub const TRACKER: EstimatorInfo = EstimatorInfo {
@@ -522,13 +522,8 @@ impl ReplayEstimator for MultiTracker {
                         scans.len() - 1
                     }
                 };
-                let o = &r.object;
                 scans[i].scan.detections.push(m.z.clone());
-                scans[i].references.push(KnownObject {
-                    pos: Vector3::from(o.pos),
-                    vel: Vector3::from(o.vel),
-                    cov: Matrix3::from_diagonal(&Vector3::from(o.std).map(|s| s * s)),
-                });
+                scans[i].references.push(known_object(&r.object));
             }
             scans.sort_by(|a, b| a.scan.t.total_cmp(&b.scan.t));
         }

@@ -6,13 +6,13 @@
 
 use harrier_core::measurement::{Geometry, SensorModel, TargetSize};
 use harrier_core::registration::{
-    DriftModes, KnownObject, Observation, Registration, RegistrationImm, RegistrationImmState,
-    Seen, SensorBias, Tuning,
+    DriftModes, Observation, Registration, RegistrationImm, RegistrationImmState, Seen, SensorBias,
+    Tuning,
 };
 use harrier_core::scenario::{Estimate, Measurement, Scenario};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
 
-use super::{cv_dims, cv_estimate, prior};
+use super::{cv_dims, cv_estimate, known_object, prior};
 use crate::{EngineError, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step, setup};
 
 /// `registration`.
@@ -174,16 +174,7 @@ impl<const K: usize, const N: usize> ReplayEstimator for Driver<K, N> {
         let mut items: Vec<(&Measurement, Seen)> = step
             .references
             .iter()
-            .map(|r| {
-                let o = &r.object;
-                let cov = Matrix3::from_diagonal(&Vector3::from(o.std).map(|s| s * s));
-                let known = KnownObject {
-                    pos: Vector3::from(o.pos),
-                    vel: Vector3::from(o.vel),
-                    cov,
-                };
-                (&r.measurement, Seen::Known(known))
-            })
+            .map(|r| (&r.measurement, Seen::Known(known_object(&r.object))))
             .chain(step.measurements.iter().map(|m| (*m, Seen::Target)))
             .collect();
         items.sort_by(|a, b| a.0.t.total_cmp(&b.0.t));
