@@ -35,6 +35,24 @@
 //! (`Registration::gain_projection`): a Schmidt–Kalman consider update, the other directions
 //! held at their prior and their uncertainty carried by the tracks.
 //!
+//! **Drift modes** ([`BiasBank::with_drift`], the live registrar's): no single drift suits every
+//! bias (a drift large enough to follow a Gauss–Markov offset lets a steady one wander while the
+//! radar alone carries the target; a small one lags a drifting one), so the bank can run the
+//! replay estimator's two biased modes ([`super::RegistrationImm`]), the bias model as
+//! configured (**steady**) and every random-walk term drifting `factor` times faster
+//! (**drifting**), as an IMM over the augmented state ([BLK01] §11.6.6). Each mode keeps its
+//! own bias mean, its own covariance of `X` and its own track means, as offsets from the
+//! tracker's (which stays the moment-matched mixture): mixing at each prediction
+//! (`μ_{i|j} = p_ij μ_i / c̄_j`, the means and both covariances with the spread of the means),
+//! each mode predicted and updated as above, `μ_j ∝ μ_j Λ_j` from each mode's innovation
+//! likelihood per detection, and the tracks handed back moment-matched. A mixture collapsed at
+//! every update (GPB1) was tried first: the two hypotheses then differ by one step's process
+//! noise and cannot be told apart (BENCHMARKS.md).
+//!
+//! **What the bank reports** ([`BiasBank::output`]): the tracks weighed over which sensors are
+//! biased (none, or any set of them), each hypothesis by its Savage–Dickey ratio, as the replay
+//! estimator's output; the recursion above is unchanged by it.
+//!
 //! **For the tracker's own update** (gating, association, or a track filter that does not go
 //! through the bank), [`BiasBank::correct`] gives a scan's detections with the biases taken out
 //! and the bias uncertainty to add to the noise (the consider form without the cross-covariance).
@@ -49,10 +67,13 @@
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
 use super::filter::{Augmented, KnownObject, Observation, Registration, RegistrationState, Seen};
+use super::imm::{DriftModes, biased_sets};
+use super::model::Dynamics;
 use super::report::SensorEstimate;
+use crate::filter::PROB_FLOOR;
 use crate::linalg::ensure_finite;
 use crate::motion::TransitionModel;
-use crate::state::Gaussian;
+use crate::state::{Gaussian, moment_match};
 use crate::{EstimationError, Result};
 
 /// A track's identity in the bank (the tracker's track id).
@@ -66,16 +87,43 @@ pub type Tracks<'a, const K: usize> = [(TrackId, &'a mut Gaussian<K>)];
 /// [`Registration`]'s (the bias terms sit at indices `K..N` of its state).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BiasBank<const K: usize, const N: usize> {
+    /// `[steady]`, or `[steady, drifting]` ([`BiasBank::with_drift`]).
+    modes: Vec<Mode<K, N>>,
+    /// The modes' probabilities.
+    probs: Vec<f64>,
+    /// The drift modes' tuning (`None`: one mode).
+    drift: Option<DriftModes>,
+    /// The tracks, in the order of their blocks in each mode's `cov`.
+    ids: Vec<TrackId>,
+}
+
+/// One bias mode of the bank: its filter, bias mean, track means and covariances.
+#[derive(Debug, Clone, PartialEq)]
+struct Mode<const K: usize, const N: usize> {
     reg: Registration<K, N>,
     /// The bias terms at `K..N` (the first `K` unused, zero).
     bias: SVector<f64, N>,
-    /// The tracks, in the order of their blocks in `cov`.
-    ids: Vec<TrackId>,
+    /// This mode's track means less the tracker's (the moment-matched ones), stacked as the
+    /// tracks' blocks of `cov`.
+    offset: DVector<f64>,
     /// Covariance of `[x_1; …; x_T; b_K..N]` (with the hold: of the consider updates).
     cov: DMatrix<f64>,
     /// With the hold (`reg`'s `Tuning::hold`): the covariance of the same layout a bank
     /// estimating every term would have, which says what the data determine.
     full: Option<DMatrix<f64>>,
+}
+
+/// The prior probability that no sensor is biased in [`BiasBank::output`] (the replay
+/// estimator's, [`DriftModes::unbiased`]); the sets of biased sensors share the rest.
+pub const UNBIASED_PRIOR: f64 = 0.5;
+
+/// The bank's tracks weighed over which sensors are biased ([`BiasBank::output`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BankOutput<const K: usize> {
+    /// Each track's estimate: the moment-matched mixture over the hypotheses, in the order given.
+    pub tracks: Vec<(TrackId, Gaussian<K>)>,
+    /// Per sensor (the registration's order), the probability that it is biased.
+    pub biased: Vec<f64>,
 }
 
 /// A scan's detection with the biases taken out ([`BiasBank::correct`]).
@@ -92,38 +140,44 @@ pub struct Corrected {
     pub time_offset_var: f64,
 }
 
-impl<const K: usize, const N: usize> BiasBank<K, N> {
-    /// A bank for `reg`'s sensors and bias models, every term at its prior, no track.
-    pub fn new(reg: Registration<K, N>) -> Result<Self> {
-        let placeholder = Gaussian {
-            mean: SVector::zeros(),
-            cov: SMatrix::identity(),
-        };
-        let s = reg.initial(&placeholder)?;
-        let cov = s.estimate.cov.view((K, K), (N - K, N - K)).into_owned();
-        let cov = DMatrix::from_column_slice(N - K, N - K, cov.as_slice());
-        Ok(Self {
-            bias: s.estimate.mean,
-            ids: Vec::new(),
-            full: reg.tuning().hold.then(|| cov.clone()),
-            cov,
-            reg,
-        })
-    }
+/// One hypothesis of which sensors are biased ([`BiasBank::output`]): those it holds biased
+/// (the registration's order), its weight (normalised) and the tracks conditioned on it.
+struct Hypothesis<const K: usize> {
+    biased: Vec<bool>,
+    weight: f64,
+    tracks: Vec<Gaussian<K>>,
+}
 
-    /// The layout, the bias models and the linearisation.
-    pub fn registration(&self) -> &Registration<K, N> {
-        &self.reg
+/// Per sensor (of `sensors`), the weight of the hypotheses that hold it biased.
+fn biased_probs<const K: usize>(weighed: &[Hypothesis<K>], sensors: usize) -> Vec<f64> {
+    let mut out = vec![0.0; sensors];
+    for h in weighed {
+        for (p, b) in out.iter_mut().zip(&h.biased) {
+            if *b {
+                *p += h.weight;
+            }
+        }
     }
+    out
+}
 
+/// One mode's update with a detection: its normalised innovation squared and log-likelihood,
+/// and the updated track means and covariances (the bank's order).
+struct ModeUpdate<const K: usize> {
+    nis: f64,
+    log_likelihood: f64,
+    tracks: Vec<Gaussian<K>>,
+}
+
+impl<const K: usize, const N: usize> Mode<K, N> {
     /// Index of the bias block in `cov`.
     fn b0(&self) -> usize {
-        self.ids.len() * K
+        self.offset.len()
     }
 
     /// The bias terms' mean and covariance, as a registration state with a placeholder target
     /// (mean 0, identity covariance, uncorrelated).
-    pub fn state(&self) -> RegistrationState<N> {
+    fn state(&self) -> RegistrationState<N> {
         let b0 = self.b0();
         let of = |all: &DMatrix<f64>| {
             SMatrix::<f64, N, N>::from_fn(|i, j| match (i < K, j < K) {
@@ -143,103 +197,31 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         }
     }
 
-    /// Every sensor's bias estimate, its standard deviation and observability.
-    pub fn estimates(&self) -> Vec<SensorEstimate> {
-        self.reg.estimates(&self.state())
-    }
-
-    /// The tracks, in the bank's order.
-    pub fn tracks(&self) -> &[TrackId] {
-        &self.ids
-    }
-
-    /// The cross-covariance `P_ib` of a track (columns `K..N`, the first `K` zero).
-    pub fn cross(&self, id: TrackId) -> Option<SMatrix<f64, K, N>> {
-        let i = self.ids.iter().position(|t| *t == id)?;
+    /// The stacked mean `[offsets; b_K..N]` (the layout of `cov`).
+    fn stacked(&self) -> DVector<f64> {
         let b0 = self.b0();
-        Some(SMatrix::from_fn(|r, c| {
-            if c < K {
-                0.0
+        DVector::from_fn(b0 + N - K, |i, _| {
+            if i < b0 {
+                self.offset[i]
             } else {
-                self.cov[(i * K + r, b0 + c - K)]
+                self.bias[K + i - b0]
             }
-        }))
+        })
     }
 
-    /// A new track, of state `track`, uncorrelated with the biases and the other tracks (a
-    /// track started from bias-corrected detections, [`BiasBank::correct`]: their correlation
-    /// with the biases is dropped). Errors if the bank has it already.
-    pub fn add_track(&mut self, id: TrackId, track: &Gaussian<K>) -> Result<()> {
-        if self.ids.contains(&id) {
-            return Err(EstimationError::InvalidParameter(format!(
-                "track {id} is in the bank already"
-            )));
-        }
-        ensure_finite(&track.cov, "track covariance")?;
-        let b0 = self.b0();
-        // Old tracks, then the new one, then the biases.
-        let grow = |old: &DMatrix<f64>| {
-            let d = old.nrows();
-            let mut cov = DMatrix::zeros(d + K, d + K);
-            let map = |i: usize| if i < b0 { i } else { i + K };
-            for i in 0..d {
-                for j in 0..d {
-                    cov[(map(i), map(j))] = old[(i, j)];
-                }
-            }
-            for i in 0..K {
-                for j in 0..K {
-                    cov[(b0 + i, b0 + j)] = track.cov[(i, j)];
-                }
-            }
-            cov
-        };
-        if let Some(full) = self.full.take() {
-            self.full = Some(grow(&full));
-        }
-        self.cov = grow(&self.cov);
-        self.ids.push(id);
-        Ok(())
-    }
-
-    /// Forgets a track.
-    pub fn remove_track(&mut self, id: TrackId) {
-        if let Some(i) = self.ids.iter().position(|t| *t == id) {
-            let d = self.cov.nrows();
-            let keep: Vec<usize> = (0..d)
-                .filter(|r| !(i * K..(i + 1) * K).contains(r))
-                .collect();
-            self.cov = self.cov.select_rows(&keep).select_columns(&keep);
-            self.full = self
-                .full
-                .as_ref()
-                .map(|f| f.select_rows(&keep).select_columns(&keep));
-            self.ids.remove(i);
-        }
-    }
-
-    /// The biases' dynamics over `dt ≥ 0` seconds and the bank's CV prediction of the tracks'
-    /// covariances (`P ← F P Fᵀ + Q`); the tracker predicts the tracks themselves over the same
-    /// `dt`.
-    pub fn predict(&mut self, dt: f64) -> Result<()> {
-        if !(dt.is_finite() && dt >= 0.0) {
-            return Err(EstimationError::InvalidParameter(format!(
-                "prediction interval must be finite and ≥ 0, got {dt}"
-            )));
-        }
-        if dt == 0.0 {
-            return Ok(());
-        }
+    /// The biases' dynamics over `dt > 0` seconds and the CV prediction of the tracks'
+    /// covariances and offsets (`P ← F P Fᵀ + Q`).
+    fn predict(&mut self, dt: f64) {
         let model = Augmented { reg: &self.reg };
         let Fa = model.jacobian(&self.bias, dt);
         let Qa = model.covar(dt);
         self.bias = model.function(&self.bias, dt);
         self.bias.fixed_rows_mut::<K>(0).fill(0.0);
-        let d = self.cov.nrows();
+        let (b0, d) = (self.b0(), self.cov.nrows());
         let mut F = DMatrix::zeros(d, d);
         let mut Q = DMatrix::zeros(d, d);
-        let blocks = (0..self.ids.len()).map(|t| (t * K, 0, K));
-        for (at, from, n) in blocks.chain(std::iter::once((self.b0(), K, N - K))) {
+        let blocks = (0..b0 / K).map(|t| (t * K, 0, K));
+        for (at, from, n) in blocks.chain(std::iter::once((b0, K, N - K))) {
             for i in 0..n {
                 for j in 0..n {
                     F[(at + i, at + j)] = Fa[(from + i, from + j)];
@@ -247,6 +229,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 }
             }
         }
+        self.offset = F.view((0, 0), (b0, b0)) * &self.offset;
         let predict = |P: &DMatrix<f64>| {
             let P = &F * P * F.transpose() + &Q;
             (&P + P.transpose()) * 0.5
@@ -255,77 +238,67 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             self.full = Some(predict(&full));
         }
         self.cov = predict(&self.cov);
-        Ok(())
     }
 
-    /// Updates every track (their states `tracks`, at the bank's time: every track of the bank)
-    /// and the biases with one detection associated with track `id`; returns the detection's
-    /// normalised innovation squared. The tracks' states are replaced by the updated ones.
-    pub fn update(
-        &mut self,
-        tracks: &mut Tracks<'_, K>,
-        id: TrackId,
-        obs: &Observation<'_>,
-    ) -> Result<f64> {
-        let j = self.ids.iter().position(|t| *t == id).ok_or_else(|| {
-            EstimationError::InvalidParameter(format!("no track {id} in the bank"))
-        })?;
-        let order = self.order(tracks)?;
-        let mut x = self.bias;
-        x.fixed_rows_mut::<K>(0).copy_from(&tracks[order[j]].1.mean);
-        let (nu, H, R) = self.reg.linearised(&x, obs, &Seen::Target)?;
-        self.apply(tracks, &order, Some(j), &nu, &H, &R)
-    }
-
-    /// Updates the biases with a detection of a cooperative reference (a known object), and
-    /// every track through its correlation with them (`tracks`: every track of the bank, at its
-    /// time, replaced by the updated states); returns the detection's normalised innovation
-    /// squared.
-    pub fn update_reference(
-        &mut self,
-        tracks: &mut Tracks<'_, K>,
-        obs: &Observation<'_>,
-        known: &KnownObject,
-    ) -> Result<f64> {
-        let order = self.order(tracks)?;
-        let (nu, H, R) = self.reg.linearised(&self.bias, obs, &Seen::Known(*known))?;
-        self.apply(tracks, &order, None, &nu, &H, &R)
-    }
-
-    /// For each of the bank's tracks, its index in `tracks`; errors unless `tracks` holds
-    /// exactly the bank's tracks.
-    fn order(&self, tracks: &Tracks<'_, K>) -> Result<Vec<usize>> {
-        let order: Option<Vec<usize>> = self
-            .ids
-            .iter()
-            .map(|id| tracks.iter().position(|(t, _)| t == id))
-            .collect();
-        match order {
-            Some(o) if tracks.len() == self.ids.len() => Ok(o),
-            _ => Err(EstimationError::InvalidParameter(format!(
-                "an update needs every track of the bank ({:?}), got {:?}",
-                self.ids,
-                tracks.iter().map(|(t, _)| *t).collect::<Vec<_>>()
-            ))),
+    /// The tracker's changes to the tracks' covariances since the bank's (an IMM's
+    /// moment-matched prediction, a road update), carried into this mode: each track's rows and
+    /// columns and its offset mapped by `maps` (see [`track_maps`]): `P_ij ← A_i P_ij A_jᵀ`,
+    /// `δ_i ← A_i δ_i`, so that the modes' mixture has the tracker's covariances and the whole
+    /// stays positive semi-definite; where a map failed, the tracker's `P_ii` alone.
+    fn follow(&mut self, tracks: &[Gaussian<K>], maps: &[Option<SMatrix<f64, K, K>>]) {
+        for (t, (g, a)) in tracks.iter().zip(maps).enumerate() {
+            let at = t * K;
+            match a {
+                Some(a) => {
+                    let a = DMatrix::from_column_slice(K, K, a.as_slice());
+                    let rows = &a * self.cov.rows(at, K);
+                    self.cov.rows_mut(at, K).copy_from(&rows);
+                    let cols = self.cov.columns(at, K) * a.transpose();
+                    self.cov.columns_mut(at, K).copy_from(&cols);
+                    let offset = &a * self.offset.rows(at, K);
+                    self.offset.rows_mut(at, K).copy_from(&offset);
+                }
+                None => {
+                    for r in 0..K {
+                        for c in 0..K {
+                            self.cov[(at + r, at + c)] = g.cov[(r, c)];
+                        }
+                    }
+                }
+            }
         }
+        self.cov = (&self.cov + self.cov.transpose()) * 0.5;
     }
 
-    /// The joint update with one detection (see the module docs), `j` the detected track (none
-    /// for a reference); returns its normalised innovation squared. With the hold, the gain's
-    /// bias rows are projected onto the directions the data determine, as
-    /// [`Registration`]'s (a Schmidt–Kalman consider update: the expanded Joseph form of
-    /// [`joint`] is the covariance of any gain, so the other directions keep their prior and the
-    /// tracks carry their uncertainty), and the full covariance takes the optimal update that
-    /// says which directions are determined.
-    fn apply(
+    /// The joint update with one detection (see the module docs) from the tracks `tracks` (the
+    /// tracker's, in the bank's order) moved by this mode's offsets, `j` the detected track
+    /// (none for a reference), `seen` what was seen; the mode keeps its new biases and
+    /// covariances, and returns its track means (see [`ModeUpdate`]). With the hold, the gain's
+    /// bias rows are projected onto the directions the data determine, as [`Registration`]'s (a
+    /// Schmidt–Kalman consider update: the expanded Joseph form of [`joint`] is the covariance
+    /// of any gain, so the other directions keep their prior and the tracks carry their
+    /// uncertainty), and the full covariance takes the optimal update that says which
+    /// directions are determined.
+    fn update(
         &mut self,
-        tracks: &mut Tracks<'_, K>,
-        order: &[usize],
+        tracks: &[Gaussian<K>],
         j: Option<usize>,
-        nu: &DVector<f64>,
-        H: &DMatrix<f64>,
-        R: &DMatrix<f64>,
-    ) -> Result<f64> {
+        obs: &Observation<'_>,
+        seen: &Seen,
+    ) -> Result<ModeUpdate<K>> {
+        let mine: Vec<Gaussian<K>> = tracks
+            .iter()
+            .enumerate()
+            .map(|(t, g)| Gaussian {
+                mean: g.mean + self.offset.fixed_rows::<K>(t * K),
+                cov: self.cov.fixed_view::<K, K>(t * K, t * K).into_owned(),
+            })
+            .collect();
+        let mut x = self.bias;
+        if let Some(j) = j {
+            x.fixed_rows_mut::<K>(0).copy_from(&mine[j].mean);
+        }
+        let (nu, H, R) = self.reg.linearised(&x, obs, seen)?;
         let (b0, d, m) = (self.b0(), self.cov.nrows(), H.nrows());
         let mut Hd = DMatrix::zeros(m, d);
         for r in 0..m {
@@ -344,73 +317,483 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             let T = self.reg.gain_projection(&self.state());
             DMatrix::from_fn(N - K, N - K, |r, c| T[(K + r, K + c)])
         });
-        let P = self.with_tracks(&self.cov, tracks, order)?;
-        let (dx, P, nis) = joint(&P, &Hd, nu, R, projection.as_ref().map(|T| (b0, T)))?;
+        let up = joint(
+            &self.cov,
+            &Hd,
+            &nu,
+            &R,
+            projection.as_ref().map(|T| (b0, T)),
+        )?;
         let full = match &self.full {
-            Some(f) => Some(joint(f, &Hd, nu, R, None)?.1),
+            Some(f) => Some(joint(f, &Hd, &nu, &R, None)?.P),
             None => None,
         };
-        for (t, &k) in order.iter().enumerate() {
-            let g = &mut *tracks[k].1;
-            for r in 0..K {
-                g.mean[r] += dx[t * K + r];
-                for s in 0..K {
-                    g.cov[(r, s)] = P[(t * K + r, t * K + s)];
-                }
-            }
-        }
+        let out = mine
+            .iter()
+            .enumerate()
+            .map(|(t, g)| Gaussian {
+                mean: g.mean + up.dx.fixed_rows::<K>(t * K),
+                cov: SMatrix::<f64, K, K>::from_fn(|r, s| up.P[(t * K + r, t * K + s)]),
+            })
+            .collect();
         for i in K..N {
-            self.bias[i] += dx[b0 + i - K];
+            self.bias[i] += up.dx[b0 + i - K];
         }
-        self.cov = P;
+        self.cov = up.P;
         if full.is_some() {
             self.full = full;
         }
+        Ok(ModeUpdate {
+            nis: up.nis,
+            log_likelihood: up.log_likelihood,
+            tracks: out,
+        })
+    }
+}
+
+impl<const K: usize, const N: usize> BiasBank<K, N> {
+    /// A bank for `reg`'s sensors and bias models, every term at its prior, no track; one
+    /// mode, the bias model as configured.
+    pub fn new(reg: Registration<K, N>) -> Result<Self> {
+        let placeholder = Gaussian {
+            mean: SVector::zeros(),
+            cov: SMatrix::identity(),
+        };
+        let s = reg.initial(&placeholder)?;
+        let cov = s.estimate.cov.view((K, K), (N - K, N - K)).into_owned();
+        let cov = DMatrix::from_column_slice(N - K, N - K, cov.as_slice());
+        Ok(Self {
+            modes: vec![Mode {
+                bias: s.estimate.mean,
+                offset: DVector::zeros(0),
+                full: reg.tuning().hold.then(|| cov.clone()),
+                cov,
+                reg,
+            }],
+            probs: vec![1.0],
+            drift: None,
+            ids: Vec::new(),
+        })
+    }
+
+    /// [`BiasBank::new`] with the two drift modes (see the module docs): `drift`'s `factor`,
+    /// `sojourn` and `initial` (the probability of the drifting mode at the start).
+    pub fn with_drift(reg: Registration<K, N>, drift: DriftModes) -> Result<Self> {
+        let ok = drift.factor.is_finite()
+            && drift.factor >= 1.0
+            && drift.sojourn.is_finite()
+            && drift.sojourn > 0.0
+            && (0.0..=1.0).contains(&drift.initial);
+        if !ok {
+            return Err(EstimationError::InvalidParameter(format!(
+                "drift modes need factor ≥ 1, a sojourn > 0 and an initial probability in \
+                 [0, 1], got {drift:?}"
+            )));
+        }
+        let mut bank = Self::new(reg)?;
+        let mut drifting = bank.modes[0].clone();
+        drifting.reg = drifting.reg.with_drift_factor(drift.factor);
+        bank.modes.push(drifting);
+        bank.probs = vec![
+            (1.0 - drift.initial).max(PROB_FLOOR),
+            drift.initial.max(PROB_FLOOR),
+        ];
+        bank.drift = Some(drift);
+        Ok(bank)
+    }
+
+    /// The layout, the bias models and the linearisation (the steady mode's).
+    pub fn registration(&self) -> &Registration<K, N> {
+        &self.modes[0].reg
+    }
+
+    /// The probability of the drifting mode (`None` without drift modes).
+    pub fn drifting_prob(&self) -> Option<f64> {
+        self.drift.map(|_| self.probs[1])
+    }
+
+    /// The modes moment-matched, with the steady mode's filter: the bank's estimate.
+    fn combined(&self) -> Mode<K, N> {
+        if self.modes.len() == 1 {
+            return self.modes[0].clone();
+        }
+        mix(&self.modes, &self.probs, &self.modes[0].reg)
+    }
+
+    /// The bias terms' mean and covariance, as a registration state with a placeholder target
+    /// (mean 0, identity covariance, uncorrelated).
+    pub fn state(&self) -> RegistrationState<N> {
+        self.combined().state()
+    }
+
+    /// Every sensor's bias estimate, its standard deviation and observability.
+    pub fn estimates(&self) -> Vec<SensorEstimate> {
+        self.registration().estimates(&self.state())
+    }
+
+    /// The tracks, in the bank's order.
+    pub fn tracks(&self) -> &[TrackId] {
+        &self.ids
+    }
+
+    /// The cross-covariance `P_ib` of a track (columns `K..N`, the first `K` zero).
+    pub fn cross(&self, id: TrackId) -> Option<SMatrix<f64, K, N>> {
+        let i = self.ids.iter().position(|t| *t == id)?;
+        let c = self.combined();
+        let b0 = c.b0();
+        Some(SMatrix::from_fn(|r, col| {
+            if col < K {
+                0.0
+            } else {
+                c.cov[(i * K + r, b0 + col - K)]
+            }
+        }))
+    }
+
+    /// A new track, of state `track`, uncorrelated with the biases and the other tracks (a
+    /// track started from bias-corrected detections, [`BiasBank::correct`]: their correlation
+    /// with the biases is dropped). Errors if the bank has it already.
+    pub fn add_track(&mut self, id: TrackId, track: &Gaussian<K>) -> Result<()> {
+        if self.ids.contains(&id) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "track {id} is in the bank already"
+            )));
+        }
+        ensure_finite(&track.cov, "track covariance")?;
+        let b0 = self.ids.len() * K;
+        // Old tracks, then the new one, then the biases.
+        let grow = |old: &DMatrix<f64>| {
+            let d = old.nrows();
+            let mut cov = DMatrix::zeros(d + K, d + K);
+            let map = |i: usize| if i < b0 { i } else { i + K };
+            for i in 0..d {
+                for j in 0..d {
+                    cov[(map(i), map(j))] = old[(i, j)];
+                }
+            }
+            for i in 0..K {
+                for j in 0..K {
+                    cov[(b0 + i, b0 + j)] = track.cov[(i, j)];
+                }
+            }
+            cov
+        };
+        for m in &mut self.modes {
+            if let Some(full) = m.full.take() {
+                m.full = Some(grow(&full));
+            }
+            m.cov = grow(&m.cov);
+            m.offset = m.offset.clone().resize_vertically(b0 + K, 0.0);
+        }
+        self.ids.push(id);
+        Ok(())
+    }
+
+    /// Forgets a track.
+    pub fn remove_track(&mut self, id: TrackId) {
+        if let Some(i) = self.ids.iter().position(|t| *t == id) {
+            for m in &mut self.modes {
+                let d = m.cov.nrows();
+                let keep: Vec<usize> = (0..d)
+                    .filter(|r| !(i * K..(i + 1) * K).contains(r))
+                    .collect();
+                m.cov = m.cov.select_rows(&keep).select_columns(&keep);
+                m.full = m
+                    .full
+                    .as_ref()
+                    .map(|f| f.select_rows(&keep).select_columns(&keep));
+                let offsets = m.offset.len();
+                let rows: Vec<usize> = keep.iter().copied().filter(|&r| r < offsets).collect();
+                m.offset = m.offset.select_rows(&rows);
+            }
+            self.ids.remove(i);
+        }
+    }
+
+    /// The biases' dynamics over `dt ≥ 0` seconds and the bank's CV prediction of the tracks'
+    /// covariances (`P ← F P Fᵀ + Q`); the tracker predicts the tracks themselves over the same
+    /// `dt`. With drift modes, the IMM's mixing first, the switch probability over `dt`
+    /// `p_d = ½ (1 − e^{−2 dt / T})` (`T` the sojourn; [BLK01] §11.6.6).
+    pub fn predict(&mut self, dt: f64) -> Result<()> {
+        if !(dt.is_finite() && dt >= 0.0) {
+            return Err(EstimationError::InvalidParameter(format!(
+                "prediction interval must be finite and ≥ 0, got {dt}"
+            )));
+        }
+        if dt == 0.0 {
+            return Ok(());
+        }
+        if let Some(drift) = self.drift {
+            let pd = 0.5 * (1.0 - (-2.0 * dt / drift.sojourn).exp());
+            let tpm = [[1.0 - pd, pd], [pd, 1.0 - pd]];
+            let mut mixed = Vec::with_capacity(2);
+            let mut probs = Vec::with_capacity(2);
+            for (j, mode) in self.modes.iter().enumerate() {
+                let w: Vec<f64> = (0..2).map(|i| tpm[i][j] * self.probs[i]).collect();
+                let cbar: f64 = w.iter().sum();
+                let w: Vec<f64> = w.iter().map(|v| v / cbar).collect();
+                mixed.push(mix(&self.modes, &w, &mode.reg));
+                probs.push(cbar.max(PROB_FLOOR));
+            }
+            let sum: f64 = probs.iter().sum();
+            self.probs = probs.iter().map(|p| p / sum).collect();
+            self.modes = mixed;
+        }
+        for m in &mut self.modes {
+            m.predict(dt);
+        }
+        Ok(())
+    }
+
+    /// Updates every track (their states `tracks`, at the bank's time: every track of the bank)
+    /// and the biases with one detection associated with track `id`; returns the detection's
+    /// normalised innovation squared (the modes', weighed by their probabilities before it).
+    /// The tracks' states are replaced by the updated ones.
+    pub fn update(
+        &mut self,
+        tracks: &mut Tracks<'_, K>,
+        id: TrackId,
+        obs: &Observation<'_>,
+    ) -> Result<f64> {
+        let j = self.ids.iter().position(|t| *t == id).ok_or_else(|| {
+            EstimationError::InvalidParameter(format!("no track {id} in the bank"))
+        })?;
+        self.apply(tracks, Some(j), obs, &Seen::Target)
+    }
+
+    /// Updates the biases with a detection of a cooperative reference (a known object), and
+    /// every track through its correlation with them (`tracks`: every track of the bank, at its
+    /// time, replaced by the updated states); returns the detection's normalised innovation
+    /// squared.
+    pub fn update_reference(
+        &mut self,
+        tracks: &mut Tracks<'_, K>,
+        obs: &Observation<'_>,
+        known: &KnownObject,
+    ) -> Result<f64> {
+        self.apply(tracks, None, obs, &Seen::Known(*known))
+    }
+
+    /// Every mode's update (see [`Mode::update`]); then, with drift modes, the modes'
+    /// probabilities from their likelihoods, and the tracks handed back moment-matched over the
+    /// modes, each mode keeping its means as offsets from them. Nothing changes on an error.
+    fn apply(
+        &mut self,
+        tracks: &mut Tracks<'_, K>,
+        j: Option<usize>,
+        obs: &Observation<'_>,
+        seen: &Seen,
+    ) -> Result<f64> {
+        let order = self.order(tracks)?;
+        let given: Vec<Gaussian<K>> = order.iter().map(|&k| *tracks[k].1).collect();
+        let maps = track_maps(&self.modes, &self.probs, &given)?;
+        let mut modes = self.modes.clone();
+        for m in &mut modes {
+            m.follow(&given, &maps);
+        }
+        let ups = modes
+            .iter_mut()
+            .map(|m| m.update(&given, j, obs, seen))
+            .collect::<Result<Vec<_>>>()?;
+        let nis = ups.iter().zip(&self.probs).map(|(u, p)| u.nis * p).sum();
+        let probs = if ups.len() == 1 {
+            vec![1.0]
+        } else {
+            let log_w: Vec<f64> = ups
+                .iter()
+                .zip(&self.probs)
+                .map(|(u, p)| p.ln() + u.log_likelihood)
+                .collect();
+            let max = log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if !max.is_finite() {
+                return Err(EstimationError::NonFinite("bias bank mode likelihoods"));
+            }
+            let w: Vec<f64> = log_w.iter().map(|l| (l - max).exp()).collect();
+            let sum: f64 = w.iter().sum();
+            let w: Vec<f64> = w.iter().map(|v| (v / sum).max(PROB_FLOOR)).collect();
+            let sum: f64 = w.iter().sum();
+            w.iter().map(|v| v / sum).collect()
+        };
+        for (t, &k) in order.iter().enumerate() {
+            let per_mode: Vec<Gaussian<K>> = ups.iter().map(|u| u.tracks[t]).collect();
+            let g = moment_match(&per_mode, &probs);
+            for (m, own) in modes.iter_mut().zip(&per_mode) {
+                m.offset
+                    .fixed_rows_mut::<K>(t * K)
+                    .copy_from(&(own.mean - g.mean));
+            }
+            *tracks[k].1 = g;
+        }
+        self.modes = modes;
+        self.probs = probs;
         Ok(nis)
     }
 
-    /// `cov` with the tracker's predicted `P_ii` in place of the bank's: each track's error
-    /// taken as the bank's transformed by `A_i = L_c L_b⁻¹` (the Cholesky factors of the
-    /// tracker's `P_ii` and of the bank's), so that its cross-covariances follow, `P_ij ← A_i
-    /// P_ij A_jᵀ`, and the whole stays positive semi-definite however the tracker changed `P_ii`
-    /// (an IMM's moment-matched prediction, a road update); where a factor fails, `P_ii` alone.
-    fn with_tracks(
-        &self,
-        cov: &DMatrix<f64>,
-        tracks: &Tracks<'_, K>,
-        order: &[usize],
-    ) -> Result<DMatrix<f64>> {
-        let mut P = cov.clone();
-        for (t, &k) in order.iter().enumerate() {
-            let c = &tracks[k].1.cov;
-            ensure_finite(c, "track covariance")?;
-            let at = t * K;
-            let own = P.view((at, at), (K, K)).into_owned();
-            let own = SMatrix::<f64, K, K>::from_iterator(own.iter().copied());
-            let a = c
-                .cholesky()
-                .zip(own.cholesky())
-                .and_then(|(lc, lb)| Some(lc.l() * lb.l().try_inverse()?));
-            if let Some(a) = a {
-                let a = DMatrix::from_column_slice(K, K, a.as_slice());
-                let rows = &a * P.rows(at, K);
-                P.rows_mut(at, K).copy_from(&rows);
-                let cols = P.columns(at, K) * a.transpose();
-                P.columns_mut(at, K).copy_from(&cols);
+    /// The tracks `tracks` (every track of the bank, the tracker's estimates at the bank's
+    /// time) weighed over the hypotheses of which sensors are biased, as the replay estimator's
+    /// output ([`super::RegistrationImm`]): no sensor biased (prior [`UNBIASED_PRIOR`]), and each
+    /// non-empty set of the sensors with terms (equal priors; the set of all alone above
+    /// [`super::MAX_SET_SENSORS`] sensors). A hypothesis holds the terms of the sensors it takes
+    /// as unbiased at their prior means `μ_c`; its Bayes factor against every term free is the
+    /// Savage–Dickey ratio and its estimate the bank's conditioned on them
+    /// (`Registration::given_prior`, over the bank's joint covariance):
+    ///
+    /// ```text
+    /// B_S = N(μ_c; b̂_c, P_cc) / N(μ_c; μ_c, Σ_c),   P(S | data) ∝ P(S) B_S
+    /// x̂_i,S = x̂_i + P_ic P_cc⁻¹ (μ_c − b̂_c),   P_ii,S = P_ii − P_ic P_cc⁻¹ P_ci
+    /// ```
+    ///
+    /// exact, for constant biases and a linear model, as the filter told those sensors are
+    /// unbiased (Dickey 1971; Verdinelli & Wasserman 1995). The recursion is unchanged: the
+    /// bank keeps estimating every term and the tracker keeps its tracks; this is what they
+    /// report. A hypothesis whose `P_cc` is not positive definite is left out.
+    pub fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> Result<BankOutput<K>> {
+        let order = self.order(tracks)?;
+        let given: Vec<Gaussian<K>> = order.iter().map(|&k| tracks[k].1).collect();
+        let weighed = self.weighed(&given)?;
+        let w: Vec<f64> = weighed.iter().map(|h| h.weight).collect();
+        let tracks = order
+            .iter()
+            .enumerate()
+            .map(|(t, &k)| {
+                let components: Vec<Gaussian<K>> = weighed.iter().map(|h| h.tracks[t]).collect();
+                (tracks[k].0, moment_match(&components, &w))
+            })
+            .collect();
+        Ok(BankOutput {
+            tracks,
+            biased: biased_probs(&weighed, self.registration().sensors().len()),
+        })
+    }
+
+    /// Per sensor (the registration's order), the probability that it is biased: the weight of
+    /// the hypotheses of [`BiasBank::output`] that hold it biased (they depend on the biases
+    /// alone).
+    pub fn biased(&self) -> Result<Vec<f64>> {
+        let weighed = self.weighed(&[])?;
+        Ok(biased_probs(&weighed, self.registration().sensors().len()))
+    }
+
+    /// The hypotheses of [`BiasBank::output`], weighed, each with the tracks `given` (every
+    /// track in the bank's order, or none) conditioned on it.
+    fn weighed(&self, given: &[Gaussian<K>]) -> Result<Vec<Hypothesis<K>>> {
+        let mut bank = self.combined();
+        bank.follow(
+            given,
+            &track_maps(std::slice::from_ref(&bank), &[1.0], given)?,
+        );
+        let P = &bank.cov;
+        let b0 = bank.b0();
+        let sensors = bank.reg.sensors();
+        let sets = biased_sets(&bank.reg, true);
+        let every_term: Vec<usize> = sensors
+            .iter()
+            .flat_map(|s| s.terms().map(|(_, i)| i))
+            .collect();
+        let set_prior = (1.0 - UNBIASED_PRIOR) / sets.len() as f64;
+        // A Gauss–Markov term wanders about its mean: its value there says nothing of whether
+        // the sensor is biased, so no hypothesis holds such a sensor unbiased.
+        let wanders = |i: &usize| {
+            bank.reg
+                .prior_of(*i)
+                .is_some_and(|p| matches!(p.dynamics, Dynamics::GaussMarkov { .. }))
+        };
+        let hypotheses = std::iter::once((vec![false; sensors.len()], every_term, UNBIASED_PRIOR))
+            .chain(sets.into_iter().map(|s| (s.biased, s.pinned, set_prior)))
+            .filter(|(_, pinned, _)| !pinned.iter().any(wanders));
+        let own = |t: usize| Gaussian {
+            mean: given[t].mean,
+            cov: SMatrix::<f64, K, K>::from_fn(|r, s| P[(t * K + r, t * K + s)]),
+        };
+        let mut weighed: Vec<Hypothesis<K>> = Vec::new();
+        for (biased, pinned, prior) in hypotheses {
+            if pinned.is_empty() {
+                weighed.push(Hypothesis {
+                    biased,
+                    weight: prior.ln(),
+                    tracks: (0..given.len()).map(own).collect(),
+                });
+                continue;
             }
-            for r in 0..K {
-                for s in 0..K {
-                    P[(at + r, at + s)] = c[(r, s)];
-                }
+            let Some(priors) = pinned
+                .iter()
+                .map(|&i| bank.reg.prior_of(i))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            let c: Vec<usize> = pinned.iter().map(|&i| b0 + i - K).collect();
+            let k = c.len();
+            let Some(chol) = DMatrix::from_fn(k, k, |i, j| P[(c[i], c[j])]).cholesky() else {
+                continue;
+            };
+            let r = DVector::from_fn(k, |i, _| priors[i].mean - bank.bias[pinned[i]]);
+            let a = chol.solve(&r);
+            let log_det = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
+            let log_prior_det: f64 = priors.iter().map(|p| (p.std * p.std).ln()).sum();
+            let log_bf = -0.5 * r.dot(&a) - 0.5 * log_det + 0.5 * log_prior_det;
+            if !log_bf.is_finite() {
+                continue;
             }
+            let tracks = (0..given.len())
+                .map(|t| {
+                    let mut g = own(t);
+                    let Ptc = DMatrix::from_fn(K, k, |r, j| P[(t * K + r, c[j])]);
+                    let shift = &Ptc * &a;
+                    let drop = &Ptc * chol.solve(&Ptc.transpose());
+                    for r in 0..K {
+                        g.mean[r] += shift[r];
+                        for s in 0..K {
+                            g.cov[(r, s)] -= drop[(r, s)];
+                        }
+                    }
+                    g.cov = (g.cov + g.cov.transpose()) * 0.5;
+                    g
+                })
+                .collect();
+            weighed.push(Hypothesis {
+                biased,
+                weight: prior.ln() + log_bf,
+                tracks,
+            });
         }
-        Ok((&P + P.transpose()) * 0.5)
+        let max = weighed
+            .iter()
+            .map(|h| h.weight)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if !max.is_finite() {
+            return Err(EstimationError::NonFinite("bias hypotheses"));
+        }
+        let total: f64 = weighed.iter().map(|h| (h.weight - max).exp()).sum();
+        for h in &mut weighed {
+            h.weight = (h.weight - max).exp() / total;
+        }
+        Ok(weighed)
+    }
+
+    /// For each of the bank's tracks, its index in `tracks`; errors unless `tracks` holds
+    /// exactly the bank's tracks.
+    fn order<G>(&self, tracks: &[(TrackId, G)]) -> Result<Vec<usize>> {
+        let order: Option<Vec<usize>> = self
+            .ids
+            .iter()
+            .map(|id| tracks.iter().position(|(t, _)| t == id))
+            .collect();
+        match order {
+            Some(o) if tracks.len() == self.ids.len() => Ok(o),
+            _ => Err(EstimationError::InvalidParameter(format!(
+                "an update needs every track of the bank ({:?}), got {:?}",
+                self.ids,
+                tracks.iter().map(|(t, _)| *t).collect::<Vec<_>>()
+            ))),
+        }
     }
 
     /// A detection `z` of sensor `sensor` with the offsets and scales taken out, the bias
     /// uncertainty to add to its noise, and the time offset (see [`Corrected`]).
     pub fn correct(&self, sensor: usize, z: &[f64]) -> Result<Corrected> {
-        let slots = self
+        let bank = self.combined();
+        let slots = bank
             .reg
             .sensors()
             .get(sensor)
@@ -421,14 +804,14 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 slots.dim
             )));
         }
-        let cov = self.state().estimate.cov;
+        let cov = bank.state().estimate.cov;
         let dim = slots.dim;
         let mut out = Vec::with_capacity(dim);
         // J: dim × N, ∂z'/∂b.
         let mut J = DMatrix::<f64>::zeros(dim, N);
         for (i, zi) in z.iter().enumerate() {
-            let o = slots.offset[i].map_or(0.0, |s| self.bias[s]);
-            let g = 1.0 + slots.scale[i].map_or(0.0, |s| self.bias[s]);
+            let o = slots.offset[i].map_or(0.0, |s| bank.bias[s]);
+            let g = 1.0 + slots.scale[i].map_or(0.0, |s| bank.bias[s]);
             if g.abs() < 1e-6 {
                 return Err(EstimationError::InvalidParameter(format!(
                     "sensor {sensor}: scale estimate {g} of component {i}"
@@ -447,7 +830,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         let extra = &J * P * J.transpose();
         let (time_offset, time_offset_var) = slots
             .time_offset
-            .map_or((0.0, 0.0), |s| (self.bias[s], cov[(s, s)]));
+            .map_or((0.0, 0.0), |s| (bank.bias[s], cov[(s, s)]));
         Ok(Corrected {
             z: out,
             extra_cov: (&extra + extra.transpose()) * 0.5,
@@ -457,28 +840,105 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     }
 }
 
+/// Per track (the bank's order), the map `A_i = L_c L_b⁻¹` of the Cholesky factors of the
+/// tracker's `P_ii` (`tracks`) and of the bank's, the modes' mixture `Σ p_m (P_ii,m + δ_i,m
+/// δ_i,mᵀ)` (`δ` the modes' offsets): the tracker's change to the track's covariance as a
+/// change of its error, `e ← A_i e` ([`Mode::follow`]); `None` where a factor fails.
+fn track_maps<const K: usize, const N: usize>(
+    modes: &[Mode<K, N>],
+    probs: &[f64],
+    tracks: &[Gaussian<K>],
+) -> Result<Vec<Option<SMatrix<f64, K, K>>>> {
+    tracks
+        .iter()
+        .enumerate()
+        .map(|(t, g)| {
+            ensure_finite(&g.cov, "track covariance")?;
+            let at = t * K;
+            let mut bank = SMatrix::<f64, K, K>::zeros();
+            for (m, p) in modes.iter().zip(probs) {
+                let d = m.offset.fixed_rows::<K>(at);
+                bank += (m.cov.fixed_view::<K, K>(at, at) + d * d.transpose()) * *p;
+            }
+            Ok(g.cov
+                .cholesky()
+                .zip(bank.cholesky())
+                .and_then(|(lc, lb)| Some(lc.l() * lb.l().try_inverse()?)))
+        })
+        .collect()
+}
+
+/// The modes `modes` weighed by `w`, moment-matched, as a mode of filter `reg`: the means
+/// `[offsets; b]` and both covariances with the spread of the means ([BLK01] §11.6.6).
+fn mix<const K: usize, const N: usize>(
+    modes: &[Mode<K, N>],
+    w: &[f64],
+    reg: &Registration<K, N>,
+) -> Mode<K, N> {
+    let means: Vec<DVector<f64>> = modes.iter().map(Mode::stacked).collect();
+    let mut mean = DVector::zeros(means[0].len());
+    for (m, wi) in means.iter().zip(w) {
+        mean.axpy(*wi, m, 1.0);
+    }
+    let spread = |cov: &dyn Fn(&Mode<K, N>) -> &DMatrix<f64>| {
+        let mut out = DMatrix::zeros(mean.len(), mean.len());
+        for ((mode, m), wi) in modes.iter().zip(&means).zip(w) {
+            let d = m - &mean;
+            out += cov(mode) * *wi;
+            out.ger(*wi, &d, &d, 1.0);
+        }
+        (&out + out.transpose()) * 0.5
+    };
+    let cov = spread(&|m| &m.cov);
+    let full = modes[0]
+        .full
+        .is_some()
+        .then(|| spread(&|m| m.full.as_ref().unwrap_or(&m.cov)));
+    let b0 = modes[0].b0();
+    let mut bias = SVector::<f64, N>::zeros();
+    for i in K..N {
+        bias[i] = mean[b0 + i - K];
+    }
+    Mode {
+        reg: reg.clone(),
+        bias,
+        offset: mean.rows(0, b0).into_owned(),
+        cov,
+        full,
+    }
+}
+
+/// One EKF update's outcome ([`joint`]).
+struct Joint {
+    dx: DVector<f64>,
+    P: DMatrix<f64>,
+    nis: f64,
+    log_likelihood: f64,
+}
+
 /// One EKF update of `[x_1; …; x_T; b]` (covariance `P`, the stacked `Hd`) with the innovation
 /// `nu` of noise `R`, with `projection = (b0, T)` the gain's bias rows (from `b0`) projected by
 /// `T` (`K_b ← T K_b`): the correction, the covariance of that gain (the Joseph form
-/// (5.2.3-18) expanded, `P − K H P − (K H P)ᵀ + K S Kᵀ`, exact for any gain) and the
-/// normalised innovation squared.
+/// (5.2.3-18) expanded, `P − K H P − (K H P)ᵀ + K S Kᵀ`, exact for any gain), the normalised
+/// innovation squared and the log-likelihood `log N(ν; 0, S)`.
 fn joint(
     P: &DMatrix<f64>,
     Hd: &DMatrix<f64>,
     nu: &DVector<f64>,
     R: &DMatrix<f64>,
     projection: Option<(usize, &DMatrix<f64>)>,
-) -> Result<(DVector<f64>, DMatrix<f64>, f64)> {
+) -> Result<Joint> {
     let PHt = P * Hd.transpose();
     let S = Hd * &PHt + R;
     let S = (&S + S.transpose()) * 0.5;
-    let Si = S
+    let chol = S
         .clone()
         .cholesky()
         .ok_or(EstimationError::NotPositiveDefinite(
             "innovation covariance",
-        ))?
-        .inverse();
+        ))?;
+    let log_det = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
+    let Si = chol.inverse();
     let mut Kd = &PHt * &Si;
     if let Some((b0, T)) = projection {
         let kb = T * Kd.rows(b0, T.nrows());
@@ -491,7 +951,15 @@ fn joint(
     if !(dx.iter().all(|v| v.is_finite()) && P.iter().all(|v| v.is_finite())) {
         return Err(EstimationError::NonFinite("bias bank update"));
     }
-    Ok((dx, P, (nu.transpose() * Si * nu)[0]))
+    let nis = (nu.transpose() * Si * nu)[0];
+    let log_likelihood =
+        -0.5 * (nis + log_det + nu.len() as f64 * (2.0 * std::f64::consts::PI).ln());
+    Ok(Joint {
+        dx,
+        P,
+        nis,
+        log_likelihood,
+    })
 }
 
 #[cfg(test)]

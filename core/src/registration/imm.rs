@@ -154,9 +154,9 @@ pub struct RegistrationImm<const K: usize, const N: usize> {
 /// One set of biased sensors: which sensors (in the filter's order) and the state indices of
 /// the terms it takes at their prior (the other sensors').
 #[derive(Debug, Clone, PartialEq)]
-struct BiasedSet {
-    biased: Vec<bool>,
-    pinned: Vec<usize>,
+pub(super) struct BiasedSet {
+    pub(super) biased: Vec<bool>,
+    pub(super) pinned: Vec<usize>,
 }
 
 /// The IMM's state: one registration state per mode and the mode probabilities
@@ -391,7 +391,7 @@ struct Component<const N: usize> {
 /// The sets of biased sensors of `filter` the output weighs: every non-empty set of the sensors
 /// that carry terms when `per_sensor` and there are at most [`MAX_SET_SENSORS`] of them, else
 /// the set of all; the set of all is the last.
-fn biased_sets<const K: usize, const N: usize>(
+pub(super) fn biased_sets<const K: usize, const N: usize>(
     filter: &Registration<K, N>,
     per_sensor: bool,
 ) -> Vec<BiasedSet> {

@@ -128,7 +128,7 @@ mod model;
 mod report;
 mod truth;
 
-pub use bank::{BiasBank, Corrected, TrackId, Tracks};
+pub use bank::{BankOutput, BiasBank, Corrected, TrackId, Tracks, UNBIASED_PRIOR};
 pub use filter::{
     KnownObject, Observation, Registration, RegistrationState, Seen, SensorSlots, Tuning, Updated,
 };
