@@ -146,6 +146,11 @@ pub struct SensorBiasView {
     /// Its detections of a cooperative reference (a UAV whose GPS position is known) that
     /// updated the biases.
     pub references: u64,
+    /// The probability that it is biased at all (the registrar's hypotheses of which sensors
+    /// are biased, none included; FORMAT-REGISTRATION.md §4).
+    pub biased_prob: Option<f64>,
+    /// The probability of the registrar's drifting bias mode (the same for every sensor).
+    pub drift_prob: Option<f64>,
     /// Each term.
     pub terms: Vec<BiasTermView>,
 }

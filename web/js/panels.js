@@ -598,7 +598,8 @@ export class BiasesPanel {
     this.section.hidden = list.length === 0;
     const rows = [];
     for (const s of list) {
-      rows.push([`${s.vehicle}/${s.sensor}`, `${s.kind} · ${s.updates} updates · ${s.observable ? "observable" : "not observable"}`, !s.observable, "sensor"]);
+      const biased = typeof s.biased_prob === "number" ? ` · biased ${(100 * s.biased_prob).toFixed(0)} %` : "";
+      rows.push([`${s.vehicle}/${s.sensor}`, `${s.kind} · ${s.updates} updates · ${s.observable ? "observable" : "not observable"}${biased}`, !s.observable, "sensor"]);
       for (const t of s.terms) rows.push([`  ${t.term}`, `${fmtBias(s.kind, t)} · ${t.observable ? "yes" : "no"}`, !t.observable, "term"]);
     }
     if (this.table.rows.length !== rows.length) {

@@ -361,11 +361,24 @@ where
             .map_or_else(serde_json::Map::new, Registrar::bias_est)
     }
 
+    /// The tracker's tracks; with registration the bank's as the registrar reports them
+    /// (weighed over which sensors are biased, [`Registrar::output`]).
     fn snapshot(&self) -> Vec<TrackView> {
+        let registered = self
+            .registrar
+            .as_ref()
+            .and_then(|r| r.output(&self.tracker))
+            .map(|o| o.tracks)
+            .unwrap_or_default();
         self.tracker
             .snapshot()
             .into_iter()
-            .map(|k| self.view(k))
+            .map(|mut k| {
+                if let Some((_, g)) = registered.iter().find(|(id, _)| *id == k.id) {
+                    k.estimate = *g;
+                }
+                self.view(k)
+            })
             .collect()
     }
 

@@ -31,6 +31,12 @@
 //! 6. a track enters the bank when it is confirmed (uncorrelated with the biases: it was built
 //!    from corrected detections), at most [`MAX_BANK_TRACKS`] of them, and leaves when deleted.
 //!
+//! The bank runs two bias modes, the model as configured and every random-walk term drifting
+//! 20 times faster ([`BiasBank::with_drift`], [`DriftModes::default`]: the replay estimator's
+//! tuning), and the engine reports the bank's tracks weighed over which sensors are biased,
+//! none included ([`Registrar::output`], [`BiasBank::output`]): registration then costs nothing
+//! on unbiased sensors and follows a drifting bias (BENCHMARKS.md, "The live registrar on the
+//! replay scenarios").
 //! Without registration the engine holds no registrar and the scan path is the plain one.
 
 use harrier_core::measurement::{
@@ -38,8 +44,8 @@ use harrier_core::measurement::{
 };
 use harrier_core::metrics::chi2_quantile;
 use harrier_core::registration::{
-    BiasBank, Corrected, KnownObject, Observation, Registration, SensorEstimate, TrackId, Tracks,
-    Tuning,
+    BankOutput, BiasBank, Corrected, DriftModes, KnownObject, Observation, Registration,
+    SensorEstimate, TrackId, Tracks, Tuning,
 };
 use harrier_core::state::Gaussian;
 use harrier_core::tracker::{Initiator, TrackEvent, TrackFilter, TrackStatus, Tracker};
@@ -100,6 +106,9 @@ trait LiveBank<const K: usize>: Send + std::fmt::Debug {
         known: &KnownObject,
     ) -> harrier_core::Result<f64>;
     fn estimates(&self) -> Vec<SensorEstimate>;
+    fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> harrier_core::Result<BankOutput<K>>;
+    fn biased(&self) -> harrier_core::Result<Vec<f64>>;
+    fn drifting_prob(&self) -> Option<f64>;
 }
 
 impl<const K: usize, const N: usize> LiveBank<K> for BiasBank<K, N> {
@@ -136,6 +145,15 @@ impl<const K: usize, const N: usize> LiveBank<K> for BiasBank<K, N> {
     }
     fn estimates(&self) -> Vec<SensorEstimate> {
         BiasBank::estimates(self)
+    }
+    fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> harrier_core::Result<BankOutput<K>> {
+        BiasBank::output(self, tracks)
+    }
+    fn biased(&self) -> harrier_core::Result<Vec<f64>> {
+        BiasBank::biased(self)
+    }
+    fn drifting_prob(&self) -> Option<f64> {
+        BiasBank::drifting_prob(self)
     }
 }
 
@@ -179,7 +197,8 @@ pub fn registrar<const K: usize, const N: usize>(
     slots.extend([(2, None), (3, None)]);
     let reg = Registration::<K, N>::new(d.q(p)?, d.plane_z, &slots, Tuning::default())
         .map_err(|e| setup(format!("registration: {e}")))?;
-    let bank = BiasBank::new(reg).map_err(|e| setup(format!("registration: {e}")))?;
+    let bank = BiasBank::with_drift(reg, DriftModes::default())
+        .map_err(|e| setup(format!("registration: {e}")))?;
     Ok(Some(Registrar {
         bank: Box::new(bank),
         sensors: d.registration.clone(),
@@ -475,18 +494,43 @@ impl<const K: usize> Registrar<K> {
         Ok(events)
     }
 
+    /// The bank's tracks as they are reported: the tracker's estimates weighed over which
+    /// sensors are biased ([`BiasBank::output`]); `None` when the bank cannot weigh them (a
+    /// track of the bank not in the tracker, a failed factorisation): the tracker's own stand.
+    pub fn output<F, I>(&self, tracker: &Tracker<F, I, K>) -> Option<BankOutput<K>>
+    where
+        F: TrackFilter<K>,
+        I: Initiator<K>,
+    {
+        let tracks = self
+            .bank
+            .tracks()
+            .iter()
+            .map(|&id| {
+                let k = tracker.tracks().iter().find(|k| k.id == id)?;
+                Some((id, tracker.filter().estimate(&k.state)))
+            })
+            .collect::<Option<Vec<_>>>()?;
+        self.bank.output(&tracks).ok()
+    }
+
     /// The registered sensors' entries of `bias_est`, keyed by sensor id, with the detections
     /// that updated them (`updates`: with a track; `references`: of a cooperative reference).
     pub fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
+        let biased = self.bank.biased().unwrap_or_default();
+        let drifting = self.bank.drifting_prob();
         self.bank
             .estimates()
             .into_iter()
             .zip(&self.sensors)
             .zip(self.updates.iter().zip(&self.references))
-            .map(|((e, s), (n, r))| {
+            .enumerate()
+            .map(|(i, ((e, s), (n, r)))| {
                 let mut json = e.to_json();
                 json["updates"] = serde_json::json!(n);
                 json["references"] = serde_json::json!(r);
+                json["biased_prob"] = serde_json::json!(biased.get(i));
+                json["bias_drift_prob"] = serde_json::json!(drifting);
                 (s.sensor.clone(), json)
             })
             .collect()
@@ -494,19 +538,24 @@ impl<const K: usize> Registrar<K> {
 
     /// The registered sensors' estimates.
     pub fn biases(&self) -> Vec<SensorBiasView> {
+        let biased = self.bank.biased().unwrap_or_default();
+        let drift_prob = self.bank.drifting_prob();
         self.bank
             .estimates()
             .into_iter()
             .zip(&self.sensors)
             .zip(&self.updates)
             .zip(self.references.iter().copied())
-            .map(|(((e, s), n), r)| SensorBiasView {
+            .enumerate()
+            .map(|(i, (((e, s), n), r))| SensorBiasView {
                 vehicle: s.vehicle.clone(),
                 sensor: s.sensor.clone(),
                 kind: s.kind.as_str().to_owned(),
                 observable: e.observable,
                 updates: *n,
                 references: r,
+                biased_prob: biased.get(i).copied(),
+                drift_prob,
                 terms: e
                     .terms
                     .iter()

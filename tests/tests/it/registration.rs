@@ -345,12 +345,20 @@ fn a_painted_uav_makes_a_lone_radars_bias_observable() {
 
 /// The live service's registrar (the track engine's `BiasBank`) on the same scenarios, through
 /// `harrier replay -e tracker --register`: constant radar offsets learnt and observable, the
-/// track within 1.2 × the same engine on the data with the biases taken out; a lone radar's
-/// offsets reported unobservable; a camera's latency learnt without duplicate tracks; without
-/// `--register` no `bias_est` and a track over 3 × worse.
-/// (Its figures over 8 seeds and every case: BENCHMARKS.md, "The live registrar in replay".)
+/// track within 1.2 × the same engine on the data with the biases taken out; without a bias
+/// within 1.05 × of it; Gauss–Markov offsets within 1.2 × the engine told their model; a lone
+/// radar's offsets reported unobservable; a camera's latency learnt without duplicate tracks;
+/// without `--register` no `bias_est` and a track over 3 × worse.
+/// (Its figures over 8 seeds and every case: BENCHMARKS.md, "The live registrar on the replay scenarios".)
 #[test]
 fn the_live_registrar_learns_the_replay_scenarios() {
+    /// A number of `sensor`'s entry in the last line's `bias_est`.
+    fn value_of(run: &ReplayReport, sensor: &str, key: &str) -> f64 {
+        let last = run.estimates.last().expect("estimates");
+        bias(last, sensor)[key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{key} of {sensor}"))
+    }
     /// The live engine (`ekf` tracks, `gnn`) over one scenario, and its position RMSE from
     /// 10 s on: the confirmed track nearest the truth at each line (a line without one fails).
     fn live(
@@ -434,6 +442,27 @@ fn the_live_registrar_learns_the_replay_scenarios() {
         assert!(
             3.0 * rmse < unregistered,
             "seed {seed}: {rmse} vs {unregistered}"
+        );
+        // No bias: within 5 % of the engine told the bias (the output weighs "no sensor
+        // biased"); Gauss–Markov offsets (σ 20–40 m, τ 60–200 s): within 1.2 × the engine told
+        // their model but not their values (the drifting mode follows them).
+        let (clean, unbiased, _) = live(seed, Case::None, Variant::Deployment, true);
+        let p = value_of(&clean, "radar1", "biased_prob");
+        println!(
+            "seed {seed}: no bias {unbiased:.2} m against {told:.2} m, radar biased with p {p:.3}"
+        );
+        assert!(unbiased <= 1.05 * told, "seed {seed}: {unbiased} vs {told}");
+        assert!(p < 0.5, "seed {seed}: {p}");
+        let (drifting, wandering, _) = live(seed, Case::GaussMarkov, Variant::Deployment, true);
+        let (_, modelled, _) = live(seed, Case::GaussMarkov, Variant::ToldModel, true);
+        let p = value_of(&drifting, "radar1", "bias_drift_prob");
+        println!(
+            "seed {seed}: Gauss-Markov {wandering:.2} m against {modelled:.2} m told the model, \
+             drifting mode at the end {p:.3}"
+        );
+        assert!(
+            wandering <= 1.2 * modelled,
+            "seed {seed}: {wandering} vs {modelled}"
         );
         let (alone, _, _) = live(seed, Case::RadarAlone, Variant::Deployment, true);
         let b = bias(alone.estimates.last().expect("estimates"), "radar1");
