@@ -40,7 +40,7 @@
 //! radar alone carries the target; a small one lags a drifting one), so the bank can run the
 //! replay estimator's two biased modes ([`super::RegistrationImm`]), the bias model as
 //! configured (**steady**) and every random-walk term drifting `factor` times faster
-//! (**drifting**), as an IMM over the augmented state ([BLK01] §11.6.6). Each mode keeps its
+//! (**drifting**), as an IMM over the augmented state (\[BLK01\] §11.6.6). Each mode keeps its
 //! own bias mean, its own covariance of `X` and its own track means, as offsets from the
 //! tracker's (which stays the moment-matched mixture): mixing at each prediction
 //! (`μ_{i|j} = p_ij μ_i / c̄_j`, the means and both covariances with the spread of the means),
@@ -513,7 +513,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// The biases' dynamics over `dt ≥ 0` seconds and the bank's CV prediction of the tracks'
     /// covariances (`P ← F P Fᵀ + Q`); the tracker predicts the tracks themselves over the same
     /// `dt`. With drift modes, the IMM's mixing first, the switch probability over `dt`
-    /// `p_d = ½ (1 − e^{−2 dt / T})` (`T` the sojourn; [BLK01] §11.6.6).
+    /// `p_d = ½ (1 − e^{−2 dt / T})` (`T` the sojourn; \[BLK01\] §11.6.6).
     pub fn predict(&mut self, dt: f64) -> Result<()> {
         if !(dt.is_finite() && dt >= 0.0) {
             return Err(EstimationError::InvalidParameter(format!(
@@ -869,7 +869,7 @@ fn track_maps<const K: usize, const N: usize>(
 }
 
 /// The modes `modes` weighed by `w`, moment-matched, as a mode of filter `reg`: the means
-/// `[offsets; b]` and both covariances with the spread of the means ([BLK01] §11.6.6).
+/// `[offsets; b]` and both covariances with the spread of the means (\[BLK01\] §11.6.6).
 fn mix<const K: usize, const N: usize>(
     modes: &[Mode<K, N>],
     w: &[f64],
