@@ -1075,6 +1075,61 @@ fn registered_radars_with_a_large_bias_no_longer_pull_the_fusion_off() {
     assert_fusion_wins(&pooled);
 }
 
+/// Both radars' offsets drift (Gauss–Markov, σ 20 m and 4 mrad, τ 60 s, from the sim's
+/// stationary draw) and are registered with the deployment's default model (`bias` unset: a slow
+/// random walk, which knows nothing of the drift): the registrar's drifting mode follows them,
+/// so the fused track beats every subset of sensors and stays within 1.2 × a server told the
+/// drift's model (σ, τ) but not its values.
+#[test]
+fn registered_radars_follow_a_drifting_bias_live() {
+    let mut scenario = fusion_scenario();
+    scenario.sensors[0].noise_std = vec![0.004, 0.004];
+    scenario.sensors[1].model = SensorType::Radar {
+        bias: BiasModel::Markov {
+            mean: [0.0, 0.0],
+            std: [20.0, 0.004],
+            tau_s: 60.0,
+            scale: [0.0, 0.0],
+        },
+        paints_vehicles: false,
+    };
+    let radars = |bias: Option<Value>| RegistrationConfig {
+        sensors: ["1", "2"]
+            .map(|v| RegistrationSensor {
+                vehicle: v.into(),
+                sensor: "radar".into(),
+                kind: MeasKind::RangeBearing,
+                bias: bias.clone(),
+            })
+            .to_vec(),
+    };
+    let model = serde_json::json!({"offset": [
+        {"model": "gauss_markov", "std": 20.0, "tau": 60.0},
+        {"model": "gauss_markov", "std": 0.004, "tau": 60.0},
+    ]});
+    let (pooled, biases, _) = fusion_runs(&scenario, &radars(None), None, WINDOW_S, false);
+    let (told, _, _) = fusion_runs(&scenario, &radars(Some(model)), None, WINDOW_S, false);
+    for b in &biases {
+        eprintln!(
+            "drifting: radar {}/{}: {} updates, drifting mode {:?}, biased {:?}",
+            b.vehicle, b.sensor, b.updates, b.drift_prob, b.biased_prob
+        );
+    }
+    eprintln!(
+        "drifting: fused {:.2} m with the default model, {:.2} m told the model",
+        pooled[0].rmse(),
+        told[0].rmse()
+    );
+    assert_eq!(biases.len(), 2, "{biases:?}");
+    assert_fusion_wins(&pooled);
+    assert!(
+        pooled[0].rmse() <= 1.2 * told[0].rmse(),
+        "{:.2} m against {:.2} m",
+        pooled[0].rmse(),
+        told[0].rmse()
+    );
+}
+
 /// The arguments of a `harrier-sim` ([`SimProcess`]) in the `cimm-road` world at real time: its
 /// camera sees the road target 10 times a second, published on Zenoh to `zenoh`.
 fn cimm_road(zenoh: &str) -> [&str; 8] {
