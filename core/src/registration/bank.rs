@@ -47,7 +47,17 @@
 //! each mode predicted and updated as above, `μ_j ∝ μ_j Λ_j` from each mode's innovation
 //! likelihood per detection, and the tracks handed back moment-matched. A mixture collapsed at
 //! every update (GPB1) was tried first: the two hypotheses then differ by one step's process
-//! noise and cannot be told apart (BENCHMARKS.md).
+//! noise and cannot be told apart (BENCHMARKS.md). A third mode is the replay estimator's
+//! **no bias** (every term pinned at its prior mean: its tracks those of a tracker told there is
+//! none; nothing flows out of it, the biased modes flow into it after `presence_sojourn` on
+//! average, their biases pinned on the way): without a bias it soon carries the weight and
+//! registration costs nothing, where conditioning the biased modes on the prior means could
+//! not undo what their held directions had cost the tracks (a radar's range offset and scale,
+//! which its data do not tell apart). The biases the bank reports ([`BiasBank::state`]) and
+//! takes out of detections for the tracker's gating ([`BiasBank::correct`]) are the biased
+//! modes': what a bias, if there is one, may be. Taking them from every mode instead let "no
+//! bias" split a biased radar's detections off the cameras' track (its gate shrank with the
+//! bias uncertainty), after which nothing contradicted it (BENCHMARKS.md).
 //!
 //! **What the bank reports** ([`BiasBank::output`]): the tracks weighed over which sensors are
 //! biased (none, or any set of them), each hypothesis by its Savage–Dickey ratio, as the replay
@@ -112,6 +122,12 @@ struct Mode<const K: usize, const N: usize> {
     /// estimating every term would have, which says what the data determine.
     full: Option<DMatrix<f64>>,
 }
+
+/// The modes' indices: the bias model as configured, every random-walk term drifting faster,
+/// no bias ([`BiasBank::with_drift`]).
+const STEADY: usize = 0;
+const DRIFTING: usize = 1;
+const UNBIASED: usize = 2;
 
 /// The prior probability that no sensor is biased in [`BiasBank::output`] (the replay
 /// estimator's, [`DriftModes::unbiased`]); the sets of biased sensors share the rest.
@@ -195,6 +211,24 @@ impl<const K: usize, const N: usize> Mode<K, N> {
             full_cov: self.full.as_ref().map_or(cov, of),
             projection: None,
         }
+    }
+
+    /// This mode under "no bias": every bias term pinned at its prior mean (variance 0,
+    /// uncorrelated), the tracks as they are.
+    fn pinned(&self) -> Self {
+        let mut out = self.clone();
+        out.reg = self.reg.pinned();
+        let b0 = self.b0();
+        for i in K..N {
+            if let Some(p) = self.reg.prior_of(i) {
+                out.bias[i] = p.mean;
+            }
+            for cov in std::iter::once(&mut out.cov).chain(out.full.as_mut()) {
+                cov.row_mut(b0 + i - K).fill(0.0);
+                cov.column_mut(b0 + i - K).fill(0.0);
+            }
+        }
+        out
     }
 
     /// The stacked mean `[offsets; b_K..N]` (the layout of `cov`).
@@ -376,27 +410,34 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         })
     }
 
-    /// [`BiasBank::new`] with the two drift modes (see the module docs): `drift`'s `factor`,
-    /// `sojourn` and `initial` (the probability of the drifting mode at the start).
+    /// [`BiasBank::new`] with the drift modes and "no bias" (see the module docs): `drift`'s
+    /// `factor`, `sojourn`, `initial` (the drifting mode's share of the biased probability at
+    /// the start), `unbiased` ("no bias" at the start) and `presence_sojourn`.
     pub fn with_drift(reg: Registration<K, N>, drift: DriftModes) -> Result<Self> {
         let ok = drift.factor.is_finite()
             && drift.factor >= 1.0
             && drift.sojourn.is_finite()
             && drift.sojourn > 0.0
-            && (0.0..=1.0).contains(&drift.initial);
+            && (0.0..=1.0).contains(&drift.initial)
+            && (0.0..=1.0).contains(&drift.unbiased)
+            && drift.presence_sojourn.is_finite()
+            && drift.presence_sojourn > 0.0;
         if !ok {
             return Err(EstimationError::InvalidParameter(format!(
-                "drift modes need factor ≥ 1, a sojourn > 0 and an initial probability in \
-                 [0, 1], got {drift:?}"
+                "bias modes need factor ≥ 1, sojourns > 0 and initial probabilities in [0, 1], \
+                 got {drift:?}"
             )));
         }
         let mut bank = Self::new(reg)?;
         let mut drifting = bank.modes[0].clone();
         drifting.reg = drifting.reg.with_drift_factor(drift.factor);
-        bank.modes.push(drifting);
+        let none = bank.modes[0].pinned();
+        bank.modes.extend([drifting, none]);
+        let biased = 1.0 - drift.unbiased;
         bank.probs = vec![
-            (1.0 - drift.initial).max(PROB_FLOOR),
-            drift.initial.max(PROB_FLOOR),
+            (biased * (1.0 - drift.initial)).max(PROB_FLOOR),
+            (biased * drift.initial).max(PROB_FLOOR),
+            drift.unbiased.max(PROB_FLOOR),
         ];
         bank.drift = Some(drift);
         Ok(bank)
@@ -409,7 +450,26 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
 
     /// The probability of the drifting mode (`None` without drift modes).
     pub fn drifting_prob(&self) -> Option<f64> {
-        self.drift.map(|_| self.probs[1])
+        self.drift.map(|_| self.probs[DRIFTING])
+    }
+
+    /// The probability that no sensor is biased, the "no bias" mode's (`None` without the
+    /// modes).
+    pub fn unbiased_prob(&self) -> Option<f64> {
+        self.drift.map(|_| self.probs[UNBIASED])
+    }
+
+    /// The biased modes (every mode but "no bias") moment-matched: what the biases are if there
+    /// are any.
+    fn biased_modes(modes: &[Mode<K, N>], probs: &[f64]) -> Mode<K, N> {
+        if modes.len() == 1 {
+            return modes[0].clone();
+        }
+        let total = probs[STEADY] + probs[DRIFTING];
+        let mut w = vec![0.0; modes.len()];
+        w[STEADY] = probs[STEADY] / total;
+        w[DRIFTING] = probs[DRIFTING] / total;
+        mix(modes, &w, &modes[STEADY].reg)
     }
 
     /// The modes moment-matched, with the steady mode's filter: the bank's estimate.
@@ -420,10 +480,11 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         mix(&self.modes, &self.probs, &self.modes[0].reg)
     }
 
-    /// The bias terms' mean and covariance, as a registration state with a placeholder target
-    /// (mean 0, identity covariance, uncorrelated).
+    /// The bias terms' mean and covariance over the biased modes (what a bias, if there is one,
+    /// may be), as a registration state with a placeholder target (mean 0, identity covariance,
+    /// uncorrelated).
     pub fn state(&self) -> RegistrationState<N> {
-        self.combined().state()
+        Self::biased_modes(&self.modes, &self.probs).state()
     }
 
     /// Every sensor's bias estimate, its standard deviation and observability.
@@ -525,14 +586,32 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         }
         if let Some(drift) = self.drift {
             let pd = 0.5 * (1.0 - (-2.0 * dt / drift.sojourn).exp());
-            let tpm = [[1.0 - pd, pd], [pd, 1.0 - pd]];
-            let mut mixed = Vec::with_capacity(2);
-            let mut probs = Vec::with_capacity(2);
+            let pa = 1.0 - (-dt / drift.presence_sojourn).exp();
+            // [steady, drifting, none]: nothing flows out of "no bias" (see the module docs).
+            let tpm = [
+                [(1.0 - pa) * (1.0 - pd), (1.0 - pa) * pd, pa],
+                [(1.0 - pa) * pd, (1.0 - pa) * (1.0 - pd), pa],
+                [0.0, 0.0, 1.0],
+            ];
+            // A state entering "no bias" has its biases pinned at their prior means.
+            let into_none: Vec<Mode<K, N>> = self
+                .modes
+                .iter()
+                .enumerate()
+                .map(|(i, m)| if i == UNBIASED { m.clone() } else { m.pinned() })
+                .collect();
+            let mut mixed = Vec::with_capacity(3);
+            let mut probs = Vec::with_capacity(3);
             for (j, mode) in self.modes.iter().enumerate() {
-                let w: Vec<f64> = (0..2).map(|i| tpm[i][j] * self.probs[i]).collect();
+                let w: Vec<f64> = (0..3).map(|i| tpm[i][j] * self.probs[i]).collect();
                 let cbar: f64 = w.iter().sum();
                 let w: Vec<f64> = w.iter().map(|v| v / cbar).collect();
-                mixed.push(mix(&self.modes, &w, &mode.reg));
+                let from = if j == UNBIASED {
+                    &into_none
+                } else {
+                    &self.modes
+                };
+                mixed.push(mix(from, &w, &mode.reg));
                 probs.push(cbar.max(PROB_FLOOR));
             }
             let sum: f64 = probs.iter().sum();
@@ -646,7 +725,9 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// exact, for constant biases and a linear model, as the filter told those sensors are
     /// unbiased (Dickey 1971; Verdinelli & Wasserman 1995). The recursion is unchanged: the
     /// bank keeps estimating every term and the tracker keeps its tracks; this is what they
-    /// report. A hypothesis whose `P_cc` is not positive definite is left out.
+    /// report. A hypothesis whose `P_cc` is not positive definite is left out. With the modes
+    /// ([`BiasBank::with_drift`]) "no sensor biased" is the "no bias" mode, its tracks and its
+    /// probability, and the sets share the biased modes' (moment-matched) probability.
     pub fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> Result<BankOutput<K>> {
         let order = self.order(tracks)?;
         let given: Vec<Gaussian<K>> = order.iter().map(|&k| tracks[k].1).collect();
@@ -677,11 +758,30 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// The hypotheses of [`BiasBank::output`], weighed, each with the tracks `given` (every
     /// track in the bank's order, or none) conditioned on it.
     fn weighed(&self, given: &[Gaussian<K>]) -> Result<Vec<Hypothesis<K>>> {
-        let mut bank = self.combined();
-        bank.follow(
-            given,
-            &track_maps(std::slice::from_ref(&bank), &[1.0], given)?,
-        );
+        let maps = track_maps(&self.modes, &self.probs, given)?;
+        let mut modes = self.modes.clone();
+        for m in &mut modes {
+            m.follow(given, &maps);
+        }
+        let bank = Self::biased_modes(&modes, &self.probs);
+        // With the modes, "no bias" is a mode of its own: its tracks, its probability; the
+        // biased modes share the rest over the non-empty sets.
+        let (none, biased_share) = match self.drift {
+            Some(_) => {
+                let m = &modes[UNBIASED];
+                let tracks = (0..given.len())
+                    .map(|t| Gaussian {
+                        mean: given[t].mean + m.offset.fixed_rows::<K>(t * K),
+                        cov: m.cov.fixed_view::<K, K>(t * K, t * K).into_owned(),
+                    })
+                    .collect();
+                (
+                    Some((self.probs[UNBIASED], tracks)),
+                    1.0 - self.probs[UNBIASED],
+                )
+            }
+            None => (None, 1.0),
+        };
         let P = &bank.cov;
         let b0 = bank.b0();
         let sensors = bank.reg.sensors();
@@ -698,11 +798,15 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 .prior_of(*i)
                 .is_some_and(|p| matches!(p.dynamics, Dynamics::GaussMarkov { .. }))
         };
-        let hypotheses = std::iter::once((vec![false; sensors.len()], every_term, UNBIASED_PRIOR))
+        let empty = none
+            .is_none()
+            .then(|| (vec![false; sensors.len()], every_term, UNBIASED_PRIOR));
+        let hypotheses = empty
+            .into_iter()
             .chain(sets.into_iter().map(|s| (s.biased, s.pinned, set_prior)))
             .filter(|(_, pinned, _)| !pinned.iter().any(wanders));
         let own = |t: usize| Gaussian {
-            mean: given[t].mean,
+            mean: given[t].mean + bank.offset.fixed_rows::<K>(t * K),
             cov: SMatrix::<f64, K, K>::from_fn(|r, s| P[(t * K + r, t * K + s)]),
         };
         let mut weighed: Vec<Hypothesis<K>> = Vec::new();
@@ -766,7 +870,14 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         }
         let total: f64 = weighed.iter().map(|h| (h.weight - max).exp()).sum();
         for h in &mut weighed {
-            h.weight = (h.weight - max).exp() / total;
+            h.weight = biased_share * (h.weight - max).exp() / total;
+        }
+        if let Some((p, tracks)) = none {
+            weighed.push(Hypothesis {
+                biased: vec![false; sensors.len()],
+                weight: p,
+                tracks,
+            });
         }
         Ok(weighed)
     }
@@ -790,9 +901,10 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     }
 
     /// A detection `z` of sensor `sensor` with the offsets and scales taken out, the bias
-    /// uncertainty to add to its noise, and the time offset (see [`Corrected`]).
+    /// uncertainty to add to its noise, and the time offset (see [`Corrected`]), from the biased
+    /// modes (see the module docs).
     pub fn correct(&self, sensor: usize, z: &[f64]) -> Result<Corrected> {
-        let bank = self.combined();
+        let bank = Self::biased_modes(&self.modes, &self.probs);
         let slots = bank
             .reg
             .sensors()

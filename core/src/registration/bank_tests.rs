@@ -582,11 +582,11 @@ fn the_output_weighs_which_sensors_are_biased() {
     assert!(bank.output(&given[..1]).is_err());
 }
 
-/// The drift modes follow a radar range offset that wanders (30 m ± 25 m over 200 s) where the
-/// bias model as configured (a slow random walk, 0.1 m/√s) lags it, and cost little when it is
-/// constant. Stated factors (3 seeds × 400 s, two targets, from 100 s on; measured: wandering,
+/// The drift modes (with "no bias": [`BiasBank::with_drift`]) follow a radar range offset that
+/// wanders (30 m ± 25 m over 200 s) where the bias model as configured (a slow random walk,
+/// 0.1 m/√s) lags it, and cost little when it is constant. Stated factors (3 seeds × 400 s, two targets, from 100 s on; measured: wandering,
 /// range offset error 0.21 ×, tracks 0.52 × the one-mode bank's, drifting mode 0.86 on average;
-/// constant, tracks 1.10 ×, drifting mode 0.08): with a wandering offset the two modes' error
+/// constant, tracks 1.10 ×, drifting mode 0.08): with a wandering offset the modes' error
 /// at most half the one mode's, their tracks better and the drifting mode the more probable;
 /// with a constant one their tracks within 15 % and the steady mode the more probable.
 #[test]
@@ -641,7 +641,7 @@ fn the_drift_modes_follow_a_wandering_offset() {
         let track = (track_err[1] / track_err[0]).sqrt();
         let drifting = drifting / samples;
         println!(
-            "wandering {wanders}: two modes / one: range offset error {bias:.3}, tracks \
+            "wandering {wanders}: with_drift / one mode: range offset error {bias:.3}, tracks \
              {track:.3}; drifting mode {drifting:.2} on average"
         );
         if wanders {

@@ -31,11 +31,11 @@
 //! 6. a track enters the bank when it is confirmed (uncorrelated with the biases: it was built
 //!    from corrected detections), at most [`MAX_BANK_TRACKS`] of them, and leaves when deleted.
 //!
-//! The bank runs two bias modes, the model as configured and every random-walk term drifting
-//! 20 times faster ([`BiasBank::with_drift`], [`DriftModes::default`]: the replay estimator's
-//! tuning), and the engine reports the bank's tracks weighed over which sensors are biased,
-//! none included ([`Registrar::output`], [`BiasBank::output`]): registration then costs nothing
-//! on unbiased sensors and follows a drifting bias (BENCHMARKS.md, "The live registrar on the
+//! The bank runs three bias modes, the model as configured, every random-walk term drifting
+//! 20 times faster, and no bias ([`BiasBank::with_drift`], [`DriftModes::default`]: the replay
+//! estimator's tuning), and the engine reports the bank's tracks weighed over which sensors are
+//! biased ([`Registrar::output`], [`BiasBank::output`]): registration then costs nothing on
+//! unbiased sensors and follows a drifting bias (BENCHMARKS.md, "The live registrar on the
 //! replay scenarios").
 //! Without registration the engine holds no registrar and the scan path is the plain one.
 
@@ -109,6 +109,7 @@ trait LiveBank<const K: usize>: Send + std::fmt::Debug {
     fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> harrier_core::Result<BankOutput<K>>;
     fn biased(&self) -> harrier_core::Result<Vec<f64>>;
     fn drifting_prob(&self) -> Option<f64>;
+    fn unbiased_prob(&self) -> Option<f64>;
 }
 
 impl<const K: usize, const N: usize> LiveBank<K> for BiasBank<K, N> {
@@ -154,6 +155,9 @@ impl<const K: usize, const N: usize> LiveBank<K> for BiasBank<K, N> {
     }
     fn drifting_prob(&self) -> Option<f64> {
         BiasBank::drifting_prob(self)
+    }
+    fn unbiased_prob(&self) -> Option<f64> {
+        BiasBank::unbiased_prob(self)
     }
 }
 
@@ -519,6 +523,7 @@ impl<const K: usize> Registrar<K> {
     pub fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
         let biased = self.bank.biased().unwrap_or_default();
         let drifting = self.bank.drifting_prob();
+        let none = self.bank.unbiased_prob();
         self.bank
             .estimates()
             .into_iter()
@@ -531,6 +536,7 @@ impl<const K: usize> Registrar<K> {
                 json["references"] = serde_json::json!(r);
                 json["biased_prob"] = serde_json::json!(biased.get(i));
                 json["bias_drift_prob"] = serde_json::json!(drifting);
+                json["bias_none_prob"] = serde_json::json!(none);
                 (s.sensor.clone(), json)
             })
             .collect()
