@@ -414,20 +414,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// `factor`, `sojourn`, `initial` (the drifting mode's share of the biased probability at
     /// the start), `unbiased` ("no bias" at the start) and `presence_sojourn`.
     pub fn with_drift(reg: Registration<K, N>, drift: DriftModes) -> Result<Self> {
-        let ok = drift.factor.is_finite()
-            && drift.factor >= 1.0
-            && drift.sojourn.is_finite()
-            && drift.sojourn > 0.0
-            && (0.0..=1.0).contains(&drift.initial)
-            && (0.0..=1.0).contains(&drift.unbiased)
-            && drift.presence_sojourn.is_finite()
-            && drift.presence_sojourn > 0.0;
-        if !ok {
-            return Err(EstimationError::InvalidParameter(format!(
-                "bias modes need factor ≥ 1, sojourns > 0 and initial probabilities in [0, 1], \
-                 got {drift:?}"
-            )));
-        }
+        drift.validate()?;
         let mut bank = Self::new(reg)?;
         let mut drifting = bank.modes[0].clone();
         drifting.reg = drifting.reg.with_drift_factor(drift.factor);

@@ -509,6 +509,15 @@ fn with_the_hold_a_lone_radars_offsets_stay_at_their_prior() {
     }
 }
 
+/// The tracks of [`run_bank`] with their ids (their indices).
+fn numbered(tracks: &[Gaussian<4>]) -> Vec<(TrackId, Gaussian<4>)> {
+    tracks
+        .iter()
+        .enumerate()
+        .map(|(i, g)| (i as TrackId, *g))
+        .collect()
+}
+
 /// The output weighs which sensors are biased: on unbiased data "no bias" takes the weight and
 /// the reported tracks come back to those of a bank told there is no bias (the same joint
 /// filter without terms), closer than the bank's own; on biased data both sensors are biased
@@ -541,12 +550,7 @@ fn the_output_weighs_which_sensors_are_biased() {
             if *t < FROM || *t >= UNTIL {
                 continue;
             }
-            let given: Vec<(TrackId, Gaussian<4>)> = tracks
-                .iter()
-                .enumerate()
-                .map(|(i, g)| (i as TrackId, *g))
-                .collect();
-            let out = bank.output(&given).unwrap();
+            let out = bank.output(&numbered(tracks)).unwrap();
             assert!(out.biased.iter().all(|p| *p < 0.05), "{:?}", out.biased);
             for i in 0..2 {
                 assert_eq!(out.tracks[i].0, i as TrackId);
@@ -568,11 +572,7 @@ fn the_output_weighs_which_sensors_are_biased() {
     let (_, tracks, bank) = run_bank(BiasBank::new(reg).unwrap(), &dets, 2, |_, _, _| {})
         .pop()
         .unwrap();
-    let given: Vec<(TrackId, Gaussian<4>)> = tracks
-        .iter()
-        .enumerate()
-        .map(|(i, g)| (i as TrackId, *g))
-        .collect();
+    let given = numbered(&tracks);
     let out = bank.output(&given).unwrap();
     assert!(out.biased.iter().all(|p| *p > 0.999), "{:?}", out.biased);
     for ((_, g), own) in out.tracks.iter().zip(&tracks) {

@@ -142,6 +142,29 @@ impl Default for DriftModes {
     }
 }
 
+impl DriftModes {
+    /// Errors unless `factor ≥ 1`, both sojourns are finite and positive and both initial
+    /// probabilities lie in [0, 1].
+    pub(super) fn validate(&self) -> Result<()> {
+        let ok = self.factor.is_finite()
+            && self.factor >= 1.0
+            && self.sojourn.is_finite()
+            && self.sojourn > 0.0
+            && (0.0..=1.0).contains(&self.initial)
+            && (0.0..=1.0).contains(&self.unbiased)
+            && self.presence_sojourn.is_finite()
+            && self.presence_sojourn > 0.0;
+        if ok {
+            Ok(())
+        } else {
+            Err(EstimationError::InvalidParameter(format!(
+                "bias modes need factor ≥ 1, sojourns > 0 and initial probabilities in [0, 1], \
+                 got {self:?}"
+            )))
+        }
+    }
+}
+
 /// The registration filter in its three modes.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegistrationImm<const K: usize, const N: usize> {
@@ -184,20 +207,7 @@ impl<const N: usize> RegistrationImmState<N> {
 impl<const K: usize, const N: usize> RegistrationImm<K, N> {
     /// The three modes of `steady` (see the module docs).
     pub fn new(steady: Registration<K, N>, drift: DriftModes) -> Result<Self> {
-        let ok = drift.factor.is_finite()
-            && drift.factor >= 1.0
-            && drift.sojourn.is_finite()
-            && drift.sojourn > 0.0
-            && (0.0..=1.0).contains(&drift.initial)
-            && (0.0..=1.0).contains(&drift.unbiased)
-            && drift.presence_sojourn.is_finite()
-            && drift.presence_sojourn > 0.0;
-        if !ok {
-            return Err(EstimationError::InvalidParameter(format!(
-                "bias modes need factor ≥ 1, sojourns > 0 and initial probabilities in [0, 1], \
-                 got {drift:?}"
-            )));
-        }
+        drift.validate()?;
         let drifting = steady.with_drift_factor(drift.factor);
         let sets = biased_sets(&steady, drift.per_sensor);
         Ok(Self {

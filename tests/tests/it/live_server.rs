@@ -926,6 +926,21 @@ fn registered(vehicle: &str, sensor: &str, kind: MeasKind, std: [f64; 2]) -> Reg
     }
 }
 
+/// Sensor `sensor` of vehicles 1 and 2 registered with the bias block `bias` (unset: the kind's
+/// typical terms, `SensorBias::typical`).
+fn on_both(sensor: &str, kind: MeasKind, bias: Option<&Value>) -> RegistrationConfig {
+    RegistrationConfig {
+        sensors: ["1", "2"]
+            .map(|v| RegistrationSensor {
+                vehicle: v.into(),
+                sensor: sensor.into(),
+                kind,
+                bias: bias.cloned(),
+            })
+            .to_vec(),
+    }
+}
+
 /// A registered radar's range and azimuth offsets against the sim's `truth` (m, rad), printed
 /// with its counts: each within 3 sd.
 fn assert_radar_offsets(test: &str, b: &SensorBiasView, truth: [f64; 2]) {
@@ -1086,16 +1101,7 @@ fn registering_unbiased_radars_costs_nothing_live() {
         bias: BiasModel::None,
         paints_vehicles: false,
     };
-    let registration = RegistrationConfig {
-        sensors: ["1", "2"]
-            .map(|v| RegistrationSensor {
-                vehicle: v.into(),
-                sensor: "radar".into(),
-                kind: MeasKind::RangeBearing,
-                bias: None,
-            })
-            .to_vec(),
-    };
+    let registration = on_both("radar", MeasKind::RangeBearing, None);
     let (registered, biases, _) = fusion_runs(&scenario, &registration, None, WINDOW_S, false);
     let (plain, _, _) = fusion_runs(
         &scenario,
@@ -1142,22 +1148,13 @@ fn registered_radars_follow_a_drifting_bias_live() {
         },
         paints_vehicles: false,
     };
-    let radars = |bias: Option<Value>| RegistrationConfig {
-        sensors: ["1", "2"]
-            .map(|v| RegistrationSensor {
-                vehicle: v.into(),
-                sensor: "radar".into(),
-                kind: MeasKind::RangeBearing,
-                bias: bias.clone(),
-            })
-            .to_vec(),
-    };
+    let radars = |bias| on_both("radar", MeasKind::RangeBearing, bias);
     let model = serde_json::json!({"offset": [
         {"model": "gauss_markov", "std": 20.0, "tau": 60.0},
         {"model": "gauss_markov", "std": 0.004, "tau": 60.0},
     ]});
     let (pooled, biases, _) = fusion_runs(&scenario, &radars(None), None, WINDOW_S, false);
-    let (told, _, _) = fusion_runs(&scenario, &radars(Some(model)), None, WINDOW_S, false);
+    let (told, _, _) = fusion_runs(&scenario, &radars(Some(&model)), None, WINDOW_S, false);
     for b in &biases {
         eprintln!(
             "drifting: radar {}/{}: {} updates, drifting mode {:?}, biased {:?}",
@@ -1628,22 +1625,17 @@ fn a_camera_latency_is_learnt_live() {
         bias: BiasModel::None,
         paints_vehicles: false,
     };
-    let registration = RegistrationConfig {
-        sensors: ["1", "2"]
-            .map(|v| RegistrationSensor {
-                vehicle: v.into(),
-                sensor: "cam".into(),
-                kind: MeasKind::AzEl,
-                bias: Some(serde_json::json!({
-                    "offset": [
-                        {"model": "constant", "std": 0.02},
-                        {"model": "constant", "std": 0.02},
-                    ],
-                    "time_offset": {"model": "constant", "std": 0.3},
-                })),
-            })
-            .to_vec(),
-    };
+    let registration = on_both(
+        "cam",
+        MeasKind::AzEl,
+        Some(&serde_json::json!({
+            "offset": [
+                {"model": "constant", "std": 0.02},
+                {"model": "constant", "std": 0.02},
+            ],
+            "time_offset": {"model": "constant", "std": 0.3},
+        })),
+    );
     let (pooled, biases, _) = fusion_runs(&late, &registration, None, window, fixed_wings);
     assert_eq!(biases.len(), 2, "{biases:?}");
     for b in &biases {
