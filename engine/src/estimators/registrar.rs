@@ -37,6 +37,7 @@
 //! biased ([`Registrar::output`], [`BiasBank::output`]): registration then costs nothing on
 //! unbiased sensors and follows a drifting bias (BENCHMARKS.md, "The live registrar on the
 //! replay scenarios").
+//!
 //! Without registration the engine holds no registrar and the scan path is the plain one.
 
 use harrier_core::measurement::{
