@@ -77,7 +77,7 @@
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
 use super::filter::{KnownObject, Observation, Registration, RegistrationState, Seen};
-use super::imm::{DriftModes, biased_sets};
+use super::imm::{BiasedSet, DriftModes, biased_sets, reported};
 use super::model::Dynamics;
 use super::report::SensorEstimate;
 use crate::filter::PROB_FLOOR;
@@ -105,6 +105,8 @@ pub struct BiasBank<const K: usize, const N: usize> {
     drift: Option<DriftModes>,
     /// The tracks, in the order of their blocks in each mode's `cov`.
     ids: Vec<TrackId>,
+    /// The sets of biased sensors [`BiasBank::output`] weighs.
+    sets: Vec<BiasedSet>,
 }
 
 /// One bias mode of the bank: its filter, bias mean, track means and covariances.
@@ -158,14 +160,19 @@ pub struct Corrected {
 
 /// One hypothesis of which sensors are biased ([`BiasBank::output`]): those it holds biased
 /// (the registration's order), its weight (normalised) and the tracks conditioned on it.
-struct Hypothesis<const K: usize> {
+struct Hypothesis<const K: usize, const N: usize> {
     biased: Vec<bool>,
     weight: f64,
     tracks: Vec<Gaussian<K>>,
+    /// The biases conditioned on it (as [`BiasBank::state`]'s).
+    state: RegistrationState<N>,
 }
 
 /// Per sensor (of `sensors`), the weight of the hypotheses that hold it biased.
-fn biased_probs<const K: usize>(weighed: &[Hypothesis<K>], sensors: usize) -> Vec<f64> {
+fn biased_probs<const K: usize, const N: usize>(
+    weighed: &[Hypothesis<K, N>],
+    sensors: usize,
+) -> Vec<f64> {
     let mut out = vec![0.0; sensors];
     for h in weighed {
         for (p, b) in out.iter_mut().zip(&h.biased) {
@@ -188,6 +195,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         let s = reg.initial(&placeholder)?;
         let cov = s.estimate.cov.view((K, K), (N - K, N - K)).into_owned();
         let cov = DMatrix::from_column_slice(N - K, N - K, cov.as_slice());
+        let sets = biased_sets(&reg, true);
         Ok(Self {
             modes: vec![Mode {
                 bias: s.estimate.mean,
@@ -199,6 +207,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             probs: vec![1.0],
             drift: None,
             ids: Vec::new(),
+            sets,
         })
     }
 
@@ -259,16 +268,43 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         mix(&self.modes, &self.probs, &self.modes[0].reg)
     }
 
-    /// The bias terms' mean and covariance over the biased modes (what a bias, if there is one,
-    /// may be), as a registration state with a placeholder target (mean 0, identity covariance,
-    /// uncorrelated).
+    /// The bias terms' mean and covariance, as a registration state with a placeholder target
+    /// (mean 0, identity covariance, uncorrelated), reported as the replay estimator's
+    /// ([`super::RegistrationImm::output`]): the mixture over the hypotheses of
+    /// [`BiasBank::output`], the full covariance the biased modes' (observability if there is a
+    /// bias), and a sensor whose bias the data do not determine with the biased modes'
+    /// covariance of its terms. The biases taken out for gating ([`BiasBank::correct`]) are
+    /// the biased modes'.
     pub fn state(&self) -> RegistrationState<N> {
-        Self::biased_modes(&self.modes, &self.probs).state()
+        // The hypotheses' weights are finite unless the bank's covariance is not (then the
+        // biased modes' state says so too).
+        match self.weighed(&[]) {
+            Ok(weighed) => self.reported(&weighed),
+            Err(_) => Self::biased_modes(&self.modes, &self.probs).state(),
+        }
+    }
+
+    /// [`BiasBank::state`] from the hypotheses `weighed`.
+    fn reported(&self, weighed: &[Hypothesis<K, N>]) -> RegistrationState<N> {
+        let given_bias = Self::biased_modes(&self.modes, &self.probs).state();
+        let (states, w): (Vec<_>, Vec<_>) = weighed.iter().map(|h| (h.state, h.weight)).unzip();
+        reported(self.registration(), &states, &w, &given_bias)
     }
 
     /// Every sensor's bias estimate, its standard deviation and observability.
     pub fn estimates(&self) -> Vec<SensorEstimate> {
         self.registration().estimates(&self.state())
+    }
+
+    /// [`BiasBank::estimates`] and, per sensor, the probability that it is biased (the weight
+    /// of the hypotheses of [`BiasBank::output`] that hold it biased; they depend on the biases
+    /// alone), from one weighing.
+    pub fn report(&self) -> Result<(Vec<SensorEstimate>, Vec<f64>)> {
+        let weighed = self.weighed(&[])?;
+        Ok((
+            self.registration().estimates(&self.reported(&weighed)),
+            biased_probs(&weighed, self.registration().sensors().len()),
+        ))
     }
 
     /// The tracks, in the bank's order.
@@ -491,8 +527,10 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     /// time) weighed over the hypotheses of which sensors are biased, as the replay estimator's
     /// output ([`super::RegistrationImm`]): no sensor biased (prior [`UNBIASED_PRIOR`]), and each
     /// non-empty set of the sensors with terms (equal priors; the set of all alone above
-    /// [`super::MAX_SET_SENSORS`] sensors). A hypothesis holds the terms of the sensors it takes
-    /// as unbiased at their prior means `μ_c`; its Bayes factor against every term free is the
+    /// [`super::MAX_SET_SENSORS`] sensors), a constant sensor's time offset weighed apart from
+    /// its other terms (the replay estimator's module docs). A hypothesis holds the terms of the
+    /// sensors it takes as unbiased (and the pinned ways') at their prior means `μ_c`; its
+    /// Bayes factor against every term free is the
     /// Savage–Dickey ratio and its estimate the bank's conditioned on them
     /// (`Registration::given_prior`, over the bank's joint covariance):
     ///
@@ -526,17 +564,9 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         })
     }
 
-    /// Per sensor (the registration's order), the probability that it is biased: the weight of
-    /// the hypotheses of [`BiasBank::output`] that hold it biased (they depend on the biases
-    /// alone).
-    pub fn biased(&self) -> Result<Vec<f64>> {
-        let weighed = self.weighed(&[])?;
-        Ok(biased_probs(&weighed, self.registration().sensors().len()))
-    }
-
     /// The hypotheses of [`BiasBank::output`], weighed, each with the tracks `given` (every
     /// track in the bank's order, or none) conditioned on it.
-    fn weighed(&self, given: &[Gaussian<K>]) -> Result<Vec<Hypothesis<K>>> {
+    fn weighed(&self, given: &[Gaussian<K>]) -> Result<Vec<Hypothesis<K, N>>> {
         let maps = track_maps(&self.modes, &self.probs, given)?;
         let mut modes = self.modes.clone();
         for m in &mut modes {
@@ -555,7 +585,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                     })
                     .collect();
                 (
-                    Some((self.probs[UNBIASED], tracks)),
+                    Some((self.probs[UNBIASED], tracks, m.state())),
                     1.0 - self.probs[UNBIASED],
                 )
             }
@@ -564,12 +594,12 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         let P = &bank.cov;
         let b0 = bank.b0();
         let sensors = bank.reg.sensors();
-        let sets = biased_sets(&bank.reg, true);
+        let sets = &self.sets;
         let every_term: Vec<usize> = sensors
             .iter()
             .flat_map(|s| s.terms().map(|(_, i)| i))
             .collect();
-        let set_prior = (1.0 - UNBIASED_PRIOR) / sets.len() as f64;
+        let biased_prior = 1.0 - UNBIASED_PRIOR;
         // A Gauss–Markov term wanders about its mean: its value there says nothing of whether
         // the sensor is biased, so no hypothesis holds such a sensor unbiased.
         let wanders = |i: &usize| {
@@ -582,62 +612,56 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             .then(|| (vec![false; sensors.len()], every_term, UNBIASED_PRIOR));
         let hypotheses = empty
             .into_iter()
-            .chain(sets.into_iter().map(|s| (s.biased, s.pinned, set_prior)))
+            .chain(
+                sets.iter()
+                    .map(|s| (s.biased.clone(), s.pinned.clone(), biased_prior * s.prior)),
+            )
             .filter(|(_, pinned, _)| !pinned.iter().any(wanders));
         let own = |t: usize| Gaussian {
             mean: given[t].mean + bank.offset.fixed_rows::<K>(t * K),
             cov: SMatrix::<f64, K, K>::from_fn(|r, s| P[(t * K + r, t * K + s)]),
         };
-        let mut weighed: Vec<Hypothesis<K>> = Vec::new();
+        let bank_state = bank.state();
+        let mut weighed: Vec<Hypothesis<K, N>> = Vec::new();
         for (biased, pinned, prior) in hypotheses {
-            if pinned.is_empty() {
-                weighed.push(Hypothesis {
-                    biased,
-                    weight: prior.ln(),
-                    tracks: (0..given.len()).map(own).collect(),
+            // The biases: the Savage–Dickey ratio and the conditioned state.
+            let Some((state, log_bf)) = bank.reg.given_prior(&bank_state, &pinned) else {
+                continue;
+            };
+            let tracks = if pinned.is_empty() || given.is_empty() {
+                (0..given.len()).map(own).collect()
+            } else {
+                let c: Vec<usize> = pinned.iter().map(|&i| b0 + i - K).collect();
+                let k = c.len();
+                let Some(chol) = DMatrix::from_fn(k, k, |i, j| P[(c[i], c[j])]).cholesky() else {
+                    continue;
+                };
+                let r = DVector::from_fn(k, |i, _| {
+                    state.estimate.mean[pinned[i]] - bank.bias[pinned[i]]
                 });
-                continue;
-            }
-            let Some(priors) = pinned
-                .iter()
-                .map(|&i| bank.reg.prior_of(i))
-                .collect::<Option<Vec<_>>>()
-            else {
-                continue;
-            };
-            let c: Vec<usize> = pinned.iter().map(|&i| b0 + i - K).collect();
-            let k = c.len();
-            let Some(chol) = DMatrix::from_fn(k, k, |i, j| P[(c[i], c[j])]).cholesky() else {
-                continue;
-            };
-            let r = DVector::from_fn(k, |i, _| priors[i].mean - bank.bias[pinned[i]]);
-            let a = chol.solve(&r);
-            let log_det = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
-            let log_prior_det: f64 = priors.iter().map(|p| (p.std * p.std).ln()).sum();
-            let log_bf = -0.5 * r.dot(&a) - 0.5 * log_det + 0.5 * log_prior_det;
-            if !log_bf.is_finite() {
-                continue;
-            }
-            let tracks = (0..given.len())
-                .map(|t| {
-                    let mut g = own(t);
-                    let Ptc = DMatrix::from_fn(K, k, |r, j| P[(t * K + r, c[j])]);
-                    let shift = &Ptc * &a;
-                    let drop = &Ptc * chol.solve(&Ptc.transpose());
-                    for r in 0..K {
-                        g.mean[r] += shift[r];
-                        for s in 0..K {
-                            g.cov[(r, s)] -= drop[(r, s)];
+                let a = chol.solve(&r);
+                (0..given.len())
+                    .map(|t| {
+                        let mut g = own(t);
+                        let Ptc = DMatrix::from_fn(K, k, |r, j| P[(t * K + r, c[j])]);
+                        let shift = &Ptc * &a;
+                        let drop = &Ptc * chol.solve(&Ptc.transpose());
+                        for r in 0..K {
+                            g.mean[r] += shift[r];
+                            for s in 0..K {
+                                g.cov[(r, s)] -= drop[(r, s)];
+                            }
                         }
-                    }
-                    g.cov = (g.cov + g.cov.transpose()) * 0.5;
-                    g
-                })
-                .collect();
+                        g.cov = (g.cov + g.cov.transpose()) * 0.5;
+                        g
+                    })
+                    .collect()
+            };
             weighed.push(Hypothesis {
                 biased,
                 weight: prior.ln() + log_bf,
                 tracks,
+                state,
             });
         }
         let max = weighed
@@ -651,11 +675,12 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         for h in &mut weighed {
             h.weight = biased_share * (h.weight - max).exp() / total;
         }
-        if let Some((p, tracks)) = none {
+        if let Some((p, tracks, state)) = none {
             weighed.push(Hypothesis {
                 biased: vec![false; sensors.len()],
                 weight: p,
                 tracks,
+                state,
             });
         }
         Ok(weighed)

@@ -132,7 +132,7 @@ pub use bank::{BankOutput, BiasBank, Corrected, TrackId, Tracks, UNBIASED_PRIOR}
 pub use filter::{
     KnownObject, Observation, Registration, RegistrationState, Seen, SensorSlots, Tuning, Updated,
 };
-pub use imm::{DriftModes, MAX_SET_SENSORS, RegistrationImm, RegistrationImmState};
+pub use imm::{DriftModes, MAX_SET_SENSORS, MAX_SETS, RegistrationImm, RegistrationImmState};
 pub use model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 pub use report::{SensorEstimate, TermEstimate};
 pub use truth::BiasTruth;

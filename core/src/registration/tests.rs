@@ -485,3 +485,65 @@ fn a_block_taken_at_its_prior_is_the_gaussian_conditional() {
     assert_eq!(reg.given_prior(&s, &[]).unwrap(), (s, 0.0));
     assert!(reg.given_prior(&s, &[0]).is_none());
 }
+
+/// The output's hypotheses: every non-empty set of biased sensors, and within it a biased sensor
+/// whose terms are all constant, a time offset among them, biased three ways (every term free,
+/// its time offset alone at the prior, its time offset alone free); a sensor with a drifting
+/// term one way; each set's prior uniform over the sensor sets, then over the ways; too many
+/// sets: the sensors alone.
+#[test]
+fn the_hypotheses_split_a_constant_sensors_latency_from_its_offsets() {
+    use super::imm::biased_sets;
+    let camera = SensorBias {
+        offset: vec![
+            Some(BiasPrior::constant(0.017)),
+            Some(BiasPrior::constant(0.017)),
+        ],
+        scale: Vec::new(),
+        time_offset: Some(BiasPrior::constant(0.3)),
+    };
+    let radar = SensorBias {
+        offset: vec![Some(BiasPrior::random_walk(50.0, 0.1)), None],
+        scale: Vec::new(),
+        time_offset: Some(BiasPrior::constant(0.3)),
+    };
+    // State: 4 kinematic, cam1 4..7 (az, el, δ), cam2 7..10, radar 10..12 (range, δ).
+    let reg = Registration::<4, 12>::new(
+        0.01,
+        0.0,
+        &[(2, Some(&camera)), (2, Some(&camera)), (2, Some(&radar))],
+        Tuning::default(),
+    )
+    .unwrap();
+    let sets = biased_sets(&reg, true);
+    // {cam1}, {cam2}: 3 ways; {radar}: 1; {cam1, cam2}: 9; with the radar 3, 3, 9.
+    assert_eq!(sets.len(), 31);
+    let total: f64 = sets.iter().map(|s| s.prior).sum();
+    assert!((total - 1.0).abs() < 1e-12, "{total}");
+    let last = sets.last().unwrap();
+    assert_eq!(last.biased, [true; 3]);
+    assert!(last.pinned.is_empty());
+    assert!((last.prior - 1.0 / 63.0).abs() < 1e-12);
+    // Every sensor biased, cam1's latency alone at the prior; cam2 with its latency alone free.
+    assert!(
+        sets.iter()
+            .any(|s| s.biased == [true; 3] && s.pinned == [6])
+    );
+    assert!(
+        sets.iter()
+            .any(|s| s.biased == [true; 3] && s.pinned == [7, 8])
+    );
+    // The radar, with a random-walk offset, is never split: its two terms go together.
+    for s in &sets {
+        let radar: Vec<_> = s.pinned.iter().filter(|&&i| i >= 10).collect();
+        assert!(radar.is_empty() || radar == [&10, &11], "{:?}", s.pinned);
+        assert_eq!(s.biased[2], radar.is_empty(), "{s:?}");
+    }
+    // The sensors alone without `per_sensor`, and above MAX_SETS: four cameras make 255.
+    assert_eq!(biased_sets(&reg, false).len(), 1);
+    let four =
+        Registration::<4, 16>::new(0.01, 0.0, &[(2, Some(&camera)); 4], Tuning::default()).unwrap();
+    let sets = biased_sets(&four, true);
+    assert_eq!(sets.len(), 15);
+    assert!(sets.iter().all(|s| (s.prior - 1.0 / 15.0).abs() < 1e-12));
+}

@@ -108,7 +108,7 @@ trait LiveBank<const K: usize>: Send + std::fmt::Debug {
     ) -> harrier_core::Result<f64>;
     fn estimates(&self) -> Vec<SensorEstimate>;
     fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> harrier_core::Result<BankOutput<K>>;
-    fn biased(&self) -> harrier_core::Result<Vec<f64>>;
+    fn report(&self) -> harrier_core::Result<(Vec<SensorEstimate>, Vec<f64>)>;
     fn drifting_prob(&self) -> Option<f64>;
     fn unbiased_prob(&self) -> Option<f64>;
 }
@@ -151,8 +151,8 @@ impl<const K: usize, const N: usize> LiveBank<K> for BiasBank<K, N> {
     fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> harrier_core::Result<BankOutput<K>> {
         BiasBank::output(self, tracks)
     }
-    fn biased(&self) -> harrier_core::Result<Vec<f64>> {
-        BiasBank::biased(self)
+    fn report(&self) -> harrier_core::Result<(Vec<SensorEstimate>, Vec<f64>)> {
+        BiasBank::report(self)
     }
     fn drifting_prob(&self) -> Option<f64> {
         BiasBank::drifting_prob(self)
@@ -522,11 +522,10 @@ impl<const K: usize> Registrar<K> {
     /// The registered sensors' entries of `bias_est`, keyed by sensor id, with the detections
     /// that updated them (`updates`: with a track; `references`: of a cooperative reference).
     pub fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
-        let biased = self.bank.biased().unwrap_or_default();
+        let (estimates, biased) = self.report();
         let drifting = self.bank.drifting_prob();
         let none = self.bank.unbiased_prob();
-        self.bank
-            .estimates()
+        estimates
             .into_iter()
             .zip(&self.sensors)
             .zip(self.updates.iter().zip(&self.references))
@@ -543,12 +542,19 @@ impl<const K: usize> Registrar<K> {
             .collect()
     }
 
+    /// The bank's estimates and the probability that each sensor is biased; the estimates
+    /// alone (the biased modes') if the hypotheses cannot be weighed.
+    fn report(&self) -> (Vec<SensorEstimate>, Vec<f64>) {
+        self.bank
+            .report()
+            .unwrap_or_else(|_| (self.bank.estimates(), Vec::new()))
+    }
+
     /// The registered sensors' estimates.
     pub fn biases(&self) -> Vec<SensorBiasView> {
-        let biased = self.bank.biased().unwrap_or_default();
+        let (estimates, biased) = self.report();
         let drift_prob = self.bank.drifting_prob();
-        self.bank
-            .estimates()
+        estimates
             .into_iter()
             .zip(&self.sensors)
             .zip(&self.updates)
