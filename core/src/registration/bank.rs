@@ -135,6 +135,10 @@ const UNBIASED: usize = 2;
 /// estimator's, [`DriftModes::unbiased`]); the sets of biased sensors share the rest.
 pub const UNBIASED_PRIOR: f64 = 0.5;
 
+/// A hypothesis of [`BiasBank::output`] this far below the likeliest in log weight (e⁻⁴⁰ of it)
+/// is left out before its conditioning.
+const NEGLIGIBLE_LOG_WEIGHT: f64 = 40.0;
+
 /// The bank's tracks weighed over which sensors are biased ([`BiasBank::output`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct BankOutput<const K: usize> {
@@ -622,54 +626,61 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
             cov: SMatrix::<f64, K, K>::from_fn(|r, s| P[(t * K + r, t * K + s)]),
         };
         let bank_state = bank.state();
-        let mut weighed: Vec<Hypothesis<K, N>> = Vec::new();
-        for (biased, pinned, prior) in hypotheses {
-            // The biases: the Savage–Dickey ratio and the conditioned state.
-            let Some((state, log_bf)) = bank.reg.given_prior(&bank_state, &pinned) else {
-                continue;
-            };
-            let tracks = if pinned.is_empty() || given.is_empty() {
-                (0..given.len()).map(own).collect()
-            } else {
-                let c: Vec<usize> = pinned.iter().map(|&i| b0 + i - K).collect();
-                let k = c.len();
-                let Some(chol) = DMatrix::from_fn(k, k, |i, j| P[(c[i], c[j])]).cholesky() else {
-                    continue;
+        // Each hypothesis's Savage–Dickey ratio first (its pinned block alone), then the
+        // conditioning for those whose weight is not negligible against the largest's.
+        let scored: Vec<_> = hypotheses
+            .filter_map(|(biased, pinned, prior)| {
+                let block = if pinned.is_empty() {
+                    None
+                } else {
+                    Some(bank.reg.savage_dickey(&bank_state, &pinned)?)
                 };
-                let r = DVector::from_fn(k, |i, _| {
-                    state.estimate.mean[pinned[i]] - bank.bias[pinned[i]]
-                });
-                let a = chol.solve(&r);
-                (0..given.len())
-                    .map(|t| {
-                        let mut g = own(t);
-                        let Ptc = DMatrix::from_fn(K, k, |r, j| P[(t * K + r, c[j])]);
-                        let shift = &Ptc * &a;
-                        let drop = &Ptc * chol.solve(&Ptc.transpose());
-                        for r in 0..K {
-                            g.mean[r] += shift[r];
-                            for s in 0..K {
-                                g.cov[(r, s)] -= drop[(r, s)];
-                            }
-                        }
-                        g.cov = (g.cov + g.cov.transpose()) * 0.5;
-                        g
-                    })
-                    .collect()
-            };
-            weighed.push(Hypothesis {
-                biased,
-                weight: prior.ln() + log_bf,
-                tracks,
-                state,
-            });
-        }
-        let max = weighed
-            .iter()
-            .map(|h| h.weight)
-            .fold(f64::NEG_INFINITY, f64::max);
+                let weight = prior.ln() + block.as_ref().map_or(0.0, |b| b.log_bf);
+                Some((biased, pinned, block, weight))
+            })
+            .collect();
+        let max = scored.iter().map(|h| h.3).fold(f64::NEG_INFINITY, f64::max);
         if !max.is_finite() {
             return Err(EstimationError::NonFinite("bias hypotheses"));
+        }
+        let mut weighed: Vec<Hypothesis<K, N>> = Vec::new();
+        for (biased, pinned, block, weight) in scored {
+            if weight < max - NEGLIGIBLE_LOG_WEIGHT {
+                continue;
+            }
+            let Some(block) = block else {
+                let tracks = (0..given.len()).map(own).collect();
+                weighed.push(Hypothesis {
+                    biased,
+                    weight,
+                    tracks,
+                    state: bank_state,
+                });
+                continue;
+            };
+            let c: Vec<usize> = pinned.iter().map(|&i| b0 + i - K).collect();
+            let tracks = (0..given.len())
+                .map(|t| {
+                    let mut g = own(t);
+                    let Ptc = DMatrix::from_fn(K, c.len(), |r, j| P[(t * K + r, c[j])]);
+                    let shift = &Ptc * &block.a;
+                    let drop = &Ptc * block.chol.solve(&Ptc.transpose());
+                    for r in 0..K {
+                        g.mean[r] += shift[r];
+                        for s in 0..K {
+                            g.cov[(r, s)] -= drop[(r, s)];
+                        }
+                    }
+                    g.cov = (g.cov + g.cov.transpose()) * 0.5;
+                    g
+                })
+                .collect();
+            weighed.push(Hypothesis {
+                biased,
+                weight,
+                tracks,
+                state: bank.reg.conditioned(&bank_state, &pinned, &block),
+            });
         }
         let total: f64 = weighed.iter().map(|h| (h.weight - max).exp()).sum();
         for h in &mut weighed {

@@ -3,7 +3,7 @@
 //! (the equations are in the [module docs](super)).
 #![allow(non_snake_case)]
 
-use nalgebra::{DMatrix, DVector, Matrix3, SMatrix, SVector, Vector3};
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn, Matrix3, SMatrix, SVector, Vector3};
 
 use super::model::{BiasPrior, Dynamics, MAX_COMPONENTS, SensorBias, Term};
 use crate::filter::{Extended, Predictor, consider_update, joseph_update};
@@ -149,6 +149,17 @@ pub struct Updated<const N: usize> {
     pub log_likelihood: f64,
 }
 
+/// A block of bias terms taken at its prior means ([`Registration::savage_dickey`]): the
+/// Cholesky factor of its covariance `P_cc`, `a = P_cc⁻¹ (μ_c − x̂_c)`, the means `μ_c` and the
+/// log of the Savage–Dickey ratio.
+#[derive(Debug, Clone)]
+pub(super) struct PinnedBlock {
+    pub(super) chol: Cholesky<f64, Dyn>,
+    pub(super) a: DVector<f64>,
+    means: Vec<f64>,
+    pub(super) log_bf: f64,
+}
+
 impl<const K: usize, const N: usize> Registration<K, N> {
     /// The filter for sensors `sensors` (each its number of measurement components and its bias
     /// model, `None` for an unbiased sensor), CV acceleration spectral density `q` (m²/s³),
@@ -286,6 +297,17 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         if pinned.is_empty() {
             return Some((*state, 0.0));
         }
+        let block = self.savage_dickey(state, pinned)?;
+        Some((self.conditioned(state, pinned, &block), block.log_bf))
+    }
+
+    /// The Savage–Dickey ratio of [`Registration::given_prior`] alone, with what its
+    /// conditioning needs. `None` as there.
+    pub(super) fn savage_dickey(
+        &self,
+        state: &RegistrationState<N>,
+        pinned: &[usize],
+    ) -> Option<PinnedBlock> {
         let priors: Vec<BiasPrior> = pinned
             .iter()
             .map(|&i| self.prior_of(i))
@@ -299,10 +321,28 @@ impl<const K: usize, const N: usize> Registration<K, N> {
         let log_det = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
         let log_prior_det: f64 = priors.iter().map(|p| (p.std * p.std).ln()).sum();
         let log_bf = -0.5 * r.dot(&a) - 0.5 * log_det + 0.5 * log_prior_det;
+        log_bf.is_finite().then_some(PinnedBlock {
+            chol,
+            a,
+            means: priors.iter().map(|p| p.mean).collect(),
+            log_bf,
+        })
+    }
+
+    /// `state` conditioned on the block `pinned` at its prior means ([`Registration::given_prior`]),
+    /// `block` its [`Registration::savage_dickey`].
+    pub(super) fn conditioned(
+        &self,
+        state: &RegistrationState<N>,
+        pinned: &[usize],
+        block: &PinnedBlock,
+    ) -> RegistrationState<N> {
+        let P = &state.estimate.cov;
+        let k = pinned.len();
         let Pnc = DMatrix::from_fn(N, k, |i, j| P[(i, pinned[j])]);
-        let gain = chol.solve(&Pnc.transpose()).transpose();
+        let gain = block.chol.solve(&Pnc.transpose()).transpose();
         let mut out = *state;
-        let shift = &Pnc * &a;
+        let shift = &Pnc * &block.a;
         let drop = &gain * Pnc.transpose();
         for i in 0..N {
             out.estimate.mean[i] += shift[i];
@@ -310,14 +350,14 @@ impl<const K: usize, const N: usize> Registration<K, N> {
                 out.estimate.cov[(i, j)] -= drop[(i, j)];
             }
         }
-        for (&i, p) in pinned.iter().zip(&priors) {
-            out.estimate.mean[i] = p.mean;
+        for (&i, &mean) in pinned.iter().zip(&block.means) {
+            out.estimate.mean[i] = mean;
             out.estimate.cov.row_mut(i).fill(0.0);
             out.estimate.cov.column_mut(i).fill(0.0);
         }
         out.estimate.cov = symmetrize(&out.estimate.cov);
         out.projection = None;
-        log_bf.is_finite().then_some((out, log_bf))
+        out
     }
 
     /// Where each sensor's terms are, in the order of [`Registration::new`].
