@@ -76,7 +76,7 @@
 
 use nalgebra::{DMatrix, DVector, SMatrix, SVector};
 
-use super::filter::{KnownObject, Observation, Registration, RegistrationState, Seen};
+use super::filter::{KnownObject, Observation, PinnedBlock, Registration, RegistrationState, Seen};
 use super::imm::{BiasedSet, DriftModes, biased_sets, reported};
 use super::model::Dynamics;
 use super::report::SensorEstimate;
@@ -168,8 +168,25 @@ struct Hypothesis<const K: usize, const N: usize> {
     biased: Vec<bool>,
     weight: f64,
     tracks: Vec<Gaussian<K>>,
-    /// The biases conditioned on it (as [`BiasBank::state`]'s).
-    state: RegistrationState<N>,
+    biases: Biases<N>,
+}
+
+/// What a hypothesis holds of the biases, conditioned only when they are reported
+/// ([`BiasBank::state`]; the tracks' output does not need them).
+enum Biases<const N: usize> {
+    /// Every term free: the bank's.
+    Free,
+    /// The terms at these state indices at their prior means.
+    Pinned(Vec<usize>, PinnedBlock),
+    /// A state of its own (the "no bias" mode's).
+    Own(RegistrationState<N>),
+}
+
+/// The hypotheses of [`BiasBank::output`], weighed, and the biased modes' biases they
+/// condition.
+struct Weighed<const K: usize, const N: usize> {
+    bank: RegistrationState<N>,
+    hypotheses: Vec<Hypothesis<K, N>>,
 }
 
 /// Per sensor (of `sensors`), the weight of the hypotheses that hold it biased.
@@ -289,9 +306,23 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     }
 
     /// [`BiasBank::state`] from the hypotheses `weighed`.
-    fn reported(&self, weighed: &[Hypothesis<K, N>]) -> RegistrationState<N> {
+    fn reported(&self, weighed: &Weighed<K, N>) -> RegistrationState<N> {
         let given_bias = Self::biased_modes(&self.modes, &self.probs).state();
-        let (states, w): (Vec<_>, Vec<_>) = weighed.iter().map(|h| (h.state, h.weight)).unzip();
+        let (states, w): (Vec<_>, Vec<_>) = weighed
+            .hypotheses
+            .iter()
+            .map(|h| {
+                let state = match &h.biases {
+                    Biases::Free => weighed.bank,
+                    Biases::Pinned(pinned, block) => {
+                        self.registration()
+                            .conditioned(&weighed.bank, pinned, block)
+                    }
+                    Biases::Own(state) => *state,
+                };
+                (state, h.weight)
+            })
+            .unzip();
         reported(self.registration(), &states, &w, &given_bias)
     }
 
@@ -307,7 +338,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
         let weighed = self.weighed(&[])?;
         Ok((
             self.registration().estimates(&self.reported(&weighed)),
-            biased_probs(&weighed, self.registration().sensors().len()),
+            biased_probs(&weighed.hypotheses, self.registration().sensors().len()),
         ))
     }
 
@@ -552,7 +583,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
     pub fn output(&self, tracks: &[(TrackId, Gaussian<K>)]) -> Result<BankOutput<K>> {
         let order = self.order(tracks)?;
         let given: Vec<Gaussian<K>> = order.iter().map(|&k| tracks[k].1).collect();
-        let weighed = self.weighed(&given)?;
+        let weighed = self.weighed(&given)?.hypotheses;
         let w: Vec<f64> = weighed.iter().map(|h| h.weight).collect();
         let tracks = order
             .iter()
@@ -570,7 +601,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
 
     /// The hypotheses of [`BiasBank::output`], weighed, each with the tracks `given` (every
     /// track in the bank's order, or none) conditioned on it.
-    fn weighed(&self, given: &[Gaussian<K>]) -> Result<Vec<Hypothesis<K, N>>> {
+    fn weighed(&self, given: &[Gaussian<K>]) -> Result<Weighed<K, N>> {
         let maps = track_maps(&self.modes, &self.probs, given)?;
         let mut modes = self.modes.clone();
         for m in &mut modes {
@@ -654,7 +685,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                     biased,
                     weight,
                     tracks,
-                    state: bank_state,
+                    biases: Biases::Free,
                 });
                 continue;
             };
@@ -679,7 +710,7 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 biased,
                 weight,
                 tracks,
-                state: bank.reg.conditioned(&bank_state, &pinned, &block),
+                biases: Biases::Pinned(pinned, block),
             });
         }
         let total: f64 = weighed.iter().map(|h| (h.weight - max).exp()).sum();
@@ -691,10 +722,13 @@ impl<const K: usize, const N: usize> BiasBank<K, N> {
                 biased: vec![false; sensors.len()],
                 weight: p,
                 tracks,
-                state,
+                biases: Biases::Own(state),
             });
         }
-        Ok(weighed)
+        Ok(Weighed {
+            bank: bank_state,
+            hypotheses: weighed,
+        })
     }
 
     /// For each of the bank's tracks, its index in `tracks`; errors unless `tracks` holds
