@@ -81,6 +81,10 @@ pub struct Generated {
     /// One entry per row of `truth.csv`, in its order: `(t, i, detected)`, whether the sensor
     /// detected target `T{i}` at that scan (what the unlabelled detections do not say).
     pub detected: Vec<(f64, usize, bool)>,
+    /// One entry per line of `measurements.jsonl`, in its order: the target `T{i}` the
+    /// detection is of, `None` for clutter (the labels a tracker never sees; for the
+    /// known-association bound of `harrier track-eval`).
+    pub origins: Vec<Option<usize>>,
 }
 
 impl Generated {
@@ -245,6 +249,7 @@ pub fn generate(seed: u64, cfg: &GenConfig) -> Result<Generated> {
         truth_csv: files.truth,
         crossings,
         detected: files.detected,
+        origins: files.origins,
     })
 }
 
@@ -266,6 +271,8 @@ struct Files {
     meas: String,
     /// Per truth row: `(t, target, detected)`.
     detected: Vec<(f64, usize, bool)>,
+    /// Per measurement line: the target it is of, `None` for clutter.
+    origins: Vec<Option<usize>>,
 }
 
 impl Default for Files {
@@ -274,6 +281,7 @@ impl Default for Files {
             truth: String::from("t,target,x,y,z,vx,vy,vz,mode\n"),
             meas: String::new(),
             detected: Vec::new(),
+            origins: Vec::new(),
         }
     }
 }
@@ -293,7 +301,7 @@ impl Files {
         clutter: Option<&Poisson<f64>>,
         region: &Region,
     ) {
-        let mut scan: Vec<[f64; 2]> = Vec::with_capacity(alive.len());
+        let mut scan: Vec<([f64; 2], Option<usize>)> = Vec::with_capacity(alive.len());
         for (i, p, v, mode) in alive {
             // Writing to a String cannot fail.
             let _ = writeln!(
@@ -305,19 +313,23 @@ impl Files {
             if hit {
                 let nx: f64 = rng.sample(StandardNormal);
                 let ny: f64 = rng.sample(StandardNormal);
-                scan.push([p[0] + noise * nx, p[1] + noise * ny]);
+                scan.push(([p[0] + noise * nx, p[1] + noise * ny], Some(*i)));
             }
             self.detected.push((t, *i, hit));
         }
         let n_clutter = clutter.map_or(0.0, |p| p.sample(rng)) as usize;
         for _ in 0..n_clutter {
-            scan.push([
-                rng.random_range(region.min[0]..=region.max[0]),
-                rng.random_range(region.min[1]..=region.max[1]),
-            ]);
+            scan.push((
+                [
+                    rng.random_range(region.min[0]..=region.max[0]),
+                    rng.random_range(region.min[1]..=region.max[1]),
+                ],
+                None,
+            ));
         }
         scan.shuffle(rng);
-        for z in &scan {
+        for (z, origin) in &scan {
+            self.origins.push(*origin);
             let _ = writeln!(
                 self.meas,
                 r#"{{"t":{t},"sensor":"radar","kind":"position","platform":{{"pos":[0,0,0],"vel":[0,0,0]}},"z":[{:.4},{:.4}]}}"#,

@@ -369,6 +369,7 @@ pub fn generate(seed: u64, cfg: &GroupConfig) -> Result<super::Generated> {
         truth_csv: files.truth,
         crossings: Vec::new(),
         detected: files.detected,
+        origins: files.origins,
     })
 }
 
