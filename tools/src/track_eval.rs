@@ -89,6 +89,8 @@ pub struct MultiScore {
     pub false_part: f64,
     /// A track moved from one target to another.
     pub swaps: usize,
+    /// Swaps back to the target the track had left at most 3 scans before.
+    pub swaps_undone: usize,
     /// A target's track changed.
     pub id_switches: usize,
     /// A target lost its track.
@@ -153,6 +155,7 @@ pub fn score(m: &MultiScenario, estimates: &[Estimate], c: f64) -> anyhow::Resul
     out.false_part /= n;
     let r = continuity.report();
     out.swaps = r.swaps;
+    out.swaps_undone = r.swaps_undone;
     out.id_switches = r.id_switches;
     out.breaks = r.breaks;
     out.false_tracks = r.false_tracks;
@@ -242,6 +245,8 @@ pub struct Row {
     /// Summed over the seeds.
     pub swaps: usize,
     /// Summed over the seeds.
+    pub swaps_undone: usize,
+    /// Summed over the seeds.
     pub id_switches: usize,
     /// Summed over the seeds.
     pub breaks: usize,
@@ -292,17 +297,18 @@ pub fn run(args: &EvalArgs) -> anyhow::Result<()> {
         args.seeds, args.cutoff
     );
     println!(
-        "| shape | tracker | GOSPA m | swaps | id switches | breaks | false tracks | confirmed \
-         ≤ 3 scans | of the confirmable | worst delay | ms/scan | capped |"
+        "| shape | tracker | GOSPA m | swaps | undone ≤ 3 scans | id switches | breaks | false \
+         tracks | confirmed ≤ 3 scans | of the confirmable | worst delay | ms/scan | capped |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &rows {
         println!(
-            "| {} | {} | {:.2} | {} | {} | {} | {} | {}/{} | {}/{} | {} | {:.3} | {} |",
+            "| {} | {} | {:.2} | {} | {} | {} | {} | {} | {}/{} | {}/{} | {} | {:.3} | {} |",
             r.shape,
             r.tracker,
             r.gospa,
             r.swaps,
+            r.swaps_undone,
             r.id_switches,
             r.breaks,
             r.false_tracks,
@@ -380,6 +386,7 @@ pub fn evaluate(args: &EvalArgs) -> anyhow::Result<Vec<Row>> {
                 r.seeds += 1;
                 r.gospa += s.gospa;
                 r.swaps += s.swaps;
+                r.swaps_undone += s.swaps_undone;
                 r.id_switches += s.id_switches;
                 r.breaks += s.breaks;
                 r.false_tracks += s.false_tracks;

@@ -97,7 +97,12 @@ struct TrackRecord {
     scans: usize,
     assigned_scans: usize,
     last_truth: Option<usize>,
+    /// `(scan, from truth)` of the track's last swap.
+    last_swap: Option<(usize, usize)>,
 }
+
+/// A swap back to the truth a track left at most this many scans before is counted as undone.
+const UNDONE_WITHIN: usize = 3;
 
 /// Track-continuity counts over a run, scan by scan: each scan, last scan's track–truth pairs that
 /// are still closer than `threshold` are kept, and the other confirmed tracks are assigned to the
@@ -109,6 +114,7 @@ pub struct Continuity {
     truths: BTreeMap<usize, TruthRecord>,
     tracks: BTreeMap<u64, TrackRecord>,
     swaps: usize,
+    swaps_undone: usize,
     id_switches: usize,
     breaks: usize,
 }
@@ -121,6 +127,9 @@ pub struct ContinuityReport {
     /// Times a track that followed one truth was next assigned to another truth (a swap at a
     /// crossing shows up here).
     pub swaps: usize,
+    /// Swaps that took a track back to the truth it had left at most 3 scans before: a track
+    /// whose estimate flipped to a neighbour and back counts 2 swaps and 1 of these.
+    pub swaps_undone: usize,
     /// Times a truth's assigned track id changed from one track to another.
     pub id_switches: usize,
     /// Times a truth lost its track (assigned in one scan, unassigned in the next while alive).
@@ -148,6 +157,7 @@ impl Continuity {
             truths: BTreeMap::new(),
             tracks: BTreeMap::new(),
             swaps: 0,
+            swaps_undone: 0,
             id_switches: 0,
             breaks: 0,
         })
@@ -230,8 +240,14 @@ impl Continuity {
             r.scans += 1;
             if let Some(j) = truth_of_track[i] {
                 let tid = truths[j].0;
-                if r.last_truth.is_some_and(|l| l != tid) {
+                if let Some(from) = r.last_truth.filter(|&l| l != tid) {
                     self.swaps += 1;
+                    if r.last_swap
+                        .is_some_and(|(s, back)| back == tid && scan - s <= UNDONE_WITHIN)
+                    {
+                        self.swaps_undone += 1;
+                    }
+                    r.last_swap = Some((scan, from));
                 }
                 r.last_truth = Some(tid);
                 r.assigned_scans += 1;
@@ -246,6 +262,7 @@ impl Continuity {
         ContinuityReport {
             scans: self.scan,
             swaps: self.swaps,
+            swaps_undone: self.swaps_undone,
             id_switches: self.id_switches,
             breaks: self.breaks,
             false_tracks: self
@@ -325,13 +342,33 @@ mod tests {
         .unwrap();
         let r = c.report();
         assert_eq!(r.scans, 4);
-        assert_eq!(r.swaps, 2);
+        assert_eq!((r.swaps, r.swaps_undone), (2, 0));
         assert_eq!(r.id_switches, 2);
         assert_eq!(r.breaks, 1);
         assert_eq!(r.false_tracks, 1);
         assert_eq!(r.tracks, 3);
         assert_eq!(r.confirmation_delays[&0], Some(0));
         assert_eq!(r.confirmation_delays[&1], Some(1));
+    }
+
+    /// Two tracks whose estimates flip to each other's truth for one scan and back count 4
+    /// swaps, 2 of them undone; an exchange that stays 4 scans is not undone when it ends.
+    #[test]
+    fn continuity_counts_the_swaps_undone() {
+        let count = |flipped: std::ops::Range<usize>| {
+            let mut c = Continuity::new(20.0).unwrap();
+            for k in 0..10 {
+                let (a, b) = (v(0.0, k as f64), v(50.0, k as f64));
+                let (x, y) = if flipped.contains(&k) { (b, a) } else { (a, b) };
+                c.add_scan(&[(0, a), (1, b)], &[(7, x), (8, y)]).unwrap();
+            }
+            let r = c.report();
+            (r.swaps, r.swaps_undone)
+        };
+        assert_eq!(count(3..4), (4, 2));
+        assert_eq!(count(3..6), (4, 2));
+        assert_eq!(count(3..7), (4, 0));
+        assert_eq!(count(3..10), (2, 0));
     }
 
     #[test]
