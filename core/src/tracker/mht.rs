@@ -18,9 +18,26 @@
 //! tree always keeps one of its leaves when any is compatible): the trees are split into
 //! clusters that share detections, and each cluster is solved exactly by branch and bound
 //! (`solve`; a search stopped at its node budget keeps the best assignment found, the first of
-//! which is the greedy one, and is counted). The tracks reported are the global hypothesis'
-//! leaves, so a track's estimate may change with the hypothesis but its id does not: an id is a
-//! tree.
+//! which is the greedy one, and is counted). An id is a tree: a track's estimate may change with
+//! the hypotheses, its id does not.
+//!
+//! **What a track reports** (`Mht::mixture`, the default). Reporting the global hypothesis'
+//! leaf alone makes an estimate jump to its neighbour's detections whenever a hypothesis that
+//! exchanges two trees' last detections is the best by a hair, and back when the next scans
+//! tell. Each tree reports instead the mixture of its leaves, moment-matched, each weighed by its
+//! max-marginal, the score of the best global hypothesis that holds it (`max_marginals`, one
+//! constrained search per leaf of a cluster of several trees; a lone tree's leaves by their own
+//! scores):
+//!
+//! ```text
+//! w_l ∝ exp( max { L(H) : H ∋ l } ),   x̂ = Σ_l w_l x_l,   P = Σ_l w_l [P_l + (x_l − x̂)(x_l − x̂)ᵀ]
+//! ```
+//!
+//! (each leaf's posterior probability over the global hypotheses approximated by its best one,
+//! the max-product approximation; the mean is then the MMSE estimate over the leaves); the
+//! recursion, the pruning and the confirmation still follow the
+//! best global hypothesis. A cluster whose searches exceed `max_search` nodes together reports
+//! its chosen leaves (counted).
 //!
 //! **N-scan pruning.** Once a leaf's history holds `window` scans, the oldest of them is decided
 //! by the global hypothesis: a selected tree keeps the leaves that agree with its chosen leaf
@@ -65,6 +82,10 @@ pub struct Mht {
     /// more likely by a factor `e^Δ` (a hysteresis against estimates flicking between nearly
     /// equal hypotheses).
     pub hysteresis: f64,
+    /// What a tree reports: `true` (the default of [`Mht::new`]), the mixture of its leaves
+    /// weighed by their max-marginals (module doc); `false`, the leaf of the best global
+    /// hypothesis.
+    pub mixture: bool,
 }
 
 impl Mht {
@@ -98,6 +119,7 @@ impl Mht {
             max_hypotheses,
             max_search,
             hysteresis,
+            mixture: true,
         })
     }
 }
@@ -126,6 +148,8 @@ pub(crate) struct Leaf<S> {
     pub nis: f64,
     /// Whether it continues the tree's leaf reported after the last scan.
     pub reported: bool,
+    /// Its weight in the tree's reported mixture, this scan (unnormalised).
+    pub weight: f64,
 }
 
 impl<S> Leaf<S> {
@@ -192,6 +216,7 @@ impl<S: Clone> MhtState<S> {
                         last_update: k.last_update,
                         nis: f64::NAN,
                         reported: true,
+                        weight: 1.0,
                     }],
                     chosen: 0,
                     selected: true,
@@ -219,6 +244,47 @@ pub(crate) struct Options {
 /// branch and bound, stopped after `max_nodes` nodes with the best found. Returns the leaf of each
 /// tree (`None`: left out) and whether it stopped early.
 pub(crate) fn solve(trees: &[Options], max_nodes: usize) -> (Vec<Option<usize>>, bool) {
+    let (_, picks, nodes) = search(trees, max_nodes);
+    let picks = picks
+        .iter()
+        .zip(trees)
+        .map(|(p, t)| p.map(|o| t.options[o].1))
+        .collect();
+    (picks, nodes > max_nodes)
+}
+
+/// Each option's max-marginal: the summed score of the best compatible choice (as [`solve`]'s)
+/// that holds it, per tree in the order of its options; `f64::NEG_INFINITY` for an option that no
+/// best choice holding it keeps (it is better left out). `None` when the searches, one per
+/// option of every tree, visit more than `max_nodes` nodes together.
+pub(crate) fn max_marginals(trees: &[Options], max_nodes: usize) -> Option<Vec<Vec<f64>>> {
+    let mut spent = 0;
+    let mut fixed = trees.to_vec();
+    let mut out = Vec::with_capacity(trees.len());
+    for (k, tree) in trees.iter().enumerate() {
+        let mut values = Vec::with_capacity(tree.options.len());
+        for o in &tree.options {
+            fixed[k].options = vec![o.clone()];
+            let (value, picks, nodes) = search(&fixed, max_nodes - spent);
+            spent += nodes;
+            if spent > max_nodes {
+                return None;
+            }
+            values.push(if picks[k].is_some() {
+                value
+            } else {
+                f64::NEG_INFINITY
+            });
+        }
+        fixed[k].options.clone_from(&tree.options);
+        out.push(values);
+    }
+    Some(out)
+}
+
+/// [`solve`]'s branch and bound: the best summed score, the option of each tree (`None`: left
+/// out) and the nodes visited.
+fn search(trees: &[Options], max_nodes: usize) -> (f64, Vec<Option<usize>>, usize) {
     struct Search<'a> {
         trees: &'a [Options],
         /// Σ of the best positive option of trees k.. (the bound of what is left).
@@ -282,15 +348,7 @@ pub(crate) fn solve(trees: &[Options], max_nodes: usize) -> (Vec<Option<usize>>,
         max_nodes,
     };
     s.go(0, 0.0);
-    let stopped = s.nodes > max_nodes;
-    let picks = s
-        .best
-        .1
-        .iter()
-        .zip(trees)
-        .map(|(p, t)| p.map(|o| t.options[o].1))
-        .collect();
-    (picks, stopped)
+    (s.best.0, s.best.1, s.nodes)
 }
 
 /// Clusters of trees (indices) whose leaves share a detection of the window, in order of their
@@ -429,5 +487,95 @@ mod tests {
         let (p, stopped) = solve(&trees, 1);
         assert!(stopped);
         assert_eq!(p, vec![Some(0), Some(1)]);
+    }
+
+    /// Every option's max-marginal is the best compatible set that holds it (brute force over
+    /// every set), or −∞ where leaving its tree out is better; a budget too small for the
+    /// searches gives none.
+    #[test]
+    fn the_max_marginals_are_the_best_sets_holding_each_option() {
+        // Two trees after the same two detections: 8 + 9 holds (0, a) and (1, b); the swap 9 + 5.
+        let trees = [
+            opts(&[(8.0, &[(1, 0)]), (9.0, &[(1, 1)])]),
+            opts(&[(9.0, &[(1, 1)]), (5.0, &[(1, 0)])]),
+        ];
+        let m = max_marginals(&trees, 1000).expect("within the budget");
+        // Options are best first: tree 0 (9, b), (8, a); tree 1 (9, b), (5, a).
+        assert_eq!(m, vec![vec![14.0, 17.0], vec![17.0, 14.0]]);
+        assert!(max_marginals(&trees, 2).is_none());
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        for _ in 0..300 {
+            let trees: Vec<Options> = (0..rng.random_range(1..5))
+                .map(|_| {
+                    let o: Vec<(f64, Vec<Used>)> = (0..rng.random_range(1..4))
+                        .map(|_| {
+                            let u: Vec<Used> = (0..rng.random_range(0..3))
+                                .map(|s| (s, rng.random_range(0..3)))
+                                .collect();
+                            (rng.random_range(-5.0..10.0), u)
+                        })
+                        .collect();
+                    let r: Vec<(f64, &[Used])> =
+                        o.iter().map(|(s, u)| (*s, u.as_slice())).collect();
+                    opts(&r)
+                })
+                .collect();
+            let got = max_marginals(&trees, usize::MAX).expect("no budget");
+            // Brute force: every choice of an option index (or none) per tree.
+            let n = trees.len();
+            let mut choices: Vec<Vec<Option<usize>>> = vec![Vec::new()];
+            for t in &trees {
+                choices = choices
+                    .into_iter()
+                    .flat_map(|c| {
+                        (0..t.options.len()).map(Some).chain([None]).map(move |o| {
+                            let mut c = c.clone();
+                            c.push(o);
+                            c
+                        })
+                    })
+                    .collect();
+            }
+            let value = |c: &[Option<usize>]| -> Option<f64> {
+                let mut seen = std::collections::HashSet::new();
+                let mut v = 0.0;
+                for (t, o) in trees.iter().zip(c) {
+                    if let Some(o) = o {
+                        let (s, _, u) = &t.options[*o];
+                        for x in u {
+                            if !seen.insert(*x) {
+                                return None;
+                            }
+                        }
+                        v += s;
+                    }
+                }
+                Some(v)
+            };
+            for k in 0..n {
+                let without = choices
+                    .iter()
+                    .filter(|c| c[k].is_none())
+                    .filter_map(|c| value(c))
+                    .fold(f64::NEG_INFINITY, f64::max);
+                for (o, &g) in got[k].iter().enumerate() {
+                    let with = choices
+                        .iter()
+                        .filter(|c| c[k] == Some(o))
+                        .filter_map(|c| value(c))
+                        .fold(f64::NEG_INFINITY, f64::max);
+                    let want = if with >= without {
+                        with
+                    } else {
+                        f64::NEG_INFINITY
+                    };
+                    assert!(
+                        g == want || (g - want).abs() < 1e-9,
+                        "tree {k} option {o}: {g} vs {want}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -126,16 +126,22 @@ const MHT_PARAMS: &[(&str, &str)] = &[
         "log-likelihood ratio by which another hypothesis must beat the reported one to replace \
          it (default 0)",
     ),
+    (
+        "mixture",
+        "1: a track reports its hypotheses' mixture, each weighed by the best global hypothesis \
+         that holds it; 0: the best global hypothesis' (default 1)",
+    ),
 ];
 
 /// `mht`: the multi-scan associator.
 pub const ASSOCIATOR_MHT: AssociatorInfo = AssociatorInfo {
     name: "mht",
-    summary: "multi-scan: track-oriented MHT over a sliding window (N-scan pruning), the best \
-              global hypothesis reported, track existence confirms and deletes",
+    summary: "multi-scan: track-oriented MHT over a sliding window (N-scan pruning), each \
+              track's hypotheses reported as their mixture by max-marginals, track existence \
+              confirms and deletes",
     params: MHT_PARAMS,
     build: |d, p| {
-        Ok(Association::Mht(Mht::new(
+        let mut m = Mht::new(
             detection_model(d, p)?,
             existence(d, p)?,
             count(p, "window", 3)? as usize,
@@ -143,7 +149,9 @@ pub const ASSOCIATOR_MHT: AssociatorInfo = AssociatorInfo {
             count(p, "max_hypotheses", 100_000)? as usize,
             count(p, "max_search", 100_000)? as usize,
             p.get("hysteresis", 0.0),
-        )?))
+        )?;
+        m.mixture = p.get("mixture", 1.0) != 0.0;
+        Ok(Association::Mht(m))
     },
 };
 

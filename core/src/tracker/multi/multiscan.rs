@@ -7,11 +7,12 @@ use nalgebra::SVector;
 use super::{Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
+use crate::state::{Gaussian, moment_match};
 use crate::tracker::associate::{Gater, TrackHypotheses, hypothesise_scan};
 use crate::tracker::delete::DeleteReason;
 use crate::tracker::filter::TrackFilter;
 use crate::tracker::initiate::Initiator;
-use crate::tracker::mht::{Leaf, Mht, Options, Tree, Used, clusters, logit, solve};
+use crate::tracker::mht::{Leaf, Mht, Options, Tree, Used, clusters, logit, max_marginals, solve};
 
 /// What a confirmed tree's leaves get on top of their score in the global hypothesis, so that a
 /// confirmed track keeps a leaf whenever one is compatible (far above any sum of track scores).
@@ -147,6 +148,7 @@ where
                             last_update: t,
                             nis: g.distance_sq,
                             reported: li == tree.chosen,
+                            weight: 0.0,
                         },
                         false,
                     ));
@@ -198,10 +200,35 @@ where
             let (picks, stopped) = solve(&opts, m.max_search);
             self.stats.clusters += 1;
             self.stats.largest_cluster = self.stats.largest_cluster.max(c.len());
-            self.stats.capped += u64::from(stopped);
+            // Each leaf's weight in its tree's reported mixture: its max-marginal against the
+            // best one's (a lone tree: its score); within the search budget, else the chosen
+            // leaf alone (counted).
+            let marginals = if !m.mixture {
+                None
+            } else if c.len() == 1 {
+                Some(vec![opts[0].options.iter().map(|o| o.0).collect()])
+            } else {
+                max_marginals(&opts, m.max_search)
+            };
+            self.stats.capped += u64::from(stopped || (m.mixture && marginals.is_none()));
             for (&i, p) in c.iter().zip(picks) {
-                trees[i].selected = p.is_some();
-                trees[i].chosen = p.unwrap_or(0);
+                let tree = &mut trees[i];
+                tree.selected = p.is_some();
+                tree.chosen = p.unwrap_or(0);
+                for (li, l) in tree.leaves.iter_mut().enumerate() {
+                    l.weight = if li == tree.chosen { 1.0 } else { 0.0 };
+                }
+            }
+            if let Some(values) = marginals {
+                for ((&i, o), v) in c.iter().zip(&opts).zip(values) {
+                    let top = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    if !top.is_finite() {
+                        continue;
+                    }
+                    for (&(_, leaf, _), v) in o.options.iter().zip(&v) {
+                        trees[i].leaves[leaf].weight = (v - top).exp();
+                    }
+                }
             }
         }
         self.stats.largest_net = self
@@ -319,6 +346,7 @@ where
                     last_update: t,
                     nis: f64::NAN,
                     reported: true,
+                    weight: 1.0,
                 }],
                 chosen: 0,
                 selected: false,
@@ -331,7 +359,7 @@ where
                 let l = &k.leaves[k.chosen];
                 Track {
                     id: k.id,
-                    state: l.state.clone(),
+                    state: self.reported(k),
                     status: k.status,
                     scans: k.scans,
                     hits: l.hits,
@@ -344,6 +372,32 @@ where
         self.mht.trees = kept;
         self.mht.seq = seq;
         Ok(events)
+    }
+}
+
+impl<F, I, const N: usize> Tracker<F, I, N>
+where
+    F: TrackFilter<N>,
+    I: Initiator<N>,
+{
+    /// What a tree reports: its leaves' mixture by their weights, moment-matched
+    /// ([`TrackFilter::recentre`] of the chosen leaf), or the chosen leaf alone when it is the
+    /// only one weighed or the mixture cannot be formed.
+    fn reported(&self, k: &Tree<F::State>) -> F::State {
+        let chosen = &k.leaves[k.chosen].state;
+        let total: f64 = k.leaves.iter().map(|l| l.weight).sum();
+        if k.leaves.iter().filter(|l| l.weight > 0.0).count() < 2 || !total.is_finite() {
+            return chosen.clone();
+        }
+        let (gs, ws): (Vec<Gaussian<N>>, Vec<f64>) = k
+            .leaves
+            .iter()
+            .filter(|l| l.weight > 0.0)
+            .map(|l| (self.filter.estimate(&l.state), l.weight / total))
+            .unzip();
+        self.filter
+            .recentre(chosen, moment_match(&gs, &ws))
+            .unwrap_or_else(|_| chosen.clone())
     }
 }
 
