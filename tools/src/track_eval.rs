@@ -17,7 +17,7 @@ use std::path::PathBuf;
 use anyhow::{Context as _, bail};
 use harrier_core::scenario::{Estimate, ScenarioData};
 use harrier_core::tracker::format::MultiScenario;
-use harrier_core::tracker::generate::groups;
+use harrier_core::tracker::generate::{groups, position_line};
 use harrier_core::tracker::metrics::{Continuity, gospa};
 use harrier_engine::Params;
 use nalgebra::Vector2;
@@ -466,10 +466,7 @@ fn known_association(
                 own.push_str(l);
             } else {
                 decoy += 1e5;
-                own.push_str(&format!(
-                    r#"{{"t":{t},"sensor":"radar","kind":"position","platform":{{"pos":[0,0,0],"vel":[0,0,0]}},"z":[{},1e7]}}"#,
-                    1e7 + decoy
-                ));
+                own.push_str(&position_line(t, [1e7 + decoy, 1e7]));
             }
             own.push('\n');
         }
@@ -533,15 +530,12 @@ fn taken_by(choice: &TrackerChoice, params: &Params) -> Params {
 mod tests {
     use super::*;
 
-    /// The confirmable targets are found in the scenario (their ids mapped to its `targets`):
-    /// every target confirmed within 3 scans that is not confirmable is one of the few the
-    /// generator detected at most once in their first three scans.
-    #[test]
-    fn the_confirmable_targets_are_counted() {
-        let args = EvalArgs {
+    /// Seeds 1–3 of `shape` with `trackers`, as JSON.
+    fn args(shape: &str, trackers: &[&str]) -> EvalArgs {
+        EvalArgs {
             seeds: "1-3".into(),
-            shapes: vec!["crossing".into()],
-            trackers: vec!["gnn/ekf".into()],
+            shapes: vec![shape.into()],
+            trackers: trackers.iter().map(|t| t.to_string()).collect(),
             params: Vec::new(),
             clutter: None,
             cutoff: 20.0,
@@ -549,8 +543,15 @@ mod tests {
             json: true,
             score: None,
             estimates: None,
-        };
-        let rows = evaluate(&args).expect("rows");
+        }
+    }
+
+    /// The confirmable targets are found in the scenario (their ids mapped to its `targets`):
+    /// every target confirmed within 3 scans that is not confirmable is one of the few the
+    /// generator detected at most once in their first three scans.
+    #[test]
+    fn the_confirmable_targets_are_counted() {
+        let rows = evaluate(&args("crossing", &["gnn/ekf"])).expect("rows");
         let [r] = rows.as_slice() else {
             panic!("{rows:?}")
         };
@@ -571,19 +572,7 @@ mod tests {
     /// GOSPA than GNN's with the same track filter (misaligned labels would give neither).
     #[test]
     fn the_known_association_bound_tracks_each_target_alone() {
-        let args = EvalArgs {
-            seeds: "1-3".into(),
-            shapes: vec!["parallel".into()],
-            trackers: vec!["oracle/imm".into(), "gnn/imm".into()],
-            params: Vec::new(),
-            clutter: None,
-            cutoff: 20.0,
-            write: None,
-            json: true,
-            score: None,
-            estimates: None,
-        };
-        let rows = evaluate(&args).expect("rows");
+        let rows = evaluate(&args("parallel", &["oracle/imm", "gnn/imm"])).expect("rows");
         let [oracle, gnn] = rows.as_slice() else {
             panic!("{rows:?}")
         };

@@ -330,13 +330,19 @@ impl Files {
         scan.shuffle(rng);
         for (z, origin) in &scan {
             self.origins.push(*origin);
-            let _ = writeln!(
-                self.meas,
-                r#"{{"t":{t},"sensor":"radar","kind":"position","platform":{{"pos":[0,0,0],"vel":[0,0,0]}},"z":[{:.4},{:.4}]}}"#,
-                z[0], z[1]
-            );
+            self.meas.push_str(&position_line(t, *z));
+            self.meas.push('\n');
         }
     }
+}
+
+/// One line of a generated `measurements.jsonl`: the planar position sensor "radar" (on the
+/// ground at the origin) detecting `z` (m, to 0.1 mm) at `t`.
+pub fn position_line(t: f64, z: [f64; 2]) -> String {
+    format!(
+        r#"{{"t":{t},"sensor":"radar","kind":"position","platform":{{"pos":[0,0,0],"vel":[0,0,0]}},"z":[{:.4},{:.4}]}}"#,
+        z[0], z[1]
+    )
 }
 
 /// `scenario.json` of a generated scenario: one planar position sensor ("radar" on the ground

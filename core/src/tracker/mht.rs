@@ -394,6 +394,7 @@ pub(crate) fn clusters<S>(trees: &[Tree<S>]) -> Vec<Vec<usize>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{Rng, SeedableRng};
 
     fn opts(o: &[(f64, &[Used])]) -> Options {
         let mut options: Vec<(f64, usize, Vec<Used>)> = o
@@ -403,6 +404,24 @@ mod tests {
             .collect();
         options.sort_by(|a, b| b.0.total_cmp(&a.0));
         Options { options }
+    }
+
+    /// 1–4 trees of 1–3 options, each scored in −5..10 with 0–2 detections of 3 scans × 3.
+    fn random_trees(rng: &mut rand_chacha::ChaCha8Rng) -> Vec<Options> {
+        (0..rng.random_range(1..5))
+            .map(|_| {
+                let o: Vec<(f64, Vec<Used>)> = (0..rng.random_range(1..4))
+                    .map(|_| {
+                        let u: Vec<Used> = (0..rng.random_range(0..3))
+                            .map(|s| (s, rng.random_range(0..3)))
+                            .collect();
+                        (rng.random_range(-5.0..10.0), u)
+                    })
+                    .collect();
+                let r: Vec<(f64, &[Used])> = o.iter().map(|(s, u)| (*s, u.as_slice())).collect();
+                opts(&r)
+            })
+            .collect()
     }
 
     #[test]
@@ -417,24 +436,9 @@ mod tests {
         let trees = [opts(&[(-1.0, &[(2, 3)])]), opts(&[(1.0, &[(2, 4)])])];
         assert_eq!(solve(&trees, 1000).0, vec![None, Some(0)]);
         // Against brute force on random small instances.
-        use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2);
         for _ in 0..300 {
-            let trees: Vec<Options> = (0..rng.random_range(1..5))
-                .map(|_| {
-                    let o: Vec<(f64, Vec<Used>)> = (0..rng.random_range(1..4))
-                        .map(|_| {
-                            let u: Vec<Used> = (0..rng.random_range(0..3))
-                                .map(|s| (s, rng.random_range(0..3)))
-                                .collect();
-                            (rng.random_range(-5.0..10.0), u)
-                        })
-                        .collect();
-                    let r: Vec<(f64, &[Used])> =
-                        o.iter().map(|(s, u)| (*s, u.as_slice())).collect();
-                    opts(&r)
-                })
-                .collect();
+            let trees = random_trees(&mut rng);
             let (got, stopped) = solve(&trees, usize::MAX);
             assert!(!stopped);
             let value = |p: &[Option<usize>]| -> Option<f64> {
@@ -503,24 +507,9 @@ mod tests {
         // Options are best first: tree 0 (9, b), (8, a); tree 1 (9, b), (5, a).
         assert_eq!(m, vec![vec![14.0, 17.0], vec![17.0, 14.0]]);
         assert!(max_marginals(&trees, 2).is_none());
-        use rand::{Rng, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
         for _ in 0..300 {
-            let trees: Vec<Options> = (0..rng.random_range(1..5))
-                .map(|_| {
-                    let o: Vec<(f64, Vec<Used>)> = (0..rng.random_range(1..4))
-                        .map(|_| {
-                            let u: Vec<Used> = (0..rng.random_range(0..3))
-                                .map(|s| (s, rng.random_range(0..3)))
-                                .collect();
-                            (rng.random_range(-5.0..10.0), u)
-                        })
-                        .collect();
-                    let r: Vec<(f64, &[Used])> =
-                        o.iter().map(|(s, u)| (*s, u.as_slice())).collect();
-                    opts(&r)
-                })
-                .collect();
+            let trees = random_trees(&mut rng);
             let got = max_marginals(&trees, usize::MAX).expect("no budget");
             // Brute force: every choice of an option index (or none) per tree.
             let n = trees.len();
