@@ -35,9 +35,9 @@
 //!
 //! (each leaf's posterior probability over the global hypotheses approximated by its best one,
 //! the max-product approximation; the mean is then the MMSE estimate over the leaves); the
-//! recursion, the pruning and the confirmation still follow the
-//! best global hypothesis. A cluster whose searches exceed `max_search` nodes together reports
-//! its chosen leaves (counted).
+//! recursion, the pruning and the confirmation still follow the best global hypothesis. A
+//! cluster whose searches exceed `max_search` nodes together reports its chosen leaves
+//! (counted).
 //!
 //! **N-scan pruning.** Once a leaf's history holds `window` scans, the oldest of them is decided
 //! by the global hypothesis: a selected tree keeps the leaves that agree with its chosen leaf
