@@ -7,9 +7,9 @@
 //! What holds on every shape: `jipda` and `mht` (IMM tracks) at least 5 % lower GOSPA than `gnn`
 //! with the same filter and than today's default (`gnn`, `ekf`), no more false tracks, every target
 //! confirmed, and outside dense clutter at most one target fewer within their first three scans
-//! than GNN (98–99 % of GNN's count over fifty seeds). On crossings, plain JIPDA (`star_nodes=0`) swaps at most half
-//! of GNN's identities; on close parallel targets, the default JIPDA with JPDA*'s coalescence
-//! avoidance at most half of plain JIPDA's. Where they lose (JPDA*'s hard guesses at crossings of
+//! than GNN (98–99 % of GNN's count over fifty seeds). On crossings, plain JIPDA
+//! (`star_nodes=0`) swaps at most half of GNN's identities; on close parallel targets, the
+//! default JIPDA with JPDA*'s coalescence avoidance at most half of plain JIPDA's. Where they lose (JPDA*'s hard guesses at crossings of
 //! tracks that move together; the multi-scan associator's swaps, three quarters of GNN's; the later
 //! confirmation of existence-based rules in dense clutter) is printed and set out in
 //! BENCHMARKS.md with the ten- and fifty-seed figures, not asserted.
