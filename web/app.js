@@ -148,8 +148,10 @@ const vehicleActions = {
         const n = r && r.attempts;
         const ms = r && Number.isFinite(r.elapsed_ms) ? ` in ${r.elapsed_ms.toFixed(0)} ms` : "";
         const text = `${command}: ${r ? r.result : "?"}${r && r.command ? ` (${commandName(r.command)}` : " ("}${n ? `, ${n} attempt${n > 1 ? "s" : ""}` : ""}${ms})`;
+        // The operator wins: a command to a vehicle of an assignment took it out of its slot.
+        const released = r && r.released_from_assignment != null ? ` · out of assignment #${r.released_from_assignment} (resume it there)` : "";
         if (ok) markToken(true);
-        return { kind: ok ? "ok" : "bad", text: text.replace(" ()", "") };
+        return { kind: ok ? "ok" : "bad", text: text.replace(" ()", "") + released };
       },
     );
   },
@@ -229,7 +231,16 @@ async function refreshAssignments() {
   }
 }
 
-const SLOT_TEXT = { waiting: "waiting", arming: "arming", taking_off: "taking off", offboard: "offboard", lost: "LOST", failed: "FAILED", hold: "hold" };
+const SLOT_TEXT = { waiting: "waiting", arming: "arming", taking_off: "taking off", offboard: "offboard", handed_off: "handed off", lost: "LOST", failed: "FAILED", overridden: "OVERRIDDEN", hold: "hold" };
+
+/** Takes vehicle `vehicle` back into its slot of assignment `id` (it was overridden or failed). */
+async function resumeSlot(id, vehicle, node) {
+  const r = await act(node, `resume UAV ${vehicle} in assignment ${id}`, () => request("POST", `assignments/${id}/vehicles/${vehicle}/resume`), () => `UAV ${vehicle} resumed in #${id}`);
+  if (r) {
+    markToken(true);
+    store.applyAssignment(r);
+  }
+}
 const assignCards = new Map(); // id → {node, f}
 
 function assignmentCard(a) {
@@ -301,7 +312,8 @@ function renderAssignments() {
     if (c.slotKey !== key) {
       f.slots.replaceChildren(
         ...slots.map((x) => el("div", { class: "slot", "data-vehicle": x.vehicle },
-          el("span", { class: "k", text: `UAV ${x.vehicle}` }), el("span", { class: "tag" }), el("span", { class: "v" }))),
+          el("span", { class: "k", text: `UAV ${x.vehicle}` }), el("span", { class: "tag" }), el("span", { class: "v" }),
+          el("button", { type: "button", text: "Resume", "data-action": "resume", hidden: true, onclick: () => resumeSlot(a.id, x.vehicle, f.result) }))),
       );
       c.slotKey = key;
     }
@@ -309,13 +321,18 @@ function renderAssignments() {
       const row = f.slots.children[i];
       const tag = row.children[1];
       setText(tag, SLOT_TEXT[x.state] || x.state);
-      tag.className = `tag ${x.state === "offboard" ? "ok" : x.state === "lost" || x.state === "failed" ? "bad" : x.state === "hold" ? "" : "warn"}`;
+      tag.className = `tag ${x.state === "offboard" ? "ok" : x.state === "lost" || x.state === "failed" || x.state === "overridden" ? "bad" : x.state === "hold" ? "" : "warn"}`;
       row.dataset.state = x.state;
       const parts = [];
-      if (Number.isFinite(x.range_error_m)) parts.push(`r−R ${x.range_error_m >= 0 ? "+" : ""}${fmt(x.range_error_m, 1)} m`);
-      if (Number.isFinite(x.phase_deg)) parts.push(`φ ${fmt(x.phase_deg, 0)}°`);
+      const out = x.state === "overridden" || x.state === "failed";
+      const o = x.overridden;
+      if (o) parts.push(`${o.by === "api" ? "operator" : o.by === "router_client" ? "router client" : "vehicle"}: ${o.from_mode || "?"} → ${o.to_mode || "?"}${o.disarmed ? " (disarmed)" : ""}`);
+      if (!out && Number.isFinite(x.range_error_m)) parts.push(`r−R ${x.range_error_m >= 0 ? "+" : ""}${fmt(x.range_error_m, 1)} m`);
+      if (!out && Number.isFinite(x.phase_deg)) parts.push(`φ ${fmt(x.phase_deg, 0)}°`);
       if (x.error) parts.push(x.error);
       setText(row.children[2], parts.join(" · "));
+      row.children[2].title = o ? o.detail : x.error || "";
+      row.children[3].hidden = !(active && out);
     });
   }
   const empty = root.querySelector(".empty");
@@ -382,19 +399,48 @@ function updateAssignForm() {
   renderAssignments();
 }
 
-// Lost links: a banner while any vehicle is lost, and a toast on each loss and recovery.
+// Lost links, second sources claiming a vehicle's id, and vehicles back from a new address: a
+// banner while any is so (with an Accept button for a new address), and a toast on each event.
 function updateAlerts() {
-  const lost = [...store.vehicles.values()].filter((v) => v.link && v.link.state === "lost").map((v) => v.label);
+  const links = [...store.vehicles.values()].filter((v) => v.link);
+  const lost = links.filter((v) => v.link.state === "lost").map((v) => v.label);
+  const lines = [];
+  if (lost.length) lines.push({ text: `Link lost: UAV ${lost.join(", ")} — nothing heard for ${lost.map((l) => fmt(store.vehicles.get(l).link.last_seen_s, 0)).join(", ")} s` });
+  const conflicts = links.filter((v) => v.link.identity && v.link.identity.conflict);
+  for (const v of conflicts) {
+    const c = v.link.identity.conflict;
+    lines.push({ text: `Identity conflict: ${c.address} claims system id ${v.label}, which ${v.link.address} holds — its ${c.frames} frames refused, nothing sent to it` });
+  }
+  const moved = links.filter((v) => v.link.identity && v.link.identity.state === "unconfirmed");
+  for (const v of moved) {
+    lines.push({ text: `UAV ${v.label} speaks from a new address ${v.link.address} (was ${v.link.identity.previous_address || "?"}): not flown by the guidance until accepted`, accept: v.label });
+  }
   const banner = $("alerts");
-  banner.hidden = !lost.length;
-  setText(banner, lost.length ? `Link lost: UAV ${lost.join(", ")} — nothing heard for ${lost.map((l) => fmt(store.vehicles.get(l).link.last_seen_s, 0)).join(", ")} s` : "");
+  banner.hidden = !lines.length;
+  const key = JSON.stringify(lines);
+  if (banner.dataset.key !== key) {
+    banner.dataset.key = key;
+    banner.replaceChildren(...lines.map((l) => el("div", { class: "alert-line" }, el("span", { text: l.text }),
+      l.accept ? el("button", { type: "button", text: "Accept", "data-action": "accept", onclick: () => acceptVehicle(l.accept) }) : "")));
+  }
   document.body.dataset.lost = lost.join(",");
+  document.body.dataset.conflicts = conflicts.map((v) => v.label).join(",");
+}
+
+async function acceptVehicle(label) {
+  const r = await act(el("span"), `accept UAV ${label}`, () => request("POST", `vehicles/${encodeURIComponent(label)}/accept`), (b) => (b && b.accepted ? `UAV ${label} accepted` : "nothing to accept"));
+  if (r) {
+    markToken(true);
+    toast(`UAV ${label}: new address accepted`);
+  }
 }
 
 function onVehicleEvent(e) {
   store.applyVehicleEvent(e);
   if (e.event === "lost") toast(`UAV ${e.vehicle}: link lost`, "bad");
   else if (e.event === "recovered") toast(`UAV ${e.vehicle}: link recovered`);
+  else if (e.event === "conflict") toast(`UAV ${e.vehicle}: ${e.detail || "a second source claims its id"}`, "bad");
+  else if (e.event === "moved") toast(`UAV ${e.vehicle}: ${e.detail || "heard from a new address"} — accept it to fly it`, "bad");
 }
 
 function updateFollowSelect() {

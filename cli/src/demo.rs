@@ -581,11 +581,13 @@ struct Assigner {
 impl Assigner {
     /// Keeps the demo's UAVs assigned: [`Self::assign_when_ready`], then, when that assignment
     /// ends because its track was deleted (the tracker gave it up: a car lost from sight, or a
-    /// ghost confirmed for a few scans), assigns them again the same way. An assignment the
-    /// operator ended is left ended.
+    /// ghost confirmed for a few scans), assigns them again the same way, less every UAV someone
+    /// else took out of it (`overridden`: the operator wins; it is the operator's to assign
+    /// again). An assignment the operator ended is left ended.
     async fn keep(mut self) {
+        let mut taken: Vec<u8> = Vec::new();
         loop {
-            let Some(id) = self.assign_when_ready().await else {
+            let Some(id) = self.assign_when_ready(&taken).await else {
                 return;
             };
             let mut views = self.guidance.assignments.clone();
@@ -594,16 +596,35 @@ impl Assigner {
                     .borrow_and_update()
                     .iter()
                     .find(|a| a.id == id)
-                    .map(|a| a.ended_reason.clone());
+                    .map(|a| (a.ended_reason.clone(), a.vehicles.clone()));
                 match ended {
-                    Some(Some(reason)) if reason == harrier_server::guidance::ENDED_BY_OPERATOR => {
+                    Some((Some(reason), _))
+                        if reason == harrier_server::guidance::ENDED_BY_OPERATOR =>
+                    {
                         return;
                     }
-                    Some(Some(reason)) => {
+                    Some((Some(reason), slots)) => {
+                        taken.extend(
+                            slots
+                                .iter()
+                                .filter(|s| {
+                                    s.state == harrier_server::guidance::SlotState::Overridden
+                                })
+                                .map(|s| s.vehicle),
+                        );
+                        if taken.len() >= usize::from(self.vehicles) {
+                            tracing::warn!(
+                                assignment = id,
+                                reason,
+                                "demo: assignment ended; every UAV was taken over: none to assign"
+                            );
+                            return;
+                        }
                         tracing::warn!(
                             assignment = id,
                             reason,
-                            "demo: assignment ended; assigning the UAVs again"
+                            taken_over = ?taken,
+                            "demo: assignment ended; assigning the UAVs again (not those taken over)"
                         );
                         break;
                     }
@@ -621,8 +642,8 @@ impl Assigner {
     /// speed is known within [`SPEED_STD_M_S`] (or [`CAR_WAIT_S`] of scan time since the first:
     /// the slowest car is the one to orbit, and its track may confirm after the other's), then
     /// assigns all UAVs to the slowest confirmed track with TOGVF and phase spacing: the
-    /// assignment's id, `None` once the service stops.
-    async fn assign_when_ready(&mut self) -> Option<u64> {
+    /// assignment's id, `None` once the service stops. The UAVs in `taken` are left out.
+    async fn assign_when_ready(&mut self, taken: &[u8]) -> Option<u64> {
         let mut first_seen: Option<f64> = None;
         loop {
             self.snapshot.changed().await.ok()?;
@@ -656,7 +677,7 @@ impl Assigner {
             candidates.sort_by(|a, b| a.speed.total_cmp(&b.speed));
             let track = candidates[0].id;
             let request = harrier_server::guidance::AssignmentRequest {
-                vehicles: (1..=self.vehicles).collect(),
+                vehicles: (1..=self.vehicles).filter(|v| !taken.contains(v)).collect(),
                 track,
                 law: "togvf".into(),
                 radius_m: Some(self.radius),

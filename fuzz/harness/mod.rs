@@ -701,7 +701,7 @@ pub(crate) fn gcs(data: &[u8]) {
         for (header, m) in frames {
             let was = v.state();
             let t = now.duration_since(start).as_secs_f64();
-            let back = v.on_frame(&header, &m, (0, peer), now, t);
+            let back = v.on_frame(&header, &m, now, t);
             assert_eq!(back, was == LinkState::Lost, "recovered flag wrong");
             assert_eq!(v.state(), LinkState::Connected);
         }
@@ -768,6 +768,7 @@ pub(crate) fn rest(data: &[u8]) {
                 speed: 10.0,
                 takeoff_height: 30.0,
                 obstacles: Vec::new(),
+                envelope: harrier_server::guidance::Envelope::default(),
             };
             if let Ok(p) = r.plan(&settings, &[]) {
                 assert!(
@@ -780,7 +781,8 @@ pub(crate) fn rest(data: &[u8]) {
                 assert!(
                     p.speed.is_finite() && p.speed > 0.0 && p.speed <= settings.multirotor.v_max
                 );
-                assert!(p.spacing.is_finite() && p.spacing > 0.0);
+                let spacing = p.spacing_of(r.vehicles.len());
+                assert!(spacing.is_finite() && spacing > 0.0);
                 assert!(!r.vehicles.is_empty() && !r.vehicles.contains(&0));
             }
         }

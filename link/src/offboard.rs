@@ -3,19 +3,28 @@
 //!
 //! - **PX4** (multirotor and fixed wing): arm → take off (`NAV_TAKEOFF`, param7 AMSL) → stream
 //!   velocity setpoints → switch to OFFBOARD (PX4 refuses the switch until setpoints arrive) →
-//!   keep streaming, and ask for OFFBOARD again whenever the vehicle is seen out of it. A
-//!   multirotor is switched at once (its setpoints lift it off); a fixed wing only once its
-//!   takeoff has climbed (OFFBOARD would end the launch on the ground).
+//!   keep streaming. A multirotor is switched at once (its setpoints lift it off); a fixed wing
+//!   only once its takeoff has climbed (OFFBOARD would end the launch on the ground).
 //! - **ArduCopter**: GUIDED → arm → take off (`NAV_TAKEOFF`, param7 the height above home;
 //!   "must be armed in GUIDED", Copter Commands in Guided Mode) → wait until it is up (a target
 //!   sent during the takeoff would replace it) → stream velocity targets
-//!   (SET_POSITION_TARGET_LOCAL_NED, the same type mask), GUIDED again whenever seen out of it.
+//!   (SET_POSITION_TARGET_LOCAL_NED, the same type mask).
 //! - **ArduPlane**: arm → TAKEOFF mode (it climbs to TKOFF_ALT, then loiters; a plain fixed
 //!   wing takes off no other way, NAV_TAKEOFF being for QuadPlanes) → once up, GUIDED →
 //!   steer with `MAV_CMD_GUIDED_CHANGE_HEADING` (course over ground), `_SPEED` (airspeed) and
 //!   `_ALTITUDE` (ArduPlane reads only the altitude of a SET_POSITION_TARGET_*: "Plane Commands
 //!   in Guided Mode", `GCS_MAVLINK_Plane::handle_set_position_target_global_int`), at most every
 //!   [`OffboardConfig::plane_interval_s`].
+//!
+//! **Mode authority.** The sequence asks for its mode once; it never takes the vehicle back.
+//! A change of mode or arming it did not command (a router client's command, the RC mode switch,
+//! the autopilot's failsafe, a landing, a disarm) ends it with [`OffboardError::Overridden`]:
+//! once its guided mode was acknowledged (or found in force), any HEARTBEAT newer than that in
+//! another mode; during the launch, a mode outside the launch's own (the one the vehicle was
+//! found in, the guided mode, the takeoff mode and the hold a PX4 takeoff ends in); and, once
+//! armed, a disarm. This is PX4's own rule (a vehicle switched out of OFFBOARD stays out until
+//! commanded again; MAVSDK's Offboard plugin stops) and ArduPilot's (the pilot's mode switch
+//! always wins over GUIDED).
 //!
 //! No sockets and no clock inside: the caller passes its time, what it knows of the vehicle
 //! ([`VehicleStatus`], from HEARTBEATs, and its height above home) and where to fly
@@ -36,6 +45,7 @@ use crate::command::{
     Setpoint, arm, guided_altitude, guided_heading, guided_speed, set_mode, takeoff,
     takeoff_relative,
 };
+use crate::px4::FlightMode;
 
 /// Takeoff height above home (m) an ArduCopter is sent to when none is given (PX4's
 /// MIS_TAKEOFF_ALT default; ArduCopter's NAV_TAKEOFF has no default of its own).
@@ -116,7 +126,7 @@ pub enum Phase {
     /// ArduPilot, and a PX4 fixed wing: climbing, waiting to be up before the first target.
     Climbing,
     /// Streaming setpoints (PX4 OFFBOARD) or targets (ArduPilot GUIDED); the mode requested
-    /// whenever the vehicle is seen out of it.
+    /// until acknowledged, never again after.
     Offboard,
 }
 
@@ -139,6 +149,58 @@ pub enum OffboardError {
         /// How often it was sent.
         attempts: u32,
     },
+    /// Someone else took the vehicle: a change of mode or arming the sequence did not command.
+    #[error("{0}")]
+    Overridden(Override),
+}
+
+/// A change of a vehicle's mode or arming that its ground station did not command (see the
+/// module documentation): the vehicle is someone else's now.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Override {
+    /// The mode it was last seen in (`None`: not in its table, or not seen yet).
+    pub from: Option<Mode>,
+    /// The mode it is in now (`None`: not in its table).
+    pub to: Option<Mode>,
+    /// Whether it was disarmed.
+    pub disarmed: bool,
+    /// When the HEARTBEAT that showed it was observed (the caller's clock).
+    pub at: f64,
+}
+
+impl std::fmt::Display for Override {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = |m: Option<Mode>| m.map_or("an unknown mode", Mode::name);
+        if self.disarmed {
+            write!(f, "disarmed by no command of ours (in {})", name(self.to))
+        } else {
+            write!(
+                f,
+                "mode changed by no command of ours: {} -> {}",
+                name(self.from),
+                name(self.to)
+            )
+        }
+    }
+}
+
+impl Override {
+    /// The override `status` shows, if any, for a vehicle last seen in `from`: a mode `allowed`
+    /// rejects, or a disarm when `armed_since` says it was armed before `status` was observed.
+    pub fn of(
+        status: &VehicleStatus,
+        from: Option<Mode>,
+        armed_since: Option<f64>,
+        allowed: impl Fn(Option<Mode>) -> bool,
+    ) -> Option<Self> {
+        let disarmed = !status.armed && armed_since.is_some_and(|t| status.at > t);
+        (disarmed || !allowed(status.mode)).then_some(Self {
+            from,
+            to: status.mode,
+            disarmed,
+            at: status.at,
+        })
+    }
 }
 
 /// A command waiting for its acknowledgement.
@@ -160,10 +222,19 @@ pub struct OffboardSequence {
     pending: Option<Pending>,
     setpoints: u32,
     last_setpoint_at: Option<f64>,
-    /// When the last mode request was acknowledged: a status older than that predates it.
+    /// When the guided mode was acknowledged (or found in force): from then on, every newer
+    /// status must show it.
     switched_at: Option<f64>,
     /// ArduCopter: GUIDED was acknowledged before arming.
     guided_before_arming: bool,
+    /// When the vehicle was known armed (the arming acknowledged, or found armed): a newer
+    /// disarmed status is an override.
+    armed_at: Option<f64>,
+    /// The mode the vehicle was in when the sequence first saw it (`Some(None)`: one its
+    /// table lacks).
+    initial: Option<Option<Mode>>,
+    /// The mode of the last status seen.
+    last_mode: Option<Mode>,
 }
 
 impl OffboardSequence {
@@ -179,6 +250,9 @@ impl OffboardSequence {
             last_setpoint_at: None,
             switched_at: None,
             guided_before_arming: false,
+            armed_at: None,
+            initial: None,
+            last_mode: None,
         }
     }
 
@@ -213,6 +287,7 @@ impl OffboardSequence {
         height_m: Option<f64>,
         steer: Option<Steer>,
     ) -> Result<Vec<MavMessage>, OffboardError> {
+        self.authority(status)?;
         let mut out = Vec::new();
         self.resend(now, &mut out)?;
         let idle = self.pending.is_none();
@@ -222,6 +297,7 @@ impl OffboardSequence {
         match self.phase {
             Phase::Arming if idle && status.armed && (px4_multirotor || airborne) => {
                 self.phase = Phase::Offboard;
+                self.armed_at = Some(status.at);
             }
             Phase::Arming if idle => self.arm_step(now, status, &mut out),
             Phase::TakingOff if idle => {
@@ -268,6 +344,10 @@ impl OffboardSequence {
         };
         let guided = self.personality.guided();
         let in_guided = status.mode == Some(guided);
+        if in_guided && self.switched_at.is_none() {
+            // Found in the guided mode (flying already): held to it from now on.
+            self.switched_at = Some(status.at);
+        }
         match (self.personality.autopilot, self.personality.frame) {
             (_, Frame::Multirotor) | (Autopilot::Px4, Frame::FixedWing) => {
                 if self.last_setpoint_at != Some(now) {
@@ -287,12 +367,36 @@ impl OffboardSequence {
                 }
             }
         }
-        let out_of_mode = !in_guided && self.switched_at.is_none_or(|t| status.at > t);
+        // Asked for until acknowledged, never after: a vehicle seen out of it since is someone
+        // else's (`authority`).
         let ready = ardupilot || self.setpoints >= self.config.setpoints_before_switch.max(1);
-        if self.pending.is_none() && out_of_mode && ready {
+        if self.pending.is_none() && self.switched_at.is_none() && ready {
             self.send(now, set_mode(self.target, guided), &mut out);
         }
         Ok(out)
+    }
+
+    /// Whether `status` shows someone else's change (see the module documentation): once the
+    /// guided mode was acknowledged, another mode in a newer status; before, a mode outside the
+    /// launch's; once armed, a disarm. Remembers the mode seen.
+    fn authority(&mut self, status: &VehicleStatus) -> Result<(), OffboardError> {
+        let initial = *self.initial.get_or_insert(status.mode);
+        let guided = self.personality.guided();
+        let launch = [
+            initial,
+            Some(guided),
+            Some(self.personality.hold()),
+            Some(Mode::Px4(FlightMode::Takeoff)),
+            Some(Mode::Plane(PlaneMode::Takeoff)),
+        ];
+        let switched_at = self.switched_at;
+        let allowed = |m: Option<Mode>| match switched_at {
+            Some(t) if status.at > t => m == Some(guided),
+            _ => launch.contains(&m),
+        };
+        let found = Override::of(status, self.last_mode, self.armed_at, allowed);
+        self.last_mode = status.mode;
+        found.map_or(Ok(()), |o| Err(OffboardError::Overridden(o)))
     }
 
     /// Re-sends the pending command once its acknowledgement is late; gives up after the last
@@ -369,8 +473,15 @@ impl OffboardSequence {
         }
         let switch_at_once = self.personality == Personality::PX4_MULTIROTOR;
         match (self.phase, p.command) {
-            (Phase::Arming, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM) => self.phase = Phase::TakingOff,
-            (Phase::Arming, _) => self.guided_before_arming = true,
+            (Phase::Arming, MavCmd::MAV_CMD_COMPONENT_ARM_DISARM) => {
+                self.phase = Phase::TakingOff;
+                self.armed_at = Some(now);
+            }
+            (Phase::Arming, _) => {
+                // ArduCopter's GUIDED before arming: held to it from now on.
+                self.guided_before_arming = true;
+                self.switched_at = Some(now);
+            }
             (Phase::TakingOff, _) if switch_at_once => self.phase = Phase::Offboard,
             (Phase::TakingOff, _) => self.phase = Phase::Climbing,
             _ => self.switched_at = Some(now),

@@ -41,8 +41,8 @@ const V: Option<Steer> = Some(Steer {
     altitude_amsl_m: None,
 });
 
-/// Over a slow link: one command per acknowledgement, setpoints before the switch, the
-/// switch repeated only when a status newer than its acknowledgement shows another mode.
+/// Over a slow link: one command per acknowledgement, setpoints before the switch, the switch
+/// asked for once; a status newer than its acknowledgement in another mode is an override.
 #[test]
 fn px4_launch_waits_for_each_acknowledgement() {
     use MavCmd::*;
@@ -81,15 +81,93 @@ fn px4_launch_waits_for_each_acknowledgement() {
     // A heartbeat from before the switch does not trigger another request…
     let out = s.next(0.6, &climbing, Some(2.0), V).expect("next");
     assert_eq!((commands(&out).len(), setpoints(&out)), (0, 1));
-    // …a later one still out of OFFBOARD does; no velocity, no setpoint and no request.
-    let fell_back = px4(true, FlightMode::Hold, 0.7);
+    // …in OFFBOARD: setpoints, no request; without a velocity, nothing.
+    let offboard = px4(true, FlightMode::Offboard, 0.7);
+    let out = s.next(0.8, &offboard, Some(3.0), V).expect("next");
+    assert_eq!((commands(&out).len(), setpoints(&out)), (0, 1));
     assert!(
-        s.next(0.8, &fell_back, Some(3.0), None)
+        s.next(0.85, &offboard, Some(3.0), None)
             .expect("next")
             .is_empty()
     );
-    let out = s.next(0.9, &fell_back, Some(3.0), V).expect("next");
-    assert_eq!(commands(&out), [MAV_CMD_DO_SET_MODE]);
+    // A later one out of OFFBOARD is someone else's Hold: the sequence ends, asking for nothing.
+    let held = px4(true, FlightMode::Hold, 0.9);
+    assert_eq!(
+        s.next(1.0, &held, Some(3.0), V),
+        Err(OffboardError::Overridden(Override {
+            from: Some(Mode::Px4(FlightMode::Offboard)),
+            to: Some(Mode::Px4(FlightMode::Hold)),
+            disarmed: false,
+            at: 0.9,
+        }))
+    );
+}
+
+/// The launch's own modes pass; any other mode, or a disarm once armed, is an override, and so
+/// is leaving the guided mode of a vehicle found flying in it.
+#[test]
+fn changes_the_sequence_did_not_command_are_overrides() {
+    use MavCmd::*;
+    let config = OffboardConfig::new(Some(20.0), Some(480.0));
+    let fw = Personality::new(Autopilot::Px4, Frame::FixedWing);
+    let st = |p, armed, mode, at| VehicleStatus {
+        armed,
+        personality: p,
+        mode: Some(Mode::Px4(mode)),
+        at,
+    };
+    // A PX4 fixed wing climbing in AUTO.TAKEOFF, then in the Hold its takeoff ends in: fine.
+    let mut s = OffboardSequence::new(5, fw, config);
+    s.next(0.0, &st(fw, false, FlightMode::Position, 0.0), Some(0.0), V)
+        .expect("next");
+    s.handle(0.1, &accepted(MAV_CMD_COMPONENT_ARM_DISARM))
+        .expect("ack");
+    s.next(0.2, &st(fw, true, FlightMode::Position, 0.2), Some(0.0), V)
+        .expect("next");
+    s.handle(0.3, &accepted(MAV_CMD_NAV_TAKEOFF)).expect("ack");
+    for (t, mode) in [(1.0, FlightMode::Takeoff), (2.0, FlightMode::Hold)] {
+        s.next(t, &st(fw, true, mode, t), Some(10.0), V)
+            .expect("a launch mode");
+    }
+    // Then the pilot's RTL... (a mode outside the launch's): someone else's.
+    let rtl = VehicleStatus {
+        mode: None,
+        ..st(fw, true, FlightMode::Hold, 3.0)
+    };
+    let e = s.next(3.0, &rtl, Some(12.0), V).expect_err("overridden");
+    assert_eq!(
+        e.to_string(),
+        "mode changed by no command of ours: HOLD -> an unknown mode"
+    );
+    // A disarm once armed (a landing, or a kill switch).
+    let mut s = OffboardSequence::new(5, fw, config);
+    s.next(0.0, &st(fw, false, FlightMode::Hold, 0.0), Some(0.0), V)
+        .expect("next");
+    s.handle(0.1, &accepted(MAV_CMD_COMPONENT_ARM_DISARM))
+        .expect("ack");
+    // A status from before the acknowledgement still shows it disarmed: not judged.
+    s.next(0.2, &st(fw, false, FlightMode::Hold, 0.05), Some(0.0), V)
+        .expect("older than the arming");
+    let e = s
+        .next(0.5, &st(fw, false, FlightMode::Hold, 0.4), Some(0.0), V)
+        .expect_err("disarmed");
+    assert!(matches!(e, OffboardError::Overridden(o) if o.disarmed));
+    // A multirotor found flying in OFFBOARD is held to it from that status on.
+    let mut s = OffboardSequence::new(1, Personality::PX4_MULTIROTOR, config);
+    let out = s
+        .next(0.0, &px4(true, FlightMode::Offboard, 0.0), Some(30.0), V)
+        .expect("next");
+    assert_eq!((commands(&out).len(), setpoints(&out)), (0, 1));
+    let e = s
+        .next(1.0, &px4(true, FlightMode::Land, 0.5), Some(30.0), V)
+        .expect_err("landed by someone");
+    assert!(matches!(
+        e,
+        OffboardError::Overridden(Override {
+            to: Some(Mode::Px4(FlightMode::Land)),
+            ..
+        })
+    ));
 }
 
 #[test]
@@ -168,7 +246,7 @@ fn copter(armed: bool, mode: CopterMode, at: f64) -> VehicleStatus {
 }
 
 /// ArduCopter: GUIDED, arm, NAV_TAKEOFF with the height above home, no target until it is up,
-/// then velocity targets (and GUIDED again when it left it).
+/// then velocity targets; leaving GUIDED is an override.
 #[test]
 fn ardu_copter_launch_goes_through_guided() {
     use MavCmd::*;
@@ -208,13 +286,13 @@ fn ardu_copter_launch_goes_through_guided() {
     let out = s.next(5.0, &up, Some(18.5), V).expect("next");
     assert_eq!((commands(&out).len(), setpoints(&out)), (0, 1));
     assert_eq!(s.phase(), Phase::Offboard);
-    // Switched to LOITER by someone: GUIDED again.
-    let out = s
+    // Switched to LOITER by someone: theirs, never GUIDED again.
+    let e = s
         .next(6.0, &copter(true, CopterMode::Loiter, 5.5), Some(18.5), V)
-        .expect("next");
+        .expect_err("overridden");
     assert_eq!(
-        (commands(&out), setpoints(&out)),
-        (vec![MAV_CMD_DO_SET_MODE], 1)
+        e.to_string(),
+        "mode changed by no command of ours: GUIDED -> LOITER"
     );
 }
 

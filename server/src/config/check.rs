@@ -174,6 +174,31 @@ impl Config {
                 "guidance.obstacles: {o:?} needs finite x_m, y_m and radius_m > 0"
             ));
         }
+        let s = &g.safety;
+        if !(s.max_distance_m.is_finite() && s.max_distance_m >= 0.0) {
+            return bad(format!(
+                "guidance.safety.max_distance_m must be >= 0 (0: none), got {}",
+                s.max_distance_m
+            ));
+        }
+        if !(s.floor_m.is_finite() && s.ceiling_m.is_finite() && s.floor_m < s.ceiling_m) {
+            return bad(format!(
+                "guidance.safety: floor_m must be below ceiling_m, got {} and {}",
+                s.floor_m, s.ceiling_m
+            ));
+        }
+        if !(s.lookahead_s.is_finite() && s.lookahead_s > 0.0) {
+            return bad(format!(
+                "guidance.safety.lookahead_s must be > 0, got {}",
+                s.lookahead_s
+            ));
+        }
+        if !(s.battery_floor_pct.is_finite() && (0.0..100.0).contains(&s.battery_floor_pct)) {
+            return bad(format!(
+                "guidance.safety.battery_floor_pct must be in [0, 100) (0: none), got {}",
+                s.battery_floor_pct
+            ));
+        }
         if !(g.takeoff_height_m.is_finite() && g.takeoff_height_m > 0.0) {
             return bad(format!(
                 "guidance.takeoff_height_m must be > 0, got {}",

@@ -163,8 +163,43 @@ pub struct GuidanceConfig {
     pub speed_m_s: f64,
     /// Takeoff height above home (m) of a vehicle assigned on the ground.
     pub takeoff_height_m: f64,
-    /// Obstacles (ENU discs) the `formation` law steers around.
+    /// Obstacles (ENU discs) the `formation` law steers around; the safety envelope keeps every
+    /// setpoint out of them (`safety.no_fly`).
     pub obstacles: Vec<ObstacleConfig>,
+    /// The safety envelope on every setpoint (`[guidance.safety]`).
+    pub safety: SafetyConfig,
+}
+
+/// The safety envelope on every setpoint the guidance sends (`[guidance.safety]`; the
+/// guidance's `envelope` module).
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SafetyConfig {
+    /// Keep setpoints out of the no-fly discs (`guidance.obstacles`).
+    pub no_fly: bool,
+    /// Largest horizontal distance (m) from the frame's origin; 0: none.
+    pub max_distance_m: f64,
+    /// Lowest height (m, up in the server's frame) a setpoint may lead to.
+    pub floor_m: f64,
+    /// Highest height (m, up in the server's frame).
+    pub ceiling_m: f64,
+    /// How far ahead (s) a setpoint is judged.
+    pub lookahead_s: f64,
+    /// Remaining battery (%) below which a vehicle leaves its slot and returns home; 0: none.
+    pub battery_floor_pct: f64,
+}
+
+impl Default for SafetyConfig {
+    fn default() -> Self {
+        Self {
+            no_fly: true,
+            max_distance_m: 5000.0,
+            floor_m: 5.0,
+            ceiling_m: 500.0,
+            lookahead_s: 2.0,
+            battery_floor_pct: 25.0,
+        }
+    }
 }
 
 /// A disc to keep out of.
@@ -188,6 +223,7 @@ impl Default for GuidanceConfig {
             speed_m_s: 10.0,
             takeoff_height_m: 30.0,
             obstacles: Vec::new(),
+            safety: SafetyConfig::default(),
         }
     }
 }

@@ -37,6 +37,19 @@ fn defaults_build_and_bad_values_are_named() {
     assert!(e.to_string().starts_with("f: "), "{e}");
     let e = Config::parse("[nonsense]\n", "f").unwrap_err();
     assert!(e.to_string().contains("nonsense"), "{e}");
+    let e = Config::parse("[guidance.safety]\nfloor_m = 600.0\n", "f").unwrap_err();
+    assert!(e.to_string().contains("guidance.safety: floor_m"), "{e}");
+    let e = Config::parse("[guidance.safety]\nbattery_floor_pct = 120.0\n", "f").unwrap_err();
+    assert!(e.to_string().contains("battery_floor_pct"), "{e}");
+    let g = crate::guidance::GuidanceSettings::from(&c);
+    assert_eq!(
+        (
+            g.envelope.max_distance_m,
+            g.envelope.ceiling_m,
+            g.envelope.battery_floor_pct
+        ),
+        (Some(5000.0), Some(500.0), Some(25.0))
+    );
 }
 
 #[test]

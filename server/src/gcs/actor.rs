@@ -18,8 +18,8 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::filter::{Direction, FilterSpec, FrameKey, RouterFilter};
 use super::handle::GcsLink;
 use super::messages::{
-    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
-    PUBLISH_HZ, Request, VehicleSample,
+    ClientCommand, CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent,
+    LinkEventKind, PUBLISH_HZ, Request, VehicleSample,
 };
 use super::metrics::LinkMetrics;
 use super::timesync;
@@ -43,6 +43,37 @@ struct Pending {
 /// A COMMAND_LONG's MAV_CMD name.
 fn command_name(c: MavCmd) -> String {
     format!("{c:?}")
+}
+
+/// Whether a message of the ground station's commands a vehicle: a command, a mode request, a
+/// setpoint (not its HEARTBEAT, TIMESYNC or parameter traffic).
+#[allow(deprecated)] // SET_MODE: superseded, still sent by older clients.
+fn steers(m: &MavMessage) -> bool {
+    matches!(
+        m,
+        MavMessage::COMMAND_LONG(_)
+            | MavMessage::COMMAND_INT(_)
+            | MavMessage::SET_MODE(_)
+            | MavMessage::SET_POSITION_TARGET_LOCAL_NED(_)
+            | MavMessage::SET_POSITION_TARGET_GLOBAL_INT(_)
+            | MavMessage::SET_ATTITUDE_TARGET(_)
+            | MavMessage::FOLLOW_TARGET(_)
+    )
+}
+
+/// What a client's message asks of a vehicle's flight, if anything: a command's name,
+/// `SET_MODE`, `RC override` (RC_CHANNELS_OVERRIDE, MANUAL_CONTROL).
+#[allow(deprecated)] // SET_MODE: superseded, still sent by older clients (pymavlink's APM path).
+fn client_command(m: &MavMessage) -> Option<String> {
+    match m {
+        MavMessage::COMMAND_LONG(c) => Some(command_name(c.command)),
+        MavMessage::COMMAND_INT(c) => Some(command_name(c.command)),
+        MavMessage::SET_MODE(_) => Some("SET_MODE".into()),
+        MavMessage::RC_CHANNELS_OVERRIDE(_) | MavMessage::MANUAL_CONTROL(_) => {
+            Some("RC override".into())
+        }
+        _ => None,
+    }
 }
 
 /// The actor's state.
@@ -204,7 +235,7 @@ impl Actor {
                 self.metrics.frames_in.fetch_add(1, Ordering::Relaxed);
                 self.on_vehicle_frame(i.endpoint, i.peer, i.at, &f);
             } else {
-                self.on_client_frame(i.endpoint - self.config.gcs.len(), &f);
+                self.on_client_frame(i.endpoint - self.config.gcs.len(), i.peer, i.at, &f);
             }
         }
     }
@@ -239,18 +270,23 @@ impl Actor {
         at: Instant,
         f: &harrier_link::frame::Frame,
     ) {
+        let id = u8::try_from(f.header.system_id)
+            .ok()
+            .filter(|&id| id != 0 && id != self.config.system_id);
+        if let Some(id) = id
+            && self.impostor(id, endpoint, peer, at)
+        {
+            return;
+        }
         // Every vehicle frame goes to every client its endpoint's filter lets it through to,
-        // unchanged.
+        // unchanged (an impostor's goes nowhere).
         let routed = self.send_to_clients(&Arc::from(f.bytes.as_slice()), at);
         self.metrics
             .routed_to_clients
             .fetch_add(routed, Ordering::Relaxed);
-        let Ok(id) = u8::try_from(f.header.system_id) else {
+        let Some(id) = id else {
             return;
         };
-        if id == 0 || id == self.config.system_id {
-            return;
-        }
         let t = at.duration_since(self.epoch).as_secs_f64();
         let is_vehicle_heartbeat =
             matches!(&f.message, MavMessage::HEARTBEAT(hb) if hb.mavtype != MavType::MAV_TYPE_GCS);
@@ -265,7 +301,7 @@ impl Actor {
             }
             None => return,
         };
-        if v.on_frame(&f.header, &f.message, (endpoint, peer), at, t) {
+        if v.on_frame(&f.header, &f.message, at, t) {
             tracing::info!(vehicle = id, "vehicle recovered");
             self.event(id, LinkEventKind::Recovered, None);
         }
@@ -278,6 +314,58 @@ impl Actor {
             MavMessage::TIMESYNC(t) => self.on_timesync(id, t.tc1, t.ts1),
             _ => {}
         }
+    }
+
+    /// Whether a frame of system `id` from `peer` of `endpoint` at `now` is an impostor's
+    /// (gcs::identity): another address than the vehicle's while the vehicle is connected. Its
+    /// frames are counted and go nowhere; a new conflict is logged and announced. A lost vehicle
+    /// heard from a new address moves there, unconfirmed.
+    fn impostor(&mut self, id: u8, endpoint: usize, peer: Peer, now: Instant) -> bool {
+        let Some(v) = self.vehicles.get_mut(&id) else {
+            return false;
+        };
+        if (v.endpoint, v.peer) == (endpoint, peer) {
+            return false;
+        }
+        if v.state() == LinkState::Lost {
+            let previous = v.peer;
+            v.moved(endpoint, peer);
+            // It may have been quarantined as an impostor while the vehicle was still heard.
+            let _ = self.endpoints[endpoint]
+                .tx
+                .try_send(Outbound::Quarantine(peer, false));
+            tracing::warn!(
+                vehicle = id,
+                %previous,
+                %peer,
+                "vehicle heard again from a new address: not commanded by the guidance until \
+                 the operator accepts it (POST /api/v1/vehicles/{id}/accept)"
+            );
+            let detail = format!("heard again from {peer}, was {previous}");
+            self.event_detail(id, LinkEventKind::Moved, detail);
+            return false;
+        }
+        self.metrics.impostor_frames.fetch_add(1, Ordering::Relaxed);
+        if v.identity.impostor(peer, now) {
+            let own = v.peer;
+            // Nothing goes to it, not even the ground station's HEARTBEAT to every peer.
+            let _ = self.endpoints[endpoint]
+                .tx
+                .try_send(Outbound::Quarantine(peer, true));
+            self.metrics
+                .identity_conflicts
+                .fetch_add(1, Ordering::Relaxed);
+            tracing::error!(
+                vehicle = id,
+                vehicle_address = %own,
+                impostor = %peer,
+                "a second source claims system id {id}: its frames are refused and nothing is \
+                 sent to it"
+            );
+            let detail = format!("{peer} claims system id {id}, which {own} holds");
+            self.event_detail(id, LinkEventKind::Conflict, detail);
+        }
+        true
     }
 
     /// A vehicle's answer to one of the link's TIMESYNC requests feeds its estimate; a request
@@ -326,12 +414,30 @@ impl Actor {
             event,
             mode,
             time_unix: unix_now(),
+            detail: None,
         });
     }
 
-    /// A frame from a client of router endpoint `router` (its index among the router's): to its
-    /// target vehicle, or to every vehicle, when the endpoint's incoming filter lets it through.
-    fn on_client_frame(&mut self, router: usize, f: &harrier_link::frame::Frame) {
+    fn event_detail(&self, vehicle: u8, event: LinkEventKind, detail: String) {
+        let _ = self.events.send(LinkEvent {
+            vehicle,
+            event,
+            mode: None,
+            time_unix: unix_now(),
+            detail: Some(detail),
+        });
+    }
+
+    /// A frame from client `peer` of router endpoint `router` (its index among the router's),
+    /// received at `at`: to its target vehicle, or to every vehicle, when the endpoint's incoming
+    /// filter lets it through. A command to one vehicle is remembered as its last client command.
+    fn on_client_frame(
+        &mut self,
+        router: usize,
+        peer: Peer,
+        at: Instant,
+        f: &harrier_link::frame::Frame,
+    ) {
         self.metrics
             .frames_from_clients
             .fetch_add(1, Ordering::Relaxed);
@@ -347,6 +453,16 @@ impl Actor {
             return;
         }
         let bytes: Arc<[u8]> = Arc::from(f.bytes.as_slice());
+        if let (Some(t), Some(command)) = (f.target_system(), client_command(&f.message))
+            && let Some(v) = self.vehicles.get_mut(&t)
+        {
+            let endpoint = &self.endpoints[self.config.gcs.len() + router].endpoint;
+            v.client_command = Some(ClientCommand {
+                at: at.duration_since(self.epoch).as_secs_f64(),
+                command,
+                from: format!("router {endpoint}, client {peer}"),
+            });
+        }
         let targets: Vec<&VehicleLink> = match f.target_system() {
             Some(t) => match self.vehicles.get(&t) {
                 Some(v) => vec![v],
@@ -417,6 +533,11 @@ impl Actor {
         let e = &self.endpoints[endpoint];
         if e.tx.try_send(Outbound::To(peer, bytes)).is_ok() {
             self.metrics.frames_out.fetch_add(1, Ordering::Relaxed);
+            if steers(msg)
+                && let Some(v) = self.vehicles.get_mut(&vehicle)
+            {
+                v.commands_sent += 1;
+            }
             true
         } else {
             e.counters.send_dropped.fetch_add(1, Ordering::Relaxed);
@@ -428,6 +549,17 @@ impl Actor {
         match r {
             Request::Send { vehicle, message } => {
                 self.send_to(vehicle, &message);
+            }
+            Request::Accept { vehicle, reply } => {
+                let answer = match self.vehicles.get_mut(&vehicle) {
+                    None => Err(CommandError::UnknownVehicle(vehicle)),
+                    Some(v) => Ok(v.identity.accept()),
+                };
+                if answer == Ok(true) {
+                    tracing::info!(vehicle, "the operator accepted the vehicle's new address");
+                    self.event(vehicle, LinkEventKind::Accepted, None);
+                }
+                let _ = reply.send(answer);
             }
             Request::ToClients(messages) => {
                 for m in &messages {
@@ -514,6 +646,17 @@ impl Actor {
             if v.check(now, lost_after) {
                 lost.push(*id);
             }
+            if let Some((impostor, frames)) = v.identity.expire(now, lost_after) {
+                for e in &self.endpoints[..self.config.gcs.len()] {
+                    let _ = e.tx.try_send(Outbound::Quarantine(impostor, false));
+                }
+                tracing::warn!(
+                    vehicle = id,
+                    %impostor,
+                    frames,
+                    "the second source claiming this system id fell silent"
+                );
+            }
         }
         // Commands: re-send after the timeout, give up after the last attempt.
         let timeout = self.config.command_timeout;
@@ -590,6 +733,8 @@ impl Actor {
                 home_amsl: v.home_amsl(),
                 gimbal_manager: v.gimbal_manager(),
                 position_unix: v.position_age(now).map(|age| unix - age),
+                confirmed: v.identity.confirmed(),
+                client_command: v.client_command.clone(),
             })
             .collect();
         self.watch.send_replace(Arc::new(samples));

@@ -51,6 +51,17 @@ impl GcsLink {
         rx.await.map_err(|_| CommandError::Stopped)?
     }
 
+    /// Accepts vehicle `vehicle`'s new address (gcs::identity): `Ok(true)` when it was
+    /// unconfirmed, `Ok(false)` when there was nothing to accept.
+    pub async fn accept(&self, vehicle: u8) -> Result<bool, CommandError> {
+        let (reply, rx) = oneshot::channel();
+        self.requests
+            .send(Request::Accept { vehicle, reply })
+            .await
+            .map_err(|_| CommandError::Stopped)?;
+        rx.await.map_err(|_| CommandError::Stopped)?
+    }
+
     /// The bound GCS endpoints.
     pub fn gcs(&self) -> impl Iterator<Item = &Endpoint> {
         self.endpoints[..self.gcs_endpoints]

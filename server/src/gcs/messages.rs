@@ -202,6 +202,14 @@ pub enum Request {
     /// Send messages from the ground station to every router client, none to the vehicles
     /// (Harrier's tracks as traffic: `traffic`).
     ToClients(Vec<MavMessage>),
+    /// The operator accepts a vehicle's new address (gcs::identity); the answer says whether
+    /// there was one to accept.
+    Accept {
+        /// The vehicle.
+        vehicle: u8,
+        /// `Ok(true)`: accepted; `Ok(false)`: its address was already confirmed.
+        reply: oneshot::Sender<Result<bool, CommandError>>,
+    },
 }
 
 /// A change of a vehicle's link or flight state, on the WebSocket and in the recording.
@@ -210,12 +218,28 @@ pub struct LinkEvent {
     /// The vehicle.
     pub vehicle: u8,
     /// `connected` (first heard), `lost`, `recovered`, `mode` (the PX4 mode changed), `armed`,
-    /// `disarmed`.
+    /// `disarmed`, `conflict` (a second source claims its id), `moved` (back from a new
+    /// address), `accepted` (the operator accepted it).
     pub event: LinkEventKind,
     /// The mode after the change.
     pub mode: Option<String>,
     /// When (UNIX s).
     pub time_unix: f64,
+    /// What was seen, in words (`conflict`, `moved`: the addresses).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detail: Option<String>,
+}
+
+/// A command a router client sent a vehicle, as the guidance reads it when the vehicle's mode
+/// changes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClientCommand {
+    /// When it passed (s on the link's clock, as `VehicleStatus::at`).
+    pub at: f64,
+    /// What: the MAV_CMD's name, `SET_MODE`, or `RC override`.
+    pub command: String,
+    /// Who: the router endpoint and the client's address.
+    pub from: String,
 }
 
 /// What happened to a vehicle's link or flight state (a [`LinkEvent`]).
@@ -234,6 +258,14 @@ pub enum LinkEventKind {
     Armed,
     /// Its motors were disarmed.
     Disarmed,
+    /// A second source claims the vehicle's system id (`detail` names it): its frames are
+    /// refused.
+    Conflict,
+    /// The vehicle speaks again from a new address after it was lost (`detail`): not commanded
+    /// by the guidance until the operator accepts it.
+    Moved,
+    /// The operator accepted the vehicle's new address.
+    Accepted,
 }
 
 /// A vehicle's state for the guidance: its API view and its status (times on the link's clock,
@@ -252,6 +284,11 @@ pub struct VehicleSample {
     /// When its position (`view.position`, `view.velocity`) arrived: UNIX seconds on the
     /// server's clock, once a GLOBAL_POSITION_INT was heard.
     pub position_unix: Option<f64>,
+    /// Whether the guidance may command it: `false` while its new address awaits the operator's
+    /// acceptance (gcs::identity).
+    pub confirmed: bool,
+    /// The last command a router client sent it.
+    pub client_command: Option<ClientCommand>,
 }
 
 /// Rate of the vehicles watch and of the timeout checks.
@@ -319,6 +356,7 @@ mod tests {
             event: E::Mode,
             mode: Some("HOLD".into()),
             time_unix: 1.5,
+            detail: None,
         };
         assert_eq!(
             json!(e),

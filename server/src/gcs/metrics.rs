@@ -30,6 +30,10 @@ pub struct LinkMetrics {
     pub(super) command_retries: AtomicU64,
     acks: Mutex<BTreeMap<&'static str, u64>>,
     pub(super) vehicles_lost: AtomicU64,
+    /// Conflicts: a second source claiming a connected vehicle's system id (gcs::identity).
+    pub(super) identity_conflicts: AtomicU64,
+    /// Frames refused as an impostor's.
+    pub(super) impostor_frames: AtomicU64,
     pub(super) tlog_dropped: AtomicU64,
     /// Frames refused by the signing: [GCS side, router side] × [`Rejection::ALL`].
     rejected: [[AtomicU64; 3]; 2],
@@ -173,6 +177,18 @@ impl LinkMetrics {
             "Times a vehicle was marked lost.",
         )
         .value(v(&self.vehicles_lost));
+        Family::counter(
+            out,
+            "harrier_mavlink_identity_conflicts_total",
+            "Times a second source claimed the system id of a connected vehicle.",
+        )
+        .value(v(&self.identity_conflicts));
+        Family::counter(
+            out,
+            "harrier_mavlink_impostor_frames_total",
+            "Frames refused because they came from another address than their vehicle's.",
+        )
+        .value(v(&self.impostor_frames));
         Family::counter(
             out,
             "harrier_mavlink_tlog_dropped_total",

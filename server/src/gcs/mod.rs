@@ -10,9 +10,12 @@
 //!                              ACKs, .tlog ◀──────────┘  └── [API], [guidance]
 //! ```
 //!
-//! - A vehicle is known from its first HEARTBEAT (any MAV_TYPE but GCS) on a GCS endpoint; its
-//!   replies go to the endpoint and peer its frames last came from. Silent for
-//!   `mavlink.lost_after_s` it is marked lost; it recovers when it speaks again.
+//! - A vehicle is known from its first HEARTBEAT (any MAV_TYPE but GCS) on a GCS endpoint; it is
+//!   its system id *and* the endpoint and peer it speaks from ([`identity`]): replies go there, a
+//!   second source claiming the id while it is connected is a conflict (its frames refused,
+//!   nothing sent to it), and a lost vehicle heard again from a new address moves there,
+//!   unconfirmed until the operator accepts it. Silent for `mavlink.lost_after_s` it is marked
+//!   lost; it recovers when it speaks again.
 //! - A command is a COMMAND_LONG sent with confirmation 0, re-sent with confirmation + 1 after
 //!   `command_timeout_ms` without its COMMAND_ACK, `command_attempts` times in all; the caller
 //!   gets the final ACK's result, or `timeout`. `MAV_RESULT_IN_PROGRESS` restarts the wait.
@@ -41,6 +44,7 @@
 
 mod actor;
 pub mod filter;
+pub mod identity;
 pub mod metrics;
 pub mod timesync;
 mod tlog;
@@ -54,7 +58,7 @@ mod messages;
 pub use self::actor::start;
 pub use self::handle::GcsLink;
 pub use self::messages::{
-    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
-    PUBLISH_HZ, Request, VehicleSample,
+    ClientCommand, CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent,
+    LinkEventKind, PUBLISH_HZ, Request, VehicleSample,
 };
 pub use self::metrics::LinkMetrics;

@@ -111,18 +111,33 @@ pub fn screen(signer: Option<&Signer>, parsed: &mut Parsed) -> Vec<Rejected> {
 struct UdpPeers {
     order: VecDeque<SocketAddr>,
     known: HashSet<SocketAddr>,
+    /// Impostors (gcs::identity): never peers while quarantined.
+    quarantined: HashSet<SocketAddr>,
 }
 
 impl UdpPeers {
-    /// Adds `from` unless known; the oldest is forgotten beyond [`MAX_UDP_PEERS`].
+    /// Adds `from` unless known or quarantined; the oldest is forgotten beyond
+    /// [`MAX_UDP_PEERS`].
     fn add(&mut self, from: SocketAddr) {
-        if self.known.insert(from) {
+        if !self.quarantined.contains(&from) && self.known.insert(from) {
             self.order.push_back(from);
             if self.order.len() > MAX_UDP_PEERS
                 && let Some(old) = self.order.pop_front()
             {
                 self.known.remove(&old);
             }
+        }
+    }
+
+    /// Quarantines `peer` (it is no peer until released) or releases it.
+    fn quarantine(&mut self, peer: SocketAddr, on: bool) {
+        if on {
+            self.quarantined.insert(peer);
+            if self.known.remove(&peer) {
+                self.order.retain(|p| *p != peer);
+            }
+        } else {
+            self.quarantined.remove(&peer);
         }
     }
 }
@@ -141,6 +156,9 @@ pub enum Outbound {
     To(Peer, Arc<[u8]>),
     /// To every peer of the endpoint.
     All(Arc<[u8]>),
+    /// Quarantine a peer (`true`: an impostor, gcs::identity; nothing goes to it, not even what
+    /// goes to every peer) or release it (`false`).
+    Quarantine(Peer, bool),
 }
 
 /// Counters of an endpoint.
@@ -307,6 +325,8 @@ async fn udp(
                         send(to, &bytes);
                     }
                 }
+                Some(Outbound::Quarantine(Peer::Udp(p), on)) => peers.quarantine(p, on),
+                Some(Outbound::Quarantine(Peer::Tcp(_), _)) => {}
                 None => return,
             },
             () = stopped(&mut stop) => return,
@@ -359,6 +379,8 @@ async fn tcp_in(
     counters: Arc<EndpointCounters>,
 ) {
     let mut clients: HashMap<u64, mpsc::Sender<Arc<[u8]>>> = HashMap::new();
+    // Impostors' connections (gcs::identity): nothing goes to them.
+    let mut quarantined: HashSet<u64> = HashSet::new();
     let mut next = 0u64;
     let push =
         |tx: &mpsc::Sender<Arc<[u8]>>, bytes: &Arc<[u8]>| match tx.try_send(Arc::clone(bytes)) {
@@ -385,8 +407,17 @@ async fn tcp_in(
                         clients.remove(&id);
                     }
                 }
-                Some(Outbound::To(Peer::Udp(_), _)) => {}
-                Some(Outbound::All(bytes)) => clients.retain(|_, tx| push(tx, &bytes)),
+                Some(Outbound::To(Peer::Udp(_), _) | Outbound::Quarantine(Peer::Udp(_), _)) => {}
+                Some(Outbound::All(bytes)) => {
+                    clients.retain(|id, tx| quarantined.contains(id) || push(tx, &bytes));
+                }
+                Some(Outbound::Quarantine(Peer::Tcp(id), on)) => {
+                    if on {
+                        quarantined.insert(id);
+                    } else {
+                        quarantined.remove(&id);
+                    }
+                }
                 None => return,
             },
             () = stopped(&mut stop) => return,
@@ -441,6 +472,8 @@ async fn tcp_out(
                             counters.send_dropped.fetch_add(1, Ordering::Relaxed);
                         }
                     }
+                    // The one server this endpoint connects to is no impostor to quarantine.
+                    Some(Outbound::Quarantine(..)) => {}
                     None => return,
                 },
                 () = stopped(&mut stop) => return,

@@ -16,6 +16,8 @@ use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
+use super::identity::{Identity, IdentityView};
+use super::messages::ClientCommand;
 use super::timesync::{Timesync, TimesyncView};
 use super::transport::Peer;
 
@@ -159,6 +161,12 @@ pub struct VehicleLinkView {
     pub reconnects: u64,
     /// Its clock from MAVLink TIMESYNC; `null` before its first answer.
     pub timesync: Option<TimesyncView>,
+    /// Who it is: its address confirmed or awaiting the operator's acceptance, and a second
+    /// source claiming its system id (gcs::identity).
+    pub identity: IdentityView,
+    /// Commands, mode requests and setpoints the ground station sent it (the guidance's and the
+    /// API's; not its HEARTBEAT, TIMESYNC or what router clients send).
+    pub commands_sent: u64,
 }
 
 /// What a vehicle's telemetry tells (see the module documentation).
@@ -194,6 +202,12 @@ pub struct VehicleLink {
     pub timesync: Timesync,
     /// Its gimbal manager's component id and gimbal device id.
     gimbal_manager: Option<(u8, u8)>,
+    /// Who it is (its address, a conflict).
+    pub identity: Identity,
+    /// The last command a router client sent it.
+    pub client_command: Option<ClientCommand>,
+    /// Commands, mode requests and setpoints the ground station sent it.
+    pub commands_sent: u64,
 }
 
 impl VehicleLink {
@@ -223,7 +237,18 @@ impl VehicleLink {
             window: std::collections::VecDeque::new(),
             timesync: Timesync::default(),
             gimbal_manager: None,
+            identity: Identity::default(),
+            client_command: None,
+            commands_sent: 0,
         }
+    }
+
+    /// It speaks again from `peer` of endpoint `endpoint` after it was lost: replies go there,
+    /// and its identity is unconfirmed until the operator accepts it.
+    pub fn moved(&mut self, endpoint: usize, peer: Peer) {
+        self.identity.moved(self.peer);
+        (self.endpoint, self.peer) = (endpoint, peer);
+        self.sequences.clear();
     }
 
     /// Its gimbal manager (component id, gimbal device id), once a GIMBAL_MANAGER_INFORMATION
@@ -252,17 +277,10 @@ impl VehicleLink {
         self.status
     }
 
-    /// Takes one frame of this vehicle, received at `now` (`t` the same instant in seconds
-    /// since the link started) from `peer`. Returns whether the vehicle came back from `Lost`.
-    pub fn on_frame(
-        &mut self,
-        header: &MavHeader,
-        msg: &MavMessage,
-        peer: (usize, Peer),
-        now: Instant,
-        t: f64,
-    ) -> bool {
-        (self.endpoint, self.peer) = peer;
+    /// Takes one frame of this vehicle (from its own address: gcs::identity), received at `now`
+    /// (`t` the same instant in seconds since the link started). Returns whether the vehicle
+    /// came back from `Lost`.
+    pub fn on_frame(&mut self, header: &MavHeader, msg: &MavMessage, now: Instant, t: f64) -> bool {
         self.last_seen = now;
         self.received += 1;
         if let Some(last) = self.sequences.insert(header.component_id, header.sequence) {
@@ -401,6 +419,8 @@ impl VehicleLink {
             last_seen_s: now.duration_since(self.last_seen).as_secs_f64(),
             reconnects: self.reconnects,
             timesync: self.timesync.view(),
+            identity: self.identity.view(now),
+            commands_sent: self.commands_sent,
         }
     }
 }
@@ -448,9 +468,9 @@ mod tests {
             ..GLOBAL_POSITION_INT_DATA::DEFAULT
         });
         // Sequences 0, 1, then 5: three frames lost.
-        assert!(!v.on_frame(&header(0), &hb, peer, t0, 0.0));
-        assert!(!v.on_frame(&header(1), &pos, peer, t0, 0.0));
-        assert!(!v.on_frame(&header(5), &hb, peer, t0, 0.0));
+        assert!(!v.on_frame(&header(0), &hb, t0, 0.0));
+        assert!(!v.on_frame(&header(1), &pos, t0, 0.0));
+        assert!(!v.on_frame(&header(5), &hb, t0, 0.0));
         let view = v.view(&frame, t0);
         assert_eq!((view.received, view.lost_frames), (3, 3));
         assert!((view.loss_pct - 50.0).abs() < 1e-9);
@@ -468,7 +488,7 @@ mod tests {
         assert!(v.check(t0 + Duration::from_millis(3100), 3.0));
         assert!(!v.check(t0 + Duration::from_millis(4000), 3.0));
         assert_eq!(v.state(), LinkState::Lost);
-        assert!(v.on_frame(&header(6), &hb, peer, t0 + Duration::from_secs(5), 5.0));
+        assert!(v.on_frame(&header(6), &hb, t0 + Duration::from_secs(5), 5.0));
         assert_eq!(v.state(), LinkState::Connected);
         assert_eq!(v.view(&frame, t0 + Duration::from_secs(5)).reconnects, 1);
     }
@@ -526,7 +546,7 @@ mod tests {
                 base_mode: ardupilot_base_mode(true, true),
                 ..HEARTBEAT_DATA::DEFAULT
             });
-            v.on_frame(&header(0), &hb, peer, t0, 0.0);
+            v.on_frame(&header(0), &hb, t0, 0.0);
             let view = v.view(&frame, t0);
             assert_eq!(view.mode.as_deref(), Some(name));
             assert_eq!(view.autopilot, Some(VehicleAutopilot::Ardupilot));

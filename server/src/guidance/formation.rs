@@ -55,7 +55,7 @@ impl FormationState {
         obstacles: &[Obstacle],
     ) -> Vec<Option<Command>> {
         let f = self;
-        let (radius, height, spacing) = (plan.radius, plan.height, plan.spacing);
+        let (radius, height, spacing) = (plan.radius, plan.height, plan.spacing_of(states.len()));
         let reg = RangeRegulator::default();
         let n = states.len() + 1;
         let pos = |j: usize| {
@@ -134,7 +134,7 @@ mod tests {
         let plan = Plan {
             radius: 80.0,
             height: 60.0,
-            spacing: std::f64::consts::TAU,
+            spacing: Some(std::f64::consts::TAU),
             speed: 10.0,
             orbit: crate::guidance::OrbitDirection::Ccw,
             law: crate::guidance::Law::Formation,

@@ -6,7 +6,7 @@ use std::sync::{Arc, Mutex, PoisonError};
 
 use tokio::sync::{broadcast, mpsc, oneshot, watch};
 
-use super::plan::{AssignmentRequest, AssignmentView};
+use super::plan::{AssignmentRequest, AssignmentView, OverrideSource};
 use crate::prom::{Family, Histogram};
 
 /// Why an assignment request was refused.
@@ -36,6 +36,15 @@ pub enum GuidanceRequest {
     ),
     /// End one.
     End(u64, oneshot::Sender<Option<AssignmentView>>),
+    /// Take a vehicle out of its slot before an operator's command (`String`: what, for the
+    /// slot's `overridden`); the answer names the assignment it flew, if any.
+    Release(u8, String, oneshot::Sender<Option<u64>>),
+    /// The operator takes a vehicle back into its slot of an assignment.
+    Resume(
+        u64,
+        u8,
+        oneshot::Sender<Result<AssignmentView, AssignError>>,
+    ),
 }
 
 /// Counters of the loop.
@@ -53,6 +62,17 @@ pub struct GuidanceMetrics {
     pub(super) created: AtomicU64,
     /// Assignments ended.
     pub(super) ended: AtomicU64,
+    /// Vehicles taken out of their slots by someone else, by [`OverrideSource`] (api, router
+    /// client, vehicle).
+    overrides: [AtomicU64; 3],
+    /// Vehicles the operator took back into their slots.
+    pub(super) resumed: AtomicU64,
+    /// Setpoints the safety envelope clipped.
+    clipped: AtomicU64,
+    /// Vehicles the safety envelope found outside the fence (sent to Hold).
+    fenced_out: AtomicU64,
+    /// Vehicles the safety envelope sent home for their battery.
+    pub(super) battery_rtl: AtomicU64,
 }
 
 /// Upper bounds (s) of the tick lateness histogram's buckets.
@@ -67,6 +87,11 @@ impl Default for GuidanceMetrics {
             max_late_us: AtomicU64::new(0),
             created: AtomicU64::new(0),
             ended: AtomicU64::new(0),
+            overrides: Default::default(),
+            resumed: AtomicU64::new(0),
+            clipped: AtomicU64::new(0),
+            fenced_out: AtomicU64::new(0),
+            battery_rtl: AtomicU64::new(0),
         }
     }
 }
@@ -95,6 +120,28 @@ impl GuidanceMetrics {
         .sample(&[("state", &"active")], active)
         .sample(&[("state", &"created")], v(&self.created))
         .sample(&[("state", &"ended")], v(&self.ended));
+        let mut overrides = Family::counter(
+            out,
+            "harrier_guidance_overrides_total",
+            "Vehicles taken out of their assignment slots by someone else, by who: api (an operator's command), router_client, vehicle (RC switch, failsafe, landing).",
+        );
+        for (by, n) in OverrideSource::ALL.iter().zip(&self.overrides) {
+            overrides.sample(&[("by", &by.as_str())], v(n));
+        }
+        Family::counter(
+            out,
+            "harrier_guidance_resumed_total",
+            "Vehicles the operator took back into their assignment slots.",
+        )
+        .value(v(&self.resumed));
+        Family::counter(
+            out,
+            "harrier_guidance_safety_total",
+            "The safety envelope's actions ([guidance.safety]): setpoints clipped to the geofence, vehicles found outside it (out of their slots, sent to Hold), vehicles below the battery floor (out, sent home).",
+        )
+        .sample(&[("action", &"clipped")], v(&self.clipped))
+        .sample(&[("action", &"outside_hold")], v(&self.fenced_out))
+        .sample(&[("action", &"battery_rtl")], v(&self.battery_rtl));
         self.late
             .lock()
             .unwrap_or_else(PoisonError::into_inner)
@@ -109,6 +156,17 @@ impl GuidanceMetrics {
             "Latest tick start seen.",
         )
         .value(v(&self.max_late_us) as f64 / 1e6);
+    }
+
+    /// A tick's safety actions: setpoints clipped, vehicles found outside.
+    pub(super) fn safety(&self, clipped: u64, fenced_out: u64) {
+        self.clipped.fetch_add(clipped, Ordering::Relaxed);
+        self.fenced_out.fetch_add(fenced_out, Ordering::Relaxed);
+    }
+
+    /// A vehicle was taken out of its slot by `by`.
+    pub(super) fn overridden(&self, by: OverrideSource) {
+        self.overrides[by as usize].fetch_add(1, Ordering::Relaxed);
     }
 
     /// A tick started `us` µs after its schedule.
@@ -140,6 +198,27 @@ impl Guidance {
         let (tx, rx) = oneshot::channel();
         self.requests
             .send(GuidanceRequest::Create(r, tx))
+            .await
+            .map_err(|_| AssignError::Stopped)?;
+        rx.await.map_err(|_| AssignError::Stopped)?
+    }
+
+    /// Takes vehicle `vehicle` out of its slot before an operator's command (`what`, e.g.
+    /// `hold through the API`): the assignment it flew, if any.
+    pub async fn release(&self, vehicle: u8, what: String) -> Result<Option<u64>, AssignError> {
+        let (tx, rx) = oneshot::channel();
+        self.requests
+            .send(GuidanceRequest::Release(vehicle, what, tx))
+            .await
+            .map_err(|_| AssignError::Stopped)?;
+        rx.await.map_err(|_| AssignError::Stopped)
+    }
+
+    /// The operator takes vehicle `vehicle` back into its slot of assignment `id`.
+    pub async fn resume(&self, id: u64, vehicle: u8) -> Result<AssignmentView, AssignError> {
+        let (tx, rx) = oneshot::channel();
+        self.requests
+            .send(GuidanceRequest::Resume(id, vehicle, tx))
             .await
             .map_err(|_| AssignError::Stopped)?;
         rx.await.map_err(|_| AssignError::Stopped)?

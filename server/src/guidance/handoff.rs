@@ -7,7 +7,11 @@
 //!   DO_REPOSITION with the loiter radius R.
 //! - `handoff_follow`: FOLLOW_TARGET every [`STREAM_PERIOD_S`] (10 Hz) with the predicted
 //!   track's position, velocity and position variances, and the follow mode (PX4
-//!   AUTO.FOLLOW_TARGET, ArduCopter FOLLOW) asked for whenever the vehicle is seen out of it.
+//!   AUTO.FOLLOW_TARGET, ArduCopter FOLLOW) asked for until the vehicle is seen in it.
+//! - Once an orbit's or a follow's vehicle is seen in the hand-off's mode (PX4 POSCTL.ORBIT,
+//!   ArduPlane GUIDED, the follow mode), a newer HEARTBEAT in another mode, or disarmed, is
+//!   someone else's change: the hand-off ends for that vehicle (`overridden`, nothing sent
+//!   again). The camera hand-off changes no mode and has no such check.
 //! - `handoff_camera`: MAV_CMD_DO_SET_ROI_LOCATION at the track, at once on every update of the
 //!   track ([`Handoff::roi`], called when the tracker's snapshot changes) and, between updates,
 //!   every [`STREAM_PERIOD_S`] at the track predicted to now (an ROI is a fixed point: a gimbal
@@ -28,6 +32,8 @@ use harrier_link::mavlink::MessageData;
 use harrier_link::mavlink::dialects::common::{
     GIMBAL_MANAGER_INFORMATION_DATA, MavCmd, MavMessage,
 };
+use harrier_link::offboard::Override;
+use harrier_link::px4::FlightMode;
 use nalgebra::Vector3;
 
 use super::plan::{Law, OrbitDirection, Plan};
@@ -52,6 +58,21 @@ pub(super) struct Handoff {
     gimbal_asked: bool,
     /// The time of the track estimate last pointed at (the tracker's clock).
     last_roi_t: Option<f64>,
+    /// When the vehicle was first seen in the hand-off's mode (its orbit or follow mode): from
+    /// then on, a newer status in another mode, or disarmed, is an override.
+    engaged_at: Option<f64>,
+}
+
+/// The mode an orbit or follow hand-off puts a vehicle of `p` in: PX4's POSCTL.ORBIT (DO_ORBIT),
+/// ArduPlane's GUIDED (DO_REPOSITION), the follow mode; `None` for the camera (the vehicle flies
+/// on as it was).
+fn handoff_mode(law: Law, p: Personality) -> Option<Mode> {
+    match (law, p.autopilot, p.frame) {
+        (Law::HandoffOrbit, Autopilot::Px4, _) => Some(Mode::Px4(FlightMode::Orbit)),
+        (Law::HandoffOrbit, Autopilot::ArduPilot, Frame::FixedWing) => Some(p.guided()),
+        (Law::HandoffFollow, ..) => p.follow(),
+        _ => None,
+    }
 }
 
 /// Whether the vehicle is in the air (height above home known and above [`AIRBORNE_M`]).
@@ -72,7 +93,9 @@ fn point(frame: &LocalFrame, p: &Vector3<f64>, up: f64) -> Geodetic {
 impl Handoff {
     /// The messages of a hand-off due at `t` (link clock, s; FOLLOW_TARGET's timestamp in ms),
     /// for vehicle `v`, the track predicted to now (`target`) and `track` (its covariance).
-    /// Nothing for an orbit or follow while the vehicle is on the ground.
+    /// Nothing for an orbit or follow while the vehicle is on the ground. An orbit or follow
+    /// whose vehicle, once seen in the hand-off's mode, is seen in another (or disarmed) is
+    /// someone else's: the override, and nothing sent.
     pub(super) fn step(
         &mut self,
         t: f64,
@@ -81,17 +104,31 @@ impl Handoff {
         track: &TrackView,
         plan: &Plan,
         frame: &LocalFrame,
-    ) -> Vec<MavMessage> {
+    ) -> Result<Vec<MavMessage>, Override> {
         let id = v.view.id;
         let p = personality(v);
         let period = match plan.law {
             Law::HandoffOrbit => ORBIT_PERIOD_S,
             Law::HandoffFollow | Law::HandoffCamera => STREAM_PERIOD_S,
-            _ => return Vec::new(),
+            _ => return Ok(Vec::new()),
         };
+        if let (Some(mode), Some(status)) = (handoff_mode(plan.law, p), v.status) {
+            match self.engaged_at {
+                Some(at) => {
+                    let allowed = |m: Option<Mode>| m == Some(mode);
+                    if let Some(o) =
+                        Override::of(&status, Some(mode), Some(at), allowed).filter(|o| o.at > at)
+                    {
+                        return Err(o);
+                    }
+                }
+                None if status.mode == Some(mode) => self.engaged_at = Some(status.at),
+                None => {}
+            }
+        }
         let camera = plan.law == Law::HandoffCamera;
         if (!camera && !airborne(v)) || self.next_due.is_some_and(|d| t < d - 1e-6) {
-            return Vec::new();
+            return Ok(Vec::new());
         }
         // Keep the cadence across the ticks; after a stall start it again from now.
         self.next_due = Some(match self.next_due {
@@ -99,7 +136,7 @@ impl Handoff {
             _ => t + period,
         });
         let ccw = plan.orbit == OrbitDirection::Ccw;
-        match plan.law {
+        Ok(match plan.law {
             Law::HandoffCamera => self.point(v, target, frame),
             Law::HandoffOrbit => {
                 let centre = point(frame, &target.position, plan.height);
@@ -120,14 +157,16 @@ impl Handoff {
                 let in_follow = v
                     .status
                     .is_some_and(|s| s.mode.is_some() && s.mode == follow);
-                let retry = self.last_mode_request.is_none_or(|s| t - s >= MODE_RETRY_S);
+                // Asked for until the vehicle is seen in it, never after (`step`'s override).
+                let retry = self.engaged_at.is_none()
+                    && self.last_mode_request.is_none_or(|s| t - s >= MODE_RETRY_S);
                 if let (Some(m), false, true) = (follow, in_follow, retry) {
                     out.push(set_mode(id, m));
                     self.last_mode_request = Some(t);
                 }
                 out
             }
-        }
+        })
     }
 
     /// The camera hand-off at an update of the track at `t` (link clock, s; its estimate at
@@ -215,6 +254,8 @@ mod tests {
                 last_seen_s: 0.0,
                 reconnects: 0,
                 timesync: None,
+                identity: crate::gcs::identity::Identity::default().view(std::time::Instant::now()),
+                commands_sent: 0,
             },
             status: Some(VehicleStatus {
                 armed: true,
@@ -225,6 +266,8 @@ mod tests {
             home_amsl: Some(488.0),
             gimbal_manager: None,
             position_unix: None,
+            confirmed: true,
+            client_command: None,
         }
     }
 
@@ -232,7 +275,7 @@ mod tests {
         Plan {
             radius: 60.0,
             height: 40.0,
-            spacing: 1.0,
+            spacing: Some(1.0),
             speed: 5.0,
             orbit: OrbitDirection::Ccw,
             law,
@@ -278,10 +321,13 @@ mod tests {
                 &plan(Law::HandoffOrbit),
                 &frame
             )
+            .expect("step")
             .is_empty()
         );
         let up = sample(px4, 30.0, None);
-        let out = h.step(0.0, &up, &target, &tr, &plan(Law::HandoffOrbit), &frame);
+        let out = h
+            .step(0.0, &up, &target, &tr, &plan(Law::HandoffOrbit), &frame)
+            .expect("step");
         let MavMessage::COMMAND_INT(c) = &out[0] else {
             panic!("{out:?}")
         };
@@ -298,10 +344,12 @@ mod tests {
         );
         assert!(
             h.step(0.3, &up, &target, &tr, &plan(Law::HandoffOrbit), &frame)
+                .expect("step")
                 .is_empty()
         );
         assert_eq!(
             h.step(0.5, &up, &target, &tr, &plan(Law::HandoffOrbit), &frame)
+                .expect("step")
                 .len(),
             1
         );
@@ -311,13 +359,17 @@ mod tests {
             None,
         );
         let mut h = Handoff::default();
-        let out = h.step(0.0, &plane, &target, &tr, &plan(Law::HandoffOrbit), &frame);
+        let out = h
+            .step(0.0, &plane, &target, &tr, &plan(Law::HandoffOrbit), &frame)
+            .expect("step");
         assert!(
             matches!(&out[0], MavMessage::COMMAND_INT(c) if c.command == MavCmd::MAV_CMD_DO_REPOSITION && c.param3 == 60.0)
         );
 
         let mut h = Handoff::default();
-        let out = h.step(0.0, &up, &target, &tr, &plan(Law::HandoffFollow), &frame);
+        let out = h
+            .step(0.0, &up, &target, &tr, &plan(Law::HandoffFollow), &frame)
+            .expect("step");
         let MavMessage::FOLLOW_TARGET(f) = &out[0] else {
             panic!("{out:?}")
         };
@@ -330,6 +382,7 @@ mod tests {
         );
         assert_eq!(
             h.step(0.1, &up, &target, &tr, &plan(Law::HandoffFollow), &frame)
+                .expect("step")
                 .len(),
             1
         );
@@ -343,9 +396,97 @@ mod tests {
                 &plan(Law::HandoffFollow),
                 &frame
             )
+            .expect("step")
             .len(),
             1
         );
+    }
+
+    /// Once seen in its follow (orbit) mode, a vehicle seen in another mode, or disarmed, is
+    /// someone else's: the hand-off ends for it; before, the mode is asked for.
+    #[test]
+    fn leaving_the_handoff_mode_is_an_override() {
+        let frame = LocalFrame::new(Geodetic::new(47.0, 8.0, 400.0));
+        let target = TargetEstimate::fixed(Vector3::new(10.0, 20.0, 0.0));
+        let tr = track();
+        let px4 = Personality::PX4_MULTIROTOR;
+        let at = |mut v: VehicleSample, t: f64, armed: bool| {
+            if let Some(s) = &mut v.status {
+                s.at = t;
+                s.armed = armed;
+            }
+            v
+        };
+        let follow = plan(Law::HandoffFollow);
+        let mut h = Handoff::default();
+        // Not yet in FOLLOW_TARGET: asked for, no override.
+        let hold = at(
+            sample(px4, 30.0, Some(Mode::Px4(FlightMode::Hold))),
+            0.0,
+            true,
+        );
+        assert_eq!(
+            h.step(0.0, &hold, &target, &tr, &follow, &frame)
+                .map(|o| o.len()),
+            Ok(2)
+        );
+        let following = sample(px4, 30.0, Some(Mode::Px4(FlightMode::FollowTarget)));
+        h.step(
+            1.0,
+            &at(following.clone(), 1.0, true),
+            &target,
+            &tr,
+            &follow,
+            &frame,
+        )
+        .expect("engaged");
+        // The same status again: nothing new; a Hold seen after: the pilot's.
+        h.step(
+            1.1,
+            &at(following, 1.0, true),
+            &target,
+            &tr,
+            &follow,
+            &frame,
+        )
+        .expect("same status");
+        let o = h
+            .step(1.5, &at(hold, 1.4, true), &target, &tr, &follow, &frame)
+            .expect_err("overridden");
+        assert_eq!(
+            (o.from, o.to, o.disarmed),
+            (
+                Some(Mode::Px4(FlightMode::FollowTarget)),
+                Some(Mode::Px4(FlightMode::Hold)),
+                false
+            )
+        );
+        // An orbit whose vehicle lands and disarms in its orbit mode: overridden too.
+        let orbit = plan(Law::HandoffOrbit);
+        let mut h = Handoff::default();
+        let orbiting = sample(px4, 30.0, Some(Mode::Px4(FlightMode::Orbit)));
+        h.step(
+            0.0,
+            &at(orbiting.clone(), 0.5, true),
+            &target,
+            &tr,
+            &orbit,
+            &frame,
+        )
+        .expect("engaged");
+        let o = h
+            .step(1.0, &at(orbiting, 0.9, false), &target, &tr, &orbit, &frame)
+            .expect_err("disarmed");
+        assert!(o.disarmed);
+        // The camera changes no mode: never an override.
+        let mut h = Handoff::default();
+        let camera = plan(Law::HandoffCamera);
+        let landed = at(
+            sample(px4, 0.0, Some(Mode::Px4(FlightMode::Land))),
+            3.0,
+            false,
+        );
+        assert!(h.step(3.0, &landed, &target, &tr, &camera, &frame).is_ok());
     }
 
     /// The camera: once per track estimate, to the gimbal manager once known; between estimates
@@ -380,9 +521,12 @@ mod tests {
         };
         assert!(
             h.step(0.55, &grounded, &moved, &tr, &camera, &frame)
+                .expect("step")
                 .is_empty()
         );
-        let out = h.step(0.6, &grounded, &moved, &tr, &camera, &frame);
+        let out = h
+            .step(0.6, &grounded, &moved, &tr, &camera, &frame)
+            .expect("step");
         let [MavMessage::COMMAND_INT(c)] = out.as_slice() else {
             panic!("{out:?}")
         };
@@ -394,10 +538,13 @@ mod tests {
         assert!((at - moved.position).norm() < 0.02, "{at}");
         assert!(
             h.step(0.65, &grounded, &moved, &tr, &camera, &frame)
+                .expect("step")
                 .is_empty()
         );
         assert_eq!(
-            h.step(0.7, &grounded, &moved, &tr, &camera, &frame).len(),
+            h.step(0.7, &grounded, &moved, &tr, &camera, &frame)
+                .expect("step")
+                .len(),
             1
         );
     }

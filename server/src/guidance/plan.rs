@@ -173,9 +173,16 @@ pub enum SlotState {
     HandedOff,
     /// Its link is lost: paused, it flies the assignment again when it speaks again.
     Lost,
-    /// Its offboard sequence failed (a refused or unacknowledged command, `error` says which):
-    /// sent to Hold, out of the assignment.
+    /// Its offboard sequence failed (a refused or unacknowledged command), or the safety envelope
+    /// took it out (found outside the geofence: sent to Hold; battery below the floor: sent home);
+    /// `error` says which. Out of the assignment until the operator resumes it.
     Failed,
+    /// Someone else took it (`overridden` says who and what): its mode or arming changed by no
+    /// command of Harrier's (a router client, the RC switch, the autopilot's failsafe, a landing,
+    /// a disarm), or the operator commanded it through the API. Out of the assignment: Harrier
+    /// sends it nothing until the operator resumes it
+    /// (`POST /api/v1/assignments/{id}/vehicles/{vehicle}/resume`).
+    Overridden,
     /// The assignment ended: sent to Hold.
     Hold,
 }
@@ -192,8 +199,8 @@ pub struct Plan {
     pub radius: f64,
     /// Observation height (m).
     pub height: f64,
-    /// Phase spacing (rad).
-    pub spacing: f64,
+    /// Phase spacing (rad); `None`: 360° over the vehicles flying the ring.
+    pub spacing: Option<f64>,
     /// Speed relative to the target (m/s).
     pub speed: f64,
     /// Direction of the orbit.
@@ -251,6 +258,7 @@ impl AssignmentRequest {
         let speed = self.speed_m_s.unwrap_or(settings.speed);
         let n = self.vehicles.len();
         let spacing = self.spacing_deg.unwrap_or(360.0 / n as f64).to_radians();
+        let given = self.spacing_deg.is_some();
         let envelopes: Vec<&Limits> = if frames.is_empty() {
             vec![&settings.multirotor]
         } else {
@@ -301,11 +309,64 @@ impl AssignmentRequest {
         Ok(Plan {
             radius,
             height,
-            spacing,
+            spacing: given.then_some(spacing),
             speed,
             orbit,
             law,
         })
+    }
+}
+
+impl Plan {
+    /// The phase spacing (rad) of a ring of `n` vehicles: the request's, else 360° / n.
+    pub fn spacing_of(&self, n: usize) -> f64 {
+        self.spacing
+            .unwrap_or(std::f64::consts::TAU / n.max(1) as f64)
+    }
+}
+
+/// Who took a vehicle out of its slot, and what was seen (a [`SlotState::Overridden`] slot).
+#[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
+pub struct OverrideView {
+    /// The mode it was in before (its autopilot's name), when known.
+    pub from_mode: Option<String>,
+    /// The mode it was seen in after (its autopilot's name), when known.
+    pub to_mode: Option<String>,
+    /// Whether it was disarmed.
+    pub disarmed: bool,
+    /// Who: `api` (an operator's command through the API), `router_client` (a command from a
+    /// client of the MAVLink router shortly before), `vehicle` (no command anyone sent through
+    /// Harrier: the RC switch, the autopilot's failsafe, its own landing).
+    pub by: OverrideSource,
+    /// What was seen, in words (the command and the client's address, when known).
+    pub detail: String,
+    /// When (UNIX s).
+    pub time_unix: f64,
+}
+
+/// Who took a vehicle out of its slot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum OverrideSource {
+    /// An operator's command through Harrier's API.
+    Api,
+    /// A router client's command (QGroundControl, MAVProxy, MAVSDK through Harrier's router).
+    RouterClient,
+    /// The vehicle itself, as far as Harrier knows: the RC switch, a failsafe, a landing.
+    Vehicle,
+}
+
+impl OverrideSource {
+    /// Every source, in declaration order.
+    pub const ALL: [Self; 3] = [Self::Api, Self::RouterClient, Self::Vehicle];
+
+    /// The name on the wire.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Api => "api",
+            Self::RouterClient => "router_client",
+            Self::Vehicle => "vehicle",
+        }
     }
 }
 
@@ -314,12 +375,15 @@ impl AssignmentRequest {
 pub struct SlotView {
     /// The vehicle.
     pub vehicle: u8,
-    /// `waiting` (no telemetry yet; a hand-off: on the ground), `arming`, `taking_off`,
-    /// `offboard` (PX4 OFFBOARD or ArduPilot GUIDED), `handed_off`, `lost`, `failed`, `hold` (the
-    /// assignment ended).
+    /// `waiting` (no telemetry yet; a hand-off: on the ground; a vehicle back from a new
+    /// address until the operator accepts it), `arming`, `taking_off`, `offboard` (PX4
+    /// OFFBOARD or ArduPilot GUIDED), `handed_off`, `lost`, `failed`, `overridden` (someone
+    /// else took it), `hold` (the assignment ended).
     pub state: SlotState,
-    /// Why it failed, when it did.
+    /// Why it failed, or why it waits, when it does.
     pub error: Option<String>,
+    /// Who took it and what was seen, while `overridden`.
+    pub overridden: Option<OverrideView>,
     /// Horizontal distance to the track estimate minus R (m).
     pub range_error_m: Option<f64>,
     /// Phase around the track estimate (degrees, from east, counter-clockwise).
@@ -372,6 +436,8 @@ pub struct GuidanceSettings {
     pub takeoff_height: f64,
     /// Obstacles the `formation` law steers around (ENU).
     pub obstacles: Vec<Obstacle>,
+    /// The safety envelope on every setpoint.
+    pub envelope: super::envelope::Envelope,
     /// The server's ENU frame (a hand-off's points go out in WGS-84).
     pub frame: LocalFrame,
 }
@@ -408,6 +474,7 @@ mod tests {
             speed: 5.0,
             takeoff_height: 30.0,
             obstacles: Vec::new(),
+            envelope: super::super::envelope::Envelope::default(),
             frame: LocalFrame::new(harrier_link::geo::Geodetic::new(47.0, 8.0, 400.0)),
         };
         let req = |speed: Option<f64>, radius: f64| AssignmentRequest {

@@ -3,7 +3,7 @@
 
 use axum::extract::State;
 use axum::http::StatusCode;
-use axum::routing::get;
+use axum::routing::{get, post};
 use axum::{Json, Router};
 use serde::Serialize;
 use utoipa::{OpenApi, ToSchema};
@@ -18,11 +18,21 @@ pub(super) fn routes() -> Router<ApiState> {
     Router::new()
         .route("/assignments", get(assignments).post(create_assignment))
         .route("/assignments/{id}", get(assignment).delete(end_assignment))
+        .route(
+            "/assignments/{id}/vehicles/{vehicle}/resume",
+            post(resume_vehicle),
+        )
 }
 
 /// The OpenAPI paths of this file.
 #[derive(Debug, OpenApi)]
-#[openapi(paths(assignments, create_assignment, assignment, end_assignment))]
+#[openapi(paths(
+    assignments,
+    create_assignment,
+    assignment,
+    end_assignment,
+    resume_vehicle
+))]
 pub(super) struct Doc;
 
 /// The assignments.
@@ -121,6 +131,29 @@ async fn end_assignment(
         .ok_or_else(|| ApiError::not_found(format!("no assignment {id}")))
 }
 
+/// The operator takes a vehicle back into its slot (it was `overridden`: someone else took it,
+/// or `failed`): the guidance flies it again from its launch, and the ring re-spaces.
+#[utoipa::path(post, path = "/api/v1/assignments/{id}/vehicles/{vehicle}/resume", tag = "guidance",
+    params(
+        ("id" = u64, Path, description = "Assignment id"),
+        ("vehicle" = u8, Path, description = "MAVLink system id of a vehicle of the assignment"),
+    ),
+    responses(
+        (status = 200, description = "Back in its slot (`waiting`, then its launch)", body = AssignmentView),
+        (status = 400, description = "Not an id", body = ErrorBody),
+        (status = 401, description = "Missing or wrong token", body = ErrorBody),
+        (status = 404, description = "No such assignment, or the vehicle is not in it", body = ErrorBody),
+        (status = 409, description = "The assignment ended, the vehicle is in its slot already, or it flies another assignment", body = ErrorBody),
+        (status = 503, description = "No MAVLink link configured", body = ErrorBody),
+    ),
+    security(("bearer" = [])))]
+async fn resume_vehicle(
+    State(c): State<Control>,
+    AppPath((id, vehicle)): AppPath<(u64, u8)>,
+) -> Result<Json<AssignmentView>, ApiError> {
+    Ok(Json(guidance(&c)?.resume(id, vehicle).await?))
+}
+
 #[cfg(test)]
 mod tests {
     use axum::http::{Method, StatusCode};
@@ -143,6 +176,13 @@ mod tests {
                     GuidanceRequest::End(_, reply) => {
                         let _ = reply.send(None);
                     }
+                    GuidanceRequest::Resume(id, vehicle, reply) => {
+                        let m = format!("vehicle {vehicle} is in its slot of assignment {id}");
+                        let _ = reply.send(Err(AssignError::Conflict(m)));
+                    }
+                    GuidanceRequest::Release(_, _, reply) => {
+                        let _ = reply.send(None);
+                    }
                 }
             }
         });
@@ -159,6 +199,19 @@ mod tests {
         let r = app.get("/api/v1/assignments/5").await;
         assert_eq!(r.status, StatusCode::NOT_FOUND);
         assert_eq!(app.refused("not_found", 404), 2);
+        let r = app
+            .send(Method::POST, "/api/v1/assignments/3/vehicles/2/resume", "")
+            .await;
+        assert_eq!(r.status, StatusCode::CONFLICT);
+        assert_eq!(r.error(), "vehicle 2 is in its slot of assignment 3");
+        let r = app
+            .send(
+                Method::POST,
+                "/api/v1/assignments/3/vehicles/256/resume",
+                "",
+            )
+            .await;
+        assert_eq!(r.status, StatusCode::BAD_REQUEST);
     }
 
     #[tokio::test]

@@ -7,8 +7,8 @@
 //! | `GET /tracks[?all=true]`, `GET /tracks/{id}`, `GET /detections[?since=seq]` | [`tracks`] |
 //! | `GET`/`PUT /estimator`, `GET /estimators` | [`estimator`] |
 //! | `GET /biases` | [`biases`] |
-//! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands` | [`vehicles`] |
-//! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}` | [`assignments`] |
+//! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands`, `POST /vehicles/{id}/accept` | [`vehicles`] |
+//! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}`, `POST /assignments/{id}/vehicles/{vehicle}/resume` | [`assignments`] |
 //! | `GET /truth`, `GET /world`, `GET /aircraft` | [`world`] |
 //! | `GET /map`, and `GET /tiles/{z}/{x}/{y}` at the root | [`map`] |
 //! | `GET /sessions`, `/sessions/{id}`, `/sessions/{id}/export` | [`sessions`] |
@@ -369,6 +369,7 @@ mod tests {
             "aircraft",
             "assignments",
             "assignments/{id}",
+            "assignments/{id}/vehicles/{vehicle}/resume",
             "biases",
             "detections",
             "estimator",
@@ -385,6 +386,7 @@ mod tests {
             "vehicles",
             "vehicles/{id}",
             "vehicles/{id}/commands",
+            "vehicles/{id}/accept",
             "world",
             "ws",
         ];
@@ -435,6 +437,7 @@ mod tests {
                     "handed_off",
                     "lost",
                     "failed",
+                    "overridden",
                     "hold",
                 ],
             ),
@@ -462,6 +465,9 @@ mod tests {
                     "mode",
                     "armed",
                     "disarmed",
+                    "conflict",
+                    "moved",
+                    "accepted",
                 ],
             ),
             ("HealthStatus", &["ok"]),

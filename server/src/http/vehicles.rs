@@ -32,12 +32,20 @@ pub(super) fn routes() -> Router<ApiState> {
         .route("/vehicles", get(vehicles))
         .route("/vehicles/{id}", get(vehicle))
         .route("/vehicles/{id}/commands", post(command))
+        .route("/vehicles/{id}/accept", post(accept))
 }
 
 /// The OpenAPI paths of this file.
 #[derive(Debug, OpenApi)]
-#[openapi(paths(vehicles, vehicle, command))]
+#[openapi(paths(vehicles, vehicle, command, accept))]
 pub(super) struct Doc;
+
+/// The MAVLink link, or 503 when it does not run.
+fn link(c: &Control) -> Result<&crate::gcs::GcsLink, ApiError> {
+    c.link
+        .as_ref()
+        .ok_or_else(|| ApiError::unavailable("no_link", "no MAVLink link: set mavlink.gcs"))
+}
 
 /// The vehicles.
 #[derive(Debug, Serialize, ToSchema)]
@@ -229,12 +237,26 @@ impl CommandRequest {
     }
 }
 
-/// Sends a command and answers with the vehicle's COMMAND_ACK.
+/// A command's outcome, and the assignment it took the vehicle out of.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CommandAnswer {
+    /// The vehicle's answer.
+    #[serde(flatten)]
+    pub outcome: CommandOutcome,
+    /// The assignment the vehicle flew, which the command took it out of first (its slot is
+    /// `overridden`: the guidance commands it no more until the operator resumes it); `null`
+    /// when it flew none (`arm` never takes a vehicle out).
+    pub released_from_assignment: Option<u64>,
+}
+
+/// Sends a command and answers with the vehicle's COMMAND_ACK. Any command but `arm` to a
+/// vehicle flying an assignment takes it out of its slot first (the operator wins over the
+/// guidance; `released_from_assignment` says which).
 #[utoipa::path(post, path = "/api/v1/vehicles/{id}/commands", tag = "vehicles",
     params(("id" = u8, Path, description = "MAVLink system id")),
     request_body = CommandRequest,
     responses(
-        (status = 200, description = "The vehicle answered (`ok` false: it refused; `result` says why)", body = CommandOutcome),
+        (status = 200, description = "The vehicle answered (`ok` false: it refused; `result` says why)", body = CommandAnswer),
         (status = 400, description = "Malformed path or JSON", body = ErrorBody),
         (status = 401, description = "Missing or wrong token", body = ErrorBody),
         (status = 404, description = "No such vehicle", body = ErrorBody),
@@ -242,7 +264,7 @@ impl CommandRequest {
         (status = 415, description = "Not JSON", body = ErrorBody),
         (status = 422, description = "Unknown command or bad parameter", body = ErrorBody),
         (status = 503, description = "No MAVLink link configured", body = ErrorBody),
-        (status = 504, description = "No acknowledgement after every attempt (`result` = `timeout`)", body = CommandOutcome),
+        (status = 504, description = "No acknowledgement after every attempt (`result` = `timeout`)", body = CommandAnswer),
     ),
     security(("bearer" = [])))]
 async fn command(
@@ -250,11 +272,8 @@ async fn command(
     State(r): State<Recording>,
     AppPath(id): AppPath<u8>,
     AppJson(req): AppJson<CommandRequest>,
-) -> Result<(StatusCode, Json<CommandOutcome>), ApiError> {
-    let link = c
-        .link
-        .as_ref()
-        .ok_or_else(|| ApiError::unavailable("no_link", "no MAVLink link: set mavlink.gcs"))?;
+) -> Result<(StatusCode, Json<CommandAnswer>), ApiError> {
+    let link = link(&c)?;
     let (home, personality) = link
         .vehicles
         .borrow()
@@ -273,6 +292,18 @@ async fn command(
                 reason: "invalid",
                 message,
             })?;
+    // The operator wins: out of its slot before the command, so the guidance neither fights
+    // it nor takes the change for someone else's.
+    let released_from_assignment = match &c.guidance {
+        Some(g) if req.command != "arm" => {
+            let what = match &req.mode {
+                Some(m) if req.command == "set_mode" => format!("set_mode {m} through the API"),
+                _ => format!("{} through the API", req.command),
+            };
+            g.release(id, what).await?
+        }
+        _ => None,
+    };
     let mut outcome = link.command(id, first).await?;
     if let Some(next) = then.filter(|_| outcome.ok) {
         outcome = link.command(id, next).await?;
@@ -290,7 +321,48 @@ async fn command(
     } else {
         StatusCode::OK
     };
-    Ok((status, Json(outcome)))
+    Ok((
+        status,
+        Json(CommandAnswer {
+            outcome,
+            released_from_assignment,
+        }),
+    ))
+}
+
+/// The answer to an acceptance.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Accepted {
+    /// The vehicle.
+    pub vehicle: u8,
+    /// `true`: its new address was accepted (the guidance may command it again); `false`: its
+    /// address was confirmed already.
+    pub accepted: bool,
+}
+
+/// The operator accepts a vehicle's new address: a vehicle that was lost and speaks again from
+/// another address is not commanded by the guidance until then (`identity.state` =
+/// `unconfirmed`).
+#[utoipa::path(post, path = "/api/v1/vehicles/{id}/accept", tag = "vehicles",
+    params(("id" = u8, Path, description = "MAVLink system id")),
+    responses(
+        (status = 200, description = "Accepted, or nothing to accept (`accepted` false)", body = Accepted),
+        (status = 400, description = "Not a system id", body = ErrorBody),
+        (status = 401, description = "Missing or wrong token", body = ErrorBody),
+        (status = 404, description = "No such vehicle on the MAVLink link", body = ErrorBody),
+        (status = 503, description = "No MAVLink link configured", body = ErrorBody),
+    ),
+    security(("bearer" = [])))]
+async fn accept(
+    State(c): State<Control>,
+    AppPath(id): AppPath<u8>,
+) -> Result<Json<Accepted>, ApiError> {
+    let link = link(&c)?;
+    let accepted = link.accept(id).await?;
+    Ok(Json(Accepted {
+        vehicle: id,
+        accepted,
+    }))
 }
 
 #[cfg(test)]

@@ -260,7 +260,7 @@ fn references_are_the_other_vehicles_at_the_scans_time() {
             component_id: 1,
             sequence: 0,
         };
-        v.on_frame(&header, &position, (0, peer), t0, 0.0);
+        v.on_frame(&header, &position, t0, 0.0);
         let mut view = v.view(&frame, t0);
         view.state = state;
         VehicleSample {
@@ -269,6 +269,8 @@ fn references_are_the_other_vehicles_at_the_scans_time() {
             home_amsl: None,
             gimbal_manager: None,
             position_unix: Some(1000.0),
+            confirmed: true,
+            client_command: None,
         }
     };
     let vehicles = vec![

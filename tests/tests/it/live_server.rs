@@ -58,12 +58,12 @@ const MAX_ERROR_M: f64 = 10.0;
 const STABLE_POLLS: usize = 6;
 
 /// `GET path` on a fresh HTTP/1 connection: status and body.
-async fn get(addr: SocketAddr, path: &str) -> (u16, String) {
+pub(crate) async fn get(addr: SocketAddr, path: &str) -> (u16, String) {
     send(addr, "GET", path, None, None).await
 }
 
 /// `method path` with an optional bearer token and JSON body: status and body.
-async fn send(
+pub(crate) async fn send(
     addr: SocketAddr,
     method: &str,
     path: &str,
@@ -102,14 +102,14 @@ async fn send(
     .await
 }
 
-async fn get_json(addr: SocketAddr, path: &str) -> (u16, Value) {
+pub(crate) async fn get_json(addr: SocketAddr, path: &str) -> (u16, Value) {
     let (status, body) = get(addr, path).await;
     let v = serde_json::from_str(&body).unwrap_or_else(|e| panic!("{path}: {e}: {body}"));
     (status, v)
 }
 
 /// The value of one sample line of the Prometheus text (0 when absent).
-fn metric(text: &str, series: &str) -> f64 {
+pub(crate) fn metric(text: &str, series: &str) -> f64 {
     text.lines()
         .find_map(|l| l.strip_prefix(series)?.strip_prefix(' ')?.parse().ok())
         .unwrap_or(0.0)

@@ -21,6 +21,7 @@
 
 mod api_clients;
 mod association;
+mod authority;
 mod autopilots;
 mod bearings;
 mod cimm;

@@ -15,7 +15,9 @@
 //! - `a_lost_vehicle_flies_its_assignment_again`: a `harrier-sim` process assigned to a track
 //!   (made from detections the test publishes on Zenoh) is armed, taken off and flown in
 //!   OFFBOARD by the guidance; killed, its place in the assignment is `lost`; restarted (on the
-//!   ground, disarmed), the guidance launches it again and it flies the assignment in OFFBOARD.
+//!   ground, disarmed) it speaks from a new address: `waiting`, sent nothing for 2 s, until the
+//!   operator accepts it; then the guidance launches it again and it flies the assignment in
+//!   OFFBOARD.
 //! - `signed_only_link_refuses_unsigned_forged_and_replayed_frames`: the GCS link and router in
 //!   MAVLink 2 `signed_only` mode and a `harrier-sim` process with the same key file: commands are
 //!   ACKed, pymavlink (same key) sees the ground station and the vehicle through the router and
@@ -47,6 +49,7 @@ use harrier_server::config::{
     Config, MavlinkConfig, MessageRef, RouterFilterConfig, SigningConfig,
 };
 use harrier_server::gcs::LinkEventKind;
+use harrier_server::gcs::vehicle::LinkState;
 use harrier_server::guidance::{AssignmentState, SlotState};
 use harrier_sim::mavlink::MavHeader;
 use harrier_sim::mavlink::dialects::common::{
@@ -247,7 +250,7 @@ fn a_killed_simulator_is_lost_then_found() {
         let view = server.link().expect("link").vehicles.borrow().clone();
         assert_eq!(
             view.iter().find(|v| v.view.id == 7).map(|v| v.view.state),
-            Some(harrier_server::gcs::vehicle::LinkState::Lost)
+            Some(LinkState::Lost)
         );
         // Started again: heard again.
         let restarted = Instant::now();
@@ -356,8 +359,50 @@ fn a_lost_vehicle_flies_its_assignment_again() {
             "assigned harrier-sim killed: slot lost after {:.2} s",
             killed.elapsed().as_secs_f64()
         );
+        // Restarted, it speaks from a new address: a new identity, not flown until accepted.
         let mut sim = sim_process(7, gcs);
         let restarted = Instant::now();
+        let link = server.link().expect("link");
+        let mut rx = link.vehicles.clone();
+        within(30, "vehicle 7 heard again, unconfirmed", async {
+            loop {
+                if rx
+                    .borrow_and_update()
+                    .iter()
+                    .any(|v| v.view.id == 7 && v.view.state == LinkState::Connected && !v.confirmed)
+                {
+                    return;
+                }
+                rx.changed().await.expect("link running");
+            }
+        })
+        .await;
+        let sent = || {
+            link.vehicles
+                .borrow()
+                .iter()
+                .find(|v| v.view.id == 7)
+                .map_or(0, |v| v.view.commands_sent)
+        };
+        let before = sent();
+        // Two seconds of guidance ticks (40) that must send it nothing.
+        tokio::time::sleep(Duration::from_secs(2)).await;
+        assert_eq!(
+            sent(),
+            before,
+            "the guidance commanded an unconfirmed vehicle"
+        );
+        assert_eq!(
+            server
+                .guidance()
+                .expect("guidance")
+                .assignments
+                .borrow()
+                .first()
+                .and_then(|a| a.vehicles.first().map(|s| s.state)),
+            Some(SlotState::Waiting)
+        );
+        assert_eq!(link.accept(7).await, Ok(true));
         slot_state(&server, 7, SlotState::Offboard).await;
         let mut rx = server.link().expect("link").vehicles.clone();
         within(30, "vehicle 7 in OFFBOARD again", async {

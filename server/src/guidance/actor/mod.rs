@@ -11,10 +11,12 @@ use harrier_core::guidance::lgvf::Lgvf;
 use harrier_core::guidance::phase::{PhaseNeighbours, phase_of};
 use harrier_core::guidance::togvf::Togvf;
 use harrier_core::guidance::{Command, Limits, Orbit, StandoffLaw, TargetEstimate, UavState};
-use harrier_link::autopilot::{Frame, Personality, VehicleStatus};
+use harrier_link::autopilot::{Frame, Mode, Personality, VehicleStatus};
 use harrier_link::command::{command_long, set_mode};
 use harrier_link::mavlink::dialects::common::{MavCmd, MavMessage};
-use harrier_link::offboard::{OffboardConfig, OffboardSequence, Phase, Steer};
+use harrier_link::offboard::{
+    OffboardConfig, OffboardError, OffboardSequence, Override, Phase, Steer,
+};
 use nalgebra::Vector3;
 use tokio::sync::{broadcast, mpsc, watch};
 
@@ -23,7 +25,7 @@ use super::handle::{AssignError, Guidance, GuidanceMetrics, GuidanceRequest};
 use super::handoff::{Handoff, airborne};
 use super::plan::{
     AssignmentRequest, AssignmentState, AssignmentView, ENDED_BY_OPERATOR, GuidanceSettings, Law,
-    Plan, SlotState, SlotView,
+    OverrideSource, OverrideView, Plan, SlotState, SlotView,
 };
 use crate::clock::unix_now;
 use crate::gcs::transport::stopped;
@@ -44,9 +46,54 @@ struct Slot {
     handoff: Handoff,
     state: SlotState,
     error: Option<String>,
+    /// Who took it, while `overridden`.
+    overridden: Option<OverrideView>,
+    /// The mode its vehicle was in when its link was lost (`Some(None)`: one its table lacks),
+    /// while `lost`.
+    lost_in: Option<Option<Mode>>,
     range_error: Option<f64>,
     phase: Option<f64>,
     commanded: Option<Vector3<f64>>,
+}
+
+impl Slot {
+    fn new(vehicle: u8) -> Self {
+        Self {
+            vehicle,
+            sequence: None,
+            handoff: Handoff::default(),
+            state: SlotState::Waiting,
+            error: None,
+            overridden: None,
+            lost_in: None,
+            range_error: None,
+            phase: None,
+            commanded: None,
+        }
+    }
+
+    /// Whether it is out of the assignment (failed, or someone else's): the guidance sends its
+    /// vehicle nothing.
+    fn is_out(&self) -> bool {
+        matches!(self.state, SlotState::Failed | SlotState::Overridden)
+    }
+
+    /// Whether the guidance is flying its vehicle now (a Hold is due when the assignment ends).
+    fn is_flown(&self) -> bool {
+        matches!(
+            self.state,
+            SlotState::Arming | SlotState::TakingOff | SlotState::Offboard | SlotState::HandedOff
+        )
+    }
+
+    /// Takes it out of the assignment: someone else's now (`o`).
+    fn take_out(&mut self, o: OverrideView) {
+        self.state = SlotState::Overridden;
+        self.overridden = Some(o);
+        self.sequence = None;
+        self.handoff = Handoff::default();
+        self.commanded = None;
+    }
 }
 
 /// An assignment: its track, law and plan, and its vehicles.
@@ -62,6 +109,11 @@ struct Assignment {
 }
 
 impl Assignment {
+    /// The vehicles flying its ring: every slot not out of it.
+    fn flying(&self) -> usize {
+        self.slots.iter().filter(|s| !s.is_out()).count()
+    }
+
     fn view(&self) -> AssignmentView {
         let p = &self.plan;
         AssignmentView {
@@ -70,7 +122,7 @@ impl Assignment {
             law: p.law,
             radius_m: p.radius,
             height_m: p.height,
-            spacing_deg: p.spacing.to_degrees(),
+            spacing_deg: p.spacing_of(self.flying()).to_degrees(),
             speed_m_s: p.speed,
             orbit: p.orbit,
             state: if self.ended.is_some() {
@@ -87,6 +139,7 @@ impl Assignment {
                     vehicle: s.vehicle,
                     state: s.state,
                     error: s.error.clone(),
+                    overridden: s.overridden.clone(),
                     range_error_m: s.range_error,
                     phase_deg: s.phase.map(f64::to_degrees),
                     commanded_velocity: s.commanded.map(Into::into),
@@ -298,6 +351,23 @@ impl Actor {
         });
     }
 
+    /// Sends `vehicle` home (MAV_CMD_NAV_RETURN_TO_LAUNCH: PX4 AUTO.RTL, ArduPilot RTL), for the
+    /// safety envelope's battery floor.
+    fn return_home(&self, vehicle: u8) {
+        let link = self.link.clone();
+        self.metrics.battery_rtl.fetch_add(1, Ordering::Relaxed);
+        tokio::spawn(async move {
+            let rtl = command_long(vehicle, MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH, [0.0; 7]);
+            match link.command(vehicle, rtl).await {
+                Ok(o) if o.ok => tracing::info!(vehicle, "guidance: vehicle sent home (RTL)"),
+                Ok(o) => {
+                    tracing::warn!(vehicle, result = o.result.as_str(), "guidance: RTL refused")
+                }
+                Err(e) => tracing::warn!(vehicle, "guidance: RTL not sent: {e}"),
+            }
+        });
+    }
+
     fn on_request(&mut self, r: GuidanceRequest) {
         match r {
             GuidanceRequest::Create(req, reply) => {
@@ -315,7 +385,95 @@ impl Actor {
                 let _ = reply.send(v);
                 self.publish();
             }
+            GuidanceRequest::Release(vehicle, what, reply) => {
+                let _ = reply.send(self.release(vehicle, &what));
+                self.publish();
+            }
+            GuidanceRequest::Resume(id, vehicle, reply) => {
+                let _ = reply.send(self.resume(id, vehicle));
+                self.publish();
+            }
         }
+    }
+
+    /// Takes `vehicle` out of the slot it flies, before the operator's command `what`: the
+    /// assignment, if it flew one.
+    fn release(&mut self, vehicle: u8, what: &str) -> Option<u64> {
+        let mode = self
+            .link
+            .vehicles
+            .borrow()
+            .iter()
+            .find(|v| v.view.id == vehicle)
+            .and_then(|v| v.view.mode.clone());
+        let a = self.assignments.values_mut().find(|a| {
+            a.ended.is_none() && a.slots.iter().any(|s| s.vehicle == vehicle && !s.is_out())
+        })?;
+        let slot = a.slots.iter_mut().find(|s| s.vehicle == vehicle)?;
+        slot.take_out(OverrideView {
+            from_mode: mode,
+            to_mode: None,
+            disarmed: false,
+            by: OverrideSource::Api,
+            detail: format!("the operator's {what}"),
+            time_unix: unix_now(),
+        });
+        tracing::warn!(
+            vehicle,
+            assignment = a.id,
+            "guidance: vehicle taken out of its slot for the operator's {what}"
+        );
+        self.metrics.overridden(OverrideSource::Api);
+        let _ = self.events.send(a.view());
+        Some(a.id)
+    }
+
+    /// Takes `vehicle` back into its slot of assignment `id` (it was overridden or failed): it
+    /// flies the assignment again from its launch.
+    fn resume(&mut self, id: u64, vehicle: u8) -> Result<AssignmentView, AssignError> {
+        if let Some(other) = self.assignments.values().find(|a| {
+            a.id != id
+                && a.ended.is_none()
+                && a.slots.iter().any(|s| s.vehicle == vehicle && !s.is_out())
+        }) {
+            return Err(AssignError::Conflict(format!(
+                "vehicle {vehicle} flies assignment {}",
+                other.id
+            )));
+        }
+        let a = self
+            .assignments
+            .get_mut(&id)
+            .ok_or_else(|| AssignError::NotFound(format!("no assignment {id}")))?;
+        if a.ended.is_some() {
+            return Err(AssignError::Conflict(format!("assignment {id} has ended")));
+        }
+        let slot = a
+            .slots
+            .iter_mut()
+            .find(|s| s.vehicle == vehicle)
+            .ok_or_else(|| {
+                AssignError::NotFound(format!("vehicle {vehicle} is not in assignment {id}"))
+            })?;
+        if !slot.is_out() {
+            return Err(AssignError::Conflict(format!(
+                "vehicle {vehicle} is in its slot of assignment {id} ({})",
+                serde_json::to_value(slot.state)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_owned))
+                    .unwrap_or_default()
+            )));
+        }
+        *slot = Slot::new(vehicle);
+        tracing::info!(
+            vehicle,
+            assignment = id,
+            "guidance: the operator resumed the vehicle"
+        );
+        self.metrics.resumed.fetch_add(1, Ordering::Relaxed);
+        let view = a.view();
+        let _ = self.events.send(view.clone());
+        Ok(view)
     }
 
     fn create(&mut self, r: &AssignmentRequest) -> Result<AssignmentView, AssignError> {
@@ -332,11 +490,9 @@ impl Actor {
             if !vehicles.iter().any(|s| s.view.id == *id) {
                 return Err(AssignError::NotFound(format!("no vehicle {id}")));
             }
-            if let Some(a) = self
-                .assignments
-                .values()
-                .find(|a| a.ended.is_none() && a.slots.iter().any(|s| s.vehicle == *id))
-            {
+            if let Some(a) = self.assignments.values().find(|a| {
+                a.ended.is_none() && a.slots.iter().any(|s| s.vehicle == *id && !s.is_out())
+            }) {
                 return Err(AssignError::Conflict(format!(
                     "vehicle {id} already flies assignment {}",
                     a.id
@@ -364,16 +520,7 @@ impl Actor {
             slots: r
                 .vehicles
                 .iter()
-                .map(|&vehicle| Slot {
-                    vehicle,
-                    sequence: None,
-                    handoff: Handoff::default(),
-                    state: SlotState::Waiting,
-                    error: None,
-                    range_error: None,
-                    phase: None,
-                    commanded: None,
-                })
+                .map(|&vehicle| Slot::new(vehicle))
                 .collect(),
         };
         let view = a.view();
@@ -387,10 +534,12 @@ impl Actor {
             tracing::info!(id, reason, "assignment ended");
             a.ended = Some(reason);
             let camera = a.plan.law == Law::HandoffCamera;
+            // Only the vehicles it flies now: not a lost or waiting one, nor one that is out
+            // (failed: already sent to Hold; overridden: someone else's).
             let holds: Vec<u8> = a
                 .slots
                 .iter_mut()
-                .filter(|s| !matches!(s.state, SlotState::Lost | SlotState::Waiting))
+                .filter(|s| s.is_flown())
                 .map(|s| {
                     s.state = SlotState::Hold;
                     s.sequence = None;
@@ -479,8 +628,11 @@ impl Actor {
                 continue;
             };
             let target = predict(track, snapshot.t.unwrap_or(track.t));
-            for slot in &mut a.slots {
-                if let Some(v) = vehicles.iter().find(|v| v.view.id == slot.vehicle) {
+            for slot in a.slots.iter_mut().filter(|s| !s.is_out()) {
+                if let Some(v) = vehicles
+                    .iter()
+                    .find(|v| v.view.id == slot.vehicle && v.confirmed)
+                {
                     let msgs = slot.handoff.roi(t, track.t, v, &target, &frame);
                     send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
                 }
@@ -504,6 +656,13 @@ impl Actor {
         for v in d.hold {
             self.hold(v);
         }
+        for by in d.overridden {
+            self.metrics.overridden(by);
+        }
+        for v in d.rtl {
+            self.return_home(v);
+        }
+        self.metrics.safety(d.clipped, d.fenced_out);
         for (id, reason) in d.end {
             self.end(id, reason);
         }

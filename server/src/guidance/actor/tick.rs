@@ -26,7 +26,19 @@ pub(super) struct Decisions {
     pub(super) hold: Vec<u8>,
     /// Assignments whose vehicles changed state.
     pub(super) changed: Vec<u64>,
+    /// Vehicles taken out of their slots this tick, by who (for the counters).
+    pub(super) overridden: Vec<OverrideSource>,
+    /// Vehicles the safety envelope sends home (battery below the floor).
+    pub(super) rtl: Vec<u8>,
+    /// Setpoints the safety envelope clipped.
+    pub(super) clipped: u64,
+    /// Vehicles the safety envelope took out: found outside the fence (sent to Hold).
+    pub(super) fenced_out: u64,
 }
+
+/// How long before a change of mode a router client's command to the vehicle is taken as its
+/// cause (s).
+const CLIENT_COMMAND_WINDOW_S: f64 = 5.0;
 
 impl<'a> Tick<'a> {
     /// Flies assignment `a` for one tick: its track predicted to the tracker's time, then for
@@ -52,6 +64,7 @@ impl<'a> Tick<'a> {
             self.settings.limits(frame)
         };
         let ring = Ring::of(&states, &target, &a.plan);
+        let flying = a.flying();
         let formation = (a.plan.law == Law::Formation).then(|| {
             let uavs: Vec<Option<UavState>> =
                 states.iter().map(|s| s.as_ref().map(|(u, _)| *u)).collect();
@@ -64,22 +77,73 @@ impl<'a> Tick<'a> {
                 &self.settings.obstacles,
             )
         });
-        let all_on_ring = ring.slots.len() == a.slots.len();
+        // The spacing once every vehicle flying the ring is on it: 360° over them unless the
+        // request gave one.
+        let spacing = (ring.slots.len() == flying).then(|| a.plan.spacing_of(flying));
         for (i, slot) in a.slots.iter_mut().enumerate() {
+            if slot.is_out() {
+                continue;
+            }
             let before = (slot.state, slot.error.clone());
+            slot.error = None;
             match (&states[i], self.vehicle(slot.vehicle)) {
                 (None, Some(v)) if v.view.state == LinkState::Lost => {
-                    if slot.state != SlotState::Failed {
-                        slot.state = SlotState::Lost;
-                        slot.sequence = None;
+                    if slot.state != SlotState::Lost {
+                        slot.lost_in = v.status.map(|s| s.mode);
                     }
+                    slot.state = SlotState::Lost;
+                    slot.sequence = None;
+                }
+                (None, Some(v)) if !v.confirmed => {
+                    // A new identity: whatever the vehicle left in, this one starts afresh once
+                    // accepted.
+                    slot.state = SlotState::Waiting;
+                    slot.sequence = None;
+                    slot.lost_in = None;
+                    slot.error = Some(format!(
+                        "heard from a new address ({}): waits for the operator to accept it",
+                        v.view.address
+                    ));
                 }
                 (None, _) => {
-                    if !matches!(slot.state, SlotState::Failed | SlotState::Lost) {
+                    if slot.state != SlotState::Lost {
                         slot.state = SlotState::Waiting;
                     }
                 }
-                (Some(_), _) if slot.state == SlotState::Failed => {}
+                (Some((_, v)), _)
+                    if slot.state == SlotState::Lost
+                        && slot
+                            .lost_in
+                            .take()
+                            .is_some_and(|m| v.status.map(|s| s.mode) != Some(m)) =>
+                {
+                    // Back in another mode than it was lost in, not its guided one: its
+                    // failsafe (or its pilot) acted meanwhile. Someone else's.
+                    let o = Override {
+                        from: None,
+                        to: v.status.and_then(|s| s.mode),
+                        disarmed: false,
+                        at: v.status.map_or(self.t, |s| s.at),
+                    };
+                    out.take_out(a.id, slot, v, o, "changed mode while its link was lost");
+                }
+                (Some((_, v)), _) if self.settings.envelope.battery_low(v.view.battery_pct) => {
+                    let why = format!(
+                        "safety envelope: battery {:.0} % below the floor of {:.0} %: sent home \
+                         (RTL)",
+                        v.view.battery_pct.unwrap_or(0.0),
+                        self.settings.envelope.battery_floor_pct.unwrap_or(0.0)
+                    );
+                    out.safety_out(a.id, slot, why, true);
+                }
+                (Some((uav, _)), _) if self.settings.envelope.outside(&uav.position).is_some() => {
+                    let where_ = self.settings.envelope.outside(&uav.position);
+                    let why = format!(
+                        "safety envelope: {}: sent to Hold",
+                        where_.unwrap_or_default()
+                    );
+                    out.safety_out(a.id, slot, why, false);
+                }
                 (Some((uav, v)), _) => {
                     let (p, centre) = (uav.horizontal_position(), target.position.xy());
                     slot.range_error = Some((p - centre).norm() - a.plan.radius);
@@ -88,23 +152,34 @@ impl<'a> Tick<'a> {
                         // The autopilot flies on what it was last sent: the track predicted to
                         // now, the tracker's time moved on by the wall time since its snapshot.
                         let now = predict(track, t_track + self.since_snapshot);
-                        self.hand_off(slot, v, track, &now, &a.plan, out);
+                        self.hand_off(a.id, slot, v, track, &now, &a.plan, out);
+                        if before != (slot.state, slot.error.clone()) {
+                            out.changed.push(a.id);
+                        }
                         continue;
                     }
                     let limits = envelope(i);
-                    let cmd = match formation.as_ref().and_then(|c| c[i]) {
+                    let mut cmd = match formation.as_ref().and_then(|c| c[i]) {
                         Some(c) => c,
                         None => {
-                            let spacing = all_on_ring.then_some(a.plan.spacing);
                             let neighbours = ring.neighbours(i, spacing);
                             law.command(uav, Some(&target), limits, neighbours.as_ref())
                                 .or_hold(uav, limits)
                         }
                     };
-                    // ArduPlane holds an altitude rather than a climb rate: H over the target.
-                    let goal = target.position.z + a.plan.height;
+                    // Every setpoint within the safety envelope.
+                    let fence = &self.settings.envelope;
+                    let (velocity, clipped) = fence.clip(&uav.position, &cmd.velocity);
+                    cmd.velocity = velocity;
+                    out.clipped += u64::from(clipped);
+                    // ArduPlane holds an altitude rather than a climb rate: H over the target,
+                    // within the floor and the ceiling.
+                    let mut goal = target.position.z + a.plan.height;
+                    if let (Some(f), Some(c)) = (fence.floor_m, fence.ceiling_m) {
+                        goal = goal.clamp(f, c);
+                    }
                     let altitude = v.view.geodetic.map(|g| g.alt_m + goal - uav.position.z);
-                    self.advance(slot, v, cmd, altitude, out);
+                    self.advance(a.id, slot, v, cmd, altitude, out);
                 }
             }
             if before != (slot.state, slot.error.clone()) {
@@ -114,9 +189,11 @@ impl<'a> Tick<'a> {
     }
 
     /// One tick of a hand-off slot: the orbit, follow or camera messages due; `handed_off` once
-    /// in the air (the camera at once).
+    /// in the air (the camera at once); `overridden` when its vehicle left the hand-off's mode.
+    #[allow(clippy::too_many_arguments)]
     fn hand_off(
         &self,
+        assignment: u64,
         slot: &mut Slot,
         v: &VehicleSample,
         track: &TrackView,
@@ -125,7 +202,13 @@ impl<'a> Tick<'a> {
         out: &mut Decisions,
     ) {
         let frame = &self.settings.frame;
-        let msgs = slot.handoff.step(self.t, v, target, track, plan, frame);
+        let msgs = match slot.handoff.step(self.t, v, target, track, plan, frame) {
+            Ok(msgs) => msgs,
+            Err(o) => {
+                out.take_out(assignment, slot, v, o, "left the hand-off");
+                return;
+            }
+        };
         out.send.extend(msgs.into_iter().map(|m| (slot.vehicle, m)));
         slot.state = if plan.law == Law::HandoffCamera || airborne(v) {
             SlotState::HandedOff
@@ -139,14 +222,15 @@ impl<'a> Tick<'a> {
         self.vehicles.iter().find(|v| v.view.id == id)
     }
 
-    /// The measured state of each slot's vehicle: while it is connected and has sent its
-    /// position and velocity.
+    /// The measured state of each slot's vehicle: while the slot is not out of the assignment
+    /// and its vehicle is connected, confirmed (gcs::identity) and has sent its position and
+    /// velocity.
     fn measured(&self, slots: &[Slot]) -> Vec<Option<(UavState, &'a VehicleSample)>> {
         slots
             .iter()
             .map(|s| {
                 let v = self.vehicle(s.vehicle)?;
-                if v.view.state != LinkState::Connected {
+                if s.is_out() || v.view.state != LinkState::Connected || !v.confirmed {
                     return None;
                 }
                 let p = v.view.position?;
@@ -159,9 +243,11 @@ impl<'a> Tick<'a> {
     /// Advances `slot`'s launch sequence in its autopilot's order (PX4: arm, take off, stream
     /// setpoints, OFFBOARD; ArduPilot: GUIDED, arm, take off, targets) with `cmd` (and, for an
     /// ArduPlane, the `altitude` AMSL to hold); a sequence that fails leaves the vehicle
-    /// `failed`, sent to its hold mode.
+    /// `failed`, sent to its hold mode; one whose vehicle someone else took (its mode or arming
+    /// changed by no command of the sequence's) leaves it `overridden`, sent nothing.
     fn advance(
         &self,
+        assignment: u64,
         slot: &mut Slot,
         v: &VehicleSample,
         cmd: Command,
@@ -196,6 +282,9 @@ impl<'a> Tick<'a> {
                 };
                 slot.commanded = Some(cmd.velocity);
             }
+            Err(OffboardError::Overridden(o)) => {
+                out.take_out(assignment, slot, v, o, "its mode or arming changed");
+            }
             Err(e) => {
                 slot.state = SlotState::Failed;
                 slot.error = Some(e.to_string());
@@ -203,6 +292,72 @@ impl<'a> Tick<'a> {
                 out.hold.push(slot.vehicle);
             }
         }
+    }
+}
+
+impl Decisions {
+    /// Takes `slot` (of assignment `assignment`) out for the safety envelope (`why`, in words):
+    /// `failed`, its vehicle sent home (`rtl`) or to Hold.
+    fn safety_out(&mut self, assignment: u64, slot: &mut Slot, why: String, rtl: bool) {
+        tracing::warn!(vehicle = slot.vehicle, assignment, "guidance: {why}");
+        slot.state = SlotState::Failed;
+        slot.error = Some(why);
+        slot.sequence = None;
+        slot.handoff = Handoff::default();
+        if rtl {
+            self.rtl.push(slot.vehicle);
+        } else {
+            self.fenced_out += 1;
+            self.hold.push(slot.vehicle);
+        }
+    }
+
+    /// Takes `slot` (of assignment `assignment`) out: its vehicle `v` is someone else's, as `o`
+    /// shows (`what`: in words). Who: the router client whose command to the vehicle passed
+    /// within [`CLIENT_COMMAND_WINDOW_S`] before, else the vehicle itself (its RC switch, a
+    /// failsafe, its autopilot).
+    fn take_out(
+        &mut self,
+        assignment: u64,
+        slot: &mut Slot,
+        v: &VehicleSample,
+        o: Override,
+        what: &str,
+    ) {
+        let name = |m: Option<Mode>| m.map(|m| m.name().to_owned());
+        let client = v
+            .client_command
+            .as_ref()
+            .filter(|c| c.at <= o.at + 0.05 && o.at - c.at <= CLIENT_COMMAND_WINDOW_S);
+        let (by, who) = match client {
+            Some(c) => (
+                OverrideSource::RouterClient,
+                format!("{} from {}", c.command, c.from),
+            ),
+            None => (
+                OverrideSource::Vehicle,
+                "no command through Harrier: its RC switch, a failsafe or its autopilot".into(),
+            ),
+        };
+        let view = OverrideView {
+            from_mode: name(o.from),
+            to_mode: name(o.to).or_else(|| v.view.mode.clone()),
+            disarmed: o.disarmed,
+            by,
+            detail: format!("{what} ({o}); {who}"),
+            time_unix: unix_now(),
+        };
+        tracing::warn!(
+            vehicle = slot.vehicle,
+            assignment,
+            by = by.as_str(),
+            detail = view.detail,
+            "guidance: vehicle taken out of its slot by someone else; not commanded again until \
+             the operator resumes it"
+        );
+        slot.take_out(view);
+        self.overridden.push(by);
+        self.changed.push(assignment);
     }
 }
 
