@@ -415,7 +415,8 @@ def ask(line, answer):
 def test_a_lost_link_shows_a_warning_until_the_vehicle_speaks_again(session):
     """A real vehicle (harrier-sim, vehicle 4) on the demo's GCS link is SIGKILLed: the server
     marks it lost after 3 s of silence, and the page shows a LINK LOST card, a banner and a
-    toast; started again, it is `connected` on the page and the warning goes."""
+    toast; started again (from a new address), it is `connected` on the page, the warning goes
+    and the banner offers to accept its new address, which the operator does."""
     page, console = session
     card = '#vehicles [data-vehicle="4"]'
     ask("HARRIER-VEHICLE-START", "connected 4")
@@ -436,11 +437,21 @@ def test_a_lost_link_shows_a_warning_until_the_vehicle_speaks_again(session):
     assert "LINK LOST" in page.inner_text(f"{card} .head")
     assert page.get_attribute("body", "data-lost") == "4"
     page.screenshot(path=str(SHOTS / "lost.png"))
-    # The vehicle speaks again: the warning goes.
+    # The vehicle speaks again, from a new address (a new process): the lost warning goes, and the
+    # banner asks the operator to accept the new identity (the guidance flies it only then);
+    # accepted, the banner goes.
     ask("HARRIER-VEHICLE-START", "connected 4")
-    page.wait_for_selector("#alerts", state="hidden", timeout=10_000)
     page.wait_for_selector(f"{card}[data-link=connected]", timeout=5_000)
-    assert not page.get_attribute("body", "data-lost")
+    page.wait_for_function("() => !document.body.dataset.lost", timeout=5_000)
+    page.wait_for_selector("#alerts button[data-action=accept]", timeout=10_000)
+    banner = page.inner_text("#alerts")
+    print(f"back from a new address: banner {banner!r}", flush=True)
+    assert "UAV 4" in banner and "new address" in banner and "lost" not in banner.lower(), banner
+    set_token(page, TOKEN)
+    page.click("#alerts button[data-action=accept]")
+    page.wait_for_selector("#alerts", state="hidden", timeout=10_000)
+    v = next(x for x in httpx.get(f"{URL}/api/v1/vehicles", timeout=5).json()["vehicles"] if x["id"] == 4)
+    assert v["link"]["identity"]["state"] == "confirmed", v
 
 
 def dropped_scans():

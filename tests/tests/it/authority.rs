@@ -33,7 +33,7 @@ const R: f64 = 150.0;
 const SPEEDUP: f64 = 5.0;
 
 /// The first assignment, as the guidance publishes it.
-fn assignment(s: &LiveServer) -> Option<AssignmentView> {
+pub(crate) fn assignment(s: &LiveServer) -> Option<AssignmentView> {
     s.guidance()?.assignments.borrow().first().cloned()
 }
 
@@ -97,7 +97,7 @@ async fn ring_errors(s: &LiveServer, vehicles: &[u8], spacing: f64, secs: u64) -
 }
 
 /// What the link knows of vehicle `id`: its mode and the commands the ground station sent it.
-fn link_of(s: &LiveServer, id: u8) -> (Option<String>, u64) {
+pub(crate) fn link_of(s: &LiveServer, id: u8) -> (Option<String>, u64) {
     s.link()
         .expect("link")
         .vehicles
@@ -109,7 +109,7 @@ fn link_of(s: &LiveServer, id: u8) -> (Option<String>, u64) {
 
 /// Watches vehicle `id` for `secs` wall seconds: it must stay in `mode`, and the ground station
 /// must send it nothing that steers it. Returns how often it was sampled.
-async fn stays_out(s: &LiveServer, id: u8, mode: &str, secs: u64) -> usize {
+pub(crate) async fn stays_out(s: &LiveServer, id: u8, mode: &str, secs: u64) -> usize {
     let (_, sent) = link_of(s, id);
     let mut samples = 0;
     let until = Instant::now() + Duration::from_secs(secs);
@@ -124,6 +124,29 @@ async fn stays_out(s: &LiveServer, id: u8, mode: &str, secs: u64) -> usize {
         samples += 1;
     }
     samples
+}
+
+/// Runs `tests/python/mode_switch.py`: pymavlink through the router at `router` puts vehicle
+/// `id` in `mode` (pymavlink's name), as QGroundControl's flight-mode menu does.
+pub(crate) async fn router_client_mode(router: SocketAddr, id: u8, mode: &str) {
+    let mut child = python_script("mode_switch.py")
+        .args([
+            "--connect",
+            &format!("udpout:{router}"),
+            "--vehicle",
+            &id.to_string(),
+            "--mode",
+            mode,
+        ])
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .expect("run mode_switch.py");
+    let status = tokio::task::spawn_blocking(move || {
+        wait_with_deadline(&mut child, Duration::from_secs(60), "mode_switch.py")
+    })
+    .await
+    .expect("join");
+    assert!(status.success(), "mode_switch.py: {status}");
 }
 
 #[test]
@@ -159,18 +182,6 @@ fn the_operator_wins_over_the_guidance() {
         // 1. A router client's Hold to UAV 2, as QGroundControl's flight-mode menu sends it.
         let mut link_events = link.events.subscribe();
         let mut slot_events = server.guidance().expect("guidance").events.subscribe();
-        let mut child = python_script("mode_switch.py")
-            .args([
-                "--connect",
-                &format!("udpout:{router}"),
-                "--vehicle",
-                "2",
-                "--mode",
-                "LOITER",
-            ])
-            .stdout(std::process::Stdio::piped())
-            .spawn()
-            .expect("run mode_switch.py");
         let held = tokio::spawn(async move {
             loop {
                 let e = link_events.recv().await.expect("link events");
@@ -192,12 +203,7 @@ fn the_operator_wins_over_the_guidance() {
                 }
             }
         });
-        let status = tokio::task::spawn_blocking(move || {
-            wait_with_deadline(&mut child, Duration::from_secs(60), "mode_switch.py")
-        })
-        .await
-        .expect("join");
-        assert!(status.success(), "mode_switch.py: {status}");
+        router_client_mode(router, 2, "LOITER").await;
         let held = within(10, "UAV 2's HEARTBEAT in HOLD", held)
             .await
             .expect("join");

@@ -8,7 +8,9 @@
 //! 5 % (multirotor) or 10 % (fixed wing) of R, every gap within 20° of 90°, for 2 s): |r − R| RMS
 //! ≤ 5 % of R for the multirotors and ≤ 10 % for the fixed wings, the phase-spacing error RMS ≤
 //! 15°, and, from the simulator's own physics over the whole flight, no fixed wing ever below its
-//! stall speed. The window is `HARRIER_FLEET_SECONDS` wall seconds (30 in CI, at
+//! stall speed. Then the operator wins on both autopilots and airframes: the ArduCopter put in
+//! LOITER by a router client (pymavlink through the router) and the PX4 fixed wing held through
+//! the API leave their slots (`overridden`) and stay out for 5 s, sent nothing. The window is `HARRIER_FLEET_SECONDS` wall seconds (30 in CI, at
 //! `HARRIER_FLEET_SPEEDUP` 2× speed-up: 60 s of flight; 5× starved the simulator on a loaded
 //! machine and the ring never formed); BENCHMARKS.md has a long run.
 
@@ -130,6 +132,7 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
             seed: 3,
             radius: R,
             fleet: fleet.clone(),
+            router: vec!["udpin:127.0.0.1:0".into()],
             ..DemoConfig::ephemeral(SocketAddr::from(([127, 0, 0, 1], 0)))
         };
         let demo = within(30, "start the demo", demo::start(&config))
@@ -261,6 +264,59 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
         for (label, low, stall) in slowest {
             assert!(low >= stall, "{label} flew {low} m/s, stall {stall} m/s");
         }
+        // The operator wins on every autopilot: the ArduCopter put in LOITER by a router client
+        // (pymavlink, as MAVProxy's `mode loiter`), the PX4 fixed wing held through the API;
+        // each leaves its slot and stays out, sent nothing.
+        let server = demo.server();
+        let router = server
+            .link()
+            .and_then(|l| l.router().next().map(|e| e.addr()))
+            .expect("a router endpoint");
+        crate::authority::router_client_mode(router, 2, "LOITER").await;
+        let token = server.token().0.to_owned();
+        let (status, body) = crate::live_server::send(
+            addr,
+            "POST",
+            "/api/v1/vehicles/3/commands",
+            Some(&token),
+            Some(&serde_json::json!({"command": "hold"})),
+        )
+        .await;
+        assert_eq!(status, 200, "{body}");
+        let slots = || {
+            crate::authority::assignment(server)
+                .expect("assignment")
+                .vehicles
+        };
+        within(5, "both slots overridden", async {
+            while !slots()
+                .iter()
+                .filter(|s| s.vehicle == 2 || s.vehicle == 3)
+                .all(|s| s.state == harrier_server::guidance::SlotState::Overridden)
+            {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await;
+        let by: Vec<_> = slots()
+            .iter()
+            .filter_map(|s| s.overridden.as_ref().map(|o| (s.vehicle, o.by.as_str())))
+            .collect();
+        assert_eq!(by, [(2, "router_client"), (3, "api")]);
+        within(10, "the PX4 fixed wing in Hold", async {
+            while crate::authority::link_of(server, 3).0.as_deref() != Some("HOLD") {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await;
+        let (copter, plane) = tokio::join!(
+            crate::authority::stays_out(server, 2, "LOITER", 5),
+            crate::authority::stays_out(server, 3, "HOLD", 5)
+        );
+        eprintln!(
+            "fleet: ArduCopter in LOITER ({copter} samples) and PX4 fixed wing in HOLD ({plane} \
+             samples) for 5 s, out of their slots ({by:?}), sent nothing"
+        );
         demo.stop().await;
     }));
 }
