@@ -17,6 +17,8 @@ const MAIN_AUTO: u32 = 4;
 const MAIN_OFFBOARD: u32 = 6;
 const SUB_AUTO_TAKEOFF: u32 = 2;
 const SUB_AUTO_LOITER: u32 = 3;
+const SUB_AUTO_MISSION: u32 = 4;
+const SUB_AUTO_RTL: u32 = 5;
 const SUB_AUTO_LAND: u32 = 6;
 const SUB_AUTO_FOLLOW_TARGET: u32 = 8;
 const SUB_POSCTL_ORBIT: u32 = 1;
@@ -38,11 +40,16 @@ pub enum FlightMode {
     Orbit,
     /// AUTO.FOLLOW_TARGET ("Follow Me"): follows the FOLLOW_TARGET messages it receives.
     FollowTarget,
+    /// AUTO.RTL ("Return"): climbs to RTL_RETURN_ALT if lower, flies home, lands (a fixed wing
+    /// loiters over home).
+    Rtl,
+    /// AUTO.MISSION: flies the uploaded mission.
+    Mission,
 }
 
 impl FlightMode {
     /// Every mode Harrier uses.
-    pub const ALL: [Self; 7] = [
+    pub const ALL: [Self; 9] = [
         Self::Position,
         Self::Hold,
         Self::Takeoff,
@@ -50,6 +57,8 @@ impl FlightMode {
         Self::Offboard,
         Self::Orbit,
         Self::FollowTarget,
+        Self::Rtl,
+        Self::Mission,
     ];
 
     /// The mode's name as QGroundControl shows it.
@@ -62,6 +71,8 @@ impl FlightMode {
             Self::Offboard => "OFFBOARD",
             Self::Orbit => "ORBIT",
             Self::FollowTarget => "FOLLOW_TARGET",
+            Self::Rtl => "RTL",
+            Self::Mission => "MISSION",
         }
     }
 
@@ -75,6 +86,8 @@ impl FlightMode {
             Self::Offboard => (MAIN_OFFBOARD, 0),
             Self::Orbit => (MAIN_POSCTL, SUB_POSCTL_ORBIT),
             Self::FollowTarget => (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET),
+            Self::Rtl => (MAIN_AUTO, SUB_AUTO_RTL),
+            Self::Mission => (MAIN_AUTO, SUB_AUTO_MISSION),
         }
     }
 
@@ -94,6 +107,8 @@ impl FlightMode {
             (MAIN_AUTO, SUB_AUTO_TAKEOFF) => Some(Self::Takeoff),
             (MAIN_AUTO, SUB_AUTO_LAND) => Some(Self::Land),
             (MAIN_AUTO, SUB_AUTO_FOLLOW_TARGET) => Some(Self::FollowTarget),
+            (MAIN_AUTO, SUB_AUTO_RTL) => Some(Self::Rtl),
+            (MAIN_AUTO, SUB_AUTO_MISSION) => Some(Self::Mission),
             _ => None,
         }
     }
@@ -135,6 +150,9 @@ mod tests {
         assert_eq!(FlightMode::Hold.px4_custom_mode(), (4 << 16) | (3 << 24));
         assert_eq!(FlightMode::Offboard.px4_custom_mode(), 6 << 16);
         assert_eq!(FlightMode::Offboard.set_mode_params(), [1.0, 6.0, 0.0]);
-        assert_eq!(FlightMode::from_px4(4, 4), None); // MISSION
+        // pymavlink's px4_map: MISSION = main 4, sub 4; RTL = main 4, sub 5.
+        assert_eq!(FlightMode::from_px4(4, 4), Some(FlightMode::Mission));
+        assert_eq!(FlightMode::Rtl.px4_custom_mode(), (4 << 16) | (5 << 24));
+        assert_eq!(FlightMode::from_px4(4, 7), None); // RTGS
     }
 }

@@ -23,7 +23,9 @@ use harrier_sim::bus::Bus;
 use harrier_sim::net::{Endpoint, LinkConfig, SimHandle, spawn};
 use harrier_sim::sensor_loop::{SensorLoopConfig, SensorLoopHandle};
 use harrier_sim::setup::SimScenario;
-use harrier_sim::vehicle::{Airframe, ClockSkew, VehicleConfig};
+use harrier_sim::vehicle::{
+    Airframe, ClockSkew, DEFAULT_BATTERY_DRAIN_PCT_MIN, Vehicle, VehicleConfig,
+};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 enum AirframeArg {
@@ -135,6 +137,10 @@ struct Args {
         value_name = "PPM"
     )]
     clock_drift_ppm: f64,
+    /// Battery drain while armed (percent of a full charge per simulated minute; the default
+    /// empties it in 30 minutes).
+    #[arg(long, default_value_t = DEFAULT_BATTERY_DRAIN_PCT_MIN, value_name = "PCT")]
+    battery_drain_pct_min: f64,
     /// Rate of the simulation-only truth on harrier/v1/sim/truth (Hz).
     #[arg(long, default_value_t = 10.0)]
     truth_hz: f64,
@@ -249,6 +255,9 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<SensorLoopHandle>), String
     if !(args.speedup.is_finite() && args.speedup > 0.0 && args.speedup <= 100.0) {
         return Err("--speedup must be in (0, 100]".to_owned());
     }
+    if !(args.battery_drain_pct_min.is_finite() && args.battery_drain_pct_min >= 0.0) {
+        return Err("--battery-drain-pct-min must be finite and at least 0".to_owned());
+    }
     if !(args.truth_hz.is_finite() && args.truth_hz > 0.0 && args.truth_hz <= 1000.0) {
         return Err("--truth-hz must be in (0, 1000]".to_owned());
     }
@@ -283,6 +292,7 @@ fn run(args: &Args) -> Result<(Vec<SimHandle>, Option<SensorLoopHandle>), String
             origin,
             speedup: args.speedup,
             clock: skew(args),
+            battery_drain_pct_min: args.battery_drain_pct_min,
         };
         let links = LinkConfig {
             endpoints,
@@ -358,8 +368,23 @@ fn main() -> ExitCode {
         };
     }
     match run(&args) {
-        Ok(_running) => {
-            // Run until interrupted: the vehicles live on their own threads.
+        Ok((sims, _live)) => {
+            // The vehicles live on their own threads; stdin takes the operator's lines until it
+            // ends, then the simulator runs until interrupted.
+            for line in std::io::stdin().lines() {
+                let Ok(line) = line else { break };
+                if line.trim().is_empty() {
+                    continue;
+                }
+                match stdin_command(&line, |id| {
+                    sims.iter()
+                        .find(|s| s.vehicle().id() == id)
+                        .map(SimHandle::vehicle)
+                }) {
+                    Ok(done) => eprintln!("harrier-sim: {done}"),
+                    Err(e) => eprintln!("harrier-sim: {line:?}: {e}"),
+                }
+            }
             loop {
                 std::thread::park();
             }
@@ -368,6 +393,52 @@ fn main() -> ExitCode {
             eprintln!("harrier-sim: {e}");
             ExitCode::from(2)
         }
+    }
+}
+
+/// One line of stdin, applied to the vehicle `vehicle` finds by id:
+///
+/// - `pilot ID MODE`: the pilot's mode switch (`Vehicle::pilot_switch`): vehicle ID changes to
+///   MODE (a name of its autopilot's table: `HOLD`, `RTL`, `POSCTL`, `LOITER`, …) by itself, as
+///   an RC flight-mode switch would;
+/// - `battery ID PERCENT`: its battery's remaining charge (its failsafe acts on the next step).
+///
+/// What was done, or why not.
+fn stdin_command<G: std::ops::DerefMut<Target = Vehicle>>(
+    line: &str,
+    vehicle: impl Fn(u8) -> Option<G>,
+) -> Result<String, String> {
+    let words: Vec<&str> = line.split_whitespace().collect();
+    let [verb, id, arg] = words[..] else {
+        return Err("expected `pilot ID MODE` or `battery ID PERCENT`".to_owned());
+    };
+    let id: u8 = id.parse().map_err(|_| format!("bad vehicle id {id:?}"))?;
+    let mut v = vehicle(id).ok_or_else(|| format!("no vehicle {id}"))?;
+    match verb {
+        "pilot" => {
+            let mode = v
+                .personality()
+                .mode_named(arg)
+                .ok_or_else(|| format!("{arg:?} is not a {} mode", v.personality().label()))?;
+            if v.pilot_switch(mode) {
+                Ok(format!("vehicle {id}: pilot switched to {arg}"))
+            } else {
+                Err(format!(
+                    "vehicle {id} refused {arg} (still {})",
+                    v.mode().name()
+                ))
+            }
+        }
+        "battery" => {
+            let pct: f64 = arg
+                .parse()
+                .ok()
+                .filter(|p: &f64| (0.0..=100.0).contains(p))
+                .ok_or_else(|| format!("bad percentage {arg:?}"))?;
+            v.set_battery(pct / 100.0);
+            Ok(format!("vehicle {id}: battery at {pct} %"))
+        }
+        _ => Err(format!("unknown command {verb:?}")),
     }
 }
 
@@ -382,6 +453,32 @@ fn skew(args: &Args) -> ClockSkew {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `pilot` switches the vehicle's mode by itself, `battery` sets its charge; bad lines are
+    /// refused with a reason and change nothing.
+    #[test]
+    fn stdin_lines_switch_modes_and_set_the_battery() {
+        use harrier_sim::vehicle::FlightMode;
+        let v = std::sync::Mutex::new(Vehicle::new(VehicleConfig::new(3), 0.0));
+        let find = |id: u8| (id == 3).then(|| v.lock().expect("lock"));
+        assert!(stdin_command("pilot 3 POSCTL", find).is_ok());
+        assert_eq!(
+            v.lock().expect("lock").mode(),
+            harrier_link::autopilot::Mode::Px4(FlightMode::Position)
+        );
+        assert!(stdin_command("pilot 3 OFFBOARD", find).is_err_and(|e| e.contains("refused")));
+        assert!(stdin_command("pilot 3 GUIDED", find).is_err_and(|e| e.contains("px4-mc")));
+        assert!(stdin_command("pilot 4 HOLD", find).is_err_and(|e| e.contains("no vehicle 4")));
+        assert!(stdin_command("battery 3 20", find).is_ok());
+        assert!((v.lock().expect("lock").battery_remaining() - 0.2).abs() < 1e-12);
+        assert!(stdin_command("battery 3 120", find).is_err());
+        assert!(stdin_command("fly 3 x", find).is_err());
+        assert!(stdin_command("pilot 3", find).is_err());
+        assert_eq!(
+            v.lock().expect("lock").mode(),
+            harrier_link::autopilot::Mode::Px4(FlightMode::Position)
+        );
+    }
 
     #[test]
     fn api_ports_grow_per_vehicle_for_every_link_kind() {

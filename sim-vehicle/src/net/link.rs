@@ -8,14 +8,14 @@ use std::sync::mpsc::{self, Receiver, TryRecvError};
 use std::time::{Duration, Instant};
 
 use harrier_link::frame::{Endpoint, parse_datagram};
-use harrier_link::px4::COMPONENT_ID;
 use harrier_link::signing::Signer;
 use mavlink::MavHeader;
-use mavlink::dialects::common::MavMessage;
+use mavlink::consts::MAX_FRAME_SIZE;
 
 use super::config::LinkError;
 use super::received::{Peer, Received};
 use super::tcp::TcpConn;
+use crate::vehicle::{Framed, Outgoing};
 
 /// Wait between two connection attempts of a `tcpout` link.
 pub const TCP_RETRY: Duration = Duration::from_secs(1);
@@ -129,22 +129,27 @@ impl Link {
         self.sent
     }
 
-    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link (signed when the
-    /// link signs).
-    fn frame(&mut self, sysid: u8, msg: &MavMessage) -> Option<Vec<u8>> {
+    /// Serialises a message as the vehicle's next MAVLink 2 frame on this link, from its
+    /// component, with its extension fields (signed when the link signs: harrier-link's signer
+    /// takes the common-dialect message alone, so a signed frame goes without extensions).
+    fn frame(&mut self, sysid: u8, out: &Outgoing) -> Option<Vec<u8>> {
         let header = MavHeader {
             system_id: sysid.into(),
-            component_id: COMPONENT_ID,
+            component_id: out.component,
             sequence: self.sequence,
         };
         self.sequence = self.sequence.wrapping_add(1);
         match &self.signer {
-            Some(s) => s.encode(header, msg),
-            None => harrier_link::frame::encode(header, msg),
+            Some(s) => s.encode(header, &out.message),
+            None => {
+                let mut buf = Vec::with_capacity(MAX_FRAME_SIZE);
+                mavlink::write_v2_msg(&mut buf, header, &Framed(out)).ok()?;
+                Some(buf)
+            }
         }
     }
 
-    pub(super) fn send(&mut self, sysid: u8, msg: &MavMessage, to: Peer) {
+    pub(super) fn send(&mut self, sysid: u8, msg: &Outgoing, to: Peer) {
         let Some(frame) = self.frame(sysid, msg) else {
             return;
         };
@@ -177,7 +182,7 @@ impl Link {
         }
     }
 
-    pub(super) fn broadcast(&mut self, sysid: u8, msg: &MavMessage) {
+    pub(super) fn broadcast(&mut self, sysid: u8, msg: &Outgoing) {
         let Some(frame) = self.frame(sysid, msg) else {
             return;
         };
@@ -220,7 +225,7 @@ impl Link {
                     got.malformed = parsed.malformed;
                     got.take(parsed.frames, signer);
                     // Only a sender of accepted frames gets the telemetry.
-                    if !peers.contains(&from) && !got.messages.is_empty() {
+                    if !peers.contains(&from) && !got.frames.is_empty() {
                         if peers.len() >= MAX_PEERS {
                             peers.remove(0);
                         }

@@ -5,7 +5,6 @@ use std::net::SocketAddr;
 
 use harrier_link::frame::Frame;
 use harrier_link::signing::{Rejection, Signer};
-use mavlink::dialects::common::MavMessage;
 
 /// Where a message came from, so that its replies go back there.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,7 +19,8 @@ pub(super) enum Peer {
 #[derive(Debug)]
 pub(super) struct Received {
     pub(super) from: Peer,
-    pub(super) messages: Vec<MavMessage>,
+    /// The frames accepted (message, sender, bytes).
+    pub(super) frames: Vec<Frame>,
     /// Datagrams without a valid frame, skipped stretches of a stream, undecodable frames.
     pub(super) malformed: u64,
     /// Frames refused by the signature check.
@@ -31,7 +31,7 @@ impl Received {
     pub(super) fn new(from: Peer) -> Self {
         Self {
             from,
-            messages: Vec::new(),
+            frames: Vec::new(),
             malformed: 0,
             rejected: Vec::new(),
         }
@@ -41,7 +41,7 @@ impl Received {
     pub(super) fn take(&mut self, frames: Vec<Frame>, signer: Option<&Signer>) {
         for f in frames {
             match signer.map_or(Ok(()), |s| s.check(&f)) {
-                Ok(()) => self.messages.push(f.message),
+                Ok(()) => self.frames.push(f),
                 Err(r) => self.rejected.push(r),
             }
         }

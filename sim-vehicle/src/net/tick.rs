@@ -5,7 +5,7 @@
 use mavlink::dialects::common::{MavMessage, MavType, TIMESYNC_DATA};
 
 use super::link::Link;
-use crate::vehicle::{ClockSkew, Vehicle};
+use crate::vehicle::{ClockSkew, Incoming, Vehicle};
 
 /// The answer to a time-sync request (TIMESYNC with tc1 = 0): this vehicle's clock in ns, `now`
 /// s after its start, as PX4 and ArduPilot answer it (theirs reads time since boot; this one
@@ -37,21 +37,22 @@ pub(super) fn run_once(v: &mut Vehicle, links: &mut [Link], buf: &mut [u8], now:
             for &reason in &r.rejected {
                 v.count_rejected(reason);
             }
-            for m in &r.messages {
+            for f in &r.frames {
+                let m = &f.message;
                 if matches!(m, MavMessage::HEARTBEAT(h) if h.mavtype == MavType::MAV_TYPE_GCS) {
                     gcs_heartbeats += 1;
                 }
                 if let Some(reply) = timesync_reply(&v.config().clock, m, now) {
-                    link.send(sysid, &reply, r.from);
+                    link.send(sysid, &reply.into(), r.from);
                     continue;
                 }
-                for reply in v.handle(now, m) {
+                for reply in v.handle_frame(now, Incoming::of(f)) {
                     link.send(sysid, &reply, r.from);
                 }
             }
         }
     }
-    for m in v.telemetry(now) {
+    for m in v.telemetry_frames(now) {
         for link in links.iter_mut() {
             link.broadcast(sysid, &m);
         }

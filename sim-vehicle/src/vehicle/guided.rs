@@ -22,9 +22,10 @@
 //!   LOCAL_OFFSET_NED.
 
 use harrier_link::ardupilot::TargetMask;
-use harrier_link::autopilot::Autopilot;
+use harrier_link::autopilot::{Autopilot, Mode};
 use harrier_link::command::Setpoint;
 use harrier_link::geo::{Geodetic, ned_to_enu};
+use harrier_link::px4::FlightMode;
 use mavlink::dialects::common::{
     MavCmd, MavDoRepositionFlags, MavFrame, MavResult, PositionTargetTypemask,
     SET_POSITION_TARGET_GLOBAL_INT_DATA, SET_POSITION_TARGET_LOCAL_NED_DATA,
@@ -233,6 +234,44 @@ impl Vehicle {
         } else {
             self.replace_target(now, Target::Position(point));
         }
+        MavResult::MAV_RESULT_ACCEPTED
+    }
+
+    /// PX4's MAV_CMD_DO_REPOSITION (MAVSDK's goto_location): with the change-mode flag
+    /// (param2 bit 0) it switches to AUTO.LOITER (Hold), which flies to the point — x, y
+    /// degrees (unset: where it is), z AMSL in a COMMAND_LONG or the COMMAND_INT's frame (NaN:
+    /// its altitude) — at param1 m/s (≤ 0: MPC_XY_CRUISE) and holds there (a fixed wing circles
+    /// it). Without the flag only a vehicle in Hold takes the point. In the air only (DENIED).
+    pub(super) fn px4_reposition(&mut self, now: f64, c: &Cmd) -> MavResult {
+        let change = c.p[1].is_finite()
+            && (c.p[1] as u32)
+                & u32::from(MavDoRepositionFlags::MAV_DO_REPOSITION_FLAGS_CHANGE_MODE.bits())
+                != 0;
+        if !self.armed || self.on_ground() {
+            return MavResult::MAV_RESULT_DENIED;
+        }
+        let hold = Mode::Px4(FlightMode::Hold);
+        let in_hold = self.mode == hold;
+        if !(change || in_hold) {
+            // PX4 accepts it and flies it only once in Hold; nothing changes here.
+            return MavResult::MAV_RESULT_ACCEPTED;
+        }
+        let frame = Cmd {
+            frame: Some(c.frame.unwrap_or(MavFrame::MAV_FRAME_GLOBAL)),
+            ..*c
+        };
+        let Some(point) = self.command_point(&frame) else {
+            return MavResult::MAV_RESULT_DENIED;
+        };
+        if !in_hold {
+            self.set_mode(now, hold);
+        }
+        self.hold_point = point;
+        self.reposition = Some(if c.p[0].is_finite() && c.p[0] > 0.0 {
+            f64::from(c.p[0])
+        } else {
+            self.param_f64("MPC_XY_CRUISE", 5.0)
+        });
         MavResult::MAV_RESULT_ACCEPTED
     }
 

@@ -1,7 +1,8 @@
 //! A target handed to the autopilot (harrier-link's `handoff`), as the autopilots take it:
 //!
 //! - PX4's `MAV_CMD_DO_ORBIT`: the vehicle switches to POSCTL.ORBIT and circles the centre
-//!   (latitude, longitude, altitude AMSL; unset: where it is) at the radius (positive
+//!   (latitude, longitude, altitude AMSL whatever the frame says, as PX4's orbit task reads
+//!   it; unset: where it is) at the radius (positive
 //!   clockwise; NaN: 50 m) and tangential speed (NaN: 3 m/s), facing it (PX4's Orbit mode;
 //!   MAVLink's DO_ORBIT); armed and in the air, else DENIED. ArduPilot: UNSUPPORTED (an ArduPlane
 //!   loiters at a DO_REPOSITION's radius instead, `guided.rs`).
@@ -34,7 +35,7 @@ const ORBIT_DEFAULTS: (f64, f64) = (50.0, 3.0);
 impl Vehicle {
     /// The ENU point of a command's x, y (degrees; NaN or a COMMAND_INT's INT32_MAX: where the
     /// vehicle is) and z (AMSL, or above home in a relative frame; NaN: its altitude).
-    fn command_point(&self, c: &Cmd) -> Option<Vector3<f64>> {
+    pub(super) fn command_point(&self, c: &Cmd) -> Option<Vector3<f64>> {
         let unset = |v: f64| !v.is_finite() || v >= f64::from(i32::MAX) * 1e-7;
         let here = self.position();
         let (lat, lon) = if unset(c.x) || unset(c.y) {
@@ -70,7 +71,13 @@ impl Vehicle {
         } else {
             f64::from(c.p[1]).abs()
         };
-        let Some(centre) = self.command_point(c) else {
+        // PX4's orbit task takes the altitude as AMSL whatever the frame says (MAVSDK's
+        // do_orbit sends an AMSL altitude in a frame labelled relative).
+        let amsl = Cmd {
+            frame: Some(MavFrame::MAV_FRAME_GLOBAL),
+            ..*c
+        };
+        let Some(centre) = self.command_point(&amsl) else {
             return MavResult::MAV_RESULT_DENIED;
         };
         if !(radius.is_finite() && radius.abs() >= 1.0 && radius.abs() <= 10_000.0) {

@@ -7,7 +7,8 @@
 //!
 //! Split by concern: the vehicle's state and mode changes are here; `modes.rs` says what each
 //! mode of each autopilot does and when it may be entered, `physics.rs` flies it, `protocol.rs`
-//! answers commands and setpoints, `guided.rs` ArduPilot's GUIDED targets, `params.rs` holds
+//! answers commands and setpoints, `guided.rs` ArduPilot's GUIDED targets, `battery.rs` the
+//! battery and its failsafes, `params.rs` holds
 //! its parameters (`tables.rs` the defaults of each personality) and `telemetry.rs` its streamed
 //! messages.
 
@@ -17,14 +18,19 @@ use harrier_link::geo::{Geodetic, LocalFrame, enu_to_ned};
 use mavlink::dialects::common::MavLandedState;
 use nalgebra::Vector3;
 
+pub use battery::BatteryLevel;
 pub use handoff::GIMBAL_DEVICE_ID;
 pub use harrier_link::ardupilot::{CopterMode, PlaneMode};
 /// The PX4 flight modes the vehicle flies (harrier-link's PX4 codec).
 pub use harrier_link::px4::FlightMode;
 pub use tables::Param;
+pub use wire::{Framed, Incoming, Outgoing};
 
+mod auto;
+mod battery;
 mod guided;
 mod handoff;
+mod mission;
 mod modes;
 mod params;
 mod physics;
@@ -36,7 +42,12 @@ mod tests;
 #[cfg(test)]
 mod tests_ardupilot;
 #[cfg(test)]
+mod tests_failsafe;
+#[cfg(test)]
 mod tests_handoff;
+#[cfg(test)]
+mod tests_mission;
+mod wire;
 
 use modes::Behaviour;
 use tables::{Stream, default_params, default_streams};
@@ -94,7 +105,13 @@ pub struct VehicleConfig {
     pub speedup: f64,
     /// How wrong its clock is: the TIMESYNC answers (and the detections' `time_unix`) read it.
     pub clock: ClockSkew,
+    /// How fast the battery drains while armed (percent of its charge per simulated minute;
+    /// [`DEFAULT_BATTERY_DRAIN_PCT_MIN`]: empty after 30 minutes).
+    pub battery_drain_pct_min: f64,
 }
+
+/// The default battery drain: a full battery lasts 30 simulated minutes armed.
+pub const DEFAULT_BATTERY_DRAIN_PCT_MIN: f64 = 100.0 / 30.0;
 
 /// A wrong clock: `time_unix` = the true instant + `offset_s` + `drift_ppm`·10⁻⁶ · seconds
 /// since the start.
@@ -123,6 +140,7 @@ impl VehicleConfig {
             origin: Geodetic::new(47.397_742, 8.545_594, 488.0),
             speedup: 1.0,
             clock: ClockSkew::default(),
+            battery_drain_pct_min: DEFAULT_BATTERY_DRAIN_PCT_MIN,
         }
     }
 
@@ -233,6 +251,8 @@ pub struct Vehicle {
     landed_since: Option<f64>,
     /// The lowest horizontal speed flown off the ground (m/s).
     slowest_airborne: Option<f64>,
+    /// A PX4 DO_REPOSITION's speed (m/s) while Hold flies to its point.
+    reposition: Option<f64>,
     /// The orbit of PX4's POSCTL.ORBIT.
     orbit: Option<OrbitTarget>,
     /// The target a follow mode follows.
@@ -246,7 +266,16 @@ pub struct Vehicle {
     streams: Vec<Stream>,
     last_advance: f64,
     sim_time: f64,
+    /// Remaining charge (0–1).
     battery: f64,
+    /// The battery failsafe levels reached and acted on.
+    battery_state: battery::BatteryState,
+    /// The mission, fence and rally lists and the transfer in progress.
+    missions: mission::Missions,
+    /// Where the mission's execution is.
+    mission_exec: auto::Exec,
+    /// Messages for the next telemetry pass (MISSION_ITEM_REACHED, MISSION_CURRENT, …).
+    outbox: Vec<Outgoing>,
     counters: Counters,
 }
 
@@ -278,6 +307,7 @@ impl Vehicle {
             guided_speed: None,
             landed_since: None,
             slowest_airborne: None,
+            reposition: None,
             orbit: None,
             followed: None,
             follow_offset: None,
@@ -287,6 +317,10 @@ impl Vehicle {
             last_advance: now,
             sim_time: 0.0,
             battery: 1.0,
+            battery_state: battery::BatteryState::default(),
+            missions: mission::Missions::default(),
+            mission_exec: auto::Exec::default(),
+            outbox: Vec::new(),
             counters: Counters::default(),
         }
     }
@@ -352,6 +386,16 @@ impl Vehicle {
     /// Simulated seconds since start.
     pub fn sim_time(&self) -> f64 {
         self.sim_time
+    }
+
+    /// A pilot's mode switch: the vehicle changes to `mode` by itself, as when its RC
+    /// flight-mode switch is flipped — no command, no COMMAND_ACK; the next HEARTBEAT shows it.
+    /// The autopilot's own rules still apply (PX4 enters OFFBOARD only with fresh setpoints and
+    /// AUTO.TAKEOFF only armed; a mode the simulator does not fly is refused): whether it
+    /// switched.
+    pub fn pilot_switch(&mut self, mode: Mode) -> bool {
+        let now = self.last_advance;
+        self.request_mode(now, mode) == mavlink::dialects::common::MavResult::MAV_RESULT_ACCEPTED
     }
 
     fn param_f64(&self, name: &str, default: f64) -> f64 {

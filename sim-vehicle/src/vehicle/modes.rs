@@ -7,13 +7,15 @@
 //! | `Hold` (hover; a fixed wing loiters at its loiter radius) | POSCTL, AUTO.LOITER | LOITER, POSHOLD, BRAKE | LOITER, CIRCLE |
 //! | `Takeoff` | AUTO.TAKEOFF (then Hold) | — (NAV_TAKEOFF in GUIDED or LOITER) | TAKEOFF (then loiters) |
 //! | `Land` (descend, disarm on touchdown) | AUTO.LAND | LAND | — (RTL) |
-//! | `Rtl` | — | RTL, SMART_RTL (home at RTL_ALT, land, disarm) | RTL (home at RTL_ALTITUDE, loiter) |
+//! | `Rtl` | AUTO.RTL (home at RTL_RETURN_ALT, land, disarm; fixed wing: loiter at RTL_DESCEND_ALT) | RTL, SMART_RTL (home at RTL_ALT, land, disarm) | RTL (home at RTL_ALTITUDE, loiter) |
 //! | `External` (the ground station's targets) | OFFBOARD | GUIDED | GUIDED |
 //! | `Orbit` (a DO_ORBIT's circle) | POSCTL.ORBIT | — | — |
 //! | `Follow` (the FOLLOW_TARGET messages' target) | AUTO.FOLLOW_TARGET | FOLLOW | — |
+//! | `Mission` (the uploaded mission, `auto.rs`) | AUTO.MISSION | AUTO | AUTO |
 //!
-//! Every other mode of the tables (AUTO without a mission, FLIP, the QuadPlane modes, …) is
-//! answered `MAV_RESULT_UNSUPPORTED`: the simulator does not fly it.
+//! Every other mode of the tables (FLIP, the QuadPlane modes, …) is answered
+//! `MAV_RESULT_UNSUPPORTED`: the simulator does not fly it. A mission mode without a mission is
+//! refused (PX4 DENIED, ArduPilot FAILED).
 
 use harrier_link::ardupilot::{CopterMode, PlaneMode};
 use harrier_link::autopilot::{Autopilot, Frame, Mode};
@@ -42,6 +44,8 @@ pub(super) enum Behaviour {
     Orbit,
     /// Follows the target of the FOLLOW_TARGET messages.
     Follow,
+    /// Flies the uploaded mission (`auto.rs`).
+    Mission,
 }
 
 /// The behaviour of `mode`, `None` when the simulator does not fly it.
@@ -55,6 +59,8 @@ pub(super) fn behaviour(mode: Mode) -> Option<Behaviour> {
             FlightMode::Offboard => B::External,
             FlightMode::Orbit => B::Orbit,
             FlightMode::FollowTarget => B::Follow,
+            FlightMode::Rtl => B::Rtl,
+            FlightMode::Mission => B::Mission,
         },
         Mode::Copter(m) => match m {
             CopterMode::Stabilize
@@ -67,6 +73,7 @@ pub(super) fn behaviour(mode: Mode) -> Option<Behaviour> {
             CopterMode::Rtl | CopterMode::SmartRtl => B::Rtl,
             CopterMode::Land => B::Land,
             CopterMode::Follow => B::Follow,
+            CopterMode::Auto => B::Mission,
             _ => return None,
         },
         Mode::Plane(m) => match m {
@@ -81,6 +88,7 @@ pub(super) fn behaviour(mode: Mode) -> Option<Behaviour> {
             PlaneMode::Takeoff => B::Takeoff,
             PlaneMode::Guided => B::External,
             PlaneMode::Rtl => B::Rtl,
+            PlaneMode::Auto => B::Mission,
             _ => return None,
         },
     })
@@ -110,6 +118,7 @@ impl Vehicle {
                 MavResult::MAV_RESULT_DENIED
             }
             (Mode::Px4(_), Behaviour::Takeoff) if !self.armed => MavResult::MAV_RESULT_DENIED,
+            (_, Behaviour::Mission) if !self.has_mission() => MavResult::MAV_RESULT_DENIED,
             // POSCTL.ORBIT is entered by a DO_ORBIT, not by a mode switch.
             (Mode::Px4(_), Behaviour::Orbit) if self.orbit.is_none() => {
                 MavResult::MAV_RESULT_DENIED
@@ -149,6 +158,7 @@ impl Vehicle {
         if mode != self.mode {
             self.taking_off = false;
         }
+        self.reposition = None;
         match b {
             Behaviour::Pilot | Behaviour::Hold | Behaviour::Land | Behaviour::Orbit => {
                 self.hold_point = if fixed_wing { p } else { self.stop_point() };
@@ -164,13 +174,13 @@ impl Vehicle {
                 }
             }
             Behaviour::Rtl => {
-                let alt = if self.is_plane() {
-                    self.param_f64("RTL_ALTITUDE", 100.0)
-                } else {
-                    // ArduCopter climbs to RTL_ALT (cm) first if lower.
-                    (self.param_f64("RTL_ALT", 1500.0) * 0.01).max(p.z)
-                };
-                self.hold_point = Vector3::new(0.0, 0.0, alt);
+                self.hold_point = Vector3::new(0.0, 0.0, self.return_altitude());
+            }
+            Behaviour::Mission => {
+                self.hold_point = if fixed_wing { p } else { self.stop_point() };
+                if mode != self.mode {
+                    self.enter_mission();
+                }
             }
             Behaviour::External => {
                 if self.is_copter() && mode != self.mode {
@@ -187,6 +197,18 @@ impl Vehicle {
             }
         }
         self.mode = mode;
+    }
+
+    /// The altitude RTL flies home at (m above home): ArduPlane RTL_ALTITUDE (the 4.5 name of
+    /// ALT_HOLD_RTL, in metres); ArduCopter RTL_ALT (cm) and PX4 RTL_RETURN_ALT, each climbed to
+    /// first only if lower than where the vehicle is (a PX4 fixed wing likewise).
+    pub(super) fn return_altitude(&self) -> f64 {
+        let z = self.state.position.z;
+        match self.personality.autopilot {
+            Autopilot::ArduPilot if self.is_plane() => self.param_f64("RTL_ALTITUDE", 100.0),
+            Autopilot::ArduPilot => (self.param_f64("RTL_ALT", 1500.0) * 0.01).max(z),
+            Autopilot::Px4 => self.param_f64("RTL_RETURN_ALT", 60.0).max(z),
+        }
     }
 
     /// Where a maximum deceleration stops a multirotor (PX4 and ArduCopter brake before

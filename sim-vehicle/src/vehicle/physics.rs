@@ -107,7 +107,7 @@ impl Vehicle {
     }
 
     /// Keeps station at `point`: hovers there, or (fixed wing) circles it at cruise airspeed.
-    fn hold_command(&self, point: Vector3<f64>, limits: &Limits) -> Vector3<f64> {
+    pub(super) fn hold_command(&self, point: Vector3<f64>, limits: &Limits) -> Vector3<f64> {
         if limits.can_hover() {
             self.hover_at(point)
         } else {
@@ -122,15 +122,18 @@ impl Vehicle {
             return (self.climb_command(&limits), limits);
         }
         let cmd = match self.behaviour() {
-            Behaviour::Pilot | Behaviour::Hold | Behaviour::Takeoff => {
-                self.hold_command(self.hold_point, &limits)
-            }
+            Behaviour::Pilot | Behaviour::Hold | Behaviour::Takeoff => match self.reposition {
+                // A PX4 DO_REPOSITION: flown to at its speed.
+                Some(speed) if limits.can_hover() => self.towards(self.hold_point, speed, &limits),
+                _ => self.hold_command(self.hold_point, &limits),
+            },
             Behaviour::Land => {
                 let mut c = self.hold_command(self.hold_point, &limits);
                 c.z = -self.land_speed();
                 c
             }
             Behaviour::Rtl => self.rtl_command(&limits),
+            Behaviour::Mission => self.mission_flight(&limits),
             Behaviour::External => self.external_command(&mut limits),
             Behaviour::Orbit => match self.orbit {
                 Some(o) => self.circle(o.centre, o.radius, o.ccw, o.speed, &limits),
@@ -148,7 +151,7 @@ impl Vehicle {
 
     /// Landing descent rate (m/s): PX4 MPC_LAND_SPEED, ArduCopter LAND_SPEED (cm/s); a fixed
     /// wing sinks at 1 m/s on its circle.
-    fn land_speed(&self) -> f64 {
+    pub(super) fn land_speed(&self) -> f64 {
         match self.personality.autopilot {
             Autopilot::Px4 if self.limits().can_hover() => self.param_f64("MPC_LAND_SPEED", 0.7),
             Autopilot::ArduPilot if self.limits().can_hover() => {
@@ -181,19 +184,29 @@ impl Vehicle {
         }
     }
 
-    /// RTL: a multirotor climbs to its return altitude, flies home at WPNAV_SPEED and lands; a
-    /// fixed wing loiters over home at RTL_ALTITUDE.
-    fn rtl_command(&self, limits: &Limits) -> Vector3<f64> {
-        if !limits.can_hover() {
-            return self.loiter(self.hold_point, self.cruise_speed(), limits);
-        }
+    /// RTL: a multirotor climbs to its return altitude, flies home (PX4 at MPC_XY_CRUISE,
+    /// ArduCopter at WPNAV_SPEED) and lands; a fixed wing loiters over home (ArduPlane at
+    /// RTL_ALTITUDE, PX4 descending to RTL_DESCEND_ALT once there).
+    pub(super) fn rtl_command(&self, limits: &Limits) -> Vector3<f64> {
         let p = self.state.position;
+        let px4 = self.personality.autopilot == Autopilot::Px4;
+        if !limits.can_hover() {
+            let mut centre = self.hold_point;
+            if px4 && p.xy().norm() < self.loiter_radius() * 1.5 {
+                centre.z = self.param_f64("RTL_DESCEND_ALT", 30.0);
+            }
+            return self.loiter(centre, self.cruise_speed(), limits);
+        }
         let to_home = -p.xy();
         if to_home.norm() > 1.0 {
             if p.z < self.hold_point.z - 1.0 {
                 return Vector3::new(0.0, 0.0, CLIMB_SPEED);
             }
-            let speed = self.param_f64("WPNAV_SPEED", 1000.0) * 0.01;
+            let speed = if px4 {
+                self.param_f64("MPC_XY_CRUISE", 5.0)
+            } else {
+                self.param_f64("WPNAV_SPEED", 1000.0) * 0.01
+            };
             let v = to_home * POS_GAIN;
             let v = if v.norm() > speed {
                 v * (speed / v.norm())
@@ -203,8 +216,22 @@ impl Vehicle {
             return Vector3::new(v.x, v.y, (self.hold_point.z - p.z) * POS_GAIN);
         }
         let mut c = self.hover_at(Vector3::new(0.0, 0.0, p.z));
-        c.z = -self.land_speed();
+        c.z = -self.descent_speed();
         c
+    }
+
+    /// How fast a multirotor descends over home in RTL: its landing speed near the ground;
+    /// higher up PX4 at MPC_Z_V_AUTO_DN (above MPC_LAND_ALT1, 10 m), ArduCopter at
+    /// WPNAV_SPEED_DN (above LAND_ALT_LOW, 10 m).
+    fn descent_speed(&self) -> f64 {
+        let z = self.state.position.z;
+        match self.personality.autopilot {
+            Autopilot::Px4 if z > self.param_f64("MPC_LAND_ALT1", 10.0) => {
+                self.param_f64("MPC_Z_V_AUTO_DN", 1.5)
+            }
+            Autopilot::ArduPilot if z > 10.0 => self.param_f64("WPNAV_SPEED_DN", 150.0) * 0.01,
+            _ => self.land_speed(),
+        }
     }
 
     /// The ground station's targets: PX4 OFFBOARD setpoints, ArduCopter GUIDED targets, or
@@ -262,9 +289,7 @@ impl Vehicle {
 
     fn physics_step(&mut self, dt: f64) {
         self.sim_time += dt;
-        if self.armed {
-            self.battery = (self.battery - dt / 1800.0).max(0.0);
-        }
+        self.battery_step(dt);
         if !self.armed {
             self.state.velocity = Vector3::zeros();
             self.accel = Vector3::zeros();
@@ -311,7 +336,13 @@ impl Vehicle {
         self.state.position.z = 0.0;
         self.state.velocity = Vector3::zeros();
         self.accel = Vector3::zeros();
+        let mission_landed = self.behaviour() == Behaviour::Mission && self.mission_touchdown();
         match self.behaviour() {
+            _ if mission_landed => {
+                // A mission's NAV_LAND or NAV_RETURN_TO_LAUNCH: disarmed, in the mission mode.
+                self.armed = false;
+                self.target = None;
+            }
             Behaviour::Land | Behaviour::Rtl => {
                 self.armed = false;
                 self.target = None;

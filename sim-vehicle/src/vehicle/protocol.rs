@@ -1,19 +1,19 @@
 //! The MAVLink protocol a vehicle answers: commands (COMMAND_LONG and COMMAND_INT, each with a
-//! COMMAND_ACK: arm, takeoff, land, RTL, loiter, mode, message intervals and requests, and
+//! COMMAND_ACK: arm, takeoff, land, RTL (PX4 and ArduPilot), loiter, mode, message intervals and requests, and
 //! ArduPilot's guided commands, a target handed over: DO_ORBIT, DO_SET_ROI_LOCATION), SET_MODE,
-//! FOLLOW_TARGET, parameters, data-stream requests, the mission protocol's list request (no
-//! mission), and the ground station's targets.
+//! FOLLOW_TARGET, parameters, data-stream requests, the mission protocol (`mission.rs`), and
+//! the ground station's targets.
 
 use harrier_link::ardupilot::CopterMode;
 use harrier_link::autopilot::{Autopilot, Mode};
 use harrier_link::px4::{COMPONENT_ID, FlightMode};
 use mavlink::dialects::common::{
-    COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, MISSION_COUNT_DATA, MavCmd, MavFrame,
-    MavMessage, MavResult,
+    COMMAND_ACK_DATA, COMMAND_INT_DATA, COMMAND_LONG_DATA, MavCmd, MavFrame, MavMessage, MavResult,
 };
 use nalgebra::Vector3;
 
 use super::modes::Behaviour;
+use super::wire::{Incoming, Outgoing};
 use super::{Target, Vehicle};
 
 /// A command as either message carries it: params 1–4, then x, y, z (COMMAND_INT's latitude and
@@ -59,11 +59,31 @@ impl Vehicle {
             && (target_component == 0 || target_component == COMPONENT_ID)
     }
 
-    /// Handles one message received at wall time `now`; returns the replies for its sender.
+    /// Handles one message received at wall time `now` from a ground station (system 255,
+    /// component 190, no extension fields); returns the replies for its sender.
+    pub fn handle(&mut self, now: f64, msg: &MavMessage) -> Vec<MavMessage> {
+        self.handle_frame(now, Incoming::from_gcs(msg))
+            .into_iter()
+            .map(|o| o.message)
+            .collect()
+    }
+
+    /// Handles one message received at wall time `now`, with its sender and `mission_type`;
+    /// returns the replies for its sender, each with its component and extension fields.
+    pub fn handle_frame(&mut self, now: f64, m: Incoming<'_>) -> Vec<Outgoing> {
+        self.advance(now);
+        if let Some(replies) = self.mission_message(now, &m) {
+            return replies;
+        }
+        self.handle_message(now, m.message)
+            .into_iter()
+            .map(Outgoing::from)
+            .collect()
+    }
+
     // Superseded messages clients still send: MAVProxy's SET_MODE and REQUEST_DATA_STREAM.
     #[allow(deprecated)]
-    pub fn handle(&mut self, now: f64, msg: &MavMessage) -> Vec<MavMessage> {
-        self.advance(now);
+    fn handle_message(&mut self, now: f64, msg: &MavMessage) -> Vec<MavMessage> {
         let id = self.config.id;
         match msg {
             MavMessage::COMMAND_LONG(c)
@@ -108,16 +128,6 @@ impl Vehicle {
             {
                 self.request_data_stream(now, r);
                 Vec::new()
-            }
-            MavMessage::MISSION_REQUEST_LIST(r)
-                if Self::for_us(r.target_system, r.target_component, id) =>
-            {
-                // No mission, fence or rally points: an empty list.
-                vec![MavMessage::MISSION_COUNT(MISSION_COUNT_DATA {
-                    count: 0,
-                    target_system: 0,
-                    target_component: 0,
-                })]
             }
             MavMessage::FOLLOW_TARGET(f) => {
                 self.follow_target(f);
@@ -174,6 +184,9 @@ impl Vehicle {
                 };
                 self.mode_result(now, mode)
             }
+            MavCmd::MAV_CMD_NAV_RETURN_TO_LAUNCH => {
+                self.mode_result(now, Mode::Px4(FlightMode::Rtl))
+            }
             MavCmd::MAV_CMD_DO_SET_MODE => {
                 let byte = |x: f32| (0.0..=255.0).contains(&x) && x.fract() == 0.0;
                 if byte(c.p[1]) && byte(c.p[2]) {
@@ -183,6 +196,7 @@ impl Vehicle {
                 }
             }
             MavCmd::MAV_CMD_DO_REPOSITION if ardupilot => self.reposition(now, c),
+            MavCmd::MAV_CMD_DO_REPOSITION => self.px4_reposition(now, c),
             MavCmd::MAV_CMD_DO_ORBIT if !ardupilot => self.do_orbit(now, c),
             MavCmd::MAV_CMD_DO_SET_ROI_LOCATION => self.set_roi(c),
             MavCmd::MAV_CMD_DO_SET_ROI_NONE => self.clear_roi(),
@@ -193,6 +207,10 @@ impl Vehicle {
                 if self.is_plane() =>
             {
                 self.plane_guided_command(c)
+            }
+            MavCmd::MAV_CMD_MISSION_START | MavCmd::MAV_CMD_DO_SET_MISSION_CURRENT => {
+                let r = self.mission_command(now, c);
+                self.refusal_of(r)
             }
             MavCmd::MAV_CMD_SET_MESSAGE_INTERVAL => self.set_message_interval(now, c.p[0], c.p[1]),
             MavCmd::MAV_CMD_REQUEST_MESSAGE | MavCmd::MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES => {
@@ -229,12 +247,18 @@ impl Vehicle {
         }
     }
 
-    /// Switches to `mode`, ArduPilot's refusals as FAILED.
-    fn mode_result(&mut self, now: f64, mode: Mode) -> MavResult {
-        match self.request_mode(now, mode) {
+    /// A refusal in the autopilot's terms: ArduPilot's DENIED is FAILED.
+    fn refusal_of(&self, r: MavResult) -> MavResult {
+        match r {
             MavResult::MAV_RESULT_DENIED => self.refusal(MavResult::MAV_RESULT_DENIED),
             r => r,
         }
+    }
+
+    /// Switches to `mode`, ArduPilot's refusals as FAILED.
+    fn mode_result(&mut self, now: f64, mode: Mode) -> MavResult {
+        let r = self.request_mode(now, mode);
+        self.refusal_of(r)
     }
 
     /// DO_SET_MODE (or SET_MODE): base mode with the custom flag, then the autopilot's mode.

@@ -8,14 +8,16 @@
 //! DISARM_DELAY, WPNAV_SPEED (cm/s), RTL_ALT (cm) … for ArduCopter; AIRSPEED_MIN,
 //! AIRSPEED_CRUISE, AIRSPEED_MAX, ROLL_LIMIT_DEG, WP_LOITER_RAD, TKOFF_ALT, RTL_ALTITUDE …
 //! for ArduPlane; FW_AIRSPD_MIN/TRIM/MAX/STALL, FW_R_LIM, NAV_LOITER_RAD for a PX4 fixed wing;
-//! FLW_TGT_DST, FLW_TGT_HT (AUTO.FOLLOW_TARGET) for a PX4 multirotor.
+//! FLW_TGT_DST, FLW_TGT_HT (AUTO.FOLLOW_TARGET) for a PX4 multirotor; RTL_RETURN_ALT,
+//! RTL_DESCEND_ALT and the battery failsafe's BAT_*_THR, COM_LOW_BAT_ACT (PX4) and BATT_*
+//! (ArduPilot).
 
 use harrier_link::autopilot::{Autopilot, Frame, Personality};
 use mavlink::MessageData;
 use mavlink::dialects::common::{
     ATTITUDE_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
-    GPS_RAW_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA, MavParamType,
-    SYS_STATUS_DATA, VFR_HUD_DATA,
+    GPS_RAW_INT_DATA, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
+    MISSION_CURRENT_DATA, MavParamType, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
 /// A tunable parameter.
@@ -66,7 +68,38 @@ pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
                 real("MIS_TAKEOFF_ALT", 2.5, 0.5, 500.0),
                 real("COM_OF_LOSS_T", 0.5, 0.1, 60.0),
                 real("MPC_LAND_SPEED", 0.7, 0.1, 5.0),
+                // RTL: the return altitude (climbed to if lower) and, for a fixed wing, the
+                // loiter altitude over home.
+                real("RTL_RETURN_ALT", 60.0, 0.0, 1000.0),
+                real("RTL_DESCEND_ALT", 30.0, 2.0, 500.0),
+                // The battery's warning levels (remaining charge) and the low-battery
+                // failsafe: 0 warning, 2 Land at critical, 3 Return at critical and Land at
+                // emergency.
+                real("BAT_LOW_THR", 0.15, 0.12, 0.5),
+                real("BAT_CRIT_THR", 0.07, 0.05, 0.25),
+                real("BAT_EMERGEN_THR", 0.05, 0.03, 0.1),
+                int("COM_LOW_BAT_ACT", I32, 0.0, 0.0, 3.0),
+                // A mission waypoint's default acceptance radius (rc.mc_defaults: 2 m).
+                real(
+                    "NAV_ACC_RAD",
+                    if frame == Frame::Multirotor {
+                        2.0
+                    } else {
+                        10.0
+                    },
+                    0.05,
+                    200.0,
+                ),
             ];
+            if frame == Frame::Multirotor {
+                // Auto modes' horizontal cruise speed, descent speed, and the height below
+                // which a landing slows to MPC_LAND_SPEED.
+                p.extend([
+                    real("MPC_XY_CRUISE", 5.0, 3.0, 20.0),
+                    real("MPC_Z_V_AUTO_DN", 1.5, 0.5, 4.0),
+                    real("MPC_LAND_ALT1", 10.0, 0.0, 122.0),
+                ]);
+            }
             if frame == Frame::Multirotor {
                 // AUTO.FOLLOW_TARGET's distance behind and height above the target.
                 p.extend([
@@ -100,6 +133,14 @@ pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
             int("RTL_ALT", I32, 1500.0, 200.0, 300_000.0),
             real("PILOT_TKOFF_ALT", 0.0, 0.0, 1000.0),
             real("GUID_TIMEOUT", 3.0, 0.1, 5.0),
+            real("WPNAV_RADIUS", 200.0, 5.0, 1000.0),
+            int("BATT_CAPACITY", I32, 3300.0, 0.0, 1_000_000.0),
+            real("BATT_LOW_VOLT", 10.5, 0.0, 100.0),
+            real("BATT_LOW_MAH", 0.0, 0.0, 1_000_000.0),
+            real("BATT_CRT_VOLT", 0.0, 0.0, 100.0),
+            real("BATT_CRT_MAH", 0.0, 0.0, 1_000_000.0),
+            int("BATT_FS_LOW_ACT", I8, 0.0, 0.0, 7.0),
+            int("BATT_FS_CRT_ACT", I8, 0.0, 0.0, 7.0),
         ],
         (Autopilot::ArduPilot, Frame::FixedWing) => vec![
             int("SYSID_THISMAV", I16, id, 1.0, 255.0),
@@ -113,12 +154,20 @@ pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
             int("TKOFF_ALT", I16, 50.0, 0.0, 300.0),
             real("RTL_ALTITUDE", 100.0, -1.0, 5000.0),
             real("TECS_CLMB_MAX", 5.0, 0.1, 20.0),
+            int("WP_RADIUS", I16, 90.0, 1.0, 32767.0),
+            int("BATT_CAPACITY", I32, 3300.0, 0.0, 1_000_000.0),
+            real("BATT_LOW_VOLT", 0.0, 0.0, 100.0),
+            real("BATT_LOW_MAH", 0.0, 0.0, 1_000_000.0),
+            real("BATT_CRT_VOLT", 0.0, 0.0, 100.0),
+            real("BATT_CRT_MAH", 0.0, 0.0, 1_000_000.0),
+            int("BATT_FS_LOW_ACT", I8, 0.0, 0.0, 7.0),
+            int("BATT_FS_CRT_ACT", I8, 0.0, 0.0, 7.0),
         ],
     }
 }
 
 /// Telemetry streams and their default intervals (s).
-pub(super) const STREAMS: [(u32, f64); 9] = [
+pub(super) const STREAMS: [(u32, f64); 10] = [
     (HEARTBEAT_DATA::ID, 1.0),
     (SYS_STATUS_DATA::ID, 1.0),
     (EXTENDED_SYS_STATE_DATA::ID, 1.0),
@@ -128,6 +177,7 @@ pub(super) const STREAMS: [(u32, f64); 9] = [
     (GLOBAL_POSITION_INT_DATA::ID, 0.1),
     (LOCAL_POSITION_NED_DATA::ID, 0.1),
     (ATTITUDE_DATA::ID, 0.1),
+    (MISSION_CURRENT_DATA::ID, 1.0),
 ];
 
 /// ArduPilot's extra stream: VFR_HUD (its SRn_EXTRA2 group), 4 Hz.
@@ -147,12 +197,14 @@ pub(super) fn data_stream(id: u8) -> &'static [u32] {
             LOCAL_POSITION_NED_DATA::ID,
             ATTITUDE_DATA::ID,
             VFR_HUD_DATA::ID,
+            MISSION_CURRENT_DATA::ID,
         ],
         // EXTENDED_STATUS
         2 => &[
             SYS_STATUS_DATA::ID,
             GPS_RAW_INT_DATA::ID,
             EXTENDED_SYS_STATE_DATA::ID,
+            MISSION_CURRENT_DATA::ID,
         ],
         // POSITION
         6 => &[GLOBAL_POSITION_INT_DATA::ID, LOCAL_POSITION_NED_DATA::ID],

@@ -11,12 +11,13 @@ use mavlink::dialects::common::{
     ATTITUDE_DATA, AUTOPILOT_VERSION_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA,
     GIMBAL_MANAGER_INFORMATION_DATA, GLOBAL_POSITION_INT_DATA, GPS_RAW_INT_DATA,
     GimbalManagerCapFlags, GpsFixType, HEARTBEAT_DATA, HOME_POSITION_DATA, LOCAL_POSITION_NED_DATA,
-    MavBatteryFunction, MavBatteryType, MavMessage, MavProtocolCapability, MavResult, MavState,
-    MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA, VFR_HUD_DATA,
+    MISSION_CURRENT_DATA, MavBatteryFunction, MavBatteryType, MavMessage, MavProtocolCapability,
+    MavResult, MavState, MavSysStatusSensor, MavVtolState, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 
 use super::modes::Behaviour;
 use super::tables::data_stream;
+use super::wire::Outgoing;
 use super::{GIMBAL_DEVICE_ID, Vehicle};
 
 impl Vehicle {
@@ -73,9 +74,21 @@ impl Vehicle {
             .and_then(|s| s.interval)
     }
 
-    /// Telemetry due at wall time `now` (advances the flight first).
+    /// Telemetry due at wall time `now` (advances the flight first), without components and
+    /// extension fields.
     pub fn telemetry(&mut self, now: f64) -> Vec<MavMessage> {
+        self.telemetry_frames(now)
+            .into_iter()
+            .map(|o| o.message)
+            .collect()
+    }
+
+    /// Telemetry due at wall time `now` (advances the flight first): the streams, the mission
+    /// protocol's retries and what happened since the last pass (MISSION_ITEM_REACHED, …).
+    pub fn telemetry_frames(&mut self, now: f64) -> Vec<Outgoing> {
         self.advance(now);
+        let mut out = std::mem::take(&mut self.outbox);
+        out.extend(self.mission_tick(now));
         let mut due = Vec::new();
         for s in &mut self.streams {
             if let Some(iv) = s.interval {
@@ -86,7 +99,12 @@ impl Vehicle {
                 }
             }
         }
-        due.into_iter().filter_map(|id| self.message(id)).collect()
+        out.extend(
+            due.into_iter()
+                .filter_map(|id| self.message(id))
+                .map(Outgoing::from),
+        );
+        out
     }
 
     fn time_boot_ms(&self) -> u32 {
@@ -115,7 +133,10 @@ impl Vehicle {
                         ardupilot_base_mode(self.armed, position_control)
                     }
                 },
-                system_status: if match self.personality.autopilot {
+                system_status: if self.battery_failsafe() {
+                    // PX4: armed with a failsafe in force; ArduPilot: `any_failsafe_triggered`.
+                    MavState::MAV_STATE_CRITICAL
+                } else if match self.personality.autopilot {
                     Autopilot::Px4 => self.armed,
                     // ArduPilot: STANDBY while landed (`land_complete`), armed or not.
                     Autopilot::ArduPilot => self.armed && (self.taking_off || !self.on_ground()),
@@ -256,7 +277,7 @@ impl Vehicle {
                 let mut voltages = [u16::MAX; 10];
                 voltages[0] = self.voltage_mv();
                 MavMessage::BATTERY_STATUS(BATTERY_STATUS_DATA {
-                    current_consumed: ((1.0 - self.battery) * 5000.0) as i32,
+                    current_consumed: ((1.0 - self.battery) * self.capacity_mah()) as i32,
                     energy_consumed: -1,
                     temperature: i16::MAX,
                     voltages,
@@ -267,6 +288,7 @@ impl Vehicle {
                     battery_remaining: self.battery_percent(),
                 })
             }
+            MISSION_CURRENT_DATA::ID => self.mission_current(),
             AUTOPILOT_VERSION_DATA::ID => MavMessage::AUTOPILOT_VERSION(AUTOPILOT_VERSION_DATA {
                 capabilities: self.capabilities(),
                 uid: u64::from(self.config.id),
@@ -289,20 +311,23 @@ impl Vehicle {
         })
     }
 
-    /// AUTOPILOT_VERSION's capabilities: PX4 encodes parameters bytewise, ArduPilot C-cast
-    /// and takes COMMAND_INT and SET_POSITION_TARGET_GLOBAL_INT (`GCS_MAVLINK_Copter::
-    /// capabilities`).
+    /// AUTOPILOT_VERSION's capabilities: both take the mission protocol with MISSION_ITEM_INT
+    /// for missions, geofences and rally points, and COMMAND_INT; PX4 encodes parameters
+    /// bytewise, ArduPilot C-cast and takes SET_POSITION_TARGET_GLOBAL_INT
+    /// (`GCS_MAVLINK_Copter::capabilities`).
     fn capabilities(&self) -> MavProtocolCapability {
         use MavProtocolCapability as C;
         let common = C::MAV_PROTOCOL_CAPABILITY_MAVLINK2
-            | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED;
+            | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_LOCAL_NED
+            | C::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
+            | C::MAV_PROTOCOL_CAPABILITY_MISSION_INT
+            | C::MAV_PROTOCOL_CAPABILITY_MISSION_FENCE
+            | C::MAV_PROTOCOL_CAPABILITY_MISSION_RALLY;
         match self.personality.autopilot {
             Autopilot::Px4 => common | C::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE,
             Autopilot::ArduPilot => {
                 common
                     | C::MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_C_CAST
-                    | C::MAV_PROTOCOL_CAPABILITY_COMMAND_INT
-                    | C::MAV_PROTOCOL_CAPABILITY_MISSION_INT
                     | C::MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT
             }
         }
@@ -313,6 +338,6 @@ impl Vehicle {
     }
 
     fn voltage_mv(&self) -> u16 {
-        (14_800.0 + 2_000.0 * self.battery) as u16
+        (self.voltage() * 1000.0) as u16
     }
 }

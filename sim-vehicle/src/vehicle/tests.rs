@@ -98,13 +98,16 @@ fn commands_are_refused_when_they_do_not_apply() {
         MavResult::MAV_RESULT_DENIED
     );
     // Commands the simulator does not implement.
-    let r = v.handle(0.0, &cmd(MavCmd::MAV_CMD_DO_REPOSITION, [0.0; 7]));
+    let r = v.handle(0.0, &cmd(MavCmd::MAV_CMD_DO_FLIGHTTERMINATION, [0.0; 7]));
     assert_eq!(ack_of(&r), MavResult::MAV_RESULT_UNSUPPORTED);
+    // A goto needs the vehicle in the air.
+    let r = v.handle(0.0, &cmd(MavCmd::MAV_CMD_DO_REPOSITION, [0.0; 7]));
+    assert_eq!(ack_of(&r), MavResult::MAV_RESULT_DENIED);
     // Arm with a NaN parameter.
     let r = v.handle(0.0, &cmd(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, nan));
     assert_eq!(ack_of(&r), MavResult::MAV_RESULT_DENIED);
     assert!(!v.armed());
-    assert_eq!(v.counters().refused_commands, 4);
+    assert_eq!(v.counters().refused_commands, 5);
     // Commands for another system are ignored.
     let mut other = cmd(MavCmd::MAV_CMD_COMPONENT_ARM_DISARM, [1.0; 7]);
     if let MavMessage::COMMAND_LONG(c) = &mut other {
@@ -150,7 +153,7 @@ fn do_set_mode_follows_px4_modes() {
     assert!(hb.base_mode.contains(
         MavModeFlag::MAV_MODE_FLAG_SAFETY_ARMED | MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     ));
-    // MISSION is not simulated; a mode without the custom flag is not understood.
+    // MISSION without a mission is refused; a mode without the custom flag is not understood.
     let r = v.handle(
         10.0,
         &cmd(
@@ -158,7 +161,7 @@ fn do_set_mode_follows_px4_modes() {
             [CUSTOM, 4.0, 4.0, 0., 0., 0., 0.],
         ),
     );
-    assert_eq!(ack_of(&r), MavResult::MAV_RESULT_UNSUPPORTED);
+    assert_eq!(ack_of(&r), MavResult::MAV_RESULT_DENIED);
     let r = v.handle(
         10.0,
         &cmd(MavCmd::MAV_CMD_DO_SET_MODE, [0.0, 4.0, 3.0, 0., 0., 0., 0.]),
@@ -280,7 +283,9 @@ fn parameters_list_read_set() {
             target_component: 1,
         }),
     );
-    assert_eq!(list.len(), 5);
+    // A PX4 multirotor's 15: takeoff, offboard loss, landing, RTL, battery, acceptance radius,
+    // cruise and descent speeds, follow-me.
+    assert_eq!(list.len(), 15);
     let read = |v: &mut Vehicle, name: &str| {
         v.handle(
             0.0,

@@ -280,10 +280,10 @@ fn copter_lands_disarms_and_refuses_to_arm_in_rtl() {
         MavResult::MAV_RESULT_ACCEPTED
     );
     assert_eq!(arm(&mut v, 40.0), MavResult::MAV_RESULT_FAILED);
-    // Modes the simulator does not fly.
+    // AUTO without a mission.
     assert_eq!(
         mode(&mut v, 40.0, Mode::Copter(CopterMode::Auto)),
-        MavResult::MAV_RESULT_UNSUPPORTED
+        MavResult::MAV_RESULT_FAILED
     );
     assert_eq!(
         mode(&mut v, 40.0, Mode::Copter(CopterMode::Loiter)),
@@ -523,7 +523,7 @@ fn ardupilot_parameters_streams_and_mission() {
     let Some(MavMessage::MISSION_COUNT(c)) = r.first() else {
         panic!("{r:?}")
     };
-    assert_eq!(c.count, 0);
+    assert_eq!(c.count, 1, "ArduPilot's mission always holds home");
     let plane = vehicle(PLANE);
     assert_eq!(plane.param("AIRSPEED_MIN"), Some(9.0));
     assert_eq!(plane.param("WP_LOITER_RAD"), Some(60.0));

@@ -158,3 +158,34 @@ fn the_roi_points_the_gimbal() {
     );
     assert_eq!(v.gimbal_direction(), None);
 }
+
+/// MAVSDK's do_orbit sends the centre's altitude AMSL in a COMMAND_INT whose frame says
+/// relative: PX4 (and the simulator) orbit at that AMSL altitude, not that far above home.
+#[test]
+fn px4_reads_the_orbit_altitude_as_amsl_whatever_the_frame() {
+    use harrier_link::command::command_int;
+    let mut v = px4_up();
+    let centre = v.frame.from_enu(&Vector3::new(30.0, 0.0, 0.0));
+    let home_plus_10 = v.config().origin.alt_m as f32 + 10.0;
+    let orbit = command_int(
+        1,
+        MavCmd::MAV_CMD_DO_ORBIT,
+        mavlink::dialects::common::MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT,
+        [15.0, 3.0, f32::NAN, f32::NAN],
+        (
+            (centre.lat_deg * 1e7).round() as i32,
+            (centre.lon_deg * 1e7).round() as i32,
+            home_plus_10,
+        ),
+    );
+    assert_eq!(
+        ack_of(&v.handle(15.0, &orbit)),
+        MavResult::MAV_RESULT_ACCEPTED
+    );
+    run(&mut v, 15.0, 60.0, |_, _| {});
+    assert!(
+        (v.state().position.z - 10.0).abs() < 0.5,
+        "{:?}",
+        v.state().position
+    );
+}
