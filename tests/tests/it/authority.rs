@@ -11,7 +11,9 @@
 //!   of, and UAV 3 stays in Hold, sent nothing more;
 //! - an impostor claiming system id 1 from another UDP address is flagged within 1 s (a
 //!   `conflict` event, `identity.conflict` on `GET /api/v1/vehicles`, the counters), receives
-//!   nothing at all, and UAV 1 keeps flying its slot (range error unchanged).
+//!   nothing at all, and UAV 1 keeps flying its slot (range error unchanged);
+//! - UAV 1's battery below the safety envelope's floor (25 %): out of its slot (`failed`, the
+//!   reason named) and sent home: in RTL, nearer home 5 s later.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::time::{Duration, Instant};
@@ -360,6 +362,44 @@ fn the_operator_wins_over_the_guidance() {
         assert!(
             during <= before + 0.02 * R,
             "UAV 1's range error {before} -> {during} m"
+        );
+
+        // 5. UAV 1's battery drops below the floor (25 %): out of its slot, sent home.
+        let uav1 = &demo.world().vehicles()[0];
+        let from_home = || uav1.vehicle().state().horizontal_position().norm();
+        uav1.vehicle().set_battery(0.24);
+        let low = Instant::now();
+        until(server, 10, "UAV 1 out for its battery", |a| {
+            a.vehicles.iter().any(|s| {
+                s.vehicle == 1
+                    && s.state == SlotState::Failed
+                    && s.error.as_deref().is_some_and(|e| e.contains("battery"))
+            })
+        })
+        .await;
+        within(10, "UAV 1 in RTL", async {
+            while link_of(server, 1).0.as_deref() != Some("RTL") {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await;
+        let (d0, t0) = (from_home(), Instant::now());
+        tokio::time::sleep(Duration::from_secs(5)).await;
+        let d1 = from_home();
+        let (_, metrics) = get(addr, "/api/v1/metrics").await;
+        eprintln!(
+            "authority: UAV 1 at 24 %: out of its slot and in RTL {:.1} s after; {d0:.0} m from \
+             home, {d1:.0} m {:.1} s later",
+            t0.saturating_duration_since(low).as_secs_f64(),
+            t0.elapsed().as_secs_f64()
+        );
+        assert!(d1 < d0 - 50.0, "not on its way home: {d0} -> {d1} m");
+        assert!(
+            metric(
+                &metrics,
+                "harrier_guidance_safety_total{action=\"battery_rtl\"}"
+            ) >= 1.0,
+            "{metrics}"
         );
         demo.stop().await;
     }));

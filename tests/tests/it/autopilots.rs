@@ -9,8 +9,10 @@
 //! ≤ 5 % of R for the multirotors and ≤ 10 % for the fixed wings, the phase-spacing error RMS ≤
 //! 15°, and, from the simulator's own physics over the whole flight, no fixed wing ever below its
 //! stall speed. Then the operator wins on both autopilots and airframes: the ArduCopter put in
-//! LOITER by a router client (pymavlink through the router) and the PX4 fixed wing held through
-//! the API leave their slots (`overridden`) and stay out for 5 s, sent nothing. The window is `HARRIER_FLEET_SECONDS` wall seconds (30 in CI, at
+//! LOITER by a router client (pymavlink through the router), the PX4 fixed wing held through the
+//! API and the ArduPlane switched to LOITER by its pilot's RC switch (harrier-sim's
+//! `pilot_switch`) leave their slots (`overridden`) and stay out for 5 s, sent nothing. The
+//! window is `HARRIER_FLEET_SECONDS` wall seconds (30 in CI, at
 //! `HARRIER_FLEET_SPEEDUP` 2× speed-up: 60 s of flight; 5× starved the simulator on a loaded
 //! machine and the ring never formed); BENCHMARKS.md has a long run.
 
@@ -303,19 +305,40 @@ fn a_mixed_fleet_of_every_autopilot_orbits_one_car() {
             .filter_map(|s| s.overridden.as_ref().map(|o| (s.vehicle, o.by.as_str())))
             .collect();
         assert_eq!(by, [(2, "router_client"), (3, "api")]);
+        // The ArduPlane's pilot flips its RC mode switch to LOITER: no command anyone sent.
+        let plane = &demo.world().vehicles()[3];
+        let loiter =
+            harrier_link::autopilot::Mode::Plane(harrier_link::ardupilot::PlaneMode::Loiter);
+        assert!(
+            plane.vehicle().pilot_switch(loiter),
+            "the RC switch refused"
+        );
+        within(5, "the ArduPlane's slot overridden", async {
+            while !slots().iter().any(|s| {
+                s.vehicle == 4
+                    && s.overridden
+                        .as_ref()
+                        .is_some_and(|o| o.by.as_str() == "vehicle")
+            }) {
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        })
+        .await;
         within(10, "the PX4 fixed wing in Hold", async {
             while crate::authority::link_of(server, 3).0.as_deref() != Some("HOLD") {
                 tokio::time::sleep(Duration::from_millis(50)).await;
             }
         })
         .await;
-        let (copter, plane) = tokio::join!(
+        let (copter, fw, plane) = tokio::join!(
             crate::authority::stays_out(server, 2, "LOITER", 5),
-            crate::authority::stays_out(server, 3, "HOLD", 5)
+            crate::authority::stays_out(server, 3, "HOLD", 5),
+            crate::authority::stays_out(server, 4, "LOITER", 5)
         );
         eprintln!(
-            "fleet: ArduCopter in LOITER ({copter} samples) and PX4 fixed wing in HOLD ({plane} \
-             samples) for 5 s, out of their slots ({by:?}), sent nothing"
+            "fleet: ArduCopter in LOITER ({copter} samples), PX4 fixed wing in HOLD ({fw}) and \
+             ArduPlane in LOITER by its RC switch ({plane}) for 5 s, out of their slots ({by:?}, \
+             4 by the vehicle), sent nothing"
         );
         demo.stop().await;
     }));
