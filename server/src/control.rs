@@ -1,6 +1,6 @@
 //! The vehicles' side of the service, when `mavlink.gcs` is set: the MAVLink GCS link and
 //! router ([`super::gcs`]), the confirmed tracks as traffic to the router's clients
-//! ([`super::gcs::traffic`]), the guidance loop ([`super::guidance`]) and, when recording, the
+//! ([`super::feeds::adsb_out`]), the guidance loop ([`super::guidance`]) and, when recording, the
 //! vehicles' telemetry, events and assignments in the recording.
 
 use std::sync::Arc;
@@ -37,7 +37,9 @@ impl Control {
         recorder: Option<&Recorder>,
         stop: &watch::Receiver<bool>,
     ) -> Result<Self, LiveError> {
-        let Some(c) = config.gcs(recorder.map(Recorder::session_id))? else {
+        let Some(c) =
+            crate::gcs::GcsConfig::from_config(config, recorder.map(Recorder::session_id))?
+        else {
             return Ok(Self::default());
         };
         if let Some(p) = &c.tlog {
@@ -48,7 +50,7 @@ impl Control {
         let mut tasks = vec![task];
         let hz = config.mavlink.tracks_hz;
         if hz > 0.0 && link.router().next().is_some() {
-            tasks.push(tokio::spawn(gcs::traffic::run(
+            tasks.push(tokio::spawn(crate::feeds::adsb_out::run(
                 link.clone(),
                 snapshot.clone(),
                 frame,

@@ -1,8 +1,7 @@
-//! The configuration turned into what the actors take: the GCS link's settings
-//! ([`Config::gcs`]), the Zenoh session's ([`Config::bus`]), the engine parameters and the
-//! [`Deployment`] ([`Config::deployment`]), and the guidance loop's settings.
-
-use std::path::Path;
+//! The configuration turned into what the lower crates take: the Zenoh session's
+//! ([`Config::bus`]), the engine parameters and the [`Deployment`] ([`Config::deployment`]). The
+//! actors read their own sections (`GcsConfig::from_config`, `GuidanceSettings::from`): the
+//! configuration imports no actor.
 
 use harrier_engine::{Deployment, Params};
 use harrier_link::bus::{BusConfig, Mode, TlsConfig};
@@ -11,46 +10,6 @@ use super::error::ConfigError;
 use super::file::Config;
 
 impl Config {
-    /// The MAVLink link's settings, or `None` when `mavlink.gcs` is empty. `session` names the
-    /// default `.tlog` beside the recording.
-    pub fn gcs(&self, session: Option<i64>) -> Result<Option<crate::gcs::GcsConfig>, ConfigError> {
-        let m = &self.mavlink;
-        if m.gcs.is_empty() {
-            return Ok(None);
-        }
-        let parse = |v: &[String]| {
-            v.iter()
-                .map(|e| harrier_link::frame::Endpoint::parse(e))
-                .collect::<Result<Vec<_>, _>>()
-                .map_err(|e| ConfigError::Invalid(format!("mavlink: {e}")))
-        };
-        let tlog = if !m.tlog.is_empty() {
-            Some(std::path::PathBuf::from(&m.tlog))
-        } else if let (false, Some(id)) = (self.recorder.path.is_empty(), session) {
-            let p = Path::new(&self.recorder.path);
-            let stem = p
-                .file_stem()
-                .map_or_else(|| "harrier".into(), |s| s.to_string_lossy());
-            Some(p.with_file_name(format!("{stem}-session-{id}.tlog")))
-        } else {
-            None
-        };
-        Ok(Some(crate::gcs::GcsConfig {
-            gcs: parse(&m.gcs)?,
-            router: parse(&m.router)?,
-            system_id: m.system_id,
-            component_id: m.component_id,
-            lost_after: std::time::Duration::from_secs_f64(m.lost_after_s),
-            command_timeout: std::time::Duration::from_millis(m.command_timeout_ms),
-            command_attempts: m.command_attempts,
-            frame: harrier_link::geo::LocalFrame::new(self.frame.origin),
-            tlog,
-            signing: m.signing.resolve()?,
-            router_heartbeat: m.router_heartbeat,
-            router_filters: m.router_filters()?,
-        }))
-    }
-
     /// The Zenoh session configuration.
     pub fn bus(&self) -> Result<BusConfig, ConfigError> {
         let z = &self.zenoh;
@@ -103,48 +62,6 @@ impl Config {
             // Checked by `Config::check` (a configuration built in code with a bad block runs
             // without registration).
             registration: self.registration.registered().unwrap_or_default(),
-        }
-    }
-}
-
-impl From<&Config> for crate::guidance::GuidanceSettings {
-    /// The guidance loop's settings (`[guidance]`): the multirotor envelope, the fixed wing's from
-    /// its airspeed band and bank limit (climbing 5 m/s), the obstacles as discs, and the
-    /// server's frame.
-    fn from(c: &Config) -> Self {
-        use harrier_core::guidance::{Limits, obstacle::Obstacle};
-        let g = &c.guidance;
-        let [v_min, v_max] = g.fixed_wing_speed_m_s;
-        let obstacles: Vec<Obstacle> = g
-            .obstacles
-            .iter()
-            .map(|o| Obstacle {
-                center: nalgebra::Vector2::new(o.x_m, o.y_m),
-                radius: o.radius_m,
-            })
-            .collect();
-        let s = &g.safety;
-        let envelope = crate::guidance::Envelope {
-            no_fly: if s.no_fly {
-                obstacles.clone()
-            } else {
-                Vec::new()
-            },
-            max_distance_m: (s.max_distance_m > 0.0).then_some(s.max_distance_m),
-            floor_m: Some(s.floor_m),
-            ceiling_m: Some(s.ceiling_m),
-            lookahead_s: s.lookahead_s,
-            battery_floor_pct: (s.battery_floor_pct > 0.0).then_some(s.battery_floor_pct),
-        };
-        Self {
-            rate_hz: g.rate_hz,
-            multirotor: Limits::multirotor(),
-            fixed_wing: Limits::bank_limited(v_min, v_max, g.fixed_wing_bank_deg.to_radians(), 5.0),
-            speed: g.speed_m_s,
-            takeoff_height: g.takeoff_height_m,
-            obstacles,
-            envelope,
-            frame: harrier_link::geo::LocalFrame::new(c.frame.origin),
         }
     }
 }

@@ -121,7 +121,13 @@ fn signing_keys_from_hex_or_file_and_never_written_out() {
         (s.mode, s.link_id, *s.key.bytes()),
         (SigningMode::SignedOnly, 4, [0xAB; 32])
     );
-    assert!(c.gcs(None).expect("gcs").expect("on").signing.is_some());
+    assert!(
+        crate::gcs::GcsConfig::from_config(&c, None)
+            .expect("gcs")
+            .expect("on")
+            .signing
+            .is_some()
+    );
     // The configuration recorded with a session does not hold the key.
     let json = serde_json::to_string(&c).expect("json");
     assert!(!json.contains(&hex), "{json}");

@@ -9,6 +9,8 @@
 //!
 //! - `adsb`: manned aircraft from an ADS-B receiver's SBS-1 output (`[adsb]`), tracked per
 //!   address, on a `watch` the API reads (`GET /api/v1/aircraft`).
+//! - [`adsb_out`]: the confirmed tracks as ADSB_VEHICLE traffic to the MAVLink router's clients
+//!   (`mavlink.tracks_hz`), sent through the link (started with the link, in `control`).
 //! - `asterix`: the tracks as EUROCONTROL ASTERIX CAT062 system track messages over UDP
 //!   (`[asterix]`), unicast or multicast.
 //! - `cot`: every confirmed track as a Cursor-on-Target event for TAK (`[cot]`), XML or TAK
@@ -18,6 +20,7 @@
 //!   live MCAP file.
 
 mod adsb;
+pub mod adsb_out;
 mod asterix;
 mod cot;
 mod counters;

@@ -16,6 +16,7 @@ use utoipa::ToSchema;
 
 use super::filter::FilterSpec;
 use super::vehicle::VehicleLinkView;
+use crate::config::{Config, ConfigError};
 
 /// Settings of the link (the `[mavlink]` section, checked).
 #[derive(Debug, Clone, PartialEq)]
@@ -45,6 +46,49 @@ pub struct GcsConfig {
     /// What each router endpoint lets through, in the order of `router` (an endpoint without
     /// one lets everything through).
     pub router_filters: Vec<FilterSpec>,
+}
+
+impl GcsConfig {
+    /// The link's settings from the configuration (`[mavlink]`, `[frame]`, `[recorder]`), or
+    /// `None` when `mavlink.gcs` is empty. `session` names the
+    /// default `.tlog` beside the recording.
+    pub fn from_config(c: &Config, session: Option<i64>) -> Result<Option<Self>, ConfigError> {
+        let m = &c.mavlink;
+        if m.gcs.is_empty() {
+            return Ok(None);
+        }
+        let parse = |v: &[String]| {
+            v.iter()
+                .map(|e| harrier_link::frame::Endpoint::parse(e))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(|e| ConfigError::Invalid(format!("mavlink: {e}")))
+        };
+        let tlog = if !m.tlog.is_empty() {
+            Some(std::path::PathBuf::from(&m.tlog))
+        } else if let (false, Some(id)) = (c.recorder.path.is_empty(), session) {
+            let p = std::path::Path::new(&c.recorder.path);
+            let stem = p
+                .file_stem()
+                .map_or_else(|| "harrier".into(), |s| s.to_string_lossy());
+            Some(p.with_file_name(format!("{stem}-session-{id}.tlog")))
+        } else {
+            None
+        };
+        Ok(Some(Self {
+            gcs: parse(&m.gcs)?,
+            router: parse(&m.router)?,
+            system_id: m.system_id,
+            component_id: m.component_id,
+            lost_after: std::time::Duration::from_secs_f64(m.lost_after_s),
+            command_timeout: std::time::Duration::from_millis(m.command_timeout_ms),
+            command_attempts: m.command_attempts,
+            frame: harrier_link::geo::LocalFrame::new(c.frame.origin),
+            tlog,
+            signing: m.signing.resolve()?,
+            router_heartbeat: m.router_heartbeat,
+            router_filters: m.router_filters()?,
+        }))
+    }
 }
 
 /// Why the link cannot start.
@@ -200,7 +244,7 @@ pub enum Request {
         message: MavMessage,
     },
     /// Send messages from the ground station to every router client, none to the vehicles
-    /// (Harrier's tracks as traffic: `traffic`).
+    /// (Harrier's tracks as traffic: the `adsb_out` feed).
     ToClients(Vec<MavMessage>),
     /// The operator accepts a vehicle's new address (gcs::identity); the answer says whether
     /// there was one to accept.

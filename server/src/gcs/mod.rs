@@ -48,7 +48,6 @@ pub mod identity;
 pub mod metrics;
 pub mod timesync;
 mod tlog;
-pub mod traffic;
 pub mod transport;
 pub mod vehicle;
 

@@ -452,6 +452,49 @@ impl GuidanceSettings {
     }
 }
 
+/// The guidance reads its own section of the configuration (`[guidance]`, `[frame]`).
+impl From<&crate::config::Config> for GuidanceSettings {
+    /// The guidance loop's settings (`[guidance]`): the multirotor envelope, the fixed wing's from
+    /// its airspeed band and bank limit (climbing 5 m/s), the obstacles as discs, and the
+    /// server's frame.
+    fn from(c: &crate::config::Config) -> Self {
+        use harrier_core::guidance::{Limits, obstacle::Obstacle};
+        let g = &c.guidance;
+        let [v_min, v_max] = g.fixed_wing_speed_m_s;
+        let obstacles: Vec<Obstacle> = g
+            .obstacles
+            .iter()
+            .map(|o| Obstacle {
+                center: nalgebra::Vector2::new(o.x_m, o.y_m),
+                radius: o.radius_m,
+            })
+            .collect();
+        let s = &g.safety;
+        let envelope = super::envelope::Envelope {
+            no_fly: if s.no_fly {
+                obstacles.clone()
+            } else {
+                Vec::new()
+            },
+            max_distance_m: (s.max_distance_m > 0.0).then_some(s.max_distance_m),
+            floor_m: Some(s.floor_m),
+            ceiling_m: Some(s.ceiling_m),
+            lookahead_s: s.lookahead_s,
+            battery_floor_pct: (s.battery_floor_pct > 0.0).then_some(s.battery_floor_pct),
+        };
+        Self {
+            rate_hz: g.rate_hz,
+            multirotor: Limits::multirotor(),
+            fixed_wing: Limits::bank_limited(v_min, v_max, g.fixed_wing_bank_deg.to_radians(), 5.0),
+            speed: g.speed_m_s,
+            takeoff_height: g.takeoff_height_m,
+            obstacles,
+            envelope,
+            frame: harrier_link::geo::LocalFrame::new(c.frame.origin),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use serde::Serialize;

@@ -1427,7 +1427,7 @@ fn a_silent_vehicle_is_lost_its_track_coasts_and_is_deleted_then_both_recover() 
 /// callsign `T<id>`), where `/api/v1/tracks` has it. The target stands still (vehicle 8's scans
 /// at 10 Hz, over Zenoh): the message and REST, read up to a second apart, differ only by the
 /// estimate's jitter between two scans (the conversion itself is exact to a centimetre: unit
-/// test in `server/src/gcs/traffic.rs`).
+/// test in `server/src/feeds/adsb_out.rs`).
 #[test]
 fn pymavlink_gets_the_tracks_as_traffic_through_the_router() {
     const STANDING: [f64; 2] = [250.0, -120.0];

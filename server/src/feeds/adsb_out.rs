@@ -1,4 +1,6 @@
-//! Harrier's tracks offered to the router's MAVLink clients as traffic: every confirmed track, at
+//! A feed that happens to send through the MAVLink link (it reads the tracker, the link never
+//! does): Harrier's tracks offered to the router's MAVLink clients as traffic: every confirmed
+//! track, at
 //! `mavlink.tracks_hz`, as one ADSB_VEHICLE message from the ground station: the traffic
 //! message MAVProxy's `adsb` module and QGroundControl's ADS-B display read (tested with
 //! pymavlink). Sent to the router's clients only, never to the vehicles (an autopilot would take
@@ -26,9 +28,8 @@ use harrier_link::mavlink::dialects::common::{
 use nalgebra::Vector3;
 use tokio::sync::watch;
 
-use super::handle::GcsLink;
-use super::messages::Request;
-use super::transport::stopped;
+use crate::gcs::transport::stopped;
+use crate::gcs::{GcsLink, Request};
 use crate::tracker::Snapshot;
 use harrier_engine::{TrackStatus, TrackView};
 
