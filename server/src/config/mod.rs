@@ -8,8 +8,9 @@
 //!
 //! Split by concern: [`Config`] and its reading in `file.rs`, [`ConfigError`] in `error.rs`; the sections' types and
 //! defaults in `sections.rs`, the checks a TOML parser cannot make ([`Config::check`]) in
-//! `check.rs`, and the conversions into the actors' settings ([`Config::gcs`],
-//! [`Config::bus`], [`Config::deployment`], the guidance's) in `convert.rs`.
+//! `check.rs`, and the conversions into what the lower crates take ([`Config::bus`],
+//! [`Config::deployment`]) in `convert.rs`. The actors read their own sections
+//! ([`crate::gcs::GcsConfig::from_config`], `GuidanceSettings::from`).
 
 mod adsb;
 mod asterix;
