@@ -182,7 +182,7 @@ def main():
         n += 1
     rate = n / max((last - t0) / 1000.0, 1e-3)
     assert 14 < rate < 27, f"LOCAL_POSITION_NED at {rate:.1f} Hz, expected 20"
-    c.command(mavlink.MAV_CMD_DO_REPOSITION, expect=mavlink.MAV_RESULT_UNSUPPORTED)
+    c.command(mavlink.MAV_CMD_DO_FLIGHTTERMINATION, expect=mavlink.MAV_RESULT_UNSUPPORTED)
     log(f"message interval ok ({rate:.1f} Hz), unsupported command ok")
 
     # 5. Arm and take off to MIS_TAKEOFF_ALT (param7 NaN).

@@ -199,25 +199,27 @@ impl Vehicle {
         }
     }
 
-    /// The velocity towards `p` at `speed`: a multirotor slows into it; a fixed wing heads for
-    /// it.
+    /// The velocity towards `p` at `speed`: a multirotor slows into it (never faster than it can
+    /// stop); a fixed wing heads for it.
     pub(super) fn towards(&self, p: Vector3<f64>, speed: f64, limits: &Limits) -> Vector3<f64> {
+        if limits.can_hover() {
+            let v = self.hover_at(p);
+            let vh = v.xy();
+            let vh = if vh.norm() > speed {
+                vh * (speed / vh.norm())
+            } else {
+                vh
+            };
+            return Vector3::new(vh.x, vh.y, v.z.max(-limits.vz_max).min(limits.vz_max));
+        }
         let d = p - self.state.position;
         let vz = (d.z * super::POS_GAIN)
             .max(-limits.vz_max)
             .min(limits.vz_max);
-        let dh = d.xy();
-        let vh = if limits.can_hover() {
-            let v = dh * super::POS_GAIN;
-            if v.norm() > speed {
-                v * (speed / v.norm())
-            } else {
-                v
-            }
-        } else {
-            dh.try_normalize(1e-6)
-                .map_or(self.state.horizontal_velocity(), |u| u * speed)
-        };
+        let vh = d
+            .xy()
+            .try_normalize(1e-6)
+            .map_or(self.state.horizontal_velocity(), |u| u * speed);
         Vector3::new(vh.x, vh.y, vz)
     }
 

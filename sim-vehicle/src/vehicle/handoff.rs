@@ -154,21 +154,36 @@ impl Vehicle {
         }
     }
 
-    /// Where a follow mode flies (ENU) and the target's velocity: PX4 FLW_TGT_DST behind the
-    /// target (along its velocity; north of it when it stands) and FLW_TGT_HT above it;
-    /// ArduCopter at its engagement offset. `None` before a FOLLOW_TARGET.
+    /// Where a follow mode flies (ENU) and the target's velocity: PX4 FLW_TGT_DST from the
+    /// target at FLW_TGT_FA around its course (180: behind it, along its velocity; its course
+    /// taken as north when it stands) and FLW_TGT_HT above it (above home with FLW_TGT_ALT_M 0 or
+    /// 1, above the target with 2); ArduCopter at its engagement offset. `None` before a
+    /// FOLLOW_TARGET.
     pub(super) fn follow_goal(&self) -> Option<(Vector3<f64>, Vector3<f64>)> {
         let f = self.followed?;
         let offset = match self.follow_offset {
             Some(o) if self.is_copter() => o,
             _ => {
-                let back = f
+                let course = f
                     .velocity
                     .xy()
                     .try_normalize(0.5)
-                    .map_or(nalgebra::Vector2::new(0.0, 1.0), |u| -u);
+                    .unwrap_or(nalgebra::Vector2::new(0.0, 1.0));
+                // Clockwise by FLW_TGT_FA from the course (ENU: a negative rotation).
+                let a = -self.param_f64("FLW_TGT_FA", 180.0).to_radians();
+                let (s, c) = a.sin_cos();
+                let dir = nalgebra::Vector2::new(
+                    c * course.x - s * course.y,
+                    s * course.x + c * course.y,
+                );
                 let d = self.param_f64("FLW_TGT_DST", 8.0);
-                Vector3::new(back.x * d, back.y * d, self.param_f64("FLW_TGT_HT", 8.0))
+                let up = self.param_f64("FLW_TGT_HT", 8.0);
+                let z = if self.param_f64("FLW_TGT_ALT_M", 0.0) >= 2.0 {
+                    up
+                } else {
+                    up - f.position.z
+                };
+                Vector3::new(dir.x * d, dir.y * d, z)
             }
         };
         Some((f.position + offset, f.velocity))

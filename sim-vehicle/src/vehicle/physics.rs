@@ -71,9 +71,23 @@ impl Vehicle {
         }
     }
 
-    /// A multirotor's velocity towards `target` (proportional, 3-D).
-    fn hover_at(&self, target: Vector3<f64>) -> Vector3<f64> {
-        (target - self.state.position) * POS_GAIN
+    /// A multirotor's velocity towards `target`: proportional (3-D), and never faster than it
+    /// can stop within the distance left (√(2·a·d) with 80 % of its horizontal and vertical
+    /// acceleration limits), so that it arrives without overshooting, as PX4's and ArduCopter's
+    /// position controllers (their jerk-limited trajectories) do.
+    pub(super) fn hover_at(&self, target: Vector3<f64>) -> Vector3<f64> {
+        let limits = self.limits();
+        let d = target - self.state.position;
+        let cap = |dist: f64, accel: f64| (2.0 * 0.8 * accel * dist).sqrt();
+        let dh = d.xy();
+        let vh = dh * POS_GAIN;
+        let vh = match vh.norm() {
+            n if n > 1e-9 => vh * (n.min(cap(dh.norm(), limits.accel_max)) / n),
+            _ => vh,
+        };
+        let vz = d.z * POS_GAIN;
+        let vz = vz.signum() * vz.abs().min(cap(d.z.abs(), limits.az_max));
+        Vector3::new(vh.x, vh.y, vz)
     }
 
     /// A fixed wing's velocity circling `centre` at its loiter radius and `speed`, holding
@@ -261,7 +275,7 @@ impl Vehicle {
             Some(Target::Velocity(v)) => v,
             Some(Target::Position(p)) if hover => self.to_position(p),
             Some(Target::Position(p)) => self.loiter(p, self.cruise_speed(), limits),
-            Some(Target::PositionVelocity(p, v)) => v + (p - self.state.position) * POS_GAIN,
+            Some(Target::PositionVelocity(p, v)) => v + self.hover_at(p),
             None => self.hold_command(self.hold_point, limits),
         }
     }

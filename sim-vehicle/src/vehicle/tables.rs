@@ -101,10 +101,16 @@ pub(super) fn default_params(personality: Personality, id: u8) -> Vec<Param> {
                 ]);
             }
             if frame == Frame::Multirotor {
-                // AUTO.FOLLOW_TARGET's distance behind and height above the target.
+                // AUTO.FOLLOW_TARGET: distance from and height above the target, the angle
+                // around it (0 in front, 180 behind, positive clockwise), responsiveness,
+                // altitude mode (0 2-D, 1 2-D with terrain, 2 3-D) and top speed.
                 p.extend([
                     real("FLW_TGT_DST", 8.0, 1.0, 100.0),
                     real("FLW_TGT_HT", 8.0, 8.0, 100.0),
+                    real("FLW_TGT_FA", 180.0, -180.0, 180.0),
+                    real("FLW_TGT_RS", 0.1, 0.0, 1.0),
+                    int("FLW_TGT_ALT_M", I32, 0.0, 0.0, 2.0),
+                    real("FLW_TGT_MAX_VEL", 5.0, 0.0, 20.0),
                 ]);
             }
             if frame == Frame::FixedWing {

@@ -283,9 +283,9 @@ fn parameters_list_read_set() {
             target_component: 1,
         }),
     );
-    // A PX4 multirotor's 15: takeoff, offboard loss, landing, RTL, battery, acceptance radius,
-    // cruise and descent speeds, follow-me.
-    assert_eq!(list.len(), 15);
+    // A PX4 multirotor's 19: takeoff, offboard loss, landing, RTL, battery, acceptance radius,
+    // cruise and descent speeds, follow-me (6).
+    assert_eq!(list.len(), 19);
     let read = |v: &mut Vehicle, name: &str| {
         v.handle(
             0.0,

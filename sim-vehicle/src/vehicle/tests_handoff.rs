@@ -189,3 +189,34 @@ fn px4_reads_the_orbit_altitude_as_amsl_whatever_the_frame() {
         v.state().position
     );
 }
+
+/// FLW_TGT_FA turns the follow position around the target's course: 90° puts the follower on
+/// its right (a target driving east: south of it), FLW_TGT_DST away, FLW_TGT_HT above home.
+#[test]
+fn px4_follows_at_flw_tgt_fa_around_the_course() {
+    let mut v = px4_up();
+    let set = MavMessage::PARAM_SET(mavlink::dialects::common::PARAM_SET_DATA {
+        param_value: 90.0,
+        target_system: 1,
+        target_component: 1,
+        param_id: "FLW_TGT_FA".into(),
+        param_type: mavlink::dialects::common::MavParamType::MAV_PARAM_TYPE_REAL32,
+    });
+    v.handle(15.0, &set);
+    assert_eq!(v.param("FLW_TGT_FA"), Some(90.0));
+    let r = v.handle(15.0, &set_mode(1, Mode::Px4(FlightMode::FollowTarget)));
+    assert_eq!(ack_of(&r), MavResult::MAV_RESULT_ACCEPTED);
+    let frame = v.frame;
+    let target_at = |t: f64| Vector3::new(30.0 + 2.0 * (t - 15.0), 10.0, 0.0);
+    let east = Vector3::new(2.0, 0.0, 0.0);
+    run(&mut v, 15.0, 60.0, |v, t| {
+        let m = follow_target(0, &frame.from_enu(&target_at(t)), &east, [1.0; 3]);
+        v.handle(t, &m);
+    });
+    let want = target_at(60.0) + Vector3::new(0.0, -8.0, 8.0);
+    assert!(
+        (v.state().position - want).norm() < 1.0,
+        "{:?} vs {want}",
+        v.state()
+    );
+}

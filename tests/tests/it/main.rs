@@ -48,6 +48,7 @@ mod radar;
 mod recording;
 mod registration;
 mod set_membership;
+mod sim_missions;
 mod sim_record;
 mod tracker;
 mod zenith;
