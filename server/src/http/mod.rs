@@ -6,7 +6,7 @@
 //! |---|---|
 //! | `GET /tracks[?all=true]`, `GET /tracks/{id}`, `GET /detections[?since=seq]` | [`tracks`] |
 //! | `GET`/`PUT /estimator`, `GET /estimators` | [`estimator`] |
-//! | `GET /biases` | [`biases`] |
+//! | `GET /biases`, `GET /detection` | [`biases`] |
 //! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands` | [`vehicles`] |
 //! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}` | [`assignments`] |
 //! | `GET /truth`, `GET /world`, `GET /aircraft` | [`world`] |
@@ -370,6 +370,7 @@ mod tests {
             "assignments",
             "assignments/{id}",
             "biases",
+            "detection",
             "detections",
             "estimator",
             "estimators",
