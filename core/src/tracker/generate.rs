@@ -418,6 +418,7 @@ impl Doc {
             },
             detection: Some(DetectionSpec {
                 pd: self.pd,
+                sensors: Default::default(),
                 clutter_rate: self.clutter_rate,
                 region: Some(self.region),
             }),

@@ -4,7 +4,7 @@
 
 use nalgebra::SVector;
 
-use super::{Track, TrackEvent, TrackStatus, Tracker};
+use super::{CONFIRM_LOOKS, Look, Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
 use crate::state::{Gaussian, moment_match};
@@ -29,6 +29,7 @@ where
         m: &Mht,
         t: f64,
         dt: f64,
+        look: Look,
         sensor: &H,
         detections: &[SVector<f64, M>],
     ) -> Result<Vec<TrackEvent>>
@@ -75,7 +76,7 @@ where
             trees.push(Tree {
                 leaves,
                 chosen: chosen.unwrap_or(0),
-                scans: tree.scans + 1,
+                scans: tree.scans + look.count(),
                 ..tree.clone()
             });
         }
@@ -115,7 +116,7 @@ where
                         score: leaf.score + (1.0 - pdpg).ln(),
                         existence: (1.0 - pdpg) * psi / (1.0 - pdpg * psi),
                         window,
-                        consecutive_misses: leaf.consecutive_misses + 1,
+                        consecutive_misses: leaf.consecutive_misses + look.count(),
                         reported: li == tree.chosen,
                         ..leaf.clone()
                     },
@@ -143,7 +144,7 @@ where
                             score: leaf.score + ln_ratio,
                             existence: ((1.0 - delta) * psi / (1.0 - delta * psi)).clamp(0.0, 1.0),
                             window,
-                            hits: leaf.hits + 1,
+                            hits: leaf.hits + look.hit(leaf.last_update),
                             consecutive_misses: 0,
                             last_update: t,
                             nis: g.distance_sq,
@@ -287,6 +288,7 @@ where
             if tree.status == TrackStatus::Tentative
                 && tree.selected
                 && leaf.existence >= m.existence.confirm
+                && leaf.hits >= CONFIRM_LOOKS
             {
                 tree.status = TrackStatus::Confirmed;
                 events.push(TrackEvent::Confirmed { id: tree.id });

@@ -4,7 +4,7 @@
 
 use nalgebra::SVector;
 
-use super::{Association, Jipda, Track, TrackEvent, TrackStatus, Tracker};
+use super::{Association, CONFIRM_LOOKS, Jipda, Look, Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
 use crate::metrics::chi2_quantile;
@@ -33,6 +33,7 @@ where
         &mut self,
         t: f64,
         dt: f64,
+        look: Look,
         sensor: &H,
         detections: &[SVector<f64, M>],
     ) -> Result<Vec<TrackEvent>>
@@ -69,7 +70,7 @@ where
             };
             tracks.push(Track {
                 state,
-                scans: k.scans + 1,
+                scans: k.scans + look.count(),
                 existence,
                 ..k.clone()
             });
@@ -183,7 +184,7 @@ where
                 }
             }
             if let Some(d) = outcome.filter(|_| !failed) {
-                k.hits += 1;
+                k.hits += look.hit(k.last_update);
                 k.consecutive_misses = 0;
                 k.last_update = t;
                 updated = true;
@@ -195,7 +196,7 @@ where
                 });
             }
             if !updated {
-                k.consecutive_misses += 1;
+                k.consecutive_misses += look.count();
                 events.push(TrackEvent::Coasted {
                     id: k.id,
                     misses: k.consecutive_misses,
@@ -320,7 +321,7 @@ where
     }
 
     /// Confirms `k` or says why it goes: M-of-N and misses (GNN) or the existence thresholds
-    /// (JIPDA), and the covariance bound (both).
+    /// (JIPDA, once two looks detected it), and the covariance bound (both).
     fn judge(
         &self,
         k: &mut Track<F::State>,
@@ -333,7 +334,10 @@ where
                 if psi < j.existence.delete {
                     return Some(super::gone_by_existence(k.status));
                 }
-                if k.status == TrackStatus::Tentative && psi >= j.existence.confirm {
+                if k.status == TrackStatus::Tentative
+                    && psi >= j.existence.confirm
+                    && k.hits >= CONFIRM_LOOKS
+                {
                     k.status = TrackStatus::Confirmed;
                     events.push(TrackEvent::Confirmed { id: k.id });
                 }

@@ -576,3 +576,97 @@ fn the_multi_scan_associator_keeps_ids_and_reports_existence() {
     assert!(deleted && tr.tracks().is_empty());
     assert!(tr.stats().clusters > 0 && tr.stats().capped == 0);
 }
+
+/// Three sensors at one time detect a new target: one look. Under GNN (2 of 3), JIPDA and MHT
+/// the track stays tentative however many same-time scans detect it, and is confirmed by the
+/// next look's detection, with a velocity from the motion between the two looks; same-time
+/// misses count one miss.
+#[test]
+fn same_time_scans_are_one_look() {
+    let at = |t: f64| Vector2::new(10.0 * t, 5.0 * t);
+    for association in [
+        Association::Gnn,
+        jipda_tracker().config.association,
+        mht_with(3, 16, 0.0),
+    ] {
+        let mut tr = tracker(2, 3);
+        tr.config.association = association;
+        tr.set_clutter_density(Some(1e-6));
+        for _ in 0..3 {
+            tr.step(0.0, &cam(), &[at(0.0)]).unwrap();
+        }
+        assert_eq!(tr.tracks().len(), 1, "{association:?}: {:?}", tr.tracks());
+        let k = &tr.tracks()[0];
+        assert_eq!((k.scans, k.hits), (1, 1), "{association:?}");
+        assert!(
+            tr.confirmed().is_empty(),
+            "{association:?}: one look confirmed"
+        );
+        // Scans within the look window are the same look too.
+        tr.set_look_window(0.01).unwrap();
+        tr.step(0.005, &cam(), &[at(0.005)]).unwrap();
+        assert!(tr.confirmed().is_empty(), "{association:?}");
+        assert_eq!(tr.tracks()[0].scans, 1, "{association:?}");
+        // The next look confirms it, moving.
+        tr.step(1.0, &cam(), &[at(1.0)]).unwrap();
+        tr.step(1.0, &cam(), &[at(1.0)]).unwrap();
+        let c = tr.confirmed();
+        assert_eq!(c.len(), 1, "{association:?}: {:?}", tr.tracks());
+        let k = &tr.tracks()[0];
+        assert_eq!((k.scans, k.hits), (2, 2), "{association:?}");
+        let v = Vector2::new(c[0].estimate.mean[2], c[0].estimate.mean[3]);
+        assert!(
+            (v - Vector2::new(10.0, 5.0)).norm() < 4.0,
+            "{association:?}: {v}"
+        );
+        // A look that misses it in two scans and detects it in one is a hit; one that misses
+        // it in all three is one miss.
+        tr.step(2.0, &cam(), &[]).unwrap();
+        tr.step(2.0, &cam(), &[]).unwrap();
+        tr.step(2.0, &cam(), &[at(2.0)]).unwrap();
+        assert_eq!(tr.tracks()[0].consecutive_misses, 0, "{association:?}");
+        for _ in 0..3 {
+            tr.step(3.0, &cam(), &[]).unwrap();
+        }
+        let k = &tr.tracks()[0];
+        assert_eq!(
+            (k.scans, k.hits, k.consecutive_misses),
+            (4, 3, 1),
+            "{association:?}"
+        );
+    }
+    assert!(tracker(2, 3).set_look_window(-1.0).is_err());
+}
+
+/// The demo's pattern: two targets, three UAVs with two cameras each scanning at each time,
+/// each camera slaved to one target (it never sees the other), the clutter density estimated
+/// from each scan as for the demo's cameras. JIPDA assuming P_D 0.9 for every camera never
+/// keeps the tracks (each scan of the other camera is a miss it cannot explain); with each
+/// camera's P_D at 1/2 (what `PdEstimate` learns from such scans, and the demo configures) both
+/// tracks live, with their ids, for 300 looks.
+#[test]
+fn a_sensor_that_sees_one_of_two_targets_does_not_delete_the_other_under_jipda() {
+    let a = |t: f64| Vector2::new(10.0 * t, 0.0);
+    let b = |t: f64| Vector2::new(10.0 * t, 2_000.0);
+    let run = |pd: f64| {
+        let mut tr = jipda_tracker();
+        tr.set_clutter_density(None);
+        tr.set_detection_probability(pd).unwrap();
+        let mut alive = Vec::new();
+        for k in 0..300 {
+            let t = f64::from(k);
+            for _ in 0..3 {
+                tr.step(t, &cam(), &[a(t)]).unwrap();
+                tr.step(t, &cam(), &[b(t)]).unwrap();
+            }
+            alive = tr.confirmed().iter().map(|k| k.id).collect::<Vec<_>>();
+        }
+        alive
+    };
+    assert_eq!(run(0.5), vec![1, 2]);
+    assert!(
+        run(0.9).len() < 2,
+        "P_D 0.9 kept both: the test shows nothing"
+    );
+    assert!(jipda_tracker().set_detection_probability(1.0).is_err());
+}
