@@ -54,10 +54,6 @@ pub struct DemoArgs {
     /// Track filter: ekf, cdkf, imm or cimm (road-constrained IMM on the demo's road).
     #[arg(long, short, default_value = "cimm")]
     pub estimator: String,
-    /// Associator: gnn (global nearest neighbour), jipda or mht (`harrier estimators`); the page
-    /// changes it at run time.
-    #[arg(long, default_value = "gnn")]
-    pub associator: String,
     /// The GCS link the simulated UAVs send their MAVLink to (PX4's UDP 14550).
     #[arg(long, default_value = "udpin:127.0.0.1:14550")]
     pub gcs: String,
@@ -186,7 +182,6 @@ impl Default for DemoConfig {
             fleet: Vec::new(),
             record: None,
             estimator: "cimm".into(),
-            associator: "gnn".into(),
             gcs: "udpin:127.0.0.1:14550".into(),
             router: vec![
                 "udpin:127.0.0.1:14551".into(),
@@ -341,17 +336,6 @@ pub fn server_config(config: &DemoConfig, scenario: &SimScenario) -> Config {
         .tracker
         .estimator
         .clone_from(&config.estimator);
-    server_config
-        .tracker
-        .associator
-        .clone_from(&config.associator);
-    // Each camera is slaved to one car: it sees that car's track with its P_D and none of the
-    // other cars', so over the cars' tracks its scans detect P_D / cars of them.
-    let cars = scenario.targets.len().max(1) as f64;
-    for s in &scenario.sensors {
-        let pd = (s.pd / cars).clamp(0.01, 1.0);
-        server_config.tracker.pd.insert(s.id.clone(), pd);
-    }
     server_config.tracker.roads.clone_from(&scenario.roads);
     server_config
         .guidance

@@ -31,6 +31,6 @@ pub use region::{CHI2_95_2, CHI2_95_3, Ellipse, Ellipsoid};
 pub use replay::{BuildFn, EstimatorInfo, Params, Q_PARAM, ReplayEstimator, Step};
 pub use track::{
     AssociatorBuildFn, AssociatorInfo, BiasTermView, Deployment, Handover, RegisteredSensor,
-    ScanOutcome, ScanSource, SensorBiasView, SensorPdView, SensorScan, TrackEngine,
-    TrackFilterBuildFn, TrackFilterInfo, TrackStatus, TrackView,
+    ScanOutcome, ScanSource, SensorBiasView, SensorScan, TrackEngine, TrackFilterBuildFn,
+    TrackFilterInfo, TrackStatus, TrackView,
 };

@@ -25,19 +25,14 @@ pub struct Deployment {
     pub roads: Vec<Road>,
     /// Nominal scan period (s): CIMM's road velocity noise is a road's σ over it.
     pub scan_period_s: f64,
-    /// The sensors whose scans feed the tracker (≥ 1). Sensors that scan at different times
-    /// each count a look for M-of-N and misses, so the default `misses` is 5 per sensor. The live service, whose
+    /// The sensors whose scans feed the tracker (≥ 1). Every sensor's scan counts as a scan for
+    /// M-of-N and misses, so the default `misses` is 5 per sensor. The live service, whose
     /// sensors come and go, counts one.
     pub sensors: u32,
     /// What the sensors are known to do (FORMAT-MULTI.md `detection`): the soft and multi-scan
     /// associators take `P_D` from it, and the clutter density of planar `position` scans
     /// (`clutter_rate` over the region's area).
     pub detection: Option<DetectionSpec>,
-    /// The detection probabilities `P_D` known beforehand of some sensors, by `vehicle/sensor`
-    /// or by sensor id (`[tracker.pd]`, a scenario's `detection.sensors`). Every other sensor
-    /// takes `--param pd` or `detection.pd` when given, else its estimate from its scans
-    /// ([`harrier_core::tracker::PdEstimate`]).
-    pub sensor_pd: std::collections::BTreeMap<String, f64>,
     /// Live sensor registration: the sensors whose biases the tracker estimates jointly with
     /// its tracks ([`RegisteredSensor`]); empty: off (no bias is estimated, no work is done).
     pub registration: Vec<RegisteredSensor>,
@@ -56,7 +51,6 @@ impl Deployment {
             scan_period_s: 1.0,
             sensors,
             detection: None,
-            sensor_pd: Default::default(),
             registration: Vec::new(),
         }
     }
@@ -135,28 +129,6 @@ pub struct BiasTermView {
     pub observable: bool,
 }
 
-/// A sensor's detection probability `P_D` as the tracker takes it: configured, or estimated
-/// from its scans (harrier-core's `PdEstimate`: the Beta posterior of the confirmed tracks each
-/// scan detected and missed).
-#[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
-pub struct SensorPdView {
-    /// Vehicle label of its scans.
-    pub vehicle: String,
-    /// Sensor id on the vehicle.
-    pub sensor: String,
-    /// The `P_D` the associators (`jipda`, `mht`) and the tracks' existence take for its scans.
-    pub pd: f64,
-    /// Whether `pd` is configured (`[tracker.pd]`, `params.pd`, a scenario's `detection`);
-    /// else it is `estimate`.
-    pub configured: bool,
-    /// The estimate from its scans, `α / (α + β)` (unclamped).
-    pub estimate: f64,
-    /// Its standard deviation.
-    pub estimate_std: f64,
-    /// The trials it rests on: confirmed tracks its scans detected or missed.
-    pub trials: u64,
-}
-
 /// A registered sensor's bias estimate as the live tracker holds it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, utoipa::ToSchema)]
 pub struct SensorBiasView {
@@ -210,11 +182,6 @@ impl From<&Scenario> for Deployment {
             scan_period_s: sc.time.dt,
             sensors: u32::try_from(sc.sensors.len().max(1)).unwrap_or(u32::MAX),
             detection: sc.detection.clone(),
-            sensor_pd: sc
-                .detection
-                .as_ref()
-                .map(|d| d.sensors.clone())
-                .unwrap_or_default(),
             registration: Vec::new(),
         }
     }
@@ -391,11 +358,6 @@ pub trait TrackEngine: Send + std::fmt::Debug {
     fn bias_est(&self) -> serde_json::Map<String, serde_json::Value> {
         serde_json::Map::new()
     }
-    /// Every sensor's detection probability as the tracker takes it, by `vehicle/sensor`
-    /// (empty for an engine with no associator, or before any scan).
-    fn detection_probabilities(&self) -> Vec<SensorPdView> {
-        Vec::new()
-    }
     /// Every live track, tentative and confirmed, in id order: for a start, or after
     /// [`adopt`](Self::adopt); after each scan, [`ScanOutcome::apply`] keeps such a list up to
     /// date.
@@ -428,9 +390,6 @@ pub struct Handover {
     pub dim: usize,
     /// Record, mean and covariance of each track.
     pub tracks: Vec<(harrier_core::tracker::Track<()>, Vec<f64>, Vec<f64>)>,
-    /// The sensors' `P_D` estimates so far, by `vehicle/sensor`: a change of associator keeps
-    /// what the scans taught.
-    pub pd: std::collections::BTreeMap<String, harrier_core::tracker::PdEstimate>,
 }
 
 /// Builds the track engine of a track filter for a deployment, with an associator.

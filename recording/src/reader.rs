@@ -57,17 +57,7 @@ pub struct SessionInfo {
 /// Why a session file or session cannot be read or exported. Messages name the file and session.
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
-    /// There is no such file.
-    #[error(
-        "{}: cannot open: no such file (a session file is what `harrier serve` records into with \
-         `[recorder] path`, or `harrier demo --record FILE`)",
-        path.display()
-    )]
-    Missing {
-        /// The file.
-        path: PathBuf,
-    },
-    /// SQLite cannot open the file.
+    /// The file does not exist or SQLite cannot open it.
     #[error("{}: cannot open: {source}", path.display())]
     Open {
         /// The file.
@@ -145,9 +135,7 @@ impl<'a> Db<'a> {
             source,
         };
         if !path.is_file() {
-            return Err(SessionError::Missing {
-                path: path.to_path_buf(),
-            });
+            return Err(open(rusqlite::Error::InvalidPath(path.to_path_buf())));
         }
         let conn = Connection::open_with_flags(
             path,

@@ -390,11 +390,8 @@ impl Scenario {
 /// `detection` block of a multi-target `scenario.json` (FORMAT-MULTI.md §1): what the sensors are known to do.
 #[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
 pub struct DetectionSpec {
-    /// Probability of detecting a target in one scan (of every sensor `sensors` does not list).
+    /// Probability of detecting a target in one scan.
     pub pd: f64,
-    /// The sensors whose probability of detection differs from `pd`, by sensor id.
-    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
-    pub sensors: std::collections::BTreeMap<String, f64>,
     /// Mean number of clutter detections per scan and sensor (Poisson).
     #[serde(default)]
     pub clutter_rate: f64,

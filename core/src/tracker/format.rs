@@ -76,22 +76,6 @@ impl MultiScenario {
                     "detection.pd must be in (0, 1] and clutter_rate ≥ 0",
                 ));
             }
-            for (id, pd) in &d.sensors {
-                if !(*pd > 0.0 && *pd <= 1.0) {
-                    return Err(err(
-                        f,
-                        None,
-                        format!("detection.sensors.{id} (its P_D) must be in (0, 1], got {pd}"),
-                    ));
-                }
-                if !scenario.sensors.iter().any(|s| &s.id == id) {
-                    return Err(err(
-                        f,
-                        None,
-                        format!("detection.sensors names {id:?}, which is no sensor of sensors"),
-                    ));
-                }
-            }
         }
         let measurements = parse_measurements(measurements_jsonl, &scenario)?;
         let (scans, skipped_nonfinite) =

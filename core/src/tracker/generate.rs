@@ -418,7 +418,6 @@ impl Doc {
             },
             detection: Some(DetectionSpec {
                 pd: self.pd,
-                sensors: Default::default(),
                 clutter_rate: self.clutter_rate,
                 region: Some(self.region),
             }),

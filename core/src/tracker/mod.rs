@@ -57,7 +57,6 @@
 pub mod assign;
 mod associate;
 mod delete;
-pub mod detection_probability;
 pub mod ehm;
 pub mod existence;
 mod filter;
@@ -79,7 +78,6 @@ pub use associate::{
     hypothesise_scan,
 };
 pub use delete::{DeleteReason, Deleter};
-pub use detection_probability::PdEstimate;
 pub use existence::Existence;
 pub use filter::{CimmFilter, GaussianFilter, ImmFilter, TrackFilter};
 pub use gate::DetectionIndex;

@@ -201,43 +201,7 @@ pub struct Tracker<F: TrackFilter<N>, I, const N: usize> {
     stats: AssociationStats,
     /// The tracks' update logs, when late scans are retrodicted.
     retro: Option<Retrodiction<F::State>>,
-    /// Time of the first scan of the current look.
-    look_start: Option<f64>,
-    /// Scans less than this (s) after a look's first scan belong to that look.
-    look_window: f64,
 }
-
-/// Where a scan falls among the **looks**: the scans of several sensors at one time (within the
-/// tracker's look window) are one look at the targets, so they count once for M-of-N and the
-/// miss count, and a track is confirmed only once detections of two looks — two times — are
-/// behind it, so that its velocity comes from motion between them and not from its prior.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub(super) struct Look {
-    /// The scan starts a new look.
-    pub(super) new: bool,
-    /// Time of the look's first scan.
-    pub(super) start: f64,
-}
-
-impl Look {
-    /// Whether a track last detected at `last_update` was detected in this look already.
-    pub(super) fn seen(&self, last_update: f64) -> bool {
-        last_update >= self.start
-    }
-
-    /// What a look adds to a count of looks (scans, misses): 1 for a new look's scan, else 0.
-    pub(super) fn count(&self) -> u32 {
-        u32::from(self.new)
-    }
-
-    /// What a detection adds to a track's hits: 1 unless the look detected it already.
-    pub(super) fn hit(&self, last_update: f64) -> u32 {
-        u32::from(!self.seen(last_update))
-    }
-}
-
-/// Detections of this many looks confirm a track at the earliest (a velocity needs two times).
-pub(super) const CONFIRM_LOOKS: u32 = 2;
 
 impl<F, I, const N: usize> Tracker<F, I, N>
 where
@@ -256,23 +220,7 @@ where
             t: None,
             stats: AssociationStats::default(),
             retro: None,
-            look_start: None,
-            look_window: 0.0,
         }
-    }
-
-    /// Scans less than `window` seconds after the first scan of a look belong to that look (0,
-    /// the default: only scans at the same time): the scans of several sensors at one time,
-    /// stamped by clocks that differ by a little, count as one look ([`Tracker::step`]). Fails
-    /// unless `window` is finite and ≥ 0.
-    pub fn set_look_window(&mut self, window: f64) -> Result<()> {
-        if !(window.is_finite() && window >= 0.0) {
-            return Err(EstimationError::InvalidParameter(format!(
-                "the look window must be ≥ 0 s, got {window}"
-            )));
-        }
-        self.look_window = window;
-        Ok(())
     }
 
     /// Time of the last scan.
@@ -311,34 +259,6 @@ where
         }
     }
 
-    /// Sets the detection probability `P_D` the soft and multi-scan associators (and so the
-    /// tracks' existence) assume for the next scans; no effect under GNN. A caller whose sensors
-    /// differ (a camera that sees one of two cars, a radar) sets each sensor's before its scan
-    /// ([`PdEstimate`](super::PdEstimate) estimates it online). Fails, changing nothing, unless
-    /// `pd` is in (0, 1).
-    pub fn set_detection_probability(&mut self, pd: f64) -> Result<()> {
-        if !(pd > 0.0 && pd < 1.0) {
-            return Err(EstimationError::InvalidParameter(format!(
-                "P_D must be in (0, 1), got {pd}"
-            )));
-        }
-        match &mut self.config.association {
-            Association::Gnn => {}
-            Association::Jipda(j) => j.detection.pd = pd,
-            Association::Mht(m) => m.detection.pd = pd,
-        }
-        Ok(())
-    }
-
-    /// The detection probability the associator assumes now (`None` under GNN).
-    pub fn detection_probability(&self) -> Option<f64> {
-        match &self.config.association {
-            Association::Gnn => None,
-            Association::Jipda(j) => Some(j.detection.pd),
-            Association::Mht(m) => Some(m.detection.pd),
-        }
-    }
-
     /// Every live track after the last scan, tentative and confirmed, in id order.
     pub fn snapshot(&self) -> Vec<TrackSnapshot<N>> {
         let t = self.t.unwrap_or(0.0);
@@ -368,15 +288,8 @@ where
     /// Processes one scan of one sensor: all its detections at time `t`, clutter included, under
     /// the sensor model `sensor` (which carries the platform position and the noise). Scans of
     /// several sensors at the same `t` are processed one after the other with no prediction
-    /// between them. They are one **look** (as are scans within the look window of the look's
-    /// first, [`Tracker::set_look_window`]): a track's M-of-N (its scans and hits) and miss
-    /// counts count looks, a look that detects a track in any of its scans is a hit, and a track
-    /// is confirmed (by its existence, or by M-of-N with M ≥ 2) only once detections of two
-    /// looks are behind it, so a track is never confirmed from one burst of same-time scans with the
-    /// velocity of its prior. Each scan still updates the existence (JIPDA, MHT) with its own
-    /// likelihood ratio: given the target, the sensors' detections are independent evidence,
-    /// and a sensor that cannot see a track has a `P_D` that says so
-    /// ([`Tracker::set_detection_probability`]).
+    /// between them. Every scan counts towards the M-of-N and miss counts (and the existence) of
+    /// every track.
     ///
     /// Fails, leaving the tracker untouched, when `t` is not finite or earlier than the last scan,
     /// or a detection is not finite. A numerical failure inside one track does not fail the scan:
@@ -401,21 +314,13 @@ where
             return Err(EstimationError::NonFinite("detection"));
         }
         let dt = self.t.map_or(0.0, |t0| t - t0);
-        let look = match self.look_start {
-            Some(start) if t - start <= self.look_window => Look { new: false, start },
-            _ => Look {
-                new: true,
-                start: t,
-            },
-        };
         self.forget_scan();
         let events = match self.config.association {
-            Association::Mht(m) => self.step_mht(&m, t, dt, look, sensor, detections)?,
-            _ => self.step_single(t, dt, look, sensor, detections)?,
+            Association::Mht(m) => self.step_mht(&m, t, dt, sensor, detections)?,
+            _ => self.step_single(t, dt, sensor, detections)?,
         };
         self.stats.scans += 1;
         self.t = Some(t);
-        self.look_start = Some(look.start);
         Ok(events)
     }
 

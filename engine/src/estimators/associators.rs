@@ -219,7 +219,6 @@ mod tests {
         Deployment {
             detection: clutter_rate.map(|clutter_rate| DetectionSpec {
                 pd: 0.9,
-                sensors: Default::default(),
                 clutter_rate,
                 region: None,
             }),

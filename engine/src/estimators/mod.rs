@@ -17,7 +17,6 @@ pub mod multi_target;
 pub mod obe;
 pub mod registrar;
 pub mod registration;
-pub mod sensor_pd;
 
 use harrier_core::EstimationError;
 use harrier_core::filter::{Extended, Imm, ModeModel, NonlinearFilter};

@@ -20,18 +20,16 @@ use harrier_core::road::RoadNetwork;
 use harrier_core::scenario::{Estimate, Measurement, Scenario};
 use harrier_core::tracker::{
     Association, AssociationStats, CimmFilter, Deleter, Gater, GaussianFilter, ImmFilter, MOfN,
-    SinglePointInitiator, TrackEvent, TrackFilter, TrackSnapshot, TrackStatus as CoreStatus,
-    Tracker, TrackerConfig,
+    SinglePointInitiator, TrackFilter, TrackSnapshot, Tracker, TrackerConfig,
 };
 use serde_json::{Value, json};
 
 use super::registrar::{Registrar, registrar};
-use super::sensor_pd::SensorPds;
 use super::{count, cv_estimate, geometry, imm_of, known_object, mode_models, model_for};
 use crate::{
     Deployment, EngineError, EstimatorInfo, Handover, Params, Q_PARAM, ReplayEstimator,
-    ScanOutcome, ScanSource, SensorBiasView, SensorPdView, SensorScan, Step, TrackEngine,
-    TrackFilterInfo, TrackView, setup,
+    ScanOutcome, ScanSource, SensorBiasView, SensorScan, Step, TrackEngine, TrackFilterInfo,
+    TrackView, setup,
 };
 use harrier_core::state::Gaussian;
 use nalgebra::{SMatrix, SVector};
@@ -79,11 +77,6 @@ pub fn replay_tracker(
 const BANK_2D: usize = 16;
 const BANK_3D: usize = 18;
 
-/// The default look window (s, `--param look`): the scans of several vehicles of one time,
-/// placed on the server's time line by clock estimates that differ by milliseconds, are one look;
-/// a sensor's consecutive scans at up to 20 Hz are not.
-const LOOK_S: f64 = 0.05;
-
 type Ekf<const N: usize> = GaussianFilter<Extended, ConstantVelocity<N>>;
 
 /// The tracker's tuning, shared by every track filter and the replay estimator `tracker`.
@@ -102,19 +95,11 @@ const TRACKER_PARAMS: &[(&str, &str)] = &[
         "tentative_gate",
         "gate probability of tentative tracks (default 0.95)",
     ),
-    (
-        "m",
-        "confirmation: M looks that detect the track … (default 2)",
-    ),
-    ("n", "… within its first N looks (default 4)"),
+    ("m", "confirmation: M hits … (default 2)"),
+    ("n", "… within the first N scans (default 4)"),
     (
         "misses",
-        "consecutive missed looks that delete a confirmed track (default 5 per sensor)",
-    ),
-    (
-        "look",
-        "scans less than this after a look's first scan are one look, s: several sensors' \
-         scans of one time count once for M-of-N and misses (default 0.05)",
+        "consecutive missed scans that delete a confirmed track (default 5 per sensor)",
     ),
     (
         "max_pos_var",
@@ -261,43 +246,9 @@ struct MultiTargetEngine<F: TrackFilter<N>, const N: usize> {
     position_clutter: Option<f64>,
     /// Live sensor registration, when the deployment has it.
     registrar: Option<Registrar<N>>,
-    /// Each sensor's `P_D`, configured or estimated from its scans.
-    pds: SensorPds,
 }
 
 impl<F: TrackFilter<N>, const N: usize> MultiTargetEngine<F, N> {
-    /// Runs `step` on the scan `scan` of `vehicle/sensor` with the sensor's clutter density
-    /// and `P_D`, then counts what the scan did to the confirmed tracks into the sensor's `P_D`
-    /// estimate (a scan in time order only: a late one is retrodicted into tracks whose
-    /// record has moved on). Returns the step's events.
-    fn ingest_as(
-        &mut self,
-        scan: &SensorScan,
-        vehicle: &str,
-        sensor: &str,
-        step: impl FnOnce(
-            &mut Tracker<F, SinglePointInitiator, N>,
-            Option<&mut Registrar<N>>,
-        ) -> Result<Vec<TrackEvent>, EngineError>,
-    ) -> Result<Vec<TrackEvent>, EngineError> {
-        self.tracker.set_clutter_density(self.clutter_density(scan));
-        self.tracker
-            .set_detection_probability(self.pds.pd(vehicle, sensor))?;
-        let in_order = self.tracker.time().is_none_or(|t| scan.t >= t);
-        let confirmed: Vec<u64> = self
-            .tracker
-            .tracks()
-            .iter()
-            .filter(|k| k.status == CoreStatus::Confirmed)
-            .map(|k| k.id)
-            .collect();
-        let events = step(&mut self.tracker, self.registrar.as_mut())?;
-        if in_order {
-            self.pds.observe(vehicle, sensor, &confirmed, &events);
-        }
-        Ok(events)
-    }
-
     /// The clutter density of `scan`'s association (`None`: estimated from the scan).
     fn clutter_density(&self, scan: &SensorScan) -> Option<f64> {
         let planar_position = matches!(scan.sensor, SensorModel::Position2(_));
@@ -342,7 +293,7 @@ where
         ));
     }
     let init = SinglePointInitiator::new(p.get("vel_std", 12.0), p.get("up_std", 50.0))?;
-    // Every look (the sensors' scans of one time) counts for M-of-N and misses.
+    // Every sensor's scan counts as a scan for M-of-N and misses.
     let config = TrackerConfig {
         gater: Gater::chi2(p.get("gate", 0.999), 2)?,
         tentative_gater: Gater::chi2(p.get("tentative_gate", 0.95), 2)?,
@@ -354,15 +305,12 @@ where
         )?,
         association,
     };
-    let mut tracker = Tracker::new(filter, init, config);
-    tracker.set_look_window(p.get("look", LOOK_S))?;
     Ok(Box::new(MultiTargetEngine {
-        tracker,
+        tracker: Tracker::new(filter, init, config),
         plane_z: d.plane_z,
         clutter_param: p.opt("clutter_density"),
         position_clutter: d.ground_clutter_density(),
         registrar,
-        pds: SensorPds::new(d, p)?,
     }))
 }
 
@@ -371,12 +319,10 @@ where
     F: TrackFilter<N> + Send + std::fmt::Debug,
     F::State: Send,
 {
-    /// A scan of no named source: one sensor, `/`.
     fn ingest(&mut self, scan: &SensorScan) -> Result<ScanOutcome, EngineError> {
-        let events = self.ingest_as(scan, "", "", |tracker, _| {
-            let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
-            Ok(tracker.step_any(scan.t, &scan.sensor, &dets)?)
-        })?;
+        self.tracker.set_clutter_density(self.clutter_density(scan));
+        let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
+        let events = self.tracker.step_any(scan.t, &scan.sensor, &dets)?;
         // `Tracker::step` changes every track it keeps: `scans` + 1 (the view's `age`), the time
         // (`t`), the prediction to it, then the update or the miss. So the changed views are all
         // the live ones (the deleted are gone from the tracker).
@@ -391,26 +337,16 @@ where
         scan: &SensorScan,
         source: &ScanSource<'_>,
     ) -> Result<ScanOutcome, EngineError> {
-        let events = self.ingest_as(
-            scan,
-            source.vehicle,
-            source.sensor,
-            |tracker, reg| match reg {
-                Some(reg) => reg.step(tracker, scan, source),
-                None => {
-                    let dets: Vec<&[f64]> = scan.detections.iter().map(Vec::as_slice).collect();
-                    Ok(tracker.step_any(scan.t, &scan.sensor, &dets)?)
-                }
-            },
-        )?;
+        let density = self.clutter_density(scan);
+        let Some(reg) = self.registrar.as_mut() else {
+            return self.ingest(scan);
+        };
+        self.tracker.set_clutter_density(density);
+        let events = reg.step(&mut self.tracker, scan, source)?;
         Ok(ScanOutcome {
             events,
             changed: self.snapshot(),
         })
-    }
-
-    fn detection_probabilities(&self) -> Vec<SensorPdView> {
-        self.pds.views()
     }
 
     fn biases(&self) -> Vec<SensorBiasView> {
@@ -464,7 +400,6 @@ where
                     (r, s.estimate.mean.as_slice().to_vec(), cov)
                 })
                 .collect(),
-            pd: self.pds.estimates().clone(),
         }
     }
 
@@ -476,7 +411,6 @@ where
             )));
         }
         let Some(t) = h.t else {
-            self.pds.adopt(&h.pd);
             return Ok(());
         };
         let mut tracks = Vec::with_capacity(h.tracks.len());
@@ -493,9 +427,7 @@ where
             )?;
             tracks.push((record.clone(), g));
         }
-        self.tracker.adopt(t, &tracks)?;
-        self.pds.adopt(&h.pd);
-        Ok(())
+        Ok(self.tracker.adopt(t, &tracks)?)
     }
 
     fn association(&self) -> AssociationStats {

@@ -64,11 +64,6 @@ impl Config {
         if t.queue == 0 {
             return bad("tracker.queue must be ≥ 1".into());
         }
-        if let Some((sensor, pd)) = t.pd.iter().find(|(_, pd)| !(**pd > 0.0 && **pd <= 1.0)) {
-            return bad(format!(
-                "tracker.pd.{sensor:?} (a detection probability) must be in (0, 1], got {pd}"
-            ));
-        }
         if let Some(p) = deployment_problem(&t.motion, &t.roads) {
             return bad(p);
         }

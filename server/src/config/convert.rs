@@ -59,7 +59,6 @@ impl Config {
             scan_period_s: t.scan_period_s,
             sensors: 1,
             detection: None,
-            sensor_pd: t.pd.clone(),
             // Checked by `Config::check` (a configuration built in code with a bad block runs
             // without registration).
             registration: self.registration.registered().unwrap_or_default(),

@@ -249,14 +249,8 @@ pub struct TrackerConfig {
     /// The associator (`gnn`, `jipda`, `mht`; `GET /api/v1/estimators`), with any track filter;
     /// `PUT /api/v1/estimator` changes it too.
     pub associator: String,
-    /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value. `pd` gives
-    /// every sensor that one detection probability.
+    /// Track filter parameters (`q`, `gate`, `m`, `n`, `misses`, …), name = value.
     pub params: std::collections::BTreeMap<String, f64>,
-    /// The detection probability `P_D` of sensors known beforehand, in (0, 1], by
-    /// `"vehicle/sensor"` or sensor id (`[tracker.pd]`, e.g. `cam = 0.5`): what the `jipda` and
-    /// `mht` associators and the tracks' existence assume for their scans. Every other sensor's
-    /// is `params.pd` when given, else estimated from its scans (`GET /api/v1/detection`).
-    pub pd: std::collections::BTreeMap<String, f64>,
     /// Scans are held this long (s of scan time) so that scans of several vehicles arriving out
     /// of order are processed in time order.
     pub reorder_window_s: f64,
@@ -416,7 +410,6 @@ impl Default for TrackerConfig {
             estimator: "ekf".into(),
             associator: "gnn".into(),
             params: Default::default(),
-            pd: Default::default(),
             reorder_window_s: 0.1,
             late_lag_s: 2.0,
             scan_period_s: 1.0,

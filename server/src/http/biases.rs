@@ -1,6 +1,5 @@
 //! `GET /biases`: the registered sensors' bias estimates of live sensor registration
-//! (`[registration]`); `GET /detection`: every sensor's detection probability (`[tracker.pd]`, or
-//! estimated from its scans).
+//! (`[registration]`).
 
 use axum::extract::State;
 use axum::routing::get;
@@ -9,21 +8,16 @@ use utoipa::OpenApi;
 
 use super::error::ErrorBody;
 use super::state::{ApiState, Tracking};
-use harrier_engine::{BiasTermView, SensorBiasView, SensorPdView};
+use harrier_engine::{BiasTermView, SensorBiasView};
 
-/// The routes of this file.
+/// The route of this file.
 pub(super) fn routes() -> Router<ApiState> {
-    Router::new()
-        .route("/biases", get(biases))
-        .route("/detection", get(detection))
+    Router::new().route("/biases", get(biases))
 }
 
-/// The OpenAPI paths of this file.
+/// The OpenAPI path of this file.
 #[derive(Debug, OpenApi)]
-#[openapi(
-    paths(biases, detection),
-    components(schemas(SensorBiasView, BiasTermView, SensorPdView))
-)]
+#[openapi(paths(biases), components(schemas(SensorBiasView, BiasTermView)))]
 pub(super) struct Doc;
 
 /// Every registered sensor's bias terms: each term's estimate, standard deviation and whether
@@ -37,21 +31,6 @@ pub(super) struct Doc;
     security((), ("bearer" = [])))]
 async fn biases(State(s): State<Tracking>) -> Json<Vec<SensorBiasView>> {
     Json(s.snapshot.borrow().biases.to_vec())
-}
-
-/// Every sensor's (`vehicle/sensor`'s) detection probability `P_D` as the tracker takes it for
-/// its scans under the `jipda` and `mht` associators and the tracks' existence: configured
-/// (`[tracker.pd]`, `params.pd`), else estimated from its scans — the Beta posterior of the
-/// confirmed tracks each scan detected and missed — beside the estimate and the trials it rests
-/// on. Empty before the first scan. Refreshed at most every 0.5 s of scan time.
-#[utoipa::path(get, path = "/api/v1/detection", tag = "tracks",
-    responses(
-        (status = 200, body = [SensorPdView]),
-        (status = 401, description = "Reads need the token", body = ErrorBody),
-    ),
-    security((), ("bearer" = [])))]
-async fn detection(State(s): State<Tracking>) -> Json<Vec<SensorPdView>> {
-    Json(s.snapshot.borrow().detection.to_vec())
 }
 
 #[cfg(test)]
@@ -164,62 +143,5 @@ mod tests {
             panic!("{k}");
         };
         assert!((tx - x).hypot(ty - y) < 5.0, "{k}");
-    }
-
-    /// Under JIPDA, vehicle 1's camera (configured `P_D` 0.7) sees a standing target in every
-    /// scan, vehicle 2's (not configured) in one scan of three: `GET /api/v1/detection` shows
-    /// the first as configured and the second estimated near 1/3, and the track lives on.
-    #[tokio::test]
-    async fn each_sensor_has_its_detection_probability_configured_or_estimated() {
-        let mut config = Config::default();
-        config.tracker.associator = "jipda".into();
-        config.tracker.pd.insert("1/cam".into(), 0.7);
-        config.check().expect("valid");
-        let app = TestApp::with_config(&config, 256);
-        assert_eq!(app.get("/api/v1/detection").await.json(), json!([]));
-        let cam = Sensor {
-            id: "cam",
-            kind: MeasKind::Position,
-            platform: [0.0, 0.0, 50.0],
-            noise_std: &[2.0, 2.0],
-        };
-        let (x, y) = (300.0, 400.0);
-        for k in 0..150 {
-            let t = f64::from(k);
-            app.scan_of(1, &cam, t, vec![vec![x, y]]).await;
-            let seen = if k % 3 == 0 {
-                vec![vec![x, y]]
-            } else {
-                Vec::new()
-            };
-            app.scan_of(2, &cam, t + 0.5, seen).await;
-        }
-        let list = app.get("/api/v1/detection").await.json();
-        let of = |v: &str| {
-            list.as_array()
-                .and_then(|l| l.iter().find(|s| s["vehicle"] == v && s["sensor"] == "cam"))
-                .unwrap_or_else(|| panic!("no {v}/cam in {list}"))
-                .clone()
-        };
-        let (one, two) = (of("1"), of("2"));
-        assert_eq!(
-            (&one["pd"], &one["configured"]),
-            (&json!(0.7), &json!(true)),
-            "{one}"
-        );
-        assert!(one["estimate"].as_f64().is_some_and(|e| e > 0.95), "{one}");
-        assert_eq!(two["configured"], false, "{two}");
-        let pd = two["pd"].as_f64().unwrap_or(f64::NAN);
-        assert!((pd - 1.0 / 3.0).abs() < 0.1, "{two}");
-        assert_eq!(two["pd"], two["estimate"], "{two}");
-        assert!(two["trials"].as_u64().is_some_and(|n| n > 100), "{two}");
-        let tracks = app.get("/api/v1/tracks").await.json();
-        assert_eq!(
-            tracks["tracks"].as_array().map(Vec::len),
-            Some(1),
-            "{tracks}"
-        );
-        let spec = app.get("/api/openapi.json").await.json();
-        assert!(spec["paths"]["/api/v1/detection"]["get"].is_object());
     }
 }

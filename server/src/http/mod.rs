@@ -6,7 +6,7 @@
 //! |---|---|
 //! | `GET /tracks[?all=true]`, `GET /tracks/{id}`, `GET /detections[?since=seq]` | [`tracks`] |
 //! | `GET`/`PUT /estimator`, `GET /estimators` | [`estimator`] |
-//! | `GET /biases`, `GET /detection` | [`biases`] |
+//! | `GET /biases` | [`biases`] |
 //! | `GET /vehicles`, `GET /vehicles/{id}`, `POST /vehicles/{id}/commands`, `POST /vehicles/{id}/accept` | [`vehicles`] |
 //! | `GET`/`POST /assignments`, `GET`/`DELETE /assignments/{id}`, `POST /assignments/{id}/vehicles/{vehicle}/resume` | [`assignments`] |
 //! | `GET /truth`, `GET /world`, `GET /aircraft` | [`world`] |
@@ -371,7 +371,6 @@ mod tests {
             "assignments/{id}",
             "assignments/{id}/vehicles/{vehicle}/resume",
             "biases",
-            "detection",
             "detections",
             "estimator",
             "estimators",

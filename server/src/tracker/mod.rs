@@ -33,8 +33,8 @@ use super::gcs::vehicle::LinkState;
 use super::ingest::ReadyScan;
 use super::metrics::{DropReason, Metrics};
 use harrier_engine::{
-    Deployment, EngineError, Params, ScanOutcome, ScanSource, SensorBiasView, SensorPdView,
-    TrackEngine, TrackStatus, TrackView,
+    Deployment, EngineError, Params, ScanOutcome, ScanSource, SensorBiasView, TrackEngine,
+    TrackStatus, TrackView,
 };
 
 /// Scans kept for `GET /api/v1/detections`.
@@ -147,9 +147,6 @@ pub struct TrackerActor {
     /// The bias estimates and the scan time of their last refresh (registration only).
     biases: Arc<Vec<SensorBiasView>>,
     biases_t: Option<f64>,
-    /// The sensors' detection probabilities and the scan time of their last refresh.
-    detection: Arc<Vec<SensorPdView>>,
-    detection_t: Option<f64>,
     /// The MAVLink link's vehicles (their GPS positions), once `Command::References` gave them.
     link_vehicles: Option<watch::Receiver<Arc<Vec<VehicleSample>>>>,
 }
@@ -209,8 +206,6 @@ impl TrackerActor {
             bounds: None,
             biases,
             biases_t: None,
-            detection: Arc::default(),
-            detection_t: None,
             link_vehicles: None,
         }
     }
@@ -368,7 +363,6 @@ impl TrackerActor {
             }
         }
         let biases = self.refresh_biases(now);
-        self.refresh_detection(now);
         let scan = Arc::new(ScanEvents {
             biases,
             seq: self.seq,
@@ -440,19 +434,6 @@ impl TrackerActor {
         Some(Arc::clone(&self.biases))
     }
 
-    /// The sensors' detection probabilities, refreshed when [`BIAS_PERIOD_S`] of scan time
-    /// passed since the last refresh (at `t`; or the time went back, after a change of engine).
-    fn refresh_detection(&mut self, t: f64) {
-        if self
-            .detection_t
-            .is_some_and(|last| (0.0..BIAS_PERIOD_S).contains(&(t - last)))
-        {
-            return;
-        }
-        self.detection_t = Some(t);
-        self.detection = Arc::new(self.engine.detection_probabilities());
-    }
-
     fn publish(&self, t: Option<f64>, tracks: Arc<Vec<TrackView>>) {
         self.snapshot.send_replace(Arc::new(Snapshot {
             t,
@@ -462,7 +443,6 @@ impl TrackerActor {
             vehicles: Arc::new(self.vehicles.values().map(Arc::clone).collect()),
             estimator: Arc::clone(&self.estimator),
             biases: Arc::clone(&self.biases),
-            detection: Arc::clone(&self.detection),
         }));
     }
 
@@ -492,8 +472,6 @@ impl TrackerActor {
         // The new engine's bank starts from the priors: refreshed at the next scan.
         self.biases = Arc::new(self.engine.biases());
         self.biases_t = None;
-        self.detection = Arc::new(self.engine.detection_probabilities());
-        self.detection_t = t;
         self.publish(t, Arc::clone(&self.tracks));
         Ok(to)
     }

@@ -11,7 +11,7 @@ use serde::Serialize;
 
 use super::TrackFilterState;
 use crate::bound::BoundView;
-use harrier_engine::{SensorBiasView, SensorPdView, TrackView};
+use harrier_engine::{SensorBiasView, TrackView};
 
 /// A vehicle as seen in its detections.
 #[derive(Debug, Clone, PartialEq, Serialize, utoipa::ToSchema)]
@@ -48,9 +48,6 @@ pub struct Snapshot {
     /// The registered sensors' bias estimates (`[registration]`; empty when it is off), as of
     /// the last refresh (at most every [`BIAS_PERIOD_S`](super::BIAS_PERIOD_S) of scan time).
     pub biases: Arc<Vec<SensorBiasView>>,
-    /// Each sensor's detection probability, configured or estimated (`[tracker.pd]`), as of
-    /// the last refresh (at most every [`BIAS_PERIOD_S`](super::BIAS_PERIOD_S) of scan time).
-    pub detection: Arc<Vec<SensorPdView>>,
 }
 
 /// One processed scan: what it held and what it did to the tracks.

@@ -540,7 +540,6 @@ mod tests {
                 params: BTreeMap::new(),
             }),
             biases: Arc::new(Vec::new()),
-            detection: Arc::new(Vec::new()),
         };
         let frame = TracksFrame {
             origin: DEFAULT_ORIGIN,

@@ -4,7 +4,7 @@
 
 use nalgebra::SVector;
 
-use super::{CONFIRM_LOOKS, Look, Track, TrackEvent, TrackStatus, Tracker};
+use super::{Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
 use crate::state::{Gaussian, moment_match};
@@ -29,7 +29,6 @@ where
         m: &Mht,
         t: f64,
         dt: f64,
-        look: Look,
         sensor: &H,
         detections: &[SVector<f64, M>],
     ) -> Result<Vec<TrackEvent>>
@@ -76,7 +75,7 @@ where
             trees.push(Tree {
                 leaves,
                 chosen: chosen.unwrap_or(0),
-                scans: tree.scans + look.count(),
+                scans: tree.scans + 1,
                 ..tree.clone()
             });
         }
@@ -116,7 +115,7 @@ where
                         score: leaf.score + (1.0 - pdpg).ln(),
                         existence: (1.0 - pdpg) * psi / (1.0 - pdpg * psi),
                         window,
-                        consecutive_misses: leaf.consecutive_misses + look.count(),
+                        consecutive_misses: leaf.consecutive_misses + 1,
                         reported: li == tree.chosen,
                         ..leaf.clone()
                     },
@@ -144,7 +143,7 @@ where
                             score: leaf.score + ln_ratio,
                             existence: ((1.0 - delta) * psi / (1.0 - delta * psi)).clamp(0.0, 1.0),
                             window,
-                            hits: leaf.hits + look.hit(leaf.last_update),
+                            hits: leaf.hits + 1,
                             consecutive_misses: 0,
                             last_update: t,
                             nis: g.distance_sq,
@@ -288,7 +287,6 @@ where
             if tree.status == TrackStatus::Tentative
                 && tree.selected
                 && leaf.existence >= m.existence.confirm
-                && leaf.hits >= CONFIRM_LOOKS
             {
                 tree.status = TrackStatus::Confirmed;
                 events.push(TrackEvent::Confirmed { id: tree.id });

@@ -4,7 +4,7 @@
 
 use nalgebra::SVector;
 
-use super::{Association, CONFIRM_LOOKS, Jipda, Look, Track, TrackEvent, TrackStatus, Tracker};
+use super::{Association, Jipda, Track, TrackEvent, TrackStatus, Tracker};
 use crate::Result;
 use crate::measurement::{Locate, MeasurementModel};
 use crate::metrics::chi2_quantile;
@@ -33,7 +33,6 @@ where
         &mut self,
         t: f64,
         dt: f64,
-        look: Look,
         sensor: &H,
         detections: &[SVector<f64, M>],
     ) -> Result<Vec<TrackEvent>>
@@ -70,7 +69,7 @@ where
             };
             tracks.push(Track {
                 state,
-                scans: k.scans + look.count(),
+                scans: k.scans + 1,
                 existence,
                 ..k.clone()
             });
@@ -184,7 +183,7 @@ where
                 }
             }
             if let Some(d) = outcome.filter(|_| !failed) {
-                k.hits += look.hit(k.last_update);
+                k.hits += 1;
                 k.consecutive_misses = 0;
                 k.last_update = t;
                 updated = true;
@@ -196,7 +195,7 @@ where
                 });
             }
             if !updated {
-                k.consecutive_misses += look.count();
+                k.consecutive_misses += 1;
                 events.push(TrackEvent::Coasted {
                     id: k.id,
                     misses: k.consecutive_misses,
@@ -321,7 +320,7 @@ where
     }
 
     /// Confirms `k` or says why it goes: M-of-N and misses (GNN) or the existence thresholds
-    /// (JIPDA, once two looks detected it), and the covariance bound (both).
+    /// (JIPDA), and the covariance bound (both).
     fn judge(
         &self,
         k: &mut Track<F::State>,
@@ -334,10 +333,7 @@ where
                 if psi < j.existence.delete {
                     return Some(super::gone_by_existence(k.status));
                 }
-                if k.status == TrackStatus::Tentative
-                    && psi >= j.existence.confirm
-                    && k.hits >= CONFIRM_LOOKS
-                {
+                if k.status == TrackStatus::Tentative && psi >= j.existence.confirm {
                     k.status = TrackStatus::Confirmed;
                     events.push(TrackEvent::Confirmed { id: k.id });
                 }
