@@ -3,7 +3,7 @@
 //! ```not_rust
 //! harrier estimators
 //! harrier serve --config harrier.toml --listen 127.0.0.1:8080
-//! harrier replay ../shared/scenarios/radar_bias_none --estimator cdkf --out estimates.jsonl
+//! harrier replay ../shared/scenarios/radar_bias_none --estimator cdkf --out /tmp/estimates.jsonl
 //! ```
 
 use std::path::PathBuf;
