@@ -32,6 +32,7 @@ pub(super) struct Doc;
 
 /// `?all=…`.
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
 struct TracksQuery {
     /// `true`: tentative tracks too.
     all: Option<bool>,
@@ -116,6 +117,7 @@ async fn track(
 
 /// `?since=…`.
 #[derive(Debug, Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
 struct DetectionsQuery {
     /// Only scans with a larger `seq`.
     since: Option<u64>,

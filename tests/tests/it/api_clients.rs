@@ -15,6 +15,12 @@
 //!   status, content type, header and body as documented;
 //! - afterwards `/metrics` counts the refused requests, and tracking went on.
 //!
+//! `the_openapi_document_is_valid_openapi_3_1`: `GET /api/openapi.json` of a server with every
+//! optional route (GCS link, guidance, recording) through `tests/python/openapi_check.py`: the
+//! OpenAPI Initiative's 3.1 JSON Schema and the checks openapi-spec-validator makes beside it
+//! (path templates and path parameters agree, no repeated parameter or operationId); and the
+//! query parameters `all` and `since` are in the query, optional.
+//!
 //! The clients are installed by `scripts/setup` (httpx, websockets, pytest, schemathesis).
 //!
 //! `a_slow_websocket_client_is_dropped_to_the_latest_snapshot`: two WebSocket clients (Rust,
@@ -31,7 +37,10 @@ use harrier_server::config::{Config, MavlinkConfig, TokenConfig};
 use harrier_sim::embedded::{SimWorld, WorldConfig, WorldVehicle};
 use harrier_sim::sensor_loop::SensorLoopConfig;
 use harrier_sim::setup::SimScenario;
-use harrier_tests::{free_tcp_port, kill_group, require_python_module, wait_with_deadline};
+use harrier_tests::{
+    free_tcp_port, http_get, kill_group, loopback_server, python_json, require_python_module,
+    wait_with_deadline,
+};
 
 const TOKEN: &str = "api-clients-test-token";
 /// A second token of `[[api.tokens]]`, valid until 2100.
@@ -237,6 +246,60 @@ fn python_clients_and_schemathesis_use_the_live_api() {
             .expect("shutdown within 20 s");
     });
     world.stop();
+}
+
+#[test]
+fn the_openapi_document_is_valid_openapi_3_1() {
+    require_python_module("schemathesis", "schemathesis==4.32.5");
+    let recording = tempfile::tempdir().expect("tempdir");
+    let mut config = Config::default();
+    config.recorder.path = recording
+        .path()
+        .join("session.sqlite")
+        .display()
+        .to_string();
+    let (rt, server, _) = loopback_server(config);
+    let (status, body) = http_get(server.local_addr(), "/api/openapi.json");
+    assert_eq!(status, 200, "{body}");
+    let doc: serde_json::Value = serde_json::from_str(&body).expect("JSON");
+    // The routes of the GCS link, the guidance and the recording are in it.
+    for path in [
+        "/api/v1/vehicles",
+        "/api/v1/assignments",
+        "/api/v1/sessions",
+        "/api/v1/tracks",
+    ] {
+        assert!(doc["paths"].get(path).is_some(), "{path} missing");
+    }
+    for (path, name) in [("/api/v1/tracks", "all"), ("/api/v1/detections", "since")] {
+        let params = doc["paths"][path]["get"]["parameters"]
+            .as_array()
+            .unwrap_or_else(|| panic!("{path}: no parameters"));
+        let p = params
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap_or_else(|| panic!("{path}: no {name}"));
+        assert_eq!(p["in"], "query", "{path} {name}: {p}");
+        assert_ne!(p["required"], true, "{path} {name}: {p}");
+    }
+    let file = tempfile::NamedTempFile::new().expect("temp file");
+    std::fs::write(file.path(), &body).expect("write the document");
+    let started = Instant::now();
+    let out = python_json(
+        "openapi_check.py",
+        &[&file.path().display().to_string()],
+        Duration::from_secs(60),
+    );
+    assert_eq!(out["ok"], true, "{out}");
+    eprintln!(
+        "openapi_check.py: {out} in {:.1} s",
+        started.elapsed().as_secs_f64()
+    );
+    rt.block_on(async {
+        tokio::time::timeout(Duration::from_secs(20), server.shutdown())
+            .await
+            .expect("shutdown within 20 s");
+    });
 }
 
 /// A position scan of vehicle 1 at `t` (UNIX s) with `n` detections on a line.
