@@ -9,7 +9,8 @@
 //!   deployment's roads and obstacles.
 //! * [`offline_map`]: a deployment's world for the tile renderer, and the demo's offline map
 //!   (rendered once, cached), which both of the above use.
-//! * [`init_logging`]: the structured logs every subcommand writes.
+//! * [`init_logging`]: the structured logs every subcommand writes; [`error_message`]: an
+//!   error as the commands print it.
 //!
 //! The others: `harrier serve` is [`harrier_server::start`], `harrier replay`, `guidance-sim`,
 //! `gen-multi` and `sessions` are the offline tools of `harrier_tools`, `harrier bench` is
@@ -32,4 +33,60 @@ pub fn init_logging(default: &str) {
         .with_ansi(std::io::stderr().is_terminal())
         .with_writer(std::io::stderr)
         .try_init();
+}
+
+/// `e` and its causes as one message, each text once (an error that quotes its cause, as
+/// thiserror's `{source}` does, would otherwise print it twice), and when an address was taken
+/// (`EADDRINUSE`) what to do: another `harrier demo` or `harrier serve` may hold the port.
+pub fn error_message(e: &anyhow::Error) -> String {
+    let mut message = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !message.contains(&text) {
+            if !message.is_empty() {
+                message.push_str(": ");
+            }
+            message.push_str(&text);
+        }
+    }
+    let taken = e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::AddrInUse)
+    }) || message.contains("os error 98");
+    if taken {
+        message.push_str(
+            "\n  the address is taken: another `harrier demo` or `harrier serve` may be running \
+             (stop it), or choose free ones: `--listen 127.0.0.1:PORT` for the page and the API, \
+             `--gcs udpin:127.0.0.1:PORT` for the GCS link, `--router none` (or other \
+             endpoints) for the MAVLink router",
+        );
+    }
+    message
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("cannot listen on 127.0.0.1:8080: {source}")]
+    struct Bind {
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn a_taken_address_is_said_once_with_what_to_do() {
+        let io = std::io::Error::from(std::io::ErrorKind::AddrInUse);
+        let text = io.to_string();
+        let e = anyhow::Error::new(Bind { source: io });
+        let m = error_message(&e);
+        assert_eq!(m.matches(&text).count(), 1, "{m}");
+        assert!(m.starts_with("cannot listen on 127.0.0.1:8080: "), "{m}");
+        assert!(
+            m.contains("another `harrier demo`") && m.contains("--listen"),
+            "{m}"
+        );
+        let plain = anyhow::anyhow!("no such file").context("sessions.sqlite");
+        assert_eq!(error_message(&plain), "sessions.sqlite: no such file");
+    }
 }

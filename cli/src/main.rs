@@ -124,40 +124,59 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => {
+            // clap would suggest `--cot`, the nearest spelling; the port is in `--listen`.
+            if e.kind() == clap::error::ErrorKind::UnknownArgument
+                && std::env::args().any(|a| a == "--port" || a.starts_with("--port="))
+            {
+                eprintln!(
+                    "error: unexpected argument '--port': the port is part of the address, \
+                     `--listen ADDR:PORT` (e.g. `--listen 127.0.0.1:8081`; port 0: any free \
+                     port)\n\nFor more information, try '--help'."
+                );
+                return ExitCode::from(2);
+            }
+            e.exit()
+        }
+    };
     match cli.command {
         Command::Serve(args) => match run_serve(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier serve: error: {e}");
+                eprintln!("harrier serve: error: {}", harrier_cli::error_message(&e));
                 ExitCode::from(2)
             }
         },
         Command::Demo(args) => match harrier_cli::demo::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier demo: error: {e:#}");
+                eprintln!("harrier demo: error: {}", harrier_cli::error_message(&e));
                 ExitCode::from(2)
             }
         },
         Command::Bench(args) => match run_bench(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier bench: error: {e:#}");
+                eprintln!("harrier bench: error: {}", harrier_cli::error_message(&e));
                 ExitCode::from(2)
             }
         },
         Command::Tiles(args) => match harrier_cli::tiles::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier tiles: error: {e:#}");
+                eprintln!("harrier tiles: error: {}", harrier_cli::error_message(&e));
                 ExitCode::from(2)
             }
         },
         Command::Sessions(args) => match harrier_tools::sessions::run(&args) {
             Ok(()) => ExitCode::SUCCESS,
             Err(e) => {
-                eprintln!("harrier sessions: error: {e:#}");
+                eprintln!(
+                    "harrier sessions: error: {}",
+                    harrier_cli::error_message(&e)
+                );
                 ExitCode::from(2)
             }
         },

@@ -608,3 +608,52 @@ fn a_generated_registration_scenario_replays_with_its_references() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("unknown case \"spline\""));
 }
+
+/// The errors a new user meets first say what to do, once: a taken port (named, with the hint
+/// that another `harrier demo` may hold it), a missing session file, `--port`.
+#[test]
+fn first_errors_say_what_to_do_once() {
+    let held = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let port = held.local_addr().unwrap().port();
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("serve.toml");
+    std::fs::write(
+        &config,
+        "[zenoh]\nlisten = [\"tcp/127.0.0.1:0\"]\n[mavlink]\ngcs = []\nrouter = []\n",
+    )
+    .unwrap();
+    let listen = format!("127.0.0.1:{port}");
+    let r = harrier(&[
+        "serve",
+        "--config",
+        config.to_str().unwrap(),
+        "--listen",
+        &listen,
+    ]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains(&listen), "{stderr}");
+    assert_eq!(
+        stderr.matches("Address already in use").count(),
+        1,
+        "{stderr}"
+    );
+    assert!(stderr.contains("another `harrier demo`"), "{stderr}");
+    drop(held);
+
+    let missing = dir.path().join("nope.sqlite");
+    let r = harrier(&["sessions", "list", missing.to_str().unwrap()]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("nope.sqlite: cannot open: no such file"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("Invalid path"), "{stderr}");
+
+    let r = harrier(&["demo", "--port", "8081"]);
+    let stderr = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("--listen 127.0.0.1:8081"), "{stderr}");
+    assert!(!stderr.contains("--cot"), "{stderr}");
+}

@@ -57,7 +57,17 @@ pub struct SessionInfo {
 /// Why a session file or session cannot be read or exported. Messages name the file and session.
 #[derive(Debug, thiserror::Error)]
 pub enum SessionError {
-    /// The file does not exist or SQLite cannot open it.
+    /// There is no such file.
+    #[error(
+        "{}: cannot open: no such file (a session file is what `harrier serve` records into with \
+         `[recorder] path`, or `harrier demo --record FILE`)",
+        path.display()
+    )]
+    Missing {
+        /// The file.
+        path: PathBuf,
+    },
+    /// SQLite cannot open the file.
     #[error("{}: cannot open: {source}", path.display())]
     Open {
         /// The file.
@@ -135,7 +145,9 @@ impl<'a> Db<'a> {
             source,
         };
         if !path.is_file() {
-            return Err(open(rusqlite::Error::InvalidPath(path.to_path_buf())));
+            return Err(SessionError::Missing {
+                path: path.to_path_buf(),
+            });
         }
         let conn = Connection::open_with_flags(
             path,

@@ -192,6 +192,8 @@ fn errors_name_the_file_the_session_and_the_row() {
     let missing = dir.path().join("missing.sqlite");
     let e = list(&missing).expect_err("missing");
     assert!(e.to_string().contains("missing.sqlite: cannot open"), "{e}");
+    assert!(e.to_string().contains("no such file"), "{e}");
+    assert!(!e.to_string().contains("Invalid path"), "{e}");
     let other = dir.path().join("other.sqlite");
     Connection::open(&other)
         .and_then(|c| c.execute_batch("CREATE TABLE t (x)"))
