@@ -30,7 +30,6 @@ import argparse
 import asyncio
 import json
 import math
-import socket
 import warnings
 
 with warnings.catch_warnings():
@@ -40,32 +39,12 @@ with warnings.catch_warnings():
     from mavsdk.geofence import Circle, FenceType, GeofenceData, Point, Polygon
     from mavsdk.mission import MissionItem, MissionPlan
 
-EARTH_RADIUS = 6_371_000.0
+# The helpers mavsdk_flight.py already has (as mavsdk_ardupilot.py takes them).
+from mavsdk_flight import EARTH_RADIUS, first, free_tcp_port
 
 
 def log(*args):
     print("mavsdk_examples:", *args, flush=True)
-
-
-def free_tcp_port():
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-async def first(stream, cond, what, timeout):
-    """The first item of an async stream satisfying `cond`, within `timeout` s."""
-
-    async def scan():
-        async for item in stream:
-            if cond(item):
-                return item
-        raise RuntimeError(f"stream ended before {what}")
-
-    try:
-        return await asyncio.wait_for(scan(), timeout)
-    except asyncio.TimeoutError:
-        raise TimeoutError(f"no {what} within {timeout} s") from None
 
 
 def offset(lat, lon, north, east):

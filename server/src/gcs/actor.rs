@@ -18,14 +18,14 @@ use tokio::sync::{broadcast, mpsc, oneshot, watch};
 use super::filter::{Direction, FilterSpec, FrameKey, RouterFilter};
 use super::handle::GcsLink;
 use super::messages::{
-    ClientCommand, CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent,
-    LinkEventKind, PUBLISH_HZ, Request, VehicleSample,
+    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
+    PUBLISH_HZ, Request, VehicleSample,
 };
 use super::metrics::LinkMetrics;
 use super::timesync;
 use super::tlog::Tlog;
 use super::transport::{self, EndpointHandle, Inbound, Outbound, Peer, stopped};
-use super::vehicle::{LinkState, VehicleLink};
+use super::vehicle::{ClientCommand, LinkState, VehicleLink};
 use crate::clock::unix_now;
 
 /// A command waiting for its ACK.

@@ -15,7 +15,7 @@ use tokio::sync::oneshot;
 use utoipa::ToSchema;
 
 use super::filter::FilterSpec;
-use super::vehicle::VehicleLinkView;
+use super::vehicle::{ClientCommand, VehicleLinkView};
 use crate::config::{Config, ConfigError};
 
 /// Settings of the link (the `[mavlink]` section, checked).
@@ -272,18 +272,6 @@ pub struct LinkEvent {
     /// What was seen, in words (`conflict`, `moved`: the addresses).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub detail: Option<String>,
-}
-
-/// A command a router client sent a vehicle, as the guidance reads it when the vehicle's mode
-/// changes.
-#[derive(Debug, Clone, PartialEq)]
-pub struct ClientCommand {
-    /// When it passed (s on the link's clock, as `VehicleStatus::at`).
-    pub at: f64,
-    /// What: the MAV_CMD's name, `SET_MODE`, or `RC override`.
-    pub command: String,
-    /// Who: the router endpoint and the client's address.
-    pub from: String,
 }
 
 /// What happened to a vehicle's link or flight state (a [`LinkEvent`]).

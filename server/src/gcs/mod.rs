@@ -57,7 +57,8 @@ mod messages;
 pub use self::actor::start;
 pub use self::handle::GcsLink;
 pub use self::messages::{
-    ClientCommand, CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent,
-    LinkEventKind, PUBLISH_HZ, Request, VehicleSample,
+    CommandError, CommandOutcome, CommandResult, GcsConfig, GcsError, LinkEvent, LinkEventKind,
+    PUBLISH_HZ, Request, VehicleSample,
 };
 pub use self::metrics::LinkMetrics;
+pub use self::vehicle::ClientCommand;

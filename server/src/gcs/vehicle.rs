@@ -17,7 +17,6 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::identity::{Identity, IdentityView};
-use super::messages::ClientCommand;
 use super::timesync::{Timesync, TimesyncView};
 use super::transport::Peer;
 
@@ -167,6 +166,18 @@ pub struct VehicleLinkView {
     /// Commands, mode requests and setpoints the ground station sent it (the guidance's and the
     /// API's; not its HEARTBEAT, TIMESYNC or what router clients send).
     pub commands_sent: u64,
+}
+
+/// A command a router client sent a vehicle, as the guidance reads it when the vehicle's mode
+/// changes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ClientCommand {
+    /// When it passed (s on the link's clock, as `VehicleStatus::at`).
+    pub at: f64,
+    /// What: the MAV_CMD's name, `SET_MODE`, or `RC override`.
+    pub command: String,
+    /// Who: the router endpoint and the client's address.
+    pub from: String,
 }
 
 /// What a vehicle's telemetry tells (see the module documentation).

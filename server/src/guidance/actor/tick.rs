@@ -63,6 +63,14 @@ impl<'a> Tick<'a> {
                 .map_or(Frame::Multirotor, |s| s.personality.frame);
             self.settings.limits(frame)
         };
+        // Where the safety envelope finds a vehicle outside the fence, once per tick.
+        let outside: Vec<Option<String>> = states
+            .iter()
+            .map(|s| {
+                s.as_ref()
+                    .and_then(|(u, _)| self.settings.envelope.outside(&u.position))
+            })
+            .collect();
         let ring = Ring::of(&states, &target, &a.plan);
         let flying = a.flying();
         let formation = (a.plan.law == Law::Formation).then(|| {
@@ -136,11 +144,10 @@ impl<'a> Tick<'a> {
                     );
                     out.safety_out(a.id, slot, why, true);
                 }
-                (Some((uav, _)), _) if self.settings.envelope.outside(&uav.position).is_some() => {
-                    let where_ = self.settings.envelope.outside(&uav.position);
+                (Some(_), _) if outside[i].is_some() => {
                     let why = format!(
                         "safety envelope: {}: sent to Hold",
-                        where_.unwrap_or_default()
+                        outside[i].as_deref().unwrap_or_default()
                     );
                     out.safety_out(a.id, slot, why, false);
                 }
